@@ -1,0 +1,172 @@
+"""Mesh adjacency in CSR arrays, built once and reused by every other module.
+
+``build_adjacency(faces, n_vertices)`` returns the unique edges with their face
+counts, vertex rings (vertex -> neighbours) and vertex-face incidence as CSR
+arrays, plus per-vertex flags: boundary, non-manifold (on an edge with more than
+two faces, on an edge whose two faces disagree on orientation, or a pinched
+vertex whose faces form several fans) and isolated (no face).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Adjacency:
+    """Connectivity of a triangle mesh; every array is plain numpy."""
+
+    n_vertices: int
+    faces: np.ndarray  # (m, 3) int64
+    edges: np.ndarray  # (e, 2) int64, unique, edges[:, 0] < edges[:, 1], sorted
+    edge_face_count: np.ndarray  # (e,) faces on each edge
+    ring_ptr: np.ndarray  # (n + 1,) CSR offsets into ring_idx
+    ring_idx: np.ndarray  # neighbours of each vertex, sorted ascending
+    vf_ptr: np.ndarray  # (n + 1,) CSR offsets into vf_idx
+    vf_idx: np.ndarray  # incident faces of each vertex, ascending
+    boundary_vertex: np.ndarray  # (n,) bool: on an edge with one face
+    nonmanifold_vertex: np.ndarray  # (n,) bool: see module docstring
+    isolated_vertex: np.ndarray  # (n,) bool: referenced by no face
+
+    @property
+    def valence(self) -> np.ndarray:
+        return np.diff(self.ring_ptr)
+
+    def ring(self, i: int) -> np.ndarray:
+        return self.ring_idx[self.ring_ptr[i] : self.ring_ptr[i + 1]]
+
+    def vertex_faces(self, i: int) -> np.ndarray:
+        return self.vf_idx[self.vf_ptr[i] : self.vf_ptr[i + 1]]
+
+    def ring_owner(self) -> np.ndarray:
+        """For each entry of ring_idx, the vertex whose ring it belongs to."""
+        return segment_owner(self.ring_ptr)
+
+    def edge_index(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Index into ``edges`` of the edges (a, b); -1 where there is no such edge."""
+        a = np.asarray(a, dtype=np.int64)
+        b = np.asarray(b, dtype=np.int64)
+        keys = np.minimum(a, b) * self.n_vertices + np.maximum(a, b)
+        ekeys = self.edges[:, 0] * self.n_vertices + self.edges[:, 1]
+        pos = np.searchsorted(ekeys, keys)
+        pos = np.minimum(pos, len(ekeys) - 1) if len(ekeys) else pos
+        found = (ekeys[pos] == keys) if len(ekeys) else np.zeros(keys.shape, bool)
+        return np.where(found, pos, -1)
+
+    @property
+    def manifold_interior(self) -> np.ndarray:
+        """Vertices with a full, clean fan of faces: not boundary, non-manifold or isolated."""
+        return ~(self.boundary_vertex | self.nonmanifold_vertex | self.isolated_vertex)
+
+
+def segment_owner(ptr: np.ndarray) -> np.ndarray:
+    """Owner index of every entry of a CSR array given its offsets."""
+    return np.repeat(np.arange(len(ptr) - 1, dtype=np.int64), np.diff(ptr))
+
+
+def csr_from_pairs(owner: np.ndarray, value: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR (ptr, idx) grouping ``value`` by ``owner``; a group keeps the input order."""
+    order = np.argsort(owner, kind="stable")
+    ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(owner, minlength=n), out=ptr[1:])
+    return ptr, np.ascontiguousarray(value[order])
+
+
+def segment_reduce(ptr: np.ndarray, values: np.ndarray, ufunc: np.ufunc, empty) -> np.ndarray:
+    """Apply ``ufunc.reduceat`` over CSR segments; empty segments get ``empty``."""
+    n = len(ptr) - 1
+    counts = np.diff(ptr)
+    out_shape = (n,) + values.shape[1:]
+    out = np.full(out_shape, empty, dtype=np.result_type(values, type(empty)))
+    nonempty = counts > 0
+    if values.shape[0] and nonempty.any():
+        out[nonempty] = ufunc.reduceat(values, ptr[:-1][nonempty], axis=0)
+    return out
+
+
+def build_adjacency(faces: np.ndarray, n_vertices: int) -> Adjacency:
+    """Build all adjacency of a triangle mesh in one vectorised pass."""
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    n = int(n_vertices)
+    m = len(faces)
+    he_from = faces.ravel()
+    he_to = faces[:, [1, 2, 0]].ravel()
+    lo = np.minimum(he_from, he_to)
+    hi = np.maximum(he_from, he_to)
+    keys = lo * n + hi
+    order = np.argsort(keys, kind="stable")
+    skeys = keys[order]
+    first = np.r_[True, skeys[1:] != skeys[:-1]] if len(skeys) else np.zeros(0, bool)
+    starts = np.flatnonzero(first)
+    counts = np.diff(np.r_[starts, len(skeys)])
+    he_edge = np.empty(len(keys), dtype=np.int64)
+    he_edge[order] = np.cumsum(first) - 1
+    ukeys = skeys[starts]
+    edges = np.stack([ukeys // n, ukeys % n], axis=1) if len(ukeys) else np.zeros((0, 2), np.int64)
+    forward = np.bincount(he_edge, weights=(he_from < he_to), minlength=len(ukeys))
+    boundary_edge = counts == 1
+    bad_edge = (counts > 2) | ((counts == 2) & (forward != 1))
+
+    # twin half-edge of every half-edge on a clean two-face edge, else -1
+    twin = np.full(len(keys), -1, dtype=np.int64)
+    pair_start = starts[(counts == 2) & ~bad_edge]
+    twin[order[pair_start]] = order[pair_start + 1]
+    twin[order[pair_start + 1]] = order[pair_start]
+
+    src = np.concatenate([edges[:, 0], edges[:, 1]])
+    dst = np.concatenate([edges[:, 1], edges[:, 0]])
+    ring_ptr, ring_idx = csr_from_pairs(src, dst, n)
+    corner_face = np.repeat(np.arange(m, dtype=np.int64), 3)
+    vf_ptr, vf_idx = csr_from_pairs(he_from, corner_face, n)
+
+    boundary = np.zeros(n, bool)
+    boundary[edges[boundary_edge].ravel()] = True
+    nonmanifold = np.zeros(n, bool)
+    nonmanifold[edges[bad_edge].ravel()] = True
+    nonmanifold |= _fan_count(he_from, twin, n) > 1
+    isolated = np.diff(vf_ptr) == 0
+    return Adjacency(
+        n_vertices=n,
+        faces=faces,
+        edges=edges,
+        edge_face_count=counts,
+        ring_ptr=ring_ptr,
+        ring_idx=ring_idx,
+        vf_ptr=vf_ptr,
+        vf_idx=vf_idx,
+        boundary_vertex=boundary,
+        nonmanifold_vertex=nonmanifold,
+        isolated_vertex=isolated,
+    )
+
+
+def _fan_count(he_from: np.ndarray, twin: np.ndarray, n: int) -> np.ndarray:
+    """Number of face fans around each vertex (more than one: a pinched vertex).
+
+    Corner c (the corner where half-edge c starts) is followed around its vertex by
+    the corner of the twin of the half-edge arriving at c. The fans are the orbits
+    of that map; their minimum corner is found by pointer doubling in both
+    directions, which also covers open fans (paths).
+    """
+    nc = len(he_from)
+    corner = np.arange(nc, dtype=np.int64)
+    prev_he = corner - corner % 3 + (corner + 2) % 3
+    step = twin[prev_he]
+    fwd = np.where(step >= 0, step, corner)
+    bwd = corner.copy()
+    has = step >= 0
+    bwd[step[has]] = corner[has]
+    lf = corner.copy()
+    lb = corner.copy()
+    for _ in range(40):
+        lf2 = np.minimum(lf, lf[fwd])
+        lb2 = np.minimum(lb, lb[bwd])
+        fwd = fwd[fwd]
+        bwd = bwd[bwd]
+        if np.array_equal(lf2, lf) and np.array_equal(lb2, lb):
+            break  # no window doubled its minimum: every orbit has converged
+        lf, lb = lf2, lb2
+    label = np.minimum(lf, lb)
+    return np.bincount(he_from[label == corner], minlength=n)
