@@ -3,15 +3,19 @@
 See docs/api.md for the public API. The package never imports bpy.
 """
 
-from .errors import KeyFileError, MeshError, OutputExistsError, PayloadError, PmwmError, PMFormatError
-
 __version__ = "0.1.0"
 
+from .errors import KeyFileError, MeshError, OutputExistsError, PayloadError, PmwmError, PMFormatError
+from .key import WatermarkKey, read_key, write_key
+from .meshio import SourceMesh, read_mesh, write_marked, write_mesh
+from .pmfile import read_pm, write_pm
+from .progressive import ProgressiveMesh, build_progressive_mesh
+from .watermark import EmbedOptions, EmbedResult, Verdict, ber_per_level, embed, verify, verify_pm
+
 __all__ = [
-    "PmwmError",
-    "MeshError",
-    "PMFormatError",
-    "KeyFileError",
-    "PayloadError",
-    "OutputExistsError",
+    "PmwmError", "MeshError", "PMFormatError", "KeyFileError", "PayloadError", "OutputExistsError",
+    "WatermarkKey", "read_key", "write_key",
+    "SourceMesh", "read_mesh", "write_mesh", "write_marked",
+    "ProgressiveMesh", "build_progressive_mesh", "read_pm", "write_pm",
+    "EmbedOptions", "EmbedResult", "Verdict", "embed", "verify", "verify_pm", "ber_per_level",
 ]

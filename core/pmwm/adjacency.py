@@ -23,7 +23,8 @@ class Adjacency:
     edges: np.ndarray  # (e, 2) int64, unique, edges[:, 0] < edges[:, 1], sorted
     edge_face_count: np.ndarray  # (e,) faces on each edge
     ring_ptr: np.ndarray  # (n + 1,) CSR offsets into ring_idx
-    ring_idx: np.ndarray  # neighbours of each vertex, sorted ascending
+    ring_idx: np.ndarray  # neighbours of each vertex (ascending for the lower half, then ascending)
+    ring_edge: np.ndarray  # index into ``edges`` of each ring entry
     vf_ptr: np.ndarray  # (n + 1,) CSR offsets into vf_idx
     vf_idx: np.ndarray  # incident faces of each vertex, ascending
     boundary_vertex: np.ndarray  # (n,) bool: on an edge with one face
@@ -86,8 +87,12 @@ def segment_reduce(ptr: np.ndarray, values: np.ndarray, ufunc: np.ufunc, empty) 
     return out
 
 
-def build_adjacency(faces: np.ndarray, n_vertices: int) -> Adjacency:
-    """Build all adjacency of a triangle mesh in one vectorised pass."""
+def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = True) -> Adjacency:
+    """Build all adjacency of a triangle mesh in one vectorised pass.
+
+    ``detect_pinches=False`` skips the fan count (pinched vertices are then not
+    flagged); the progressive-mesh encoder uses it on meshes it keeps manifold.
+    """
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     n = int(n_vertices)
     m = len(faces)
@@ -117,7 +122,11 @@ def build_adjacency(faces: np.ndarray, n_vertices: int) -> Adjacency:
 
     src = np.concatenate([edges[:, 0], edges[:, 1]])
     dst = np.concatenate([edges[:, 1], edges[:, 0]])
-    ring_ptr, ring_idx = csr_from_pairs(src, dst, n)
+    ring_order = np.argsort(src, kind="stable")
+    ring_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(src, minlength=n), out=ring_ptr[1:])
+    ring_idx = dst[ring_order]
+    ring_edge = ring_order % max(len(edges), 1)
     corner_face = np.repeat(np.arange(m, dtype=np.int64), 3)
     vf_ptr, vf_idx = csr_from_pairs(he_from, corner_face, n)
 
@@ -125,7 +134,8 @@ def build_adjacency(faces: np.ndarray, n_vertices: int) -> Adjacency:
     boundary[edges[boundary_edge].ravel()] = True
     nonmanifold = np.zeros(n, bool)
     nonmanifold[edges[bad_edge].ravel()] = True
-    nonmanifold |= _fan_count(he_from, twin, n) > 1
+    if detect_pinches:
+        nonmanifold |= _fan_count(he_from, twin, n) > 1
     isolated = np.diff(vf_ptr) == 0
     return Adjacency(
         n_vertices=n,
@@ -134,6 +144,7 @@ def build_adjacency(faces: np.ndarray, n_vertices: int) -> Adjacency:
         edge_face_count=counts,
         ring_ptr=ring_ptr,
         ring_idx=ring_idx,
+        ring_edge=ring_edge,
         vf_ptr=vf_ptr,
         vf_idx=vf_idx,
         boundary_vertex=boundary,

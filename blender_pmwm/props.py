@@ -1,0 +1,134 @@
+"""Properties: watermark options on the Scene, the progressive-mesh LoD slider on the Object.
+
+Nothing of the key is stored here: only the key file *path*, the options and the last verdict.
+"""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.types import PropertyGroup
+
+from . import meshdata, session
+
+
+def records_at_level(pm, level: int) -> int:
+    """Vertex splits applied at a LoD level: 0 is the base mesh, len(pm.level_records) the full mesh."""
+    return 0 if level <= 0 else int(pm.level_records[min(level, len(pm.level_records)) - 1])
+
+
+def _show_carriers_update(self, context) -> None:
+    # On: mark the carriers of the active object's last watermark. Off: remove every such group.
+    if self.show_carriers:
+        ob = context.active_object
+        marked = session.lookup(ob) if ob is not None and ob.type == "MESH" else None
+        if marked is not None and ob.mode == "OBJECT":
+            meshdata.mark_carriers(ob, marked.carriers)
+            print("pmwm: WARNING: the 'pmwm_carriers' vertex group reveals the carriers; "
+                  "turn 'Show carriers' off before sharing the .blend")
+    else:
+        for ob in bpy.data.objects:
+            if ob.type == "MESH" and ob.mode == "OBJECT":
+                meshdata.clear_carriers(ob)
+
+
+def _lod_update(self, context) -> None:
+    # Decode the stored .pmwm at the slider's level and replace the mesh data in place.
+    if not self.pm_path:
+        return
+    if self.level > self.n_levels:
+        self.level = self.n_levels  # re-enters this callback once with a valid level
+        return
+    ob = self.id_data
+    if ob.type != "MESH" or ob.mode != "OBJECT":
+        self.status = "leave Edit Mode to change the level of detail"
+        return
+    try:
+        pm = session.load_pm(bpy.path.abspath(self.pm_path))
+        V, F = pm.decode(records=records_at_level(pm, self.level))
+    except Exception as exc:  # an update callback cannot report: show it in the panel
+        self.status = f"cannot read {self.pm_path}: {exc}"
+        print(f"pmwm: {self.status}")
+        return
+    meshdata.set_geometry(ob.data, V, F)
+    self.status = ""
+
+
+class PMWM_SceneSettings(PropertyGroup):
+    """Options of the Watermark panel (scene.pmwm) and the last verdict."""
+
+    payload: StringProperty(
+        name="Payload",
+        description="Text to embed (UTF-8), e.g. an owner id; empty embeds 64 random bits from the seed",
+        default="",
+    )
+    key_path: StringProperty(
+        name="Key File",
+        description="JSON key file written by Watermark and read by Verify. Keep it secret",
+        subtype="FILE_PATH",
+        default="",
+    )
+    strength: FloatProperty(
+        name="Strength",
+        description="Carrier displacement in neighbour standard deviations (the paper's factor 2)",
+        default=2.0, min=0.01, max=100.0, soft_min=0.5, soft_max=5.0,
+    )
+    base_ratio: FloatProperty(
+        name="Base Ratio",
+        description="Vertices of the progressive mesh's base mesh as a fraction of the input",
+        default=0.03, min=0.0001, max=1.0, soft_max=0.5, precision=3,
+    )
+    seed: IntProperty(
+        name="Seed",
+        description="Secret seed for the carrier choice; -1 draws a fresh random one (recorded in the key)",
+        default=-1, min=-1,
+    )
+    overwrite_key: BoolProperty(
+        name="Overwrite Key",
+        description="Replace an existing key file (the old key can no longer verify anything marked with it)",
+        default=False,
+    )
+    show_carriers: BoolProperty(
+        name="Show Carriers",
+        description="Mark the carriers of the active object in a temporary vertex group 'pmwm_carriers'. "
+                    "A .blend saved with it on reveals them",
+        default=False,
+        update=_show_carriers_update,
+    )
+    # Last verdict (display only).
+    verdict_object: StringProperty(name="Verified Object", default="")
+    verdict_marked: BoolProperty(name="Marked", default=False)
+    verdict_p_value: StringProperty(name="p-value", default="")
+    verdict_payload: StringProperty(name="Payload Found", default="")
+    verdict_matches: StringProperty(name="Matching Bits", default="")
+
+
+class PMWM_ObjectLoD(PropertyGroup):
+    """Level-of-detail slider of an object imported from a .pmwm progressive mesh (object.pmwm_lod)."""
+
+    pm_path: StringProperty(name="Progressive Mesh", subtype="FILE_PATH", default="")
+    n_levels: IntProperty(name="Levels", default=0, min=0)
+    level: IntProperty(
+        name="Level of Detail",
+        description="0 is the base mesh, the highest level the full mesh: refines or coarsens in place",
+        default=0, min=0,
+        update=_lod_update,
+    )
+    status: StringProperty(name="Status", default="")
+
+
+classes = (PMWM_SceneSettings, PMWM_ObjectLoD)
+
+
+def register() -> None:
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.pmwm = PointerProperty(type=PMWM_SceneSettings)
+    bpy.types.Object.pmwm_lod = PointerProperty(type=PMWM_ObjectLoD)
+
+
+def unregister() -> None:
+    del bpy.types.Object.pmwm_lod
+    del bpy.types.Scene.pmwm
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,104 @@
+"""Key-seeded choice of watermark carriers, spread over the surface (paper section 4.1).
+
+Candidates are the vertices the SOM calls suitable (neither flat nor peak) that sit
+inside a clean manifold fan with valence >= 4 (after Alg. 1 collapses the first
+neighbour the carrier keeps >= 3 neighbours for a meaningful mean and std).
+Carriers are picked by jittered farthest-point sampling in 3-D: start at a seeded
+random candidate, then repeatedly take the remaining candidate that maximises
+(distance to the nearest chosen carrier) x (its jitter weight in [0.75, 1]). The
+jitter weight is drawn once per candidate from the seed, so a different key gives a
+different set that is still spread out. Hard rule: no two carriers within graph
+distance 2 (their closed 1-rings are disjoint, so their collapses are independent):
+picking c removes c's 2-ring from the candidates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .adjacency import Adjacency
+from .errors import PayloadError
+from .features import smoothness_feature
+from .som import SUITABLE, classify_smoothness
+
+JITTER_MIN = 0.75
+
+
+def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int) -> np.ndarray:
+    """Bool mask (n,): SOM-suitable, manifold interior, valence >= 4.
+
+    The SOM is trained on the manifold-interior vertices only: boundary fans are
+    half-fans and isolated vertices have no feature, both would skew the clusters.
+    """
+    ok = adj.manifold_interior & (adj.valence >= 4)
+    mask = np.zeros(adj.n_vertices, dtype=bool)
+    idx = np.flatnonzero(adj.manifold_interior)
+    if len(idx) == 0:
+        return mask
+    feats = smoothness_feature(vertices, adj)[idx]
+    labels = classify_smoothness(feats, seed=seed)
+    mask[idx] = labels == SUITABLE
+    return mask & ok
+
+
+def _gather(ptr: np.ndarray, idx: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Concatenated CSR segments of ``rows`` (index arithmetic, no loop)."""
+    starts = ptr[rows]
+    lens = ptr[rows + 1] - starts
+    total = int(lens.sum())
+    if total == 0:
+        return np.zeros(0, dtype=idx.dtype)
+    offs = np.repeat(starts - np.cumsum(np.r_[0, lens[:-1]]), lens)
+    return idx[offs + np.arange(total)]
+
+
+def two_ring(adj: Adjacency, c: int) -> np.ndarray:
+    """Vertices within graph distance 2 of c, c included (may repeat)."""
+    ring = _gather(adj.ring_ptr, adj.ring_idx, np.array([c], dtype=np.int64))
+    return np.concatenate([[c], ring, _gather(adj.ring_ptr, adj.ring_idx, ring)])
+
+
+def select_carriers(
+    vertices: np.ndarray, adj: Adjacency, eligible: np.ndarray, n: int, seed: int
+) -> np.ndarray:
+    """Pick n carrier vertex indices (n,) int64, in pick order, from the ``eligible`` mask.
+
+    Boundary, non-manifold and isolated vertices are never picked, whatever the mask
+    says. Raises PayloadError when the mesh cannot hold n carriers under the 2-ring rule.
+    """
+    n = int(n)
+    v = np.asarray(vertices, dtype=np.float64)
+    eligible = np.asarray(eligible, dtype=bool) & adj.manifold_interior
+    if n < 0:
+        raise ValueError("n must be non-negative")
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    cand = np.flatnonzero(eligible)
+    rng = np.random.default_rng(seed)
+    local = np.full(adj.n_vertices, -1, dtype=np.int64)
+    local[cand] = np.arange(len(cand))
+    pos = v[cand]
+    jitter = rng.uniform(JITTER_MIN, 1.0, size=len(cand))
+    alive = np.ones(len(cand), dtype=bool)
+    dist = np.full(len(cand), np.inf)
+    chosen: list[int] = []
+    pick = int(rng.integers(len(cand))) if len(cand) else -1
+    while pick >= 0:
+        c = int(cand[pick])
+        chosen.append(c)
+        if len(chosen) == n:
+            break
+        blocked = local[two_ring(adj, c)]
+        alive[blocked[blocked >= 0]] = False
+        d = pos - pos[pick]
+        np.minimum(dist, np.sqrt(np.einsum("ij,ij->i", d, d)), out=dist)
+        if not alive.any():
+            break
+        score = np.where(alive, dist * jitter, -np.inf)
+        pick = int(np.argmax(score))
+    if len(chosen) < n:
+        raise PayloadError(
+            f"only {len(chosen)} vertices of this mesh can carry a bit, {n} requested; "
+            "use fewer bits (--bits/--payload) or a denser mesh"
+        )
+    return np.asarray(chosen, dtype=np.int64)

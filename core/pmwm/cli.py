@@ -1,0 +1,339 @@
+"""The ``pmwm`` command line: embed, verify, decode, info, attack, demo, bench.
+
+Exit codes follow grep: 0 success (verify: marked), 1 verify: not marked, 2 error.
+Errors are one line on stderr, never a traceback; nothing existing is overwritten
+without ``--force`` and an input is never overwritten at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import json
+import os
+import sys
+import time
+from importlib import resources
+from typing import Optional, Sequence
+
+
+from . import __version__
+from .errors import OutputExistsError, PmwmError
+from .key import read_key, write_key
+from .meshio import SUPPORTED_EXTENSIONS, atomic_write_bytes, read_mesh, write_marked, write_mesh
+from .pmfile import read_pm, record_size, write_pm
+from .watermark import EmbedOptions, Verdict, embed, verify, verify_pm
+
+EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
+
+
+class UsageError(PmwmError):
+    """Bad command-line arguments."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, exit 2, like every other error
+        raise UsageError(f"{message} (see 'pmwm {self.prog.split()[-1]} --help')" if " " in self.prog else message)
+
+
+def _progress(quiet: bool):
+    if quiet or not sys.stderr.isatty():
+        return None
+    last = [-1]
+
+    def show(fraction: float, message: str) -> None:
+        pct = int(fraction * 100)
+        if pct != last[0]:
+            last[0] = pct
+            print(f"\r{pct:3d}% {message[:60]:<60}", end="", file=sys.stderr, flush=True)
+            if fraction >= 1:
+                print(file=sys.stderr)
+
+    return show
+
+
+def _check_outputs(outputs: Sequence[Optional[str]], inputs: Sequence[str], force: bool) -> None:
+    """Refuse before any work: an output that is an input, exists, or has no folder."""
+    real_inputs = {os.path.realpath(p) for p in inputs}
+    seen = set()
+    for out in outputs:
+        if out is None:
+            continue
+        real = os.path.realpath(out)
+        if real in real_inputs:
+            raise UsageError(f"{out} is also an input; pmwm never overwrites its input, choose another name")
+        if real in seen:
+            raise UsageError(f"{out} is named twice as an output")
+        seen.add(real)
+        folder = os.path.dirname(os.path.abspath(out))
+        if not os.path.isdir(folder):
+            raise UsageError(f"the folder of {out} does not exist; create it first")
+        if os.path.isdir(out):
+            raise UsageError(f"{out} is a directory; give a file name")
+        if os.path.exists(out) and not force:
+            raise OutputExistsError(f"{out} exists; pass --force to overwrite it")
+
+
+def _mesh_ext(path: str, what: str) -> None:
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in SUPPORTED_EXTENSIONS:
+        raise UsageError(f"{what} {path} has an unsupported extension; use one of {', '.join(SUPPORTED_EXTENSIONS)}")
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def cmd_embed(a) -> int:
+    _mesh_ext(a.output, "output")
+    _check_outputs([a.output, a.key, a.pm], [a.input], a.force)
+    src = read_mesh(a.input)
+    opts = EmbedOptions(payload=a.payload, bits=a.bits, n_bits=a.n_bits, strength=a.strength,
+                        base_ratio=a.base_ratio, seed=a.seed)
+    res = embed(src.vertices, src.faces, opts, progress=_progress(a.quiet))
+    written: list[str] = []
+    try:
+        write_key(a.key, res.key, overwrite=a.force)
+        written.append(a.key)
+        if a.pm:
+            write_pm(a.pm, res.pm, force=a.force)
+            written.append(a.pm)
+        write_marked(a.output, src, res.vertices, force=a.force)
+        written.append(a.output)
+    except BaseException:
+        for path in written:  # all or nothing: no key without its mesh
+            try:
+                os.remove(path)
+            except OSError:
+                pass
+        raise
+    if not a.quiet:
+        for w in src.warnings:
+            print(f"warning: {w}", file=sys.stderr)
+        print(f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
+              f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}")
+        print(f"key -> {a.key} (keep it secret: it reveals where the mark is)")
+        if a.pm:
+            print(f"progressive mesh -> {a.pm} ({res.pm.n_base_vertices} base vertices, "
+                  f"{res.pm.n_records} records, {len(res.pm.level_records)} levels)")
+    return EXIT_OK
+
+
+def _print_verdict(v: Verdict, as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(v.to_dict()))
+        return
+    state = "MARKED" if v.marked else "not marked"
+    print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "
+          f"(threshold {v.p_threshold:g}), correlation {v.correlation:.3f}, "
+          f"{v.carriers_found}/{v.carriers_total} carriers found by {v.mode}")
+    if v.payload is not None:
+        print(f"payload: {v.payload!r}")
+
+
+def cmd_verify(a) -> int:
+    key = read_key(a.key)
+    if a.suspect.lower().endswith(".pmwm"):
+        pm = read_pm(a.suspect)
+        records = pm.records_for_vertices(a.vertices) if a.vertices is not None else a.level
+        v = verify_pm(pm, key, records=records, p_threshold=a.p_threshold)
+    else:
+        if a.level is not None or a.vertices is not None:
+            raise UsageError("--level/--vertices apply to a .pmwm progressive mesh only")
+        src = read_mesh(a.suspect)
+        v = verify(src.vertices, src.faces, key, p_threshold=a.p_threshold)
+    _print_verdict(v, a.json)
+    return EXIT_OK if v.marked else EXIT_NOT_MARKED
+
+
+def cmd_decode(a) -> int:
+    _mesh_ext(a.output, "output")
+    _check_outputs([a.output], [a.input], a.force)
+    pm = read_pm(a.input)
+    if a.level is not None and a.level < 0:
+        raise UsageError("--level must be 0 or more")
+    V, F = pm.decode(records=a.level, vertices=a.vertices)
+    write_mesh(a.output, V, F, force=a.force)
+    if not a.quiet:
+        print(f"{a.output}: {len(V)} vertices, {len(F)} faces")
+    return EXIT_OK
+
+
+def cmd_info(a) -> int:
+    pm = read_pm(a.input)
+    size = os.path.getsize(a.input)
+    info = {
+        "file": a.input,
+        "bytes": size,
+        "base_vertices": pm.n_base_vertices,
+        "base_faces": len(pm.base_faces),
+        "records": pm.n_records,
+        "levels": len(pm.level_records),
+        "full_vertices": pm.n_vertices,
+        "full_faces": pm.n_faces,
+        "position_precision": "float32" if pm.float32 else "float64",
+        "bytes_per_record": record_size(not pm.float32),
+        "level_vertices": (pm.n_base_vertices + pm.level_records).tolist(),
+    }
+    if a.json:
+        print(json.dumps(info))
+    else:
+        for k, v in info.items():
+            print(f"{k}: {v}")
+    return EXIT_OK
+
+
+def cmd_attack(a) -> int:
+    from .attacks import ATTACKS
+
+    _mesh_ext(a.output, "output")
+    _check_outputs([a.output], [a.input], a.force)
+    fn = ATTACKS[a.kind]
+    params = {name: getattr(a, name) for name in _attack_params(fn) if getattr(a, name) is not None}
+    src = read_mesh(a.input)
+    V, F = fn(src.vertices, src.faces, **params)
+    write_mesh(a.output, V, F, force=a.force)
+    if not a.quiet:
+        print(f"{a.kind} -> {a.output}: {len(V)} vertices, {len(F)} faces")
+    return EXIT_OK
+
+
+def cmd_demo(a) -> int:
+    out = a.dir
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise UsageError(f"{out} exists and is not a folder")
+    os.makedirs(out, exist_ok=True)
+    names = {k: os.path.join(out, v) for k, v in
+             dict(mesh="bunny_marked.ply", pm="bunny.pmwm", key="bunny.key.json", report="verify.json").items()}
+    _check_outputs(list(names.values()), [], a.force)
+    sample = resources.files("pmwm") / "data" / "bunny.off"
+    with resources.as_file(sample) as path:
+        t0 = time.perf_counter()
+        src = read_mesh(str(path))
+        res = embed(src.vertices, src.faces, EmbedOptions(payload=a.payload, seed=a.seed), progress=_progress(False))
+        t_embed = time.perf_counter() - t0
+    write_key(names["key"], res.key, overwrite=a.force)
+    write_pm(names["pm"], res.pm, force=a.force)
+    write_marked(names["mesh"], src, res.vertices, force=a.force)
+    check = read_mesh(names["mesh"])
+    v = verify(check.vertices, check.faces, read_key(names["key"]))
+    atomic_write_bytes(names["report"], (json.dumps(v.to_dict(), indent=1) + "\n").encode(), force=a.force)
+    print(f"sample: the Stanford Bunny ({len(src.vertices)} vertices; Stanford Computer Graphics Laboratory)")
+    print(f"embedded {len(res.bits)} bits in {t_embed:.2f} s, VSNR {res.vsnr_db:.1f} dB; wrote {out}/: "
+          + ", ".join(os.path.basename(p) for p in names.values()))
+    _print_verdict(v, False)
+    return EXIT_OK if v.marked else EXIT_NOT_MARKED
+
+
+def cmd_bench(a) -> int:
+    from .bench import run_bench
+
+    run_bench(quick=a.quick, out=a.output, keys=a.keys)
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def _attack_params(fn) -> list[str]:
+    skip = {"vertices", "faces", "v", "f"}
+    return [p for p in inspect.signature(fn).parameters if p not in skip]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="pmwm", description="Blind, robust 3D mesh watermarking carried by a progressive mesh.")
+    p.add_argument("--version", action="version", version=f"pmwm {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    e = sub.add_parser("embed", help="watermark a mesh")
+    e.add_argument("input")
+    e.add_argument("-o", "--output", required=True, help="marked mesh (OBJ, PLY, STL, OFF, GLB)")
+    e.add_argument("--key", required=True, help="key file to write (JSON; keep it secret)")
+    e.add_argument("--pm", help="also write the progressive mesh (.pmwm)")
+    g = e.add_mutually_exclusive_group()
+    g.add_argument("--payload", help="text payload (UTF-8)")
+    g.add_argument("--bits", help="payload bits, e.g. 0110...")
+    e.add_argument("--n-bits", type=int, default=64, help="random payload length without --payload/--bits")
+    e.add_argument("--seed", type=int, help="seed of every random choice (default: a fresh secret)")
+    e.add_argument("--strength", type=float, default=2.0)
+    e.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
+    e.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    e.add_argument("-q", "--quiet", action="store_true")
+    e.set_defaults(func=cmd_embed)
+
+    v = sub.add_parser("verify", help="check a suspect mesh or .pmwm for the mark")
+    v.add_argument("suspect")
+    v.add_argument("--key", required=True)
+    v.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    v.add_argument("--level", type=int, help="(.pmwm) records to apply")
+    v.add_argument("--vertices", type=int, help="(.pmwm) level of detail by vertex count")
+    v.add_argument("--p-threshold", type=float, default=1e-6)
+    v.set_defaults(func=cmd_verify)
+
+    d = sub.add_parser("decode", help="write a level of detail of a .pmwm as a mesh")
+    d.add_argument("input")
+    d.add_argument("-o", "--output", required=True)
+    lv = d.add_mutually_exclusive_group()
+    lv.add_argument("--level", type=int, help="number of vertex-split records to apply")
+    lv.add_argument("--vertices", type=int, help="vertex count of the level of detail")
+    d.add_argument("--force", action="store_true")
+    d.add_argument("-q", "--quiet", action="store_true")
+    d.set_defaults(func=cmd_decode)
+
+    i = sub.add_parser("info", help="describe a .pmwm file")
+    i.add_argument("input")
+    i.add_argument("--json", action="store_true")
+    i.set_defaults(func=cmd_info)
+
+    at = sub.add_parser("attack", help="apply an attack of the evaluation protocols")
+    atk = at.add_subparsers(dest="kind", required=True, parser_class=_Parser)
+    try:
+        from .attacks import ATTACKS
+    except ImportError:  # pragma: no cover - attacks always ship with pmwm
+        ATTACKS = {}
+    for name, fn in ATTACKS.items():
+        ap = atk.add_parser(name, help=(fn.__doc__ or "").strip().splitlines()[0] if fn.__doc__ else None)
+        ap.add_argument("input")
+        ap.add_argument("-o", "--output", required=True)
+        for pname in _attack_params(fn):
+            default = inspect.signature(fn).parameters[pname].default
+            typ = type(default) if isinstance(default, (int, float, str)) and not isinstance(default, bool) else None
+            if pname == "seed":
+                typ = int
+            ap.add_argument(f"--{pname.replace('_', '-')}", dest=pname, type=typ or str,
+                            help=f"default {default!r}")
+        ap.add_argument("--force", action="store_true")
+        ap.add_argument("-q", "--quiet", action="store_true")
+        ap.set_defaults(func=cmd_attack)
+
+    dm = sub.add_parser("demo", help="the whole job on the bundled sample mesh")
+    dm.add_argument("dir", nargs="?", default="pmwm-demo")
+    dm.add_argument("--payload", default="pmwm demo")
+    dm.add_argument("--seed", type=int, default=2026)
+    dm.add_argument("--force", action="store_true")
+    dm.set_defaults(func=cmd_demo)
+
+    b = sub.add_parser("bench", help="run the robustness benchmark and write BENCHMARKS.md tables")
+    b.add_argument("--quick", action="store_true", help="one model, fewer settings (CI)")
+    b.add_argument("--keys", type=int, default=10)
+    b.add_argument("-o", "--output", default="BENCHMARKS-robustness.md")
+    b.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return args.func(args)
+    except PmwmError as exc:
+        print(f"pmwm: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("pmwm: interrupted", file=sys.stderr)
+        return EXIT_ERROR
+    except MemoryError:
+        print("pmwm: error: out of memory; try a smaller mesh", file=sys.stderr)
+        return EXIT_ERROR
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,80 @@
+"""Per-vertex smoothness feature of the paper (section 4.1), vectorised over CSR arrays.
+
+For a vertex with 1-ring faces f_1..f_m, with unit face normals n_i and their
+average n̄, the feature is the set of angles θ_i = arccos(n_i · n̄): all ≈ 0 on a
+flat patch, large on peaks and creases.
+
+Choices the paper leaves open:
+
+- n̄ is the **area-weighted** mean (the sum of the faces' unnormalised cross
+  products, then normalised), so sliver triangles do not swing it.
+- Degenerate (zero-area) faces have no normal and are left out of their
+  vertices' angle lists.
+- Fixed length for the SOM: a vertex's angles are sorted ascending and resampled
+  by linear interpolation at k evenly spaced positions from the smallest to the
+  largest; a valence-6 interior vertex (six faces, k = 6) gives its six angles
+  exactly, as in the paper's source. A vertex with no (non-degenerate) face gets
+  zeros; a vertex whose normals cancel out (n̄ = 0) gets angles of π/2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .adjacency import Adjacency, segment_owner
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    norm = np.linalg.norm(cross, axis=1)
+    safe = np.where(norm > 0, norm, 1.0)
+    return cross / safe[:, None], 0.5 * norm
+
+
+def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6) -> np.ndarray:
+    """Sorted 1-ring normal angles (radians) resampled to k values: (n, k) float64."""
+    if k < 1:
+        raise ValueError("k must be at least 1")
+    n = adj.n_vertices
+    normals, areas = face_normals(vertices, adj.faces)
+    owner = segment_owner(adj.vf_ptr)
+    face = adj.vf_idx
+    keep = areas[face] > 0
+    owner, face = owner[keep], face[keep]
+    counts = np.bincount(owner, minlength=n)
+
+    # area-weighted mean normal per vertex = normalised sum of the cross products
+    weighted = normals[face] * areas[face, None]
+    mean = np.zeros((n, 3))
+    for axis in range(3):  # 3 bincounts: no per-vertex loop
+        mean[:, axis] = np.bincount(owner, weights=weighted[:, axis], minlength=n)
+    mnorm = np.linalg.norm(mean, axis=1)
+    mean /= np.where(mnorm > 0, mnorm, 1.0)[:, None]
+    cosine = np.einsum("ij,ij->i", normals[face], mean[owner])
+    angle = np.arccos(np.clip(cosine, -1.0, 1.0))
+
+    # sort within segments by one argsort of owner * 4 + angle (angle < 4): the same
+    # order as lexsort((angle, owner)) up to ~1e-9 rad ties, and 7x faster
+    order = np.argsort(owner * 4.0 + angle, kind="stable")
+    angle = angle[order]
+    ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=ptr[1:])
+
+    # resample: position t_j = j (m - 1) / (k - 1) in each vertex's sorted list
+    out = np.zeros((n, k))
+    has = counts > 0
+    m = counts[has][:, None]
+    start = ptr[:-1][has]
+    # exact integer arithmetic: t_j = j (m - 1) / (k - 1) = lo + w
+    den = max(k - 1, 1)
+    num = (m - 1) * np.arange(k, dtype=np.int64)[None, :]
+    lo = num // den
+    w = (num % den) / den
+    hi = np.minimum(lo + 1, m - 1)
+    a_lo = angle[start[:, None] + lo]
+    a_hi = angle[start[:, None] + hi]
+    out[has] = a_lo * (1.0 - w) + a_hi * w
+    return out

@@ -1,0 +1,168 @@
+"""The watermark key: everything extraction needs, as a versioned JSON file.
+
+The key is a secret. It holds the secret from which every random choice derives
+(carrier choice, the keyed bit scrambling), the payload bits, and the carriers:
+their index in the marked mesh, their index in the progressive mesh and their
+marked position (for re-synchronising a re-ordered or cropped copy). Whoever
+holds it can read the mark, and could locate and erase it; it does not let anyone
+mark another mesh in your name without your mesh, and it is never stored in the
+marked mesh, the .pmwm file or the .blend.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from .errors import KeyFileError
+from .meshio import atomic_write_bytes
+
+KEY_FORMAT = "pmwm-key"
+KEY_VERSION = 1
+
+
+@dataclass
+class WatermarkKey:
+    """What verification needs; see the module docstring for what it reveals."""
+
+    secret: str  # 64 hex digits
+    bits: np.ndarray  # (k,) uint8 payload bits
+    payload_kind: str  # "text" | "bits" | "random"
+    strength: float
+    carrier_index: np.ndarray  # (k,) int64 index in the marked mesh (input order)
+    carrier_pm_index: np.ndarray  # (k,) int64 index in the progressive mesh order
+    carrier_position: np.ndarray  # (k, 3) float64 marked position
+    n_vertices: int
+    n_faces: int
+    mean_edge: float  # mean edge length of the marked mesh (position tolerance scale)
+    bbox_diagonal: float
+    scheme: str = "paper"
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def n_bits(self) -> int:
+        return len(self.bits)
+
+    def stream(self, label: str, n: int) -> np.ndarray:
+        """A keyed pseudo-random bit sequence (uint8) for one purpose."""
+        return np.random.default_rng(derive_seed(self.secret, label)).integers(0, 2, n).astype(np.uint8)
+
+    def to_json(self) -> str:
+        doc = {
+            "format": KEY_FORMAT,
+            "version": KEY_VERSION,
+            "scheme": self.scheme,
+            "secret": self.secret,
+            "payload_kind": self.payload_kind,
+            "bits": "".join(map(str, self.bits.tolist())),
+            "strength": self.strength,
+            "mesh": {
+                "n_vertices": self.n_vertices,
+                "n_faces": self.n_faces,
+                "mean_edge": self.mean_edge,
+                "bbox_diagonal": self.bbox_diagonal,
+            },
+            "carriers": [
+                [int(i), int(j), *map(float, p)]
+                for i, j, p in zip(self.carrier_index, self.carrier_pm_index, self.carrier_position)
+            ],
+            "extra": self.extra,
+        }
+        return json.dumps(doc, indent=1) + "\n"
+
+    @classmethod
+    def from_json(cls, text: str, name: str = "the key") -> "WatermarkKey":
+        try:
+            doc = json.loads(text)
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise KeyFileError(f"{name} is not a pmwm key (not JSON: {exc.msg if hasattr(exc, 'msg') else exc})") from None
+        if not isinstance(doc, dict) or doc.get("format") != KEY_FORMAT:
+            raise KeyFileError(f"{name} is not a pmwm key file (no \"format\": \"{KEY_FORMAT}\")")
+        version = doc.get("version")
+        if not isinstance(version, int) or version > KEY_VERSION or version < 1:
+            raise KeyFileError(f"{name} is key version {version}; this pmwm reads version {KEY_VERSION}: upgrade pmwm")
+        try:
+            mesh = doc["mesh"]
+            bits = np.array([int(c) for c in doc["bits"]], dtype=np.uint8)
+            car = np.asarray(doc["carriers"], dtype=np.float64).reshape(-1, 5)
+            key = cls(
+                secret=str(doc["secret"]),
+                bits=bits,
+                payload_kind=str(doc["payload_kind"]),
+                strength=float(doc["strength"]),
+                carrier_index=car[:, 0].astype(np.int64),
+                carrier_pm_index=car[:, 1].astype(np.int64),
+                carrier_position=car[:, 2:5].copy(),
+                n_vertices=int(mesh["n_vertices"]),
+                n_faces=int(mesh["n_faces"]),
+                mean_edge=float(mesh["mean_edge"]),
+                bbox_diagonal=float(mesh["bbox_diagonal"]),
+                scheme=str(doc.get("scheme", "paper")),
+                extra=dict(doc.get("extra", {})),
+            )
+        except KeyError as exc:
+            raise KeyFileError(f"{name} lacks the field {exc.args[0]!r}; it is damaged or not a pmwm key") from None
+        except (TypeError, ValueError) as exc:
+            raise KeyFileError(f"{name} has a malformed field ({exc}); it is damaged or not a pmwm key") from None
+        key.validate(name)
+        return key
+
+    def validate(self, name: str = "the key") -> None:
+        problems = []
+        if len(self.secret) != 64 or any(c not in "0123456789abcdef" for c in self.secret):
+            problems.append("secret is not 64 hex digits")
+        if self.n_bits == 0 or self.n_bits != len(self.carrier_index):
+            problems.append("bit count and carrier count differ")
+        if np.any(self.bits > 1):
+            problems.append("bits are not 0/1")
+        if not np.all(np.isfinite(self.carrier_position)):
+            problems.append("carrier positions are not finite")
+        if self.payload_kind not in ("text", "bits", "random"):
+            problems.append(f"unknown payload kind {self.payload_kind!r}")
+        if not (self.mean_edge > 0 and np.isfinite(self.mean_edge)):
+            problems.append("mean edge length is not positive")
+        if problems:
+            raise KeyFileError(f"{name} is inconsistent: {'; '.join(problems)}")
+
+
+def derive_seed(secret: str, label: str) -> int:
+    """A 64-bit seed for one purpose, derived from the key secret."""
+    return int.from_bytes(hashlib.sha256(f"{secret}:{label}".encode()).digest()[:8], "little")
+
+
+def make_secret(seed: Optional[int]) -> str:
+    """The key secret: derived from ``seed`` when given (reproducible), else fresh randomness."""
+    if seed is None:
+        return os.urandom(32).hex()
+    return hashlib.sha256(f"pmwm-seed:{int(seed)}".encode()).hexdigest()
+
+
+def write_key(path, key: WatermarkKey, *, overwrite: bool = False) -> None:
+    """Write the key atomically, readable by its owner only (mode 0600)."""
+    atomic_write_bytes(path, key.to_json().encode(), force=overwrite, mode=0o600)
+
+
+def read_key(path) -> WatermarkKey:
+    """Read and check a key file; KeyFileError on anything wrong."""
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise KeyFileError(f"{path} is a directory, not a key file")
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(16 * 1024 * 1024 + 1)
+    except FileNotFoundError:
+        raise KeyFileError(f"key file {path} does not exist") from None
+    except OSError as exc:
+        raise KeyFileError(f"cannot read key file {path}: {exc.strerror or exc}") from None
+    if len(data) > 16 * 1024 * 1024:
+        raise KeyFileError(f"{path} is too large to be a pmwm key")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise KeyFileError(f"{path} is not a pmwm key (not UTF-8 text)") from None
+    return WatermarkKey.from_json(text, path)

@@ -1,0 +1,566 @@
+"""Mesh file input/output through trimesh, plus atomic file writing.
+
+Why this module exists: the watermark lives in vertex positions, so a file must come in and go out
+without trimesh quietly merging, reordering or rounding vertices. Everything is loaded with
+``process=False``; the canonical mesh the algorithms see is an exact-position weld of the file's
+vertices (``weld``), and ``write_marked`` writes the file's *own* vertices (UV seams, order) back
+with new positions. OBJ and OFF are written by this module (trimesh's writers round to a fixed
+number of decimals); each coordinate is written with ``repr`` so float64 values read back bit-exactly.
+PLY, STL and GLB store float32 positions (``SourceMesh.float32`` tells whether the input already fits).
+
+``atomic_output`` / ``atomic_write_bytes`` are generic: the key and PM writers use them too.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import secrets
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Iterator
+
+import numpy as np
+import trimesh
+
+from .errors import MeshError, OutputExistsError, PmwmError
+
+SUPPORTED_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+
+__all__ = [
+    "SUPPORTED_EXTENSIONS",
+    "SourceMesh",
+    "read_mesh",
+    "write_mesh",
+    "write_marked",
+    "weld",
+    "atomic_output",
+    "atomic_write_bytes",
+]
+
+
+@dataclass
+class SourceMesh:
+    """A mesh file as read: the welded canonical mesh plus the file's own geometry for write-back."""
+
+    vertices: np.ndarray  # (n, 3) float64 canonical vertices (exact duplicates merged, first-appearance order)
+    faces: np.ndarray  # (m, 3) int64 triangles over canonical vertices (degenerate ones dropped)
+    source: trimesh.Trimesh  # the mesh as loaded (process=False), vertex order of the file
+    source_to_canonical: np.ndarray  # (len(source.vertices),) int64: file vertex -> canonical vertex
+    float32: bool  # every coordinate is exactly representable as float32
+    warnings: list[str] = field(default_factory=list)
+    path: str = ""
+
+
+# --------------------------------------------------------------------------------------------
+# atomic writing (generic: used by the mesh, key and PM writers)
+# --------------------------------------------------------------------------------------------
+
+
+def _fsync_path(path: str) -> None:
+    fd = os.open(path, os.O_RDWR)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_dir(folder: str) -> None:
+    """Make the rename durable where the OS allows it (a no-op on Windows)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _remove_quietly(path: str) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+@contextmanager
+def atomic_output(path, *, force: bool = False, mode: int | None = None) -> Iterator[str]:
+    """Yield a temporary path next to ``path``; on success move it onto ``path`` atomically.
+
+    Refuses an existing target unless ``force`` (OutputExistsError) and a missing folder
+    (PmwmError). The temporary file already exists (empty) and keeps the target's extension, so
+    writers that sniff the extension work. After the body it is fsynced and renamed; when the
+    body raises it is removed and the target is untouched. ``mode`` (e.g. 0o600) is applied to
+    the temporary file from its creation, so a secret is never readable by others.
+    """
+    target = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(target))
+    if not os.path.isdir(folder):
+        raise PmwmError(f"folder {folder} does not exist; create it first or choose another output path")
+    if os.path.isdir(target):
+        raise PmwmError(f"{target} is a directory; give a file name to write")
+    if not force and os.path.lexists(target):
+        raise OutputExistsError(f"{target} exists; pass --force to overwrite")
+
+    stem, ext = os.path.splitext(os.path.basename(target))
+    create_mode = 0o666 if mode is None else mode
+    while True:
+        tmp = os.path.join(folder, f".{stem}.tmp-{secrets.token_hex(4)}{ext}")
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, create_mode)
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise PmwmError(f"cannot write {target}: {exc.strerror or exc}") from None
+        os.close(fd)
+        break
+
+    try:
+        yield tmp
+        if mode is not None:
+            os.chmod(tmp, mode)
+        _fsync_path(tmp)
+        if force:
+            os.replace(tmp, target)
+        else:
+            try:  # no-clobber: fails if the target appeared while we were writing
+                os.link(tmp, target)
+            except FileExistsError:
+                raise OutputExistsError(f"{target} exists; pass --force to overwrite") from None
+            except OSError:  # the filesystem has no hard links
+                if os.path.lexists(target):
+                    raise OutputExistsError(f"{target} exists; pass --force to overwrite") from None
+                os.replace(tmp, target)
+            else:
+                _remove_quietly(tmp)
+    except BaseException as exc:
+        _remove_quietly(tmp)
+        if isinstance(exc, OSError) and not isinstance(exc, PmwmError):
+            raise PmwmError(f"cannot write {target}: {exc.strerror or exc}") from exc
+        raise
+    _fsync_dir(folder)
+
+
+def atomic_write_bytes(path, data: bytes, *, force: bool = False, mode: int | None = None) -> None:
+    """Write ``data`` to ``path`` atomically (see ``atomic_output``); ``mode`` e.g. 0o600 for secrets."""
+    with atomic_output(path, force=force, mode=mode) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+
+
+# --------------------------------------------------------------------------------------------
+# welding
+# --------------------------------------------------------------------------------------------
+
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+
+
+def _mix(x: np.ndarray) -> np.ndarray:
+    """splitmix64 finaliser (wrapping uint64 arithmetic)."""
+    x = x ^ (x >> np.uint64(30))
+    x = x * _M1
+    x = x ^ (x >> np.uint64(27))
+    x = x * _M2
+    return x ^ (x >> np.uint64(31))
+
+
+def _row_hash(bits: np.ndarray) -> np.ndarray:
+    """A 64-bit hash of each row of (n, 3) uint64 bit patterns; collisions are checked by the caller."""
+    with np.errstate(over="ignore"):
+        return _mix(bits[:, 0] ^ _mix(bits[:, 1] ^ _mix(bits[:, 2])))
+
+
+def _same_as_previous(bits: np.ndarray) -> np.ndarray:
+    """(n-1,) bool: row i+1 equals row i (column-wise compares beat .all(axis=1))."""
+    return (bits[1:, 0] == bits[:-1, 0]) & (bits[1:, 1] == bits[:-1, 1]) & (bits[1:, 2] == bits[:-1, 2])
+
+
+def _group_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(order, starts_mask): an order putting equal rows next to each other, and where groups start.
+
+    ``key`` is (n, 3) float64 without -0.0, so equal values have equal bits. Sorting one hashed
+    uint64 column is about 3x faster than a 3-key lexsort; if two different rows ever share a
+    hash, the exact lexsort is used instead.
+    """
+    bits = np.ascontiguousarray(key).view(np.uint64)
+    h = _row_hash(bits)
+    order = np.argsort(h)
+    sh = h[order]
+    same_row = _same_as_previous(bits[order])
+    if np.any((sh[1:] == sh[:-1]) & ~same_row):  # hash collision: fall back to the exact sort
+        order = np.lexsort((key[:, 2], key[:, 1], key[:, 0]))
+        same_row = _same_as_previous(bits[order])
+    starts_mask = np.ones(len(key), dtype=bool)
+    starts_mask[1:] = ~same_row
+    return order, starts_mask
+
+
+def weld(vertices, faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Merge vertices with exactly equal positions; number them in order of first appearance.
+
+    Returns ``(welded_vertices, welded_faces, inverse)`` with ``welded_vertices[inverse] ==
+    vertices`` (0.0 and -0.0 count as equal). Faces are remapped one to one (none dropped, so a
+    face may now repeat a vertex). Why: trimesh splits vertices at UV seams and STL is a triangle
+    soup, while the watermark needs the connected surface.
+    """
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    n = len(v)
+    if n == 0:
+        return v.copy(), f.copy(), np.zeros(0, dtype=np.int64)
+    key = v + 0.0  # -0.0 -> +0.0 so both compare and hash as one position
+    order, starts_mask = _group_rows(key)
+    if starts_mask.all():  # no duplicates (the common case): nothing to renumber
+        return v.copy(), f.copy(), np.arange(n, dtype=np.int64)
+    group_of_sorted = np.cumsum(starts_mask) - 1
+    first = np.minimum.reduceat(order, np.flatnonzero(starts_mask))  # earliest index per position
+    is_first = np.zeros(n, dtype=bool)
+    is_first[first] = True
+    canonical_of_index = np.cumsum(is_first) - 1  # rank among first appearances
+    inverse = np.empty(n, dtype=np.int64)
+    inverse[order] = canonical_of_index[first][group_of_sorted]
+    return v[is_first], inverse[f], inverse
+
+
+# --------------------------------------------------------------------------------------------
+# reading
+# --------------------------------------------------------------------------------------------
+
+_FORMAT_NAMES = {".obj": "OBJ", ".ply": "PLY", ".stl": "STL", ".off": "OFF", ".glb": "GLB", ".gltf": "glTF"}
+_VT_LINE = re.compile(rb"(?m)^[ \t]*vt[ \t]")
+
+
+def _extension(path: str) -> str:
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in SUPPORTED_EXTENSIONS:
+        shown = ext or "no extension"
+        raise MeshError(
+            f"{path}: unsupported mesh format ({shown}); use one of {', '.join(SUPPORTED_EXTENSIONS)}"
+        )
+    return ext
+
+
+def _short(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    msg = text[0] if text else ""
+    if len(msg) > 160:
+        msg = msg[:157] + "..."
+    return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
+
+
+def _describe_nonmesh(obj) -> str:
+    if isinstance(obj, trimesh.PointCloud):
+        return f"a point cloud of {len(obj.vertices)} points, no faces"
+    if isinstance(obj, trimesh.path.path.Path):
+        return "lines or curves only, no faces"
+    if isinstance(obj, trimesh.Trimesh):
+        return f"{len(obj.vertices)} vertices, no faces"
+    if isinstance(obj, trimesh.Scene):
+        return "an empty scene" if len(obj.geometry) == 0 else "a scene without faces"
+    return f"a {type(obj).__name__}, no faces"
+
+
+def _load_trimesh(path: str, ext: str) -> tuple[trimesh.Trimesh, list[str]]:
+    """Load with trimesh (no processing) and reduce the result to one Trimesh."""
+    if not os.path.lexists(path):
+        raise MeshError(f"{path} does not exist; check the path")
+    if os.path.isdir(path):
+        raise MeshError(f"{path} is a directory, not a mesh file")
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except OSError as exc:
+        raise MeshError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if not data.strip():
+        raise MeshError(f"{path} holds no triangle mesh (the file is empty)")
+
+    kwargs = {}
+    if ext == ".obj":
+        # Keep the file's vertex order and its unreferenced vertices, unless UVs are present:
+        # then trimesh must split vertices at UV seams (maintain_order would corrupt the UVs).
+        kwargs["maintain_order"] = _VT_LINE.search(data) is None
+    try:
+        resolver = trimesh.resolvers.FilePathResolver(os.path.abspath(path))
+        loaded = trimesh.load(
+            io.BytesIO(data), file_type=ext[1:], resolver=resolver, process=False, **kwargs
+        )
+    except Exception as exc:  # trimesh raises anything on bad input; report it on one line
+        raise MeshError(f"cannot read {path} as {_FORMAT_NAMES[ext]} ({_short(exc)})") from None
+
+    warnings: list[str] = []
+    if isinstance(loaded, trimesh.Scene):
+        try:
+            parts = loaded.dump()
+        except Exception as exc:
+            raise MeshError(f"cannot read {path}: scene could not be flattened ({_short(exc)})") from None
+        meshes = [g for g in parts if isinstance(g, trimesh.Trimesh) and len(g.faces) > 0]
+        skipped = len(parts) - len(meshes)
+        if not meshes:
+            raise MeshError(f"{path} holds no triangle mesh ({_describe_nonmesh(loaded)})")
+        if skipped:
+            warnings.append(f"ignored {skipped} scene geometries without faces")
+        if len(meshes) == 1:
+            mesh = meshes[0]
+        else:
+            try:
+                mesh = trimesh.util.concatenate(meshes)
+            except Exception:  # visuals that cannot be merged: keep the geometry only
+                mesh = trimesh.Trimesh(
+                    np.concatenate([m.vertices for m in meshes]),
+                    np.concatenate(
+                        [m.faces + off for m, off in zip(meshes, np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]]))]
+                    ),
+                    process=False,
+                )
+                warnings.append("scene materials could not be merged and were dropped")
+            warnings.append(f"scene of {len(meshes)} meshes concatenated")
+        return mesh, warnings
+    if isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) > 0:
+        return loaded, warnings
+    raise MeshError(f"{path} holds no triangle mesh ({_describe_nonmesh(loaded)})")
+
+
+def _is_float32(v: np.ndarray) -> bool:
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bool(np.array_equal(v.astype(np.float32).astype(np.float64), v))
+
+
+def read_mesh(path) -> SourceMesh:
+    """Read a mesh file into a welded, triangulated canonical mesh (MeshError on any problem)."""
+    p = os.fspath(path)
+    ext = _extension(p)
+    mesh, warnings = _load_trimesh(p, ext)
+
+    v_src = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    f_src = np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3)
+    if not np.isfinite(v_src).all():
+        bad = int((~np.isfinite(v_src).all(axis=1)).sum())
+        raise MeshError(f"{p} has {bad} vertices with non-finite (NaN/inf) coordinates; repair the mesh")
+    if len(f_src) and (f_src.min() < 0 or f_src.max() >= len(v_src)):
+        raise MeshError(f"{p} has faces that reference missing vertices; repair the mesh")
+
+    vertices, faces, inverse = weld(v_src, f_src)
+    if len(vertices) < len(v_src):
+        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices (UV seams, split normals or a triangle soup)")
+    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    n_bad = int(degenerate.sum())
+    if n_bad:
+        faces = faces[~degenerate]
+        warnings.append(f"dropped {n_bad} degenerate faces")
+        if len(faces) == 0:
+            raise MeshError(f"{p} holds no triangle mesh (all {n_bad} faces are degenerate)")
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.ravel()] = True
+    n_unused = int(len(vertices) - used.sum())
+    if n_unused:
+        warnings.append(f"{n_unused} vertices are not used by any face")
+
+    return SourceMesh(
+        vertices=vertices,
+        faces=np.ascontiguousarray(faces, dtype=np.int64),
+        source=mesh,
+        source_to_canonical=inverse,
+        float32=_is_float32(v_src),
+        warnings=warnings,
+        path=p,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+# --------------------------------------------------------------------------------------------
+
+
+def _float_lines(prefix: str, values: np.ndarray) -> str:
+    """Rows of floats as text, each with repr (shortest string that reads back bit-exactly)."""
+    rows, cols = values.shape
+    if rows == 0:
+        return ""
+    line = prefix + " ".join(["%r"] * cols) + "\n"
+    return (line * rows) % tuple(values.ravel().tolist())
+
+
+def _int_lines(line: str, values: np.ndarray) -> str:
+    if len(values) == 0:
+        return ""
+    return (line * len(values)) % tuple(values.ravel().tolist())
+
+
+def _obj_text(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = None, header: str = "") -> str:
+    parts = ["# written by pmwm\n", header, _float_lines("v ", vertices)]
+    f1 = faces + 1
+    if uv is not None:
+        parts.append(_float_lines("vt ", uv))
+        pairs = np.repeat(f1, 2, axis=1)  # v/vt with vt index == v index
+        parts.append(_int_lines("f %d/%d %d/%d %d/%d\n", pairs))
+    else:
+        parts.append(_int_lines("f %d %d %d\n", f1))
+    return "".join(parts)
+
+
+def _off_text(vertices: np.ndarray, faces: np.ndarray) -> str:
+    return (
+        f"OFF\n{len(vertices)} {len(faces)} 0\n"
+        + _float_lines("", vertices)
+        + _int_lines("3 %d %d %d\n", faces)
+    )
+
+
+def _obj_material_header(src: SourceMesh, out_path: str) -> str:
+    """Point the written OBJ at the source OBJ's material library, if it had one."""
+    if not src.path.lower().endswith(".obj") or not os.path.isfile(src.path):
+        return ""
+    material = getattr(src.source.visual, "material", None)
+    name = getattr(material, "name", None)
+    try:
+        with open(src.path, "rb") as fh:
+            text = fh.read()
+    except OSError:
+        return ""
+    found = re.search(rb"(?m)^[ \t]*mtllib[ \t]+(.+?)[ \t]*\r?$", text)
+    if not found:
+        return ""
+    lib = found.group(1).decode("utf-8", "replace")
+    lib_abs = os.path.join(os.path.dirname(os.path.abspath(src.path)), lib)
+    rel = os.path.relpath(lib_abs, os.path.dirname(os.path.abspath(out_path))).replace(os.sep, "/")
+    return f"mtllib {rel}\n" + (f"usemtl {name}\n" if name else "")
+
+
+def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (numpy; trimesh's own path wants scipy)."""
+    tri = vertices[faces]
+    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    idx = faces.ravel()
+    n = len(vertices)
+    normals = np.column_stack(
+        [np.bincount(idx, weights=np.repeat(face_n[:, k], 3), minlength=n) for k in range(3)]
+    )
+    length = np.linalg.norm(normals, axis=1)
+    normals[length > 0] /= length[length > 0, None]
+    normals[length == 0] = (0.0, 0.0, 1.0)
+    return normals
+
+
+def _export_trimesh(mesh: trimesh.Trimesh, ext: str) -> bytes:
+    """Bytes of a binary/float32 format written by trimesh (vertex order and faces kept)."""
+    if ext == ".ply":
+        return trimesh.exchange.ply.export_ply(mesh, encoding="binary", vertex_normal=False)
+    if ext == ".stl":
+        return trimesh.exchange.stl.export_stl(mesh)
+    # glTF viewers shade flat without normals, so give them fresh ones for the new positions
+    mesh.vertex_normals = _vertex_normals(np.asarray(mesh.vertices), np.asarray(mesh.faces, dtype=np.int64))
+    scene = trimesh.Scene(mesh)
+    if ext == ".glb":
+        return trimesh.exchange.gltf.export_glb(scene, include_normals=True)
+    files = trimesh.exchange.gltf.export_gltf(scene, include_normals=True, embed_buffers=True)
+    return files["model.gltf"]
+
+
+def _visual_copy(visual):
+    """A copy of the loaded visuals (UVs, colours) that trimesh can export.
+
+    Without Pillow, trimesh gives an OBJ without a texture image a material whose image is a
+    deferred ImportError; copying or hashing it raises. Such a material is replaced by a plain
+    one of the same name, so UVs survive without needing Pillow.
+    """
+    if isinstance(visual, trimesh.visual.TextureVisuals):
+        material = visual.material
+        try:
+            hash(material)
+            material = material.copy()
+        except Exception:
+            try:
+                name = material.name
+            except Exception:
+                name = None
+            material = trimesh.visual.material.SimpleMaterial(name=name)
+        uv = None if visual.uv is None else np.array(visual.uv, dtype=np.float64)
+        return trimesh.visual.TextureVisuals(uv=uv, material=material)
+    try:
+        return visual.copy()
+    except Exception:
+        return None
+
+
+def _check_vertices(vertices, expected_rows: int | None, what: str) -> np.ndarray:
+    v = np.asarray(vertices, dtype=np.float64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshError(f"{what} must be an (n, 3) array, got shape {v.shape}")
+    if expected_rows is not None and len(v) != expected_rows:
+        raise MeshError(f"{what} has {len(v)} rows but the mesh has {expected_rows} vertices")
+    if not np.isfinite(v).all():
+        raise MeshError(f"{what} holds non-finite (NaN/inf) coordinates")
+    return v
+
+
+def write_mesh(path, vertices, faces, *, force: bool = False) -> None:
+    """Write a triangle mesh; the format comes from the extension. Atomic.
+
+    PLY (binary), OFF and OBJ keep the vertex order and faces exactly; OBJ/OFF coordinates
+    are exact float64, PLY/STL/GLB store float32. STL is a triangle soup (re-welded on read).
+    """
+    p = os.fspath(path)
+    ext = _extension(p)
+    v = _check_vertices(vertices, None, "vertices")
+    f = np.asarray(faces)
+    if f.ndim != 2 or f.shape[1] != 3 or (f.size and not np.issubdtype(f.dtype, np.integer)):
+        raise MeshError(f"faces must be an (m, 3) integer array, got shape {f.shape} ({f.dtype})")
+    f = f.astype(np.int64)
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        raise MeshError("faces reference vertices that do not exist")
+    if ext == ".obj":
+        data = _obj_text(v, f).encode("ascii")
+    elif ext == ".off":
+        data = _off_text(v, f).encode("ascii")
+    else:
+        data = _encode(lambda: _export_trimesh(trimesh.Trimesh(v, f, process=False), ext), p)
+    atomic_write_bytes(p, data, force=force)
+
+
+def _encode(fn, path: str) -> bytes:
+    try:
+        return fn()
+    except PmwmError:
+        raise
+    except Exception as exc:
+        raise MeshError(f"cannot write {path} ({_short(exc)})") from None
+
+
+def write_marked(path, src: SourceMesh, canonical_vertices, *, force: bool = False) -> None:
+    """Write the loaded file's own mesh (vertex order, UVs, faces) with new positions. Atomic.
+
+    ``canonical_vertices`` are positions of ``src.vertices``; each file vertex takes the position
+    of its canonical vertex, so UV-seam copies move together. Normals are not carried over (they
+    would be stale); GLB/glTF get fresh ones. An OBJ written from an OBJ keeps its ``mtllib``.
+    """
+    p = os.fspath(path)
+    ext = _extension(p)
+    v = _check_vertices(canonical_vertices, len(src.vertices), "marked vertices")
+    positions = v[src.source_to_canonical]
+    faces = np.asarray(src.source.faces, dtype=np.int64)
+    if ext == ".off":
+        data = _off_text(positions, faces).encode("ascii")
+    elif ext == ".obj":
+        uv = getattr(src.source.visual, "uv", None)
+        if uv is not None:
+            uv = np.asarray(uv, dtype=np.float64)
+            if uv.ndim != 2 or uv.shape[0] != len(positions) or uv.shape[1] < 2 or not np.isfinite(uv).all():
+                uv = None
+            else:
+                uv = uv[:, :2]
+        header = _obj_material_header(src, p) if uv is not None else ""
+        data = _obj_text(positions, faces, uv=uv, header=header).encode("utf-8")
+    else:
+
+        def export() -> bytes:
+            mesh = trimesh.Trimesh(positions, faces, visual=_visual_copy(src.source.visual), process=False)
+            return _export_trimesh(mesh, ext)
+
+        data = _encode(export, p)
+    atomic_write_bytes(p, data, force=force)

@@ -1,0 +1,384 @@
+"""Watermark and distortion metrics (DESIGN.md section 6).
+
+Bits:        ``ber``, ``correlation`` (the paper's eq. 6).
+Distortion:  ``vertex_rmse``, ``vsnr`` (centred or not), ``psnr``, ``surface_distance`` (MRMS and
+             Hausdorff from surface samples, both directions, % of the first mesh's bbox diagonal).
+The limit:   ``matched_filter_bound`` (best correlation any detector can reach for a given
+             embedding energy per bit against noise of a given std).
+
+Bit sequences may be strings of '0'/'1' or sequences of 0/1; any other symbol (e.g. '?' or -1) is an
+erasure: it counts as an error in the BER and as the neutral value 1/2 in the correlation.
+
+Point-to-surface distances are computed with numpy only (no rtree/scipy, which Blender lacks): a
+uniform grid over the triangles' bounding boxes, coarsened level by level into a hierarchy, is
+traversed for all query points at once with lower bounds (point-to-box) and upper bounds (distance to
+a surface point in the box); the surviving triangles get an exact closest-point test (Ericson,
+Real-Time Collision Detection, 5.1.5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import MeshError, PayloadError
+
+# ----------------------------------------------------------------------------------------------
+# bits
+
+
+def _as_bits(x) -> np.ndarray:
+    """Bits as a float array: 0.0, 1.0, or NaN for an erasure."""
+    if isinstance(x, str):
+        arr = np.frombuffer(x.encode("ascii", "replace"), dtype=np.uint8)
+        out = np.full(len(arr), np.nan)
+        out[arr == ord("0")] = 0.0
+        out[arr == ord("1")] = 1.0
+        return out
+    arr = np.asarray(x, dtype=np.float64).ravel()
+    return np.where((arr == 0) | (arr == 1), arr, np.nan)
+
+
+def _bit_pair(a, b) -> tuple[np.ndarray, np.ndarray]:
+    x, y = _as_bits(a), _as_bits(b)
+    if len(x) != len(y):
+        raise PayloadError(f"bit sequences differ in length ({len(x)} vs {len(y)}); compare equal payloads")
+    if len(x) == 0:
+        raise PayloadError("empty bit sequences; compare at least one bit")
+    return x, y
+
+
+def ber(a, b) -> float:
+    """Bit error rate: share of positions that differ (an erasure counts as an error)."""
+    x, y = _bit_pair(a, b)
+    errors = ~(x == y)  # NaN compares unequal
+    return float(errors.mean())
+
+
+def correlation(a, b) -> float:
+    """Correlation coefficient of two bit sequences (paper eq. 6, over all N bits).
+
+    Eq. 6 is Pearson's coefficient, undefined when either sequence is constant. Then we return
+    1 - 2 * BER, the value the coefficient takes for balanced sequences with that BER: 1.0 for equal
+    sequences, -1.0 for complementary ones, 0 at chance level. Erasures count as 1/2.
+    """
+    x, y = _bit_pair(a, b)
+    x = np.where(np.isnan(x), 0.5, x)
+    y = np.where(np.isnan(y), 0.5, y)
+    dx, dy = x - x.mean(), y - y.mean()
+    sxx, syy = float(dx @ dx), float(dy @ dy)
+    if sxx <= 1e-12 or syy <= 1e-12:
+        return 1.0 - 2.0 * ber(a, b)
+    return float((dx @ dy) / math.sqrt(sxx * syy))
+
+
+def binomial_tail(k: int, n: int, p: float = 0.5) -> float:
+    """P(K >= k) for K ~ Binomial(n, p), computed in log space (exact, no scipy)."""
+    if k <= 0:
+        return 1.0
+    if k > n:
+        return 0.0
+    i = np.arange(k, n + 1)
+    logs = (
+        np.array([math.lgamma(n + 1) - math.lgamma(j + 1) - math.lgamma(n - j + 1) for j in i])
+        + i * math.log(p)
+        + (n - i) * math.log1p(-p)
+    )
+    top = logs.max()
+    return float(min(1.0, math.exp(top) * np.exp(logs - top).sum()))
+
+
+# ----------------------------------------------------------------------------------------------
+# vertex distortion
+
+
+def _pair(orig, marked) -> tuple[np.ndarray, np.ndarray]:
+    a = np.asarray(orig, dtype=np.float64).reshape(-1, 3)
+    b = np.asarray(marked, dtype=np.float64).reshape(-1, 3)
+    if a.shape != b.shape:
+        raise MeshError(
+            f"vertex counts differ ({len(a)} vs {len(b)}); vertex metrics need the same vertices in the "
+            "same order, use surface_distance otherwise"
+        )
+    return a, b
+
+
+def vertex_rmse(orig, marked) -> float:
+    """Root mean square of the 3-D vertex displacements."""
+    a, b = _pair(orig, marked)
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1)))) if len(a) else 0.0
+
+
+def vsnr(orig, marked, centred: bool = True) -> float:
+    """VSNR = 10 log10(sum |v_i - c|^2 / sum |v_i - v'_i|^2) in dB; inf for identical meshes.
+
+    ``centred=True`` takes c = vertex mean of the original; ``False`` takes c = origin (the paper
+    does not say which it uses, so both are reported).
+    """
+    a, b = _pair(orig, marked)
+    noise = float(np.sum((a - b) ** 2))
+    signal = float(np.sum((a - a.mean(axis=0)) ** 2)) if centred else float(np.sum(a**2))
+    if noise == 0.0:
+        return math.inf
+    return 10.0 * math.log10(signal / noise)
+
+
+def bbox_diagonal(vertices) -> float:
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if len(v) else 0.0
+
+
+def psnr(orig, marked) -> float:
+    """PSNR = 20 log10(bbox diagonal of the original / vertex RMSE) in dB; inf for identical meshes."""
+    rmse = vertex_rmse(orig, marked)
+    if rmse == 0.0:
+        return math.inf
+    return 20.0 * math.log10(bbox_diagonal(orig) / rmse)
+
+
+# ----------------------------------------------------------------------------------------------
+# the limit
+
+
+def q_function(x: float) -> float:
+    """Gaussian tail Q(x) = P(Z > x)."""
+    return 0.5 * math.erfc(x / math.sqrt(2.0))
+
+
+def matched_filter_bound(E_per_bit: float, sigma: float) -> float:
+    """Best expected correlation 1 - 2 Q(sqrt(E/N) / sigma) against noise of per-coordinate std sigma.
+
+    ``E_per_bit`` is the embedding's total squared displacement (sum over vertices of |v - v'|^2,
+    = n d^2 for an RMS displacement d) divided by the number of payload bits. Uniform noise of
+    amplitude a has sigma = a / sqrt(3). No detector beats the matched filter (DESIGN section 6).
+    """
+    if E_per_bit < 0 or sigma < 0:
+        raise ValueError("E_per_bit and sigma must be >= 0")
+    if sigma == 0:
+        return 1.0 if E_per_bit > 0 else 0.0
+    return 1.0 - 2.0 * q_function(math.sqrt(E_per_bit) / sigma)
+
+
+def energy_per_bit(orig, marked, n_bits: int) -> float:
+    """Total squared vertex displacement of the embedding divided by the number of bits."""
+    a, b = _pair(orig, marked)
+    return float(np.sum((a - b) ** 2)) / int(n_bits)
+
+
+# ----------------------------------------------------------------------------------------------
+# surface distance
+
+
+def sample_surface(vertices, faces, n_samples: int, seed: int | None = None) -> np.ndarray:
+    """``n_samples`` points uniform over the surface (area-weighted face, uniform barycentric)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        raise MeshError("the mesh has no faces; surface metrics need triangles")
+    rng = np.random.default_rng(seed)
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    cdf = np.cumsum(area)
+    if cdf[-1] <= 0:
+        raise MeshError("all faces are degenerate (zero area); surface metrics need a surface")
+    face = np.searchsorted(cdf, rng.uniform(0.0, cdf[-1], n_samples), side="right")
+    face = np.minimum(face, len(f) - 1)
+    r1, r2 = rng.uniform(size=n_samples), rng.uniform(size=n_samples)
+    flip = r1 + r2 > 1.0
+    r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
+    return a[face] + r1[:, None] * (b[face] - a[face]) + r2[:, None] * (c[face] - a[face])
+
+
+def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Closest point of triangle (a[i], b[i], c[i]) to p[i], vectorised (Ericson 5.1.5)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1 = np.einsum("ij,ij->i", ab, ap)
+    d2 = np.einsum("ij,ij->i", ac, ap)
+    bp = p - b
+    d3 = np.einsum("ij,ij->i", ab, bp)
+    d4 = np.einsum("ij,ij->i", ac, bp)
+    cp = p - c
+    d5 = np.einsum("ij,ij->i", ab, cp)
+    d6 = np.einsum("ij,ij->i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v_in = np.where(denom != 0, vb / denom, 0.0)
+        w_in = np.where(denom != 0, vc / denom, 0.0)
+        out = a + v_in[:, None] * ab + w_in[:, None] * ac  # face region
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        t_ac = d2 / (d2 - d6)
+        t_ab = d1 / (d1 - d3)
+    # apply the regions from the last test to the first, so the first matching test wins
+    conds = [
+        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), lambda: b + t_bc[:, None] * (c - b)),
+        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), lambda: a + t_ac[:, None] * ac),
+        ((d6 >= 0) & (d5 <= d6), lambda: c),
+        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), lambda: a + t_ab[:, None] * ab),
+        ((d3 >= 0) & (d4 <= d3), lambda: b),
+        ((d1 <= 0) & (d2 <= 0), lambda: a),
+    ]
+    for cond, value in conds:
+        if cond.any():
+            out = np.where(cond[:, None], value(), out)
+    return out
+
+
+def _segment_starts(sorted_ids: np.ndarray) -> np.ndarray:
+    return np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]])
+
+
+class _TriangleGrid:
+    """Hierarchy of uniform grids over a triangle mesh, for exact point-to-surface distances."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        v = np.asarray(vertices, dtype=np.float64)
+        f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+        if len(f) == 0:
+            raise MeshError("the mesh has no faces; surface metrics need triangles")
+        self.a, self.b, self.c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        tlo = np.minimum(np.minimum(self.a, self.b), self.c)
+        thi = np.maximum(np.maximum(self.a, self.b), self.c)
+        self.tlo, self.thi = tlo, thi
+        self.origin = tlo.min(axis=0)
+        extent = float((thi.max(axis=0) - self.origin).max())
+        h = 2.0 * float(np.median((thi - tlo).max(axis=1)))
+        h = max(h, extent / 2**18, 1e-300)
+        self.h = h
+        clo = np.floor((tlo - self.origin) / h).astype(np.int64)
+        chi = np.floor((thi - self.origin) / h).astype(np.int64)
+        span = chi - clo + 1
+        per_tri = span.prod(axis=1)
+        tri = np.repeat(np.arange(len(f)), per_tri)
+        local = np.arange(len(tri)) - np.repeat(np.cumsum(per_tri) - per_tri, per_tri)
+        sy, sz = span[tri, 1], span[tri, 2]
+        coords = clo[tri] + np.stack([local // (sy * sz), (local // sz) % sy, local % sz], axis=1)
+        keys = self._key(coords)
+        order = np.argsort(keys, kind="stable")
+        skeys = keys[order]
+        starts = _segment_starts(skeys)
+        self.cell_tris = tri[order]
+        self.cell_ptr = np.r_[starts, len(skeys)]
+        level_coords = coords[order[starts]]
+        rep_tri = self.cell_tris[starts]
+        rep = (self.a[rep_tri] + self.b[rep_tri] + self.c[rep_tri]) / 3.0
+        # levels[0] is the finest; each entry: (coords, rep points, children ptr, children idx)
+        self.levels = [(level_coords, rep, None, None)]
+        while len(level_coords) > 8:
+            parent_coords = level_coords >> 1
+            pkeys = self._key(parent_coords)
+            porder = np.argsort(pkeys, kind="stable")
+            pstarts = _segment_starts(pkeys[porder])
+            child_ptr = np.r_[pstarts, len(porder)]
+            coarse = parent_coords[porder[pstarts]]
+            self.levels.append((coarse, self.levels[-1][1][porder[pstarts]], child_ptr, porder))
+            level_coords = coarse
+
+    @staticmethod
+    def _key(coords: np.ndarray) -> np.ndarray:
+        return (coords[:, 0] << 42) | (coords[:, 1] << 21) | coords[:, 2]
+
+    def _box_lb(self, q: np.ndarray, coords: np.ndarray, level: int) -> np.ndarray:
+        size = self.h * (1 << level)
+        lo = self.origin + coords * size
+        d = np.maximum(np.maximum(lo - q, 0.0), q - (lo + size))
+        return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+    def distance(self, points: np.ndarray, chunk: int = 2048) -> np.ndarray:
+        """Exact unsigned distance from each point to the surface."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        out = np.empty(len(points))
+        for s in range(0, len(points), chunk):
+            out[s : s + chunk] = self._distance_chunk(points[s : s + chunk])
+        return out
+
+    def _distance_chunk(self, pts: np.ndarray) -> np.ndarray:
+        nq = len(pts)
+        top = len(self.levels) - 1
+        ncell = len(self.levels[top][0])
+        qi = np.repeat(np.arange(nq), ncell)
+        ci = np.tile(np.arange(ncell), nq)
+        upper = np.full(nq, np.inf)
+        for level in range(top, -1, -1):
+            coords, rep, _, _ = self.levels[level]
+            q = pts[qi]
+            ub = np.linalg.norm(rep[ci] - q, axis=1)
+            starts = _segment_starts(qi)
+            upper[qi[starts]] = np.minimum(upper[qi[starts]], np.minimum.reduceat(ub, starts))
+            lb = self._box_lb(q, coords[ci], level)
+            keep = lb <= upper[qi] * (1 + 1e-9) + 1e-300
+            qi, ci = qi[keep], ci[keep]
+            if level > 0:
+                _, _, cptr, cidx = self.levels[level]
+                counts = cptr[ci + 1] - cptr[ci]
+                qi = np.repeat(qi, counts)
+                offs = np.repeat(cptr[ci] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+                ci = cidx[offs]
+        # cells -> triangles
+        counts = self.cell_ptr[ci + 1] - self.cell_ptr[ci]
+        qi = np.repeat(qi, counts)
+        offs = np.repeat(self.cell_ptr[ci] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+        ti = self.cell_tris[offs]
+        q = pts[qi]
+        d = np.maximum(np.maximum(self.tlo[ti] - q, 0.0), q - self.thi[ti])
+        keep = np.sqrt(np.einsum("ij,ij->i", d, d)) <= upper[qi] * (1 + 1e-9) + 1e-300
+        qi, ti = qi[keep], ti[keep]
+        best = np.full(nq, np.inf)
+        step = 1 << 20
+        for s in range(0, len(qi), step):
+            qs, ts = qi[s : s + step], ti[s : s + step]
+            cp = closest_point_on_triangles(pts[qs], self.a[ts], self.b[ts], self.c[ts])
+            dist = np.linalg.norm(cp - pts[qs], axis=1)
+            starts = _segment_starts(qs)
+            best[qs[starts]] = np.minimum(best[qs[starts]], np.minimum.reduceat(dist, starts))
+        return best
+
+
+def point_surface_distance(points, vertices, faces) -> np.ndarray:
+    """Exact distance from each point to the triangle surface (vertices, faces)."""
+    return _TriangleGrid(vertices, faces).distance(points)
+
+
+def surface_distance(
+    v1, f1, v2, f2, n_samples: int = 20000, seed: int | None = None
+) -> tuple[float, float]:
+    """(MRMS %, Hausdorff %) between two surfaces, both directions, % of mesh 1's bbox diagonal.
+
+    ``n_samples`` area-uniform points are drawn on each surface and their exact distance to the
+    other surface is measured. MRMS = max of the two one-sided RMS distances (METRO-style maximum
+    root mean square, as in the benchmark); Hausdorff = max of the two one-sided maxima (an estimate
+    from the samples, so a lower bound of the true Hausdorff distance).
+    """
+    rng = np.random.default_rng(seed)
+    s1, s2 = rng.integers(0, 2**63 - 1, size=2)
+    p1 = sample_surface(v1, f1, n_samples, int(s1))
+    p2 = sample_surface(v2, f2, n_samples, int(s2))
+    d12 = point_surface_distance(p1, v2, f2)
+    d21 = point_surface_distance(p2, v1, f1)
+    diag = bbox_diagonal(v1)
+    if diag == 0:
+        raise MeshError("the first mesh has a zero-size bounding box; nothing to measure against")
+    rms = max(float(np.sqrt(np.mean(d12**2))), float(np.sqrt(np.mean(d21**2))))
+    haus = max(float(d12.max()), float(d21.max()))
+    return 100.0 * rms / diag, 100.0 * haus / diag
+
+
+__all__ = [
+    "ber",
+    "correlation",
+    "binomial_tail",
+    "vertex_rmse",
+    "vsnr",
+    "psnr",
+    "bbox_diagonal",
+    "q_function",
+    "matched_filter_bound",
+    "energy_per_bit",
+    "sample_surface",
+    "closest_point_on_triangles",
+    "point_surface_distance",
+    "surface_distance",
+]
