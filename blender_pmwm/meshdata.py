@@ -43,11 +43,14 @@ def write_base_positions(mesh, vertices: np.ndarray) -> None:
     if keys is not None:
         old = np.empty_like(new)
         mesh.vertices.foreach_get("co", old)
-        delta = new - old
+        delta = new.astype(np.float64) - old
         buf = np.empty_like(new)
         for block in keys.key_blocks:
-            block.data.foreach_get("co", buf)
-            block.data.foreach_set("co", buf + delta)
+            if block == keys.reference_key:
+                block.data.foreach_set("co", new)
+            else:
+                block.data.foreach_get("co", buf)
+                block.data.foreach_set("co", (buf + delta).astype(np.float32))
     mesh.vertices.foreach_set("co", new)
     mesh.update()
 

@@ -257,7 +257,7 @@ def _short(exc: BaseException) -> str:
 def _describe_nonmesh(obj) -> str:
     if isinstance(obj, trimesh.PointCloud):
         return f"a point cloud of {len(obj.vertices)} points, no faces"
-    if isinstance(obj, trimesh.path.path.Path):
+    if type(obj).__name__ in ("Path2D", "Path3D"):
         return "lines or curves only, no faces"
     if isinstance(obj, trimesh.Trimesh):
         return f"{len(obj.vertices)} vertices, no faces"
@@ -277,7 +277,7 @@ def _load_trimesh(path: str, ext: str) -> tuple[trimesh.Trimesh, list[str]]:
             data = fh.read()
     except OSError as exc:
         raise MeshError(f"cannot read {path}: {exc.strerror or exc}") from None
-    if not data.strip():
+    if not data or data.isspace():
         raise MeshError(f"{path} holds no triangle mesh (the file is empty)")
 
     kwargs = {}
@@ -311,11 +311,10 @@ def _load_trimesh(path: str, ext: str) -> tuple[trimesh.Trimesh, list[str]]:
             try:
                 mesh = trimesh.util.concatenate(meshes)
             except Exception:  # visuals that cannot be merged: keep the geometry only
+                offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
                 mesh = trimesh.Trimesh(
                     np.concatenate([m.vertices for m in meshes]),
-                    np.concatenate(
-                        [m.faces + off for m, off in zip(meshes, np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]]))]
-                    ),
+                    np.concatenate([m.faces + off for m, off in zip(meshes, offsets)]),
                     process=False,
                 )
                 warnings.append("scene materials could not be merged and were dropped")

@@ -237,13 +237,15 @@ def build_progressive_mesh(
     protected: Optional[np.ndarray] = None,
     forced: Optional[np.ndarray] = None,
     progress: Progress = None,
+    trace: Optional[list] = None,
 ) -> tuple[ProgressiveMesh, np.ndarray]:
     """Decimate to about ``base_vertices`` vertices; return the PM and the forced pairs applied.
 
     ``protected`` vertices are never removed (they may absorb others). ``forced`` is
     a (k, 2) array of collapses (u, v) performed first, in the first passes, e.g.
     the watermark carriers absorbing their first neighbour. Returns the PM and a
-    bool mask of the forced pairs that were applied.
+    bool mask of the forced pairs that were applied. ``trace``, when a list, receives
+    the faces (input ids) after every pass, for tests of the levels of detail.
     """
     V = np.ascontiguousarray(vertices, dtype=np.float64)
     F0 = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
@@ -301,6 +303,8 @@ def build_progressive_mesh(
         if progress is not None:
             progress(min(1.0, (n - n_alive) / total), f"progressive mesh: {n_alive} vertices")
         fid = fid[_alive_faces(p, fid)]
+        if trace is not None:
+            trace.append(F.copy())
     pm = _assemble(V, F0, F, fid, alive, passes)
     return pm, forced_done
 

@@ -1,0 +1,61 @@
+"""Shared fixtures: paths to the test meshes in ../shared/data and small mesh builders."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("PMWM_TEST_DATA", ROOT.parent / "shared" / "data"))
+
+
+def data_path(name: str) -> Path:
+    path = DATA / name
+    if not path.exists():
+        raise FileNotFoundError(f"test mesh {path} is missing: the tests need ../shared/data beside the checkout")
+    return path
+
+
+def load(name: str) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
+    m = trimesh.load(str(data_path(name)), process=False)
+    return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
+
+
+def canonical_faces(F: np.ndarray) -> np.ndarray:
+    """Faces as a sorted set of oriented triangles (each rotated to start at its smallest index)."""
+    F = np.asarray(F)
+    r = np.argmin(F, axis=1)
+    G = np.take_along_axis(F, (r[:, None] + np.arange(3)) % 3, axis=1)
+    return G[np.lexsort(G.T[::-1])]
+
+
+def quad_torus_obj(nu: int = 40, nv: int = 24, R: float = 1.0, r: float = 0.35) -> str:
+    """OBJ text of a torus made of quads (every face a quad)."""
+    u = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    v = np.linspace(0, 2 * np.pi, nv, endpoint=False)
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    # a little deterministic relief so that the surface is not too regular
+    rr = r * (1 + 0.08 * np.sin(3 * uu) * np.cos(5 * vv))
+    x = (R + rr * np.cos(vv)) * np.cos(uu)
+    y = (R + rr * np.cos(vv)) * np.sin(uu)
+    z = rr * np.sin(vv)
+    P = np.stack([x, y, z], -1).reshape(-1, 3)
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    a = idx
+    b = np.roll(idx, -1, axis=0)
+    c = np.roll(np.roll(idx, -1, axis=0), -1, axis=1)
+    d = np.roll(idx, -1, axis=1)
+    quads = np.stack([a, b, c, d], -1).reshape(-1, 4) + 1
+    lines = [f"v {p[0]:.9g} {p[1]:.9g} {p[2]:.9g}" for p in P]
+    lines += [f"f {q[0]} {q[1]} {q[2]} {q[3]}" for q in quads]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.fixture(scope="session")
+def bunny():
+    return load("bunny_wm_benchmark.off")

@@ -1,0 +1,107 @@
+"""Progressive mesh: exact reconstruction at every level of detail, and the .pmwm round trip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+import pmwm
+from pmwm.pmfile import from_bytes, to_bytes
+from pmwm.progressive import build_progressive_mesh
+
+from conftest import canonical_faces, load, quad_torus_obj
+
+
+def _check_every_level(V, F, base_ratio=0.03, protected=None):
+    trace: list = []
+    pm, _ = build_progressive_mesh(V, F, base_vertices=int(base_ratio * len(V)), protected=protected, trace=trace)
+    order = pm.vertex_order
+    # the full mesh is the input, exactly: same positions, same oriented triangles
+    V_full, F_full = pm.decode()
+    assert np.array_equal(V_full, V[order])
+    assert np.array_equal(canonical_faces(order[F_full]), canonical_faces(F))
+    # every level of detail is exactly the mesh the encoder had after the matching pass
+    P = len(trace)
+    assert len(pm.level_records) == P
+    for j in range(P):
+        k = int(pm.level_records[j]) if j < P - 1 else None
+        expect = trace[P - 2 - j] if j < P - 1 else F
+        Vk, Fk = pm.decode(records=k)
+        assert np.array_equal(Vk, V[order[: len(Vk)]])
+        assert np.array_equal(canonical_faces(order[Fk]), canonical_faces(expect))
+    Vb, Fb = pm.decode(records=0)
+    assert np.array_equal(canonical_faces(order[Fb]), canonical_faces(trace[-1]))
+    # and the file stores exactly the same progressive mesh
+    back = from_bytes(to_bytes(pm))
+    for k in [0, pm.n_records // 3, pm.n_records]:
+        a, b = pm.decode(records=k), back.decode(records=k)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    return pm
+
+
+def test_bunny_every_level_exact(bunny):
+    V, F = bunny
+    V = V.astype(np.float32).astype(np.float64)
+    pm = _check_every_level(V, F)
+    assert pm.n_base_vertices <= 0.035 * len(V)
+    Vb, Fb = pm.decode(records=0)
+    base = trimesh.Trimesh(Vb, Fb, process=False)
+    assert base.is_watertight and base.is_winding_consistent
+    assert base.euler_number == trimesh.Trimesh(V, F, process=False).euler_number
+
+
+def test_open_boundary_every_level_exact():
+    V, F = load("camelhead.off")
+    pm = _check_every_level(V, F)
+    # the boundary stays one loop at every level
+    for k in [0, int(pm.level_records[len(pm.level_records) // 2])]:
+        Vk, Fk = pm.decode(records=k)
+        m = trimesh.Trimesh(Vk, Fk, process=False)
+        assert not m.is_watertight and m.is_winding_consistent
+        assert m.euler_number == 1
+
+
+def test_quad_mesh_every_level_exact(tmp_path):
+    path = tmp_path / "torus.obj"
+    path.write_text(quad_torus_obj())
+    src = pmwm.read_mesh(path)
+    assert len(src.faces) == 2 * 40 * 24  # every quad became two triangles
+    _check_every_level(src.vertices, src.faces, base_ratio=0.1)
+
+
+def test_protected_vertices_survive_to_the_base(bunny):
+    V, F = bunny
+    keep = np.zeros(len(V), bool)
+    keep[::997] = True
+    pm, _ = build_progressive_mesh(V, F, base_vertices=500, protected=keep)
+    base_input_ids = pm.vertex_order[: pm.n_base_vertices]
+    assert set(np.flatnonzero(keep)) <= set(base_input_ids.tolist())
+
+
+def test_decode_by_vertex_count(bunny):
+    V, F = bunny
+    pm, _ = build_progressive_mesh(V, F, base_vertices=1000)
+    Vn, Fn = pm.decode(vertices=5000)
+    assert len(Vn) == 5000
+    assert trimesh.Trimesh(Vn, Fn, process=False).is_watertight
+    # clamped at both ends
+    assert len(pm.decode(vertices=10)[0]) == pm.n_base_vertices
+    assert len(pm.decode(vertices=10**9)[0]) == len(V)
+
+
+def test_nonmanifold_vertex_is_kept_and_reconstructed():
+    V, F = load("cow.obj")  # one pinched vertex
+    adj = pmwm.adjacency.build_adjacency(F, len(V))
+    pinched = np.flatnonzero(adj.nonmanifold_vertex)
+    assert len(pinched) == 1
+    pm = _check_every_level(V, F, base_ratio=0.05)
+    assert pinched[0] in pm.vertex_order[: pm.n_base_vertices]
+
+
+def test_bad_faces_are_refused():
+    V = np.zeros((3, 3))
+    with pytest.raises(pmwm.MeshError):
+        build_progressive_mesh(V, np.array([[0, 1, 1]]), base_vertices=3)
+    with pytest.raises(pmwm.MeshError):
+        build_progressive_mesh(V, np.array([[0, 1, 5]]), base_vertices=3)

@@ -1,0 +1,121 @@
+"""Embedding and blind verification: bits recovered, reordering and cropping survived, no false positives."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import pmwm
+from pmwm import attacks
+from pmwm.watermark import EmbedOptions, ber_per_level, embed, verify, verify_pm
+
+from conftest import load
+
+
+@pytest.fixture(scope="module")
+def marked(bunny):
+    V, F = bunny
+    return V, F, embed(V, F, EmbedOptions(payload="ACME 2026", seed=11))
+
+
+def test_all_bits_recovered_unattacked(marked):
+    V, F, res = marked
+    v = verify(res.vertices, F, res.key)
+    assert v.marked and v.bit_errors == 0 and v.payload == "ACME 2026"
+    assert v.mode == "index" and v.carriers_found == v.carriers_total == 72
+    assert v.p_value < 1e-20 and v.correlation == 1.0
+    # only the carriers moved
+    moved = np.flatnonzero(np.any(np.abs(res.vertices - V) > 1e-6, axis=1))
+    assert set(moved.tolist()) == set(res.carriers.tolist())
+
+
+def test_reordered_vertices_and_faces(marked):
+    _, F, res = marked
+    V2, F2 = attacks.reorder(res.vertices, F, seed=3)
+    assert not np.array_equal(V2, res.vertices)
+    v = verify(V2, F2, res.key)
+    assert v.mode == "position" and v.marked and v.bit_errors == 0 and v.payload == "ACME 2026"
+
+
+@pytest.mark.parametrize("crop", [attacks.crop_paper, attacks.crop_plane])
+def test_cropped_ten_percent(marked, crop):
+    _, F, res = marked
+    V2, F2 = crop(res.vertices, F, 0.10, seed=5)
+    assert len(V2) < 0.91 * len(res.vertices)
+    v = verify(V2, F2, res.key)
+    assert v.marked and v.p_value < 1e-6
+    # every carrier that is still there reads right; the lost ones are erasures
+    assert v.carriers_found < v.carriers_total or v.bit_errors == 0
+    assert v.matches >= v.carriers_found
+
+
+def test_watermark_read_at_intermediate_levels(marked):
+    _, _, res = marked
+    levels = ber_per_level(res.pm, res.key)
+    n_full = res.pm.n_vertices
+    report = ", ".join(f"{n}v:{b:.2f}" for _, n, b in levels)
+    print(f"BER per LoD: {report}")
+    assert levels[-1][2] == 0.0
+    # every level with at least a quarter of the vertices reads every bit
+    assert all(b == 0.0 for _, n, b in levels if n >= n_full / 4)
+    # and the mark is already significant on the base mesh: carriers are never collapsed
+    base = verify_pm(res.pm, res.key, records=0)
+    assert base.carriers_found == base.carriers_total
+    assert base.matches > base.carriers_total * 0.75
+
+
+def test_unmarked_original_is_not_marked(marked):
+    V, F, res = marked
+    v = verify(V, F, res.key)
+    assert not v.marked and v.p_value > 1e-3
+
+
+def test_wrong_key_is_not_marked(marked):
+    _, F, res = marked
+    other = embed(*load("bunny_wm_benchmark.off"), EmbedOptions(payload="ACME 2026", seed=12))
+    v = verify(res.vertices, F, other.key)
+    assert not v.marked
+
+
+def test_same_seed_reproduces_and_bits_roundtrip():
+    V, F = load("fandisk.obj")
+    a = embed(V, F, EmbedOptions(bits="1011001110001111", seed=4))
+    b = embed(V, F, EmbedOptions(bits="1011001110001111", seed=4))
+    assert np.array_equal(a.vertices, b.vertices) and a.key.to_json() == b.key.to_json()
+    v = verify(a.vertices, F, a.key)
+    assert v.bits == "1011001110001111"
+    c = embed(V, F, EmbedOptions(bits="1011001110001111", seed=5))
+    assert not np.array_equal(np.sort(a.carriers), np.sort(c.carriers))
+
+
+def test_random_payload_default_64_bits():
+    V, F = load("fandisk.obj")
+    res = embed(V, F, EmbedOptions(seed=1))
+    assert len(res.bits) == 64
+    assert verify(res.vertices, F, res.key).matches == 64
+
+
+def test_too_many_bits_for_a_small_mesh():
+    V, F = load("cow_libigl.off")
+    with pytest.raises(pmwm.PayloadError, match="fewer bits"):
+        embed(V, F, EmbedOptions(n_bits=2000, seed=1))
+
+
+@pytest.mark.parametrize(
+    "opts",
+    [EmbedOptions(payload="x", bits="01"), EmbedOptions(bits="01a"), EmbedOptions(payload=""),
+     EmbedOptions(strength=-1), EmbedOptions(base_ratio=0)],
+)
+def test_bad_options(opts):
+    V, F = load("cow_libigl.off")
+    with pytest.raises(pmwm.PmwmError):
+        embed(V, F, opts)
+
+
+def test_marked_file_roundtrip_ply(tmp_path, marked):
+    _, F, res = marked
+    path = tmp_path / "m.ply"
+    pmwm.write_mesh(path, res.vertices, F)
+    src = pmwm.read_mesh(path)
+    assert np.array_equal(src.vertices, res.vertices)  # float32 storage is exact
+    assert verify(src.vertices, src.faces, res.key).bit_errors == 0
