@@ -270,6 +270,8 @@ def similarity(
     being the mean vertex distance from the vertex mean.
     """
     v, f = _check_mesh(vertices, faces)
+    if isinstance(scale_range, str):  # "0.1,10" from the command line
+        scale_range = tuple(scale_range.replace(":", ",").split(","))
     lo, hi = (float(x) for x in scale_range)
     if not 0 < lo <= hi:
         raise ValueError(f"scale_range must be 0 < low <= high, got {scale_range}")

@@ -183,7 +183,8 @@ def cho_embed(
         mapped = _transform(bins.r, k[bins.bin], method)
         r_new = mapped if method == "I" else 0.5 * (mapped + 1.0)
         rho_new = bins.lo[bins.bin] + bins.width * r_new
-        marked = bins.centre + bins.unit * rho_new[:, None]
+        moved = r_new != bins.r  # r = 0 and r = 1 (the extremes) stay bit-exact
+        marked = np.where(moved[:, None], bins.centre + bins.unit * rho_new[:, None], v)
         wrong = _decode(marked, n_bits, method) != b
         if not wrong.any():
             break

@@ -111,7 +111,8 @@ def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b
     s = slot[flat]
     hit = np.flatnonzero(s >= 0)
     rec = s[hit]
-    order = np.argsort(rec, kind="stable")
+    # group the hits by record, keeping face order (radix sort when records fit 16 bits)
+    order = np.argsort(rec.astype(np.uint16) if cnt < 65536 else rec, kind="stable")
     hit = hit[order]
     rec = rec[order]
     starts = np.searchsorted(rec, np.arange(cnt))
@@ -126,13 +127,16 @@ def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b
     corner = hit % 3
     nxt = F[face, (corner + 1) % 3]
     prv = F[face, (corner + 2) % 3]
-    # ends of the arc: p is a "next" vertex that is nobody's "previous", q the reverse
-    ka = rec * nv + nxt
-    kb = rec * nv + prv
+    # ends of the arc: p is a "next" vertex that is no "previous" of the same record, q the
+    # reverse; the records' rings are disjoint, so one tag table serves them all
+    tag = np.full(nv + cnt, -1, dtype=np.int64)
+    tag[prv] = rec
+    pm_ = tag[nxt] != rec
+    tag[prv] = -1
+    tag[nxt] = rec
+    qm_ = tag[prv] != rec
     p = np.zeros(cnt, dtype=np.int64)
     q = np.zeros(cnt, dtype=np.int64)
-    pm_ = ~np.isin(ka, kb)
-    qm_ = ~np.isin(kb, ka)
     p[rec[pm_]] = nxt[pm_]
     q[rec[qm_]] = prv[qm_]
     single = (flags & FLAG_SINGLE).astype(bool)
@@ -413,7 +417,12 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
 
 
 def _dilate(mask: np.ndarray, adj: Adjacency) -> np.ndarray:
-    return mask | segment_reduce(adj.ring_ptr, mask[adj.ring_idx], np.logical_or, False)
+    """The mask grown by one ring (gathers only the rings of the marked vertices)."""
+    idx = np.flatnonzero(mask)
+    cnt = np.diff(adj.ring_ptr)[idx]
+    out = mask.copy()
+    out[adj.ring_idx[_ranges(adj.ring_ptr[idx], cnt)]] = True
+    return out
 
 
 def _valid(V, adj: Adjacency, u, v, area_eps, check_flips=True) -> np.ndarray:

@@ -1,0 +1,102 @@
+"""The built extension zip: contents, Blender's validator, an isolated install, the bundled wheels."""
+
+from __future__ import annotations
+
+import ast
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import tomllib
+import zipfile
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+
+
+def _build_addon_module():
+    spec = importlib.util.spec_from_file_location("build_addon", ROOT / "build_addon.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def built_zip(tmp_path_factory):
+    """dist/pmwm-<version>.zip built by build_addon.py (pip wheel of this checkout + trimesh)."""
+    import importlib.metadata
+
+    build_addon = _build_addon_module()
+    out = tmp_path_factory.mktemp("dist")
+    return build_addon.build(out, importlib.metadata.version("trimesh"), check=False)
+
+
+def test_zip_holds_manifest_addon_and_pure_python_wheels(built_zip):
+    manifest_src = tomllib.loads((ROOT / "blender_pmwm" / "blender_manifest.toml").read_text())
+    with zipfile.ZipFile(built_zip) as zf:
+        names = set(zf.namelist())
+        manifest = tomllib.loads(zf.read("blender_manifest.toml").decode())
+    assert built_zip.name == f"{manifest['id']}-{manifest['version']}.zip"
+    assert {"__init__.py", "operators.py", "panel.py", "props.py", "examples/watermark_all.py"} <= names
+    assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
+    wheels = sorted(n for n in names if n.startswith("wheels/"))
+    assert [w.split("/")[1].split("-")[0] for w in wheels] == ["pmwm", "trimesh"]
+    assert all(w.endswith("-py3-none-any.whl") for w in wheels)
+    assert sorted(manifest["wheels"]) == sorted("./" + w for w in wheels)
+    for field in ("schema_version", "id", "type", "blender_version_min", "license", "permissions", "tagline"):
+        assert manifest[field] == manifest_src[field]
+    assert (manifest["id"], manifest["type"], manifest["blender_version_min"]) == ("pmwm", "add-on", "4.2.0")
+    assert manifest["license"] == ["SPDX:GPL-3.0-or-later"] and "files" in manifest["permissions"]
+
+
+def test_blenders_validator_accepts_the_zip(built_zip):
+    tool = _build_addon_module().find_blender_ext()
+    assert tool is not None and tool.is_file()
+    proc = subprocess.run([sys.executable, str(tool), "validate", str(built_zip)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_addon_sources_never_touch_sys_path_and_import_relatively():
+    for path in (ROOT / "blender_pmwm").rglob("*.py"):
+        tree = ast.parse(path.read_text(), str(path))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and node.attr == "path":
+                assert not (isinstance(node.value, ast.Name) and node.value.id == "sys"), f"sys.path in {path}"
+            if isinstance(node, (ast.Import, ast.ImportFrom)) and path.parent.name == "blender_pmwm":
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+                assert not any(n.startswith("blender_pmwm") for n in names), f"absolute self-import in {path}"
+
+
+def _run(mode: str, arg: Path, resources: Path) -> dict:
+    env = {**os.environ, "BLENDER_USER_RESOURCES": str(resources)}
+    proc = subprocess.run([sys.executable, str(HERE / "install_check.py"), mode, str(arg)], env=env,
+                          cwd=str(resources), capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT:")]
+    assert proc.returncode == 0 and lines, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return json.loads(lines[-1][len("RESULT:"):])
+
+
+def test_install_into_isolated_user_resources(built_zip, tmp_path):
+    resources = tmp_path / "blender_user"
+    resources.mkdir()
+    installed = _run("install", built_zip, resources)
+    assert installed["enabled"] and installed["has_operators"]
+    assert installed["addon_file"].startswith(str(resources))
+    assert installed["warnings"] == {}  # Blender's extension policy check
+
+    # A restarted Blender: the bundled wheels are what `import pmwm` / `import trimesh` resolve to.
+    work = tmp_path / "work"
+    work.mkdir()
+    used = _run("use", work, resources)
+    site = resources / "extensions" / ".local"
+    assert used["enabled"] and used["warnings"] == {}
+    assert used["pmwm_file"].startswith(str(site)), used["pmwm_file"]
+    assert used["trimesh_file"].startswith(str(site)), used["trimesh_file"]
+    assert not used["numpy_file"].startswith(str(resources))  # numpy is Blender's own
+    assert "operator_error" not in used, used.get("operator_error")
+    assert used["verdict"] == {"marked": True, "payload": "Hi"}
