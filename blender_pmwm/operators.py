@@ -7,6 +7,8 @@ first and written back only on success, so a failure leaves the object and the s
 
 Scripting API (``blender --background --python script.py``): the keyword arguments of watermark
 and verify override the Scene options (``scene.pmwm``); arguments left out take the Scene's values.
+watermark and verify work on the base mesh in object space (``object.data``: modifiers and the
+object transform are not applied), the data an exporter writes when both are neutral.
 """
 
 from __future__ import annotations
@@ -88,10 +90,15 @@ class _PmwmOperator:
         return {"CANCELLED"}
 
     def option(self, context, name):
-        """The operator argument when given, else the Scene option of the same name."""
+        """The operator argument when given, else the Scene option of the same name.
+
+        The value used is stored back in the operator, so the redo panel shows what ran.
+        """
         if self.properties.is_property_set(name):
             return getattr(self, name)
-        return getattr(context.scene.pmwm, name)
+        value = getattr(context.scene.pmwm, name)
+        setattr(self, name, value)
+        return value
 
 
 class PMWM_OT_watermark(_PmwmOperator, Operator):

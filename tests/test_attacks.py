@@ -101,7 +101,10 @@ def test_attack_returns_new_arrays_and_is_reproducible(name, params, ellipsoid):
     np.testing.assert_array_equal(f1, f2)
 
 
-@pytest.mark.parametrize("name", ["noise_paper", "crop_paper", "noise_benchmark", "similarity", "reorder", "crop_plane"])
+RANDOM_ATTACKS = ["noise_paper", "crop_paper", "noise_benchmark", "similarity", "reorder", "crop_plane"]
+
+
+@pytest.mark.parametrize("name", RANDOM_ATTACKS)
 def test_random_attacks_depend_on_the_seed(name, ellipsoid):
     v, f = ellipsoid
     a = A.ATTACKS[name](v, f, seed=1)

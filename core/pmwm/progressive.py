@@ -275,6 +275,7 @@ def build_progressive_mesh(
     forced_done = np.zeros(len(forced_pairs), bool)
     total = max(n_alive - target, 1)
     stalls = 0
+    failed = np.zeros(0, np.int64)  # keys u * n + v of collapses that failed validation
     while True:
         todo = np.flatnonzero(~forced_done)
         forced_phase = len(todo) > 0 and stalls < 4
@@ -285,7 +286,19 @@ def build_progressive_mesh(
             cost = _forced_candidates(forced_pairs[todo], adj)
         else:
             cost = _candidates(V, Q, adj, locked, keep)
-        sel_u, sel_v = _select(V, adj, cost, area_eps, check_flips=not forced_phase)
+            # collapses found invalid earlier stay out until their neighbourhood changes
+            if len(failed):
+                keys = adj.ring_owner() * n + adj.ring_idx
+                cost[np.isin(keys, failed)] = np.inf
+        sel_u, sel_v, bad = _select(V, adj, cost, area_eps, check_flips=not forced_phase)
+        if not forced_phase:
+            if len(sel_u):
+                touched = np.zeros(n, bool)
+                touched[sel_u] = True
+                touched[sel_v] = True
+                touched = _dilate(touched, adj)
+                failed = failed[~(touched[failed // n] | touched[failed % n])]
+            failed = np.union1d(failed, bad)
         if not forced_phase:
             room = n_alive - target
             if len(sel_u) > room:
@@ -369,8 +382,8 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
     """Independent valid collapses, cheapest first, with disjoint closed 1-rings of their u.
 
     ``cost`` is per ring entry (u = owner, v = neighbour; inf = not a candidate).
-    Each round, a vertex whose cheapest remaining candidate is the cheapest within
-    two rings wins; winners are validated, valid ones accepted (blocking their
+    Each round, a vertex whose cheapest remaining candidate has the best priority
+    within two rings wins (priority: cost quantile, then a fixed pseudo-random order); winners are validated, valid ones accepted (blocking their
     2-rings), failed candidates dropped so the vertex tries its next one.
     """
     n = adj.n_vertices
@@ -379,17 +392,22 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
     cost = cost.copy()
     blocked = np.zeros(n, bool)
     big = np.iinfo(np.int64).max
-    acc_u, acc_v = [], []
-    for _ in range(rounds):
+    acc_u, acc_v, bad_u, bad_v = [], [], [], []
+    for r in range(64):
+        if r >= rounds and acc_u:
+            break  # enough rounds; keep going only while nothing valid was found
         c = np.where(blocked[owner], np.inf, cost)
         best = segment_reduce(ptr, c, np.minimum, np.inf)
         bu = np.flatnonzero(np.isfinite(best))
         if len(bu) == 0:
             break
-        rank = np.empty(len(bu), np.int64)
-        rank[np.argsort(best[bu], kind="stable")] = np.arange(len(bu))
+        # priority: cost quantile bucket first, then a fixed pseudo-random order, so that
+        # smooth cost fields still give many local minima (Luby-style selection)
+        nb_ = len(bu)
+        bucket = np.empty(nb_, np.int64)
+        bucket[np.argsort(best[bu], kind="stable")] = np.arange(nb_) * _BUCKETS // nb_
         val = np.full(n, big, np.int64)
-        val[bu] = rank
+        val[bu] = bucket * nb_ + _tiebreak(nb_, r)
         m1 = np.minimum(val, segment_reduce(ptr, val[adj.ring_idx], np.minimum, big))
         m2 = np.minimum(m1, segment_reduce(ptr, m1[adj.ring_idx], np.minimum, big))
         wu = bu[val[bu] == m2[bu]]
@@ -405,6 +423,8 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
         wv = adj.ring_idx[pick]
         ok = _valid(V, adj, wu, wv, area_eps, check_flips)
         cost[pick[~ok]] = np.inf
+        bad_u.append(wu[~ok])
+        bad_v.append(wv[~ok])
         if ok.any():
             acc_u.append(wu[ok])
             acc_v.append(wv[ok])
@@ -412,8 +432,17 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
             mark[wu[ok]] = True
             blocked |= _dilate(_dilate(mark, adj), adj)
     if not acc_u:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return np.concatenate(acc_u), np.concatenate(acc_v)
+        acc_u, acc_v = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    bad = (np.concatenate(bad_u) * n + np.concatenate(bad_v)) if bad_u else np.zeros(0, np.int64)
+    return np.concatenate(acc_u), np.concatenate(acc_v), bad
+
+
+_BUCKETS = 16
+
+
+def _tiebreak(k: int, salt: int) -> np.ndarray:
+    """A fixed permutation of range(k) (deterministic: seeded by k and the round)."""
+    return np.random.default_rng([k, salt]).permutation(k)
 
 
 def _dilate(mask: np.ndarray, adj: Adjacency) -> np.ndarray:

@@ -40,6 +40,7 @@ from .progressive import ProgressiveMesh, build_progressive_mesh
 
 Progress = Optional[Callable[[float, str], None]]
 DEFAULT_BITS = 64
+MAX_COORDINATE = 1e30  # marked meshes are float32 (max 3.4e38); quadrics square coordinates
 
 
 @dataclass
@@ -160,6 +161,9 @@ def check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
         raise MeshError("a face refers to a vertex index outside the vertex array")
     if not np.all(np.isfinite(V)):
         raise MeshError("the mesh has NaN or infinite coordinates; repair it first")
+    if np.abs(V).max() > MAX_COORDINATE:
+        raise MeshError(f"coordinates reach {np.abs(V).max():.3g}, beyond float32 range for a marked mesh "
+                        f"(limit {MAX_COORDINATE:g}); rescale the mesh first")
     return V, F
 
 
