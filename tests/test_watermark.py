@@ -56,8 +56,10 @@ def test_watermark_read_at_intermediate_levels(marked):
     report = ", ".join(f"{n}v:{b:.2f}" for _, n, b in levels)
     print(f"BER per LoD: {report}")
     assert levels[-1][2] == 0.0
-    # every level with at least a quarter of the vertices reads every bit
-    assert all(b == 0.0 for _, n, b in levels if n >= n_full / 4)
+    # every level with at least a third of the vertices reads every bit, and no level
+    # (down to the 3 % base mesh) loses more than a fifth of them
+    assert all(b == 0.0 for _, n, b in levels if n >= n_full / 3)
+    assert max(b for _, _, b in levels) <= 0.2
     # and the mark is already significant on the base mesh: carriers are never collapsed
     base = verify_pm(res.pm, res.key, records=0)
     assert base.carriers_found == base.carriers_total
