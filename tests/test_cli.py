@@ -143,6 +143,9 @@ def bad(tmp_path_factory, sample) -> SimpleNamespace:
     neg = json.loads(json.dumps(doc))
     neg["carriers"][0][0] = neg["carriers"][0][1] = -1_000_000_000
     b.key_negative = key("negative.key.json", json.dumps(neg))
+    huge = json.loads(json.dumps(doc))
+    huge["carriers"][0][0] = huge["carriers"][0][1] = 1e30
+    b.key_huge = key("huge.key.json", json.dumps(huge))
 
     data = sample.pm.read_bytes()
     b.pm_truncated = d / "truncated.pmwm"
@@ -192,6 +195,21 @@ def test_embed_is_reproducible_from_the_seed(sample, out):
                      "--seed", "1", "--payload", PAYLOAD, "-q"]) == 0
     assert (out / "again.ply").read_bytes() == sample.mesh.read_bytes()
     assert pmwm.read_key(out / "again.key.json").secret == pmwm.read_key(sample.key).secret
+
+
+def test_strength_and_base_ratio_are_applied(sample, out):
+    """Same seed and payload: a larger --strength moves the carriers further, a larger --base-ratio
+    keeps a larger base mesh, and the mark still verifies."""
+    assert call("embed", COW, "-o", out / "s.ply", "--key", out / "s.key.json", "--pm", out / "s.pmwm", "--seed", 1,
+                "--payload", PAYLOAD, "--strength", 4, "--base-ratio", 0.2, "-q").returncode == 0
+    src = pmwm.read_mesh(COW).vertices
+    moved_default = np.linalg.norm(pmwm.read_mesh(sample.mesh).vertices - src, axis=1)
+    moved_strong = np.linalg.norm(pmwm.read_mesh(out / "s.ply").vertices - src, axis=1)
+    assert moved_strong.sum() > 1.5 * moved_default.sum()
+    assert pmwm.read_pm(out / "s.pmwm").n_base_vertices > 2 * pmwm.read_pm(sample.pm).n_base_vertices
+    assert pmwm.read_key(out / "s.key.json").strength == 4
+    code, v = verdict(out / "s.ply", "--key", out / "s.key.json")
+    assert code == 0 and v["payload"] == PAYLOAD
 
 
 def test_verify_reads_the_mark_and_the_payload(sample):
@@ -441,12 +459,15 @@ def test_verify_rejects_a_bad_key(sample, bad, key, mention):
     fails_cleanly(sample.dir, "verify", sample.mesh, "--key", path, mentions=(mention,))
 
 
-def test_a_key_with_an_impossible_carrier_index_does_not_crash_verify(sample, bad):
-    proc = call("verify", sample.mesh, "--key", bad.key_negative)
+@pytest.mark.parametrize("which,real", [("key_negative", False), ("key_huge", True)])
+def test_a_key_with_an_impossible_carrier_index_does_not_crash_verify(sample, bad, which, real):
+    """Refused as a damaged key (exit 2, one line), or the carrier counts as not found; nothing else
+    on stderr (no traceback, no stray numpy warning)."""
+    proc = (run if real else call)("verify", sample.mesh, "--key", getattr(bad, which))
     assert "Traceback" not in proc.stderr, proc.stderr
     if proc.returncode == 2:
         assert_error(proc)
-    else:  # or the carrier counts as not found
+    else:
         assert proc.returncode in (0, 1) and proc.stderr == ""
 
 

@@ -67,14 +67,6 @@ def segment_owner(ptr: np.ndarray) -> np.ndarray:
     return np.repeat(np.arange(len(ptr) - 1, dtype=np.int64), np.diff(ptr))
 
 
-def csr_from_pairs(owner: np.ndarray, value: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """CSR (ptr, idx) grouping ``value`` by ``owner``; a group keeps the input order."""
-    order = np.argsort(owner, kind="stable")
-    ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(owner, minlength=n), out=ptr[1:])
-    return ptr, np.ascontiguousarray(value[order])
-
-
 def segment_reduce(ptr: np.ndarray, values: np.ndarray, ufunc: np.ufunc, empty) -> np.ndarray:
     """Apply ``ufunc.reduceat`` over CSR segments; empty segments get ``empty``."""
     n = len(ptr) - 1
@@ -101,24 +93,31 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     lo = np.minimum(he_from, he_to)
     hi = np.maximum(he_from, he_to)
     keys = lo * n + hi
+    fwd_he = he_from < he_to
+    del he_to, lo, hi
     order = np.argsort(keys, kind="stable")
     skeys = keys[order]
+    n_he = len(keys)
+    del keys
     first = np.r_[True, skeys[1:] != skeys[:-1]] if len(skeys) else np.zeros(0, bool)
     starts = np.flatnonzero(first)
     counts = np.diff(np.r_[starts, len(skeys)])
-    he_edge = np.empty(len(keys), dtype=np.int64)
+    he_edge = np.empty(n_he, dtype=np.int64)
     he_edge[order] = np.cumsum(first) - 1
     ukeys = skeys[starts]
+    del skeys
     edges = np.stack([ukeys // n, ukeys % n], axis=1) if len(ukeys) else np.zeros((0, 2), np.int64)
-    forward = np.bincount(he_edge, weights=(he_from < he_to), minlength=len(ukeys))
+    forward = np.bincount(he_edge, weights=fwd_he, minlength=len(ukeys))
+    del fwd_he
     boundary_edge = counts == 1
     bad_edge = (counts > 2) | ((counts == 2) & (forward != 1))
 
     # twin half-edge of every half-edge on a clean two-face edge, else -1
-    twin = np.full(len(keys), -1, dtype=np.int64)
+    twin = np.full(n_he, -1, dtype=np.int64)
     pair_start = starts[(counts == 2) & ~bad_edge]
     twin[order[pair_start]] = order[pair_start + 1]
     twin[order[pair_start + 1]] = order[pair_start]
+    del order, he_edge, first
 
     src = np.concatenate([edges[:, 0], edges[:, 1]])
     dst = np.concatenate([edges[:, 1], edges[:, 0]])
@@ -127,15 +126,17 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     np.cumsum(np.bincount(src, minlength=n), out=ring_ptr[1:])
     ring_idx = dst[ring_order]
     ring_edge = ring_order % max(len(edges), 1)
-    corner_face = np.repeat(np.arange(m, dtype=np.int64), 3)
-    vf_ptr, vf_idx = csr_from_pairs(he_from, corner_face, n)
+    vf_order = np.argsort(he_from, kind="stable")
+    vf_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(he_from, minlength=n), out=vf_ptr[1:])
+    vf_idx = vf_order // 3
 
     boundary = np.zeros(n, bool)
     boundary[edges[boundary_edge].ravel()] = True
     nonmanifold = np.zeros(n, bool)
     nonmanifold[edges[bad_edge].ravel()] = True
     if detect_pinches:
-        nonmanifold |= _fan_count(he_from, twin, n) > 1
+        nonmanifold |= _fan_count(he_from, twin, vf_order, n) > 1
     isolated = np.diff(vf_ptr) == 0
     return Adjacency(
         n_vertices=n,
@@ -153,24 +154,38 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     )
 
 
-def _fan_count(he_from: np.ndarray, twin: np.ndarray, n: int) -> np.ndarray:
+def _fan_count(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray, n: int) -> np.ndarray:
     """Number of face fans around each vertex (more than one: a pinched vertex).
 
     Corner c (the corner where half-edge c starts) is followed around its vertex by
     the corner of the twin of the half-edge arriving at c. The fans are the orbits
     of that map; their minimum corner is found by pointer doubling in both
-    directions, which also covers open fans (paths).
+    directions, which also covers open fans (paths). The corners are first put in
+    vertex order (``order``, a stable argsort of he_from), so that every gather stays
+    within a vertex's few corners.
     """
     nc = len(he_from)
-    corner = np.arange(nc, dtype=np.int64)
+    if nc == 0:
+        return np.zeros(n, np.int64)
+    it = np.int32 if nc < 2**31 - 1 else np.int64
+    corner = np.arange(nc, dtype=it)
+    order = order.astype(it)
+    pos = np.empty(nc, it)
+    pos[order] = corner
     prev_he = corner - corner % 3 + (corner + 2) % 3
     step = twin[prev_he]
-    fwd = np.where(step >= 0, step, corner)
-    bwd = corner.copy()
-    has = step >= 0
-    bwd[step[has]] = corner[has]
-    lf = corner.copy()
-    lb = corner.copy()
+    del prev_he
+    nxt = np.where(step >= 0, step, corner).astype(it)
+    del step
+    fwd = pos[nxt[order]]  # in vertex order: position -> position of the next corner
+    del nxt
+    ident = np.arange(nc, dtype=it)
+    bwd = ident.copy()
+    moved = fwd != ident
+    bwd[fwd[moved]] = ident[moved]
+    del moved
+    lf = ident.copy()
+    lb = ident.copy()
     for _ in range(40):
         lf2 = np.minimum(lf, lf[fwd])
         lb2 = np.minimum(lb, lb[bwd])
@@ -179,5 +194,5 @@ def _fan_count(he_from: np.ndarray, twin: np.ndarray, n: int) -> np.ndarray:
         if np.array_equal(lf2, lf) and np.array_equal(lb2, lb):
             break  # no window doubled its minimum: every orbit has converged
         lf, lb = lf2, lb2
-    label = np.minimum(lf, lb)
-    return np.bincount(he_from[label == corner], minlength=n)
+    roots = np.minimum(lf, lb) == ident
+    return np.bincount(he_from[order[roots]], minlength=n)

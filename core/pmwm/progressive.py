@@ -242,6 +242,7 @@ def build_progressive_mesh(
     forced: Optional[np.ndarray] = None,
     progress: Progress = None,
     trace: Optional[list] = None,
+    adjacency: Optional[Adjacency] = None,
 ) -> tuple[ProgressiveMesh, np.ndarray]:
     """Decimate to about ``base_vertices`` vertices; return the PM and the forced pairs applied.
 
@@ -250,6 +251,7 @@ def build_progressive_mesh(
     the watermark carriers absorbing their first neighbour. Returns the PM and a
     bool mask of the forced pairs that were applied. ``trace``, when a list, receives
     the faces (input ids) after every pass, for tests of the levels of detail.
+    ``adjacency`` may pass the input's adjacency when the caller has it already.
     """
     V = np.ascontiguousarray(vertices, dtype=np.float64)
     F0 = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
@@ -258,7 +260,7 @@ def build_progressive_mesh(
         raise MeshError("a face refers to a vertex that does not exist; repair the mesh and retry")
     if np.any((F0[:, 0] == F0[:, 1]) | (F0[:, 1] == F0[:, 2]) | (F0[:, 0] == F0[:, 2])):
         raise MeshError("the mesh has faces that repeat a vertex; remove degenerate faces first")
-    adj0 = build_adjacency(F0, n)
+    adj0 = adjacency if adjacency is not None else build_adjacency(F0, n)
     locked = adj0.nonmanifold_vertex | adj0.isolated_vertex
     keep = np.zeros(n, bool) if protected is None else np.asarray(protected, bool).copy()
     Q = _vertex_quadrics(V, F0, adj0)
@@ -322,6 +324,7 @@ def build_progressive_mesh(
         fid = fid[_alive_faces(p, fid)]
         if trace is not None:
             trace.append(F.copy())
+        del adj, cost  # free before the next pass builds its own
     pm = _assemble(V, F0, F, fid, alive, passes)
     return pm, forced_done
 

@@ -257,7 +257,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
         report(0.15 + 0.8 * f, msg)
 
     pm, _ = build_progressive_mesh(marked, F, base_vertices=base, protected=protected, forced=forced,
-                                   progress=pm_progress)
+                                   progress=pm_progress, adjacency=adj)
     pm_of = np.empty(len(V), np.int64)
     pm_of[pm.vertex_order] = np.arange(len(V))
     key = WatermarkKey(
