@@ -333,6 +333,8 @@ def _is_float32(v: np.ndarray) -> bool:
 def read_mesh(path) -> SourceMesh:
     """Read a mesh file into a welded, triangulated canonical mesh (MeshError on any problem)."""
     p = os.fspath(path)
+    if os.path.isdir(p):
+        raise MeshError(f"{p} is a directory; give a mesh file")
     ext = _extension(p)
     mesh, warnings = _load_trimesh(p, ext)
 
