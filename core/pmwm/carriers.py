@@ -99,6 +99,6 @@ def select_carriers(
     if len(chosen) < n:
         raise PayloadError(
             f"only {len(chosen)} vertices of this mesh can carry a bit, {n} requested; "
-            "use fewer bits (--bits/--payload) or a denser mesh"
+            "use a shorter payload (fewer bits) or a denser mesh"
         )
     return np.asarray(chosen, dtype=np.int64)

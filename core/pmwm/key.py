@@ -81,6 +81,8 @@ class WatermarkKey:
             doc = json.loads(text)
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise KeyFileError(f"{name} is not a pmwm key (not JSON: {exc.msg if hasattr(exc, 'msg') else exc})") from None
+        except RecursionError:
+            raise KeyFileError(f"{name} is not a pmwm key (JSON nested too deeply)") from None
         if not isinstance(doc, dict) or doc.get("format") != KEY_FORMAT:
             raise KeyFileError(f"{name} is not a pmwm key file (no \"format\": \"{KEY_FORMAT}\")")
         version = doc.get("version")
@@ -90,6 +92,9 @@ class WatermarkKey:
             mesh = doc["mesh"]
             bits = np.array([int(c) for c in doc["bits"]], dtype=np.uint8)
             car = np.asarray(doc["carriers"], dtype=np.float64).reshape(-1, 5)
+            idx = car[:, :2]
+            if not (np.all(np.isfinite(idx)) and np.all(idx == np.round(idx)) and np.all(np.abs(idx) < 2**53)):
+                raise ValueError("carrier indices are not integers")
             key = cls(
                 secret=str(doc["secret"]),
                 bits=bits,
@@ -107,7 +112,7 @@ class WatermarkKey:
             )
         except KeyError as exc:
             raise KeyFileError(f"{name} lacks the field {exc.args[0]!r}; it is damaged or not a pmwm key") from None
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise KeyFileError(f"{name} has a malformed field ({exc}); it is damaged or not a pmwm key") from None
         key.validate(name)
         return key
@@ -120,11 +125,16 @@ class WatermarkKey:
             problems.append("bit count and carrier count differ")
         if np.any(self.bits > 1):
             problems.append("bits are not 0/1")
-        if not np.all(np.isfinite(self.carrier_position)):
-            problems.append("carrier positions are not finite")
+        if not np.all(np.isfinite(self.carrier_position)) or np.any(np.abs(self.carrier_position) > 1e30):
+            problems.append("carrier positions are not finite numbers below 1e30")
+        for what, idx in (("index", self.carrier_index), ("progressive-mesh index", self.carrier_pm_index)):
+            if len(idx) and (idx.min() < 0 or idx.max() >= self.n_vertices):
+                problems.append(f"a carrier {what} is outside the mesh's {self.n_vertices} vertices")
+        if self.n_vertices < 1 or self.n_faces < 1:
+            problems.append("mesh counts are not positive")
         if self.payload_kind not in ("text", "bits", "random"):
             problems.append(f"unknown payload kind {self.payload_kind!r}")
-        if not (self.mean_edge > 0 and np.isfinite(self.mean_edge)):
+        if not (0 < self.mean_edge < 1e30 and np.isfinite(self.bbox_diagonal)):
             problems.append("mean edge length is not positive")
         if problems:
             raise KeyFileError(f"{name} is inconsistent: {'; '.join(problems)}")

@@ -135,8 +135,6 @@ def _check(pm: ProgressiveMesh, name: str) -> None:
     bad = None
     if len(pm.base_faces) and (pm.base_faces.max() >= nb):
         bad = "a base face refers to a missing vertex"
-    elif nr and np.any(pm.v >= nb + np.arange(nr)):
-        bad = "a record splits a vertex that does not exist yet"
     elif np.any((pm.flags & ~np.uint8(FLAG_SINGLE | FLAG_SECOND)) != 0):
         bad = "unknown record flags"
     elif len(pm.level_records) == 0 and nr:
@@ -145,10 +143,18 @@ def _check(pm: ProgressiveMesh, name: str) -> None:
         np.any(np.diff(pm.level_records) <= 0) or pm.level_records[0] <= 0 or pm.level_records[-1] != nr
     ):
         bad = "level table out of order"
+    elif nr and np.any(pm.v >= nb + _level_start(pm.level_records)):
+        bad = "a record splits a vertex that its level has not got yet"
     elif not (np.all(np.isfinite(pm.base_vertices)) and np.all(np.isfinite(pm.pos))):
         bad = "non-finite coordinates"
     if bad:
         raise PMFormatError(f"{name} is inconsistent ({bad}); it was not written by pmwm or is damaged")
+
+
+def _level_start(level_records: np.ndarray) -> np.ndarray:
+    """For every record, the number of records before its level (they are applied together)."""
+    starts = np.r_[0, level_records[:-1]]
+    return np.repeat(starts, np.diff(np.r_[0, level_records]))
 
 
 def write_pm(path, pm: ProgressiveMesh, *, force: bool = False) -> None:
@@ -166,7 +172,9 @@ def read_pm(path) -> ProgressiveMesh:
             head = fh.read(_HEADER.size)
             fh.seek(0, os.SEEK_END)
             size = fh.tell()
-            if len(head) == _HEADER.size and head[:8] == MAGIC:
+            if len(head) < 8 or head[:8] != MAGIC:
+                raise PMFormatError(f"{path} is not a .pmwm progressive mesh (wrong magic bytes)")
+            if len(head) == _HEADER.size:
                 _, _, flags, nb, fb, nr, nl, _ = _HEADER.unpack(head)
                 fsize = 8 if flags & _FLAG_F64 else 4
                 rsize = _record_dtype(bool(flags & _FLAG_F64)).itemsize
