@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import platform
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -44,17 +43,10 @@ def commit() -> str:
 
 
 def write_section(name: str, body: str) -> None:
-    """Replace (or append) the section ``name`` of BENCHMARKS.md with ``body``."""
-    start, end = f"<!-- bench:{name} -->", f"<!-- /bench:{name} -->"
-    text = REPORT.read_text() if REPORT.exists() else "# Benchmarks\n\nFigures from real runs; each section names its command and machine.\n"
-    block = f"{start}\n{body.rstrip()}\n{end}"
-    if start in text and end in text:
-        text = re.sub(re.escape(start) + r".*?" + re.escape(end), lambda m: block, text, flags=re.S)
-    else:
-        text = text.rstrip() + "\n\n" + block + "\n"
-    tmp = REPORT.with_suffix(".md.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, REPORT)
+    """Replace (or append) the section ``name`` of BENCHMARKS.md with ``body``, and print it."""
+    from pmwm.report import write_section as write
+
+    write(REPORT, name, body)
     print(body)
 
 

@@ -34,7 +34,7 @@ from typing import Callable
 import numpy as np
 
 from .adjacency import build_adjacency, segment_owner
-from .errors import MeshError
+from .errors import MeshError, ParameterError
 
 MeshArrays = tuple[np.ndarray, np.ndarray]
 
@@ -65,7 +65,7 @@ def _check_fraction(value: float, name: str, allow_one: bool = False) -> float:
     hi_ok = value <= 1.0 if allow_one else value < 1.0
     if not (value >= 0.0 and hi_ok):
         bound = "[0, 1]" if allow_one else "[0, 1)"
-        raise ValueError(f"{name} must be a fraction in {bound}, got {value}")
+        raise ParameterError(f"{name} must be a fraction in {bound}, got {value}")
     return value
 
 
@@ -134,7 +134,7 @@ def noise_paper(vertices, faces, amplitude: float = 0.005, seed: int | None = No
     """
     v, f = _check_mesh(vertices, faces)
     if amplitude < 0:
-        raise ValueError(f"amplitude must be >= 0, got {amplitude}")
+        raise ParameterError(f"amplitude must be >= 0, got {amplitude}")
     r_max = float(_centre_norms(v).max()) if len(v) else 0.0
     rng = np.random.default_rng(seed)
     a = float(amplitude) * r_max
@@ -154,7 +154,7 @@ def smooth_laplacian(
     v, f = _check_mesh(vertices, faces)
     iterations = int(iterations)
     if iterations < 0:
-        raise ValueError(f"iterations must be >= 0, got {iterations}")
+        raise ParameterError(f"iterations must be >= 0, got {iterations}")
     n = len(v)
     if iterations == 0 or len(f) == 0:
         return v, f
@@ -228,7 +228,7 @@ def noise_benchmark(vertices, faces, amplitude: float = 0.001, seed: int | None 
     """
     v, f = _check_mesh(vertices, faces)
     if amplitude < 0:
-        raise ValueError(f"amplitude must be >= 0, got {amplitude}")
+        raise ParameterError(f"amplitude must be >= 0, got {amplitude}")
     d_bar = float(_centre_norms(v).mean()) if len(v) else 0.0
     rng = np.random.default_rng(seed)
     a = float(amplitude) * d_bar
@@ -245,7 +245,7 @@ def quantize(vertices, faces, bits: int = 9, seed: int | None = None) -> MeshArr
     v, f = _check_mesh(vertices, faces)
     bits = int(bits)
     if not 1 <= bits <= 52:
-        raise ValueError(f"bits must be in 1..52, got {bits}")
+        raise ParameterError(f"bits must be in 1..52, got {bits}")
     if len(v) == 0:
         return v, f
     lo = v.min(axis=0)
@@ -274,7 +274,7 @@ def similarity(
         scale_range = tuple(scale_range.replace(":", ",").split(","))
     lo, hi = (float(x) for x in scale_range)
     if not 0 < lo <= hi:
-        raise ValueError(f"scale_range must be 0 < low <= high, got {scale_range}")
+        raise ParameterError(f"scale_range must be 0 < low <= high, got {scale_range}")
     rng = np.random.default_rng(seed)
     rot = _random_rotation(rng)
     scale = math.exp(rng.uniform(math.log(lo), math.log(hi)))
@@ -363,7 +363,7 @@ def subdivide(vertices, faces, scheme: str = "midpoint", seed: int | None = None
         return np.asarray(v2, dtype=np.float64), np.asarray(f2, dtype=np.int64)
     if scheme == "sqrt3":
         return _subdivide_sqrt3(v, f)
-    raise ValueError(f"unknown subdivision scheme {scheme!r}; use 'midpoint', 'loop' or 'sqrt3'")
+    raise ParameterError(f"unknown subdivision scheme {scheme!r}; use 'midpoint', 'loop' or 'sqrt3'")
 
 
 def _subdivide_midpoint(v: np.ndarray, f: np.ndarray) -> MeshArrays:

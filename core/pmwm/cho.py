@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .errors import KeyFileError, MeshError, PayloadError
+from .errors import KeyFileError, MeshError, PayloadError, ParameterError
 
 _THRESHOLD = {"I": 0.5, "II": 1.0 / 3.0}
 
@@ -66,7 +66,7 @@ class ChoKey:
 def _check_method(method: str) -> str:
     m = str(method).upper()
     if m not in _THRESHOLD:
-        raise ValueError(f"unknown Cho method {method!r}; use 'I' or 'II'")
+        raise ParameterError(f"unknown Cho method {method!r}; use 'I' or 'II'")
     return m
 
 
@@ -167,9 +167,9 @@ def cho_embed(
     b = _as_bit_array(bits)
     n_bits = len(b)
     if not 0 < alpha < _THRESHOLD[method]:
-        raise ValueError(f"alpha must be in (0, {_THRESHOLD[method]:.3f}), got {alpha}")
+        raise ParameterError(f"alpha must be in (0, {_THRESHOLD[method]:.3f}), got {alpha}")
     if not 0 < strength_step < 1:
-        raise ValueError(f"strength_step must be in (0, 1), got {strength_step}")
+        raise ParameterError(f"strength_step must be in (0, 1), got {strength_step}")
     bins = _bins(v, n_bits)
     if (bins.count == 0).any():
         empty = int(np.flatnonzero(bins.count == 0)[0])

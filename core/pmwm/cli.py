@@ -224,11 +224,10 @@ def cmd_demo(a) -> int:
     return EXIT_OK if v.marked else EXIT_NOT_MARKED
 
 
-def cmd_bench(a) -> int:
-    from .bench import run_bench
+def cmd_bench(argv: Sequence[str]) -> int:
+    from .bench import main as bench_main
 
-    run_bench(quick=a.quick, out=a.output, keys=a.keys)
-    return EXIT_OK
+    return bench_main(list(argv))
 
 
 # --------------------------------------------------------------------------- parser
@@ -312,16 +311,18 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--force", action="store_true")
     dm.set_defaults(func=cmd_demo)
 
-    b = sub.add_parser("bench", help="run the robustness benchmark and write BENCHMARKS.md tables")
-    b.add_argument("--quick", action="store_true", help="one model, fewer settings (CI)")
-    b.add_argument("--keys", type=int, default=10)
-    b.add_argument("-o", "--output", default="BENCHMARKS-robustness.md")
-    b.set_defaults(func=cmd_bench)
+    b = sub.add_parser("bench", add_help=False,
+                       help="run the robustness benchmark (both protocols, pmwm vs Cho); "
+                            "'pmwm bench --help' for its options")
+    b.add_argument("args", nargs=argparse.REMAINDER)  # handed to pmwm.bench.main by main()
     return p
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        if argv[:1] == ["bench"]:  # the benchmark has its own options
+            return cmd_bench(argv[1:])
         args = build_parser().parse_args(argv)
         return args.func(args)
     except PmwmError as exc:

@@ -31,3 +31,7 @@ class PayloadError(PmwmError):
 
 class OutputExistsError(PmwmError):
     """An output file exists and overwriting was not allowed."""
+
+
+class ParameterError(PmwmError, ValueError):
+    """A parameter (attack strength, fraction, method name...) is out of its range."""
