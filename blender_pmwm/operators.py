@@ -266,11 +266,4 @@ class PMWM_OT_verify(_PmwmOperator, Operator):
 classes = (PMWM_OT_watermark, PMWM_OT_export_pm, PMWM_OT_import_pm, PMWM_OT_verify)
 
 
-def register() -> None:
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister() -> None:
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

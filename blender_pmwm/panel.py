@@ -73,11 +73,4 @@ class VIEW3D_PT_pmwm(Panel):
 classes = (VIEW3D_PT_pmwm,)
 
 
-def register() -> None:
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister() -> None:
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

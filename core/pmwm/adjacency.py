@@ -67,6 +67,22 @@ def segment_owner(ptr: np.ndarray) -> np.ndarray:
     return np.repeat(np.arange(len(ptr) - 1, dtype=np.int64), np.diff(ptr))
 
 
+def ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenation of arange(s, s + c) for each (s, c), vectorised."""
+    counts = np.asarray(counts, np.int64)
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, np.int64)
+    offs = np.cumsum(counts) - counts
+    return np.repeat(np.asarray(starts, np.int64) - offs, counts) + np.arange(total)
+
+
+def gather_rows(ptr: np.ndarray, idx: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Concatenated CSR rows ``rows`` of (ptr, idx), without a Python loop."""
+    rows = np.asarray(rows, np.int64)
+    return idx[ranges(ptr[rows], ptr[rows + 1] - ptr[rows])]
+
+
 def segment_reduce(ptr: np.ndarray, values: np.ndarray, ufunc: np.ufunc, empty) -> np.ndarray:
     """Apply ``ufunc.reduceat`` over CSR segments; empty segments get ``empty``."""
     n = len(ptr) - 1

@@ -33,7 +33,7 @@ from typing import Callable
 
 import numpy as np
 
-from .adjacency import build_adjacency, segment_owner
+from .adjacency import build_adjacency, gather_rows, segment_owner
 from .errors import MeshError, ParameterError
 
 MeshArrays = tuple[np.ndarray, np.ndarray]
@@ -88,17 +88,6 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
         ]
     )
-
-
-def _gather_rows(ptr: np.ndarray, idx: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Concatenated CSR rows ``rows`` of (ptr, idx), without a Python loop."""
-    starts = ptr[rows]
-    counts = ptr[rows + 1] - starts
-    total = int(counts.sum())
-    if total == 0:
-        return np.zeros(0, dtype=idx.dtype)
-    offsets = np.repeat(starts - np.cumsum(counts) + counts, counts)
-    return idx[offsets + np.arange(total)]
 
 
 def remove_vertices(vertices: np.ndarray, faces: np.ndarray, remove: np.ndarray) -> MeshArrays:
@@ -211,7 +200,7 @@ def crop_paper(vertices, faces, fraction: float = 0.1, seed: int | None = None) 
             frontier = frontier[np.argsort(d, kind="stable")[: k - taken]]
         remove[frontier] = True
         taken += len(frontier)
-        nxt = np.unique(_gather_rows(adj.ring_ptr, adj.ring_idx, frontier))
+        nxt = np.unique(gather_rows(adj.ring_ptr, adj.ring_idx, frontier))
         frontier = nxt[~remove[nxt]]
     return remove_vertices(v, f, remove)
 

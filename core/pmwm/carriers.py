@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .adjacency import Adjacency
+from .adjacency import Adjacency, gather_rows
 from .errors import PayloadError
 from .features import smoothness_feature
 from .som import SUITABLE, classify_smoothness
@@ -41,21 +41,10 @@ def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int) -> np.nda
     return mask & ok
 
 
-def _gather(ptr: np.ndarray, idx: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Concatenated CSR segments of ``rows`` (index arithmetic, no loop)."""
-    starts = ptr[rows]
-    lens = ptr[rows + 1] - starts
-    total = int(lens.sum())
-    if total == 0:
-        return np.zeros(0, dtype=idx.dtype)
-    offs = np.repeat(starts - np.cumsum(np.r_[0, lens[:-1]]), lens)
-    return idx[offs + np.arange(total)]
-
-
 def two_ring(adj: Adjacency, c: int) -> np.ndarray:
     """Vertices within graph distance 2 of c, c included (may repeat)."""
-    ring = _gather(adj.ring_ptr, adj.ring_idx, np.array([c], dtype=np.int64))
-    return np.concatenate([[c], ring, _gather(adj.ring_ptr, adj.ring_idx, ring)])
+    ring = gather_rows(adj.ring_ptr, adj.ring_idx, np.array([c], dtype=np.int64))
+    return np.concatenate([[c], ring, gather_rows(adj.ring_ptr, adj.ring_idx, ring)])
 
 
 def select_carriers(

@@ -23,7 +23,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .adjacency import Adjacency, build_adjacency, segment_owner, segment_reduce
+from .adjacency import Adjacency, build_adjacency, ranges, segment_reduce
 from .errors import MeshError
 
 Progress = Optional[Callable[[float, str], None]]
@@ -374,7 +374,7 @@ def _ring_entry(adj: Adjacency, u, v) -> np.ndarray:
     """Position in ring_idx of v within u's ring (the pair must be an edge)."""
     cnt = np.diff(adj.ring_ptr)[u]
     rec = np.repeat(np.arange(len(u)), cnt)
-    pos = _ranges(adj.ring_ptr[u], cnt)
+    pos = ranges(adj.ring_ptr[u], cnt)
     hit = adj.ring_idx[pos] == v[rec]
     out = np.empty(len(u), np.int64)
     out[rec[hit]] = pos[hit]
@@ -417,7 +417,7 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
         # the entry of each winner's cheapest candidate
         cnt = np.diff(ptr)[wu]
         rec = np.repeat(np.arange(len(wu)), cnt)
-        pos = _ranges(ptr[wu], cnt)
+        pos = ranges(ptr[wu], cnt)
         is_best = c[pos] == best[wu][rec]
         pick = np.full(len(wu), -1, np.int64)
         cand = np.flatnonzero(is_best)
@@ -453,7 +453,7 @@ def _dilate(mask: np.ndarray, adj: Adjacency) -> np.ndarray:
     idx = np.flatnonzero(mask)
     cnt = np.diff(adj.ring_ptr)[idx]
     out = mask.copy()
-    out[adj.ring_idx[_ranges(adj.ring_ptr[idx], cnt)]] = True
+    out[adj.ring_idx[ranges(adj.ring_ptr[idx], cnt)]] = True
     return out
 
 
@@ -464,7 +464,7 @@ def _valid(V, adj: Adjacency, u, v, area_eps, check_flips=True) -> np.ndarray:
     val = np.diff(adj.ring_ptr)
     cnt = val[u]
     rec = np.repeat(np.arange(len(u)), cnt)
-    w = adj.ring_idx[_ranges(adj.ring_ptr[u], cnt)]
+    w = adj.ring_idx[ranges(adj.ring_ptr[u], cnt)]
     common = (w != v[rec]) & (adj.edge_index(v[rec], w) >= 0)
     n_common = np.bincount(rec, weights=common, minlength=len(u)).astype(np.int64)
     bedge = adj.edge_face_count[adj.edge_index(u, v)] == 1
@@ -476,7 +476,7 @@ def _valid(V, adj: Adjacency, u, v, area_eps, check_flips=True) -> np.ndarray:
     if check_flips:
         fcnt = np.diff(adj.vf_ptr)[u]
         frec = np.repeat(np.arange(len(u)), fcnt)
-        f = adj.vf_idx[_ranges(adj.vf_ptr[u], fcnt)]
+        f = adj.vf_idx[ranges(adj.vf_ptr[u], fcnt)]
         tri = adj.faces[f]
         moving = ~np.any(tri == v[frec][:, None], axis=1)
         tri, frec = tri[moving], frec[moving]
@@ -493,22 +493,12 @@ def _valid(V, adj: Adjacency, u, v, area_eps, check_flips=True) -> np.ndarray:
     return ok
 
 
-def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Concatenation of arange(s, s + c) for each (s, c), vectorised."""
-    counts = np.asarray(counts, np.int64)
-    total = int(counts.sum())
-    if total == 0:
-        return np.zeros(0, np.int64)
-    offs = np.cumsum(counts) - counts
-    return np.repeat(np.asarray(starts, np.int64) - offs, counts) + np.arange(total)
-
-
 def _collapse(F, fid, adj: Adjacency, u, v) -> tuple[_Pass, np.ndarray]:
     """Apply independent collapses u -> v; returns the records' data and the new face array."""
     k = len(u)
     fcnt = np.diff(adj.vf_ptr)[u]
     frec = np.repeat(np.arange(k), fcnt)
-    f = adj.vf_idx[_ranges(adj.vf_ptr[u], fcnt)]
+    f = adj.vf_idx[ranges(adj.vf_ptr[u], fcnt)]
     tri = F[f]
     has_v = np.any(tri == v[frec][:, None], axis=1)
     # dead faces: f1 holds half-edge u -> v, f2 holds v -> u
@@ -526,7 +516,7 @@ def _collapse(F, fid, adj: Adjacency, u, v) -> tuple[_Pass, np.ndarray]:
     arc_r = frec[~has_v]
     vcnt = np.diff(adj.vf_ptr)[v]
     vrec = np.repeat(np.arange(k), vcnt)
-    vf = adj.vf_idx[_ranges(adj.vf_ptr[v], vcnt)]
+    vf = adj.vf_idx[ranges(adj.vf_ptr[v], vcnt)]
     vkeep = ~np.any(F[vf] == u[vrec][:, None], axis=1)
     vf, vrec = vf[vkeep], vrec[vkeep]
     all_r = np.concatenate([arc_r, vrec])

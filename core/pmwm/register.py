@@ -24,10 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .metrics import sample_surface
 
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
-ICP_ITERATIONS = 25
+ICP_ITERATIONS = 30
+COARSE_ITERATIONS = 8
 SUSPECT_SAMPLES = 1500
 
 
@@ -52,6 +52,8 @@ def surface_frame(vertices: np.ndarray, faces: np.ndarray, n_samples: int, seed:
         "centroid": centroid.tolist(),
         "axes": axes.tolist(),
         "scale": scale,
+        # trimmed RMS nearest-sample distance between two samplings of the same surface
+        "floor": _self_floor(P, vertices, faces, seed) / scale,
     }
 
 
@@ -73,13 +75,22 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
             R = ref_A.T @ np.diag(signs) @ np.diag([1, 1, -1]) @ A
         k = ref_s / max(s, 1e-300)
         inits.append((f"pca{signs}", R, k, ref_c - k * R @ c))
+    k_pca = ref_s / max(s, 1e-300)
+    floor = float(frame.get("floor", 0.0))
     best = None
     for name, R, k, t in inits:
-        R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s)
+        R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, COARSE_ITERATIONS)
+        if not (0.3 * k_pca < k < 3.0 * k_pca):  # collapsed or exploded: not a fit
+            continue
         if best is None or res < best[4]:
             best = (name, R, k, t, res)
-        if name == "identity" and res < 2e-3:  # already aligned: at the sampling noise
+        if name == "identity" and res < 1.5 * floor:  # already aligned: at the sampling noise
             break
+    if best is None:
+        best = inits[1] + (np.inf,)
+    name, R, k, t, _ = best
+    R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, ICP_ITERATIONS)
+    best = (name, R, k, t, res)
     name, R, k, t, res = best
     return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
 
@@ -88,17 +99,32 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
 
 
 def _samples_with_normals(V: np.ndarray, F: np.ndarray, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Area-uniform surface samples and the unit normals of the faces they lie on."""
+    """Area-uniform surface samples and the smooth (vertex-interpolated) unit normals there."""
     F = np.asarray(F, np.int64).reshape(-1, 3)
-    P = sample_surface(V, F, n, seed=seed)
-    # the face of each sample: redo the draw's face choice with the same seed is fragile, so
-    # take the nearest face centroid's normal among the faces of the sample's nearest vertex
-    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    area2 = np.linalg.norm(fn, axis=1)
-    fn = fn / np.maximum(area2, 1e-300)[:, None]
-    cen = V[F].mean(axis=1)
-    j, _ = _nearest(cen, P)
-    return P, fn[j]
+    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    fn = np.cross(b - a, c - a)
+    area = 0.5 * np.linalg.norm(fn, axis=1)
+    vn = np.zeros_like(V)
+    for k in range(3):
+        np.add.at(vn, F[:, k], fn)
+    vn /= np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
+    rng = np.random.default_rng(seed)
+    cdf = np.cumsum(area)
+    face = np.minimum(np.searchsorted(cdf, rng.uniform(0.0, cdf[-1], n), side="right"), len(F) - 1)
+    r1, r2 = rng.uniform(size=n), rng.uniform(size=n)
+    flip = r1 + r2 > 1.0
+    r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
+    w = np.stack([1.0 - r1 - r2, r1, r2], axis=1)
+    P = np.einsum("ij,ijk->ik", w, V[F[face]])
+    N = np.einsum("ij,ijk->ik", w, vn[F[face]])
+    N /= np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+    return P, N
+
+
+def _self_floor(P: np.ndarray, V: np.ndarray, F: np.ndarray, seed: int) -> float:
+    Q, _ = _samples_with_normals(V, F, SUSPECT_SAMPLES, seed + 1)
+    _, d2 = _nearest(P, Q)
+    return float(np.sqrt(np.mean(np.sort(d2)[: int(TRIM * len(d2))])))
 
 
 def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -132,10 +158,10 @@ def _nearest(T: np.ndarray, Q: np.ndarray, budget: int = 1 << 22) -> tuple[np.nd
     return idx, d2
 
 
-def _icp(S, ref_P, ref_N, R, k, t, ref_s):
+def _icp(S, ref_P, ref_N, R, k, t, ref_s, iterations):
     """Trimmed point-to-plane similarity ICP from (R, k, t); returns (R, k, t, residual)."""
     res = np.inf
-    for it in range(ICP_ITERATIONS):
+    for _ in range(iterations):
         X = k * S @ R.T + t
         j, d2 = _nearest(ref_P, X)
         keep = np.argsort(d2)[: max(int(TRIM * len(X)), 7)]
@@ -159,10 +185,7 @@ def _icp(S, ref_P, ref_N, R, k, t, ref_s):
     X = k * S @ R.T + t
     j, d2 = _nearest(ref_P, X)
     keep = np.argsort(d2)[: max(int(TRIM * len(X)), 7)]
-    r = np.einsum("ij,ij->i", ref_P[j[keep]] - X[keep], ref_N[j[keep]])
-    # point-to-plane plus a small point-to-point term, so a wrong guess that slides along a
-    # plane does not look perfect
-    res = float(np.sqrt(np.mean(r**2) + 0.05 * np.mean(d2[keep]))) / ref_s
+    res = float(np.sqrt(np.mean(d2[keep]))) / ref_s  # trimmed point-to-point: no sliding
     return R, k, t, res
 
 

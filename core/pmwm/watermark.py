@@ -32,7 +32,7 @@ from typing import Callable, Optional, Sequence, Union
 import numpy as np
 
 from . import metrics
-from .adjacency import Adjacency, build_adjacency
+from .adjacency import Adjacency, build_adjacency, gather_rows
 from .carriers import eligible_carriers, select_carriers
 from .errors import MeshError, PayloadError
 from .key import WatermarkKey, derive_seed, make_secret
@@ -197,11 +197,8 @@ def _first_neighbours(V: np.ndarray, adj: Adjacency, carriers: np.ndarray) -> np
 
 def _ring_stats(V: np.ndarray, adj: Adjacency, carriers: np.ndarray, exclude: np.ndarray):
     """Mean and standard deviation per axis of each carrier's neighbours minus ``exclude``."""
-    cnt = adj.valence[carriers]
-    rec = np.repeat(np.arange(len(carriers)), cnt)
-    starts = adj.ring_ptr[carriers]
-    pos = np.repeat(starts - (np.cumsum(cnt) - cnt), cnt) + np.arange(cnt.sum())
-    nb = adj.ring_idx[pos]
+    rec = np.repeat(np.arange(len(carriers)), adj.valence[carriers])
+    nb = gather_rows(adj.ring_ptr, adj.ring_idx, carriers)
     keep = nb != exclude[rec]
     return _grouped_stats(V[nb[keep]], rec[keep], len(carriers))
 
