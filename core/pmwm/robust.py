@@ -1,0 +1,364 @@
+"""A robust watermarking scheme on the progressive mesh (key.scheme == "robust").
+
+Why. The paper's scheme reads each bit from one vertex against its 1-ring: any change of
+connectivity (simplification, subdivision, re-export that re-orders) or a rotation loses it.
+Here every bit is spread over several *sites*, each a smooth bump read geometrically, after
+registering the suspect to the marked mesh.
+
+Embedding.
+- Sites: SOM-suitable vertices (``pmwm.carriers``) picked by seeded farthest-point sampling,
+  ``sites_per_bit`` per payload bit, assigned to bits so that each bit's sites are spread around the
+  shape (pairs of roughly opposite sites): a plane cutting off half the mesh leaves most bits a site.
+- Each site c with unit normal n (smoothed over its disc) gets a bump along n: vertex v at distance d
+  < r moves by s * A * (1 - (d/r)^2)^2 * n, with s = +-1 its chip (keyed, balanced within the bit)
+  times the bit sign (payload XOR keyed sequence, as in the paper scheme). r is ``radius_edges`` mean
+  edge lengths; A is ``strength`` * ``AMPLITUDE_PER_STRENGTH`` mean edge lengths.
+- Stencil: the site vertex and ``RING`` vertices near distance 1.3 r at keyed angles (outside the
+  bump). All stencil vertices are protected in the progressive mesh, so they exist, unmoved, at
+  every level of detail from the base mesh up.
+
+Reading (on the registered suspect, ``pmwm.register``). Heights along n are measured where the
+lines through the stencil points (in the site's tangent plane, stored in the key) cross the
+suspect surface. The site value is the centre height minus the ring's plane at the centre. On any
+level of detail the lines pass through the protected vertices themselves, so the value is the full
+mesh's value exactly. The key stores each site's value on the unmarked mesh (a number per site,
+not the mesh), so the soft value is (value - stored) / (expected shift): +-1 when intact, whatever
+the shape's natural curvature there; no distortion is spent on overriding the shape.
+A bit is the sign of the chip-weighted sum of its sites' soft values (soft-decision decoding of
+a repetition code); a bit with no readable site is an erasure and gets a keyed coin flip, so the
+binomial p-value of ``watermark._verdict`` stays exact.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from . import metrics
+from .adjacency import build_adjacency
+from .carriers import eligible_carriers, select_carriers
+from .errors import KeyFileError, PayloadError
+from .key import WatermarkKey, derive_seed, make_secret
+from .progressive import build_progressive_mesh
+from .register import register, surface_frame
+from .watermark import (EmbedOptions, EmbedResult, Progress, Verdict, _verdict, check_mesh,
+                        mean_edge_length, payload_bits)
+
+SITES_PER_BIT = 6
+RADIUS_EDGES = 2.5  # bump radius in mean edge lengths
+AMPLITUDE_PER_STRENGTH = 0.1  # bump amplitude per unit of strength, in mean edge lengths
+RING = 3  # ring stencil points per site
+RING_DISTANCE = 1.3  # ring stencil distance / r
+REF_POINTS = 1000  # registration samples stored in the key
+SCHEME = "robust"
+EXTRA_VERSION = 1
+
+
+# --------------------------------------------------------------------------- geometry helpers
+
+
+def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (zero for isolated vertices)."""
+    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    vn = np.stack([np.bincount(F.ravel(), weights=np.repeat(fn[:, a], 3), minlength=len(V))
+                   for a in range(3)], axis=1)
+    return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
+
+
+def tangent_frames(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents per unit normal, a deterministic function of the normal."""
+    helper = np.eye(3)[np.argmin(np.abs(N), axis=1)]
+    t1 = np.cross(N, helper)
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return t1, np.cross(N, t1)
+
+
+def _pairs_within(P: np.ndarray, Q: np.ndarray, radius, budget: int = 1 << 23):
+    """(i, j, distance) for every point P[i] and Q[j] closer than radius (scalar or per P)."""
+    rad = np.broadcast_to(np.asarray(radius, np.float64), (len(P),))
+    qq = np.einsum("ij,ij->i", Q, Q)
+    out_i, out_j, out_d = [], [], []
+    step = max(1, budget // max(len(Q), 1))
+    for s in range(0, len(P), step):
+        p = P[s:s + step]
+        d2 = qq[None, :] - 2.0 * p @ Q.T + np.einsum("ij,ij->i", p, p)[:, None]
+        i, j = np.nonzero(d2 < (rad[s:s + step] ** 2)[:, None])
+        out_i.append(i + s)
+        out_j.append(j)
+        out_d.append(np.sqrt(np.maximum(d2[i, j], 0.0)))
+    return np.concatenate(out_i), np.concatenate(out_j), np.concatenate(out_d)
+
+
+def heights(V, F, origin, normal, t1, t2, uv, reach: float) -> np.ndarray:
+    """Height along ``normal`` of the surface over each stencil point (S, K) (NaN: no surface).
+
+    Stencil point k of site s is the line origin[s] + u t1[s] + v t2[s] + h normal[s]; every
+    triangle within ``reach`` of the site is projected into the site frame and the crossing with
+    the smallest |h| is kept (either face orientation, so flipped copies still read).
+    """
+    S, K = uv.shape[:2]
+    out = np.full((S, K), np.nan)
+    F = np.asarray(F, np.int64)
+    if len(F) == 0 or S == 0:
+        return out
+    tri = V[F]
+    cen = tri.mean(axis=1)
+    rad = np.sqrt(((tri - cen[:, None, :]) ** 2).sum(axis=2).max(axis=1))
+    # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
+    si, fi, d = _pairs_within(origin, cen, reach + rad.max())
+    keep = d < reach + rad[fi]
+    si, fi = si[keep], fi[keep]
+    if len(si) == 0:
+        return out
+    rel = tri[fi] - origin[si][:, None, :]  # (p, 3, 3)
+    x = np.einsum("pvj,pj->pv", rel, t1[si])
+    y = np.einsum("pvj,pj->pv", rel, t2[si])
+    z = np.einsum("pvj,pj->pv", rel, normal[si])
+    det = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    ok = np.abs(det) > 1e-30
+    si, x, y, z, det = si[ok], x[ok], y[ok], z[ok], det[ok]
+    P = len(si)
+    pk = np.repeat(np.arange(P), K)
+    kk = np.tile(np.arange(K), P)
+    qu, qv = uv[si[pk], kk, 0], uv[si[pk], kk, 1]
+    dx, dy = qu - x[pk, 0], qv - y[pk, 0]
+    l1 = (dx * (y[pk, 2] - y[pk, 0]) - dy * (x[pk, 2] - x[pk, 0])) / det[pk]
+    l2 = ((x[pk, 1] - x[pk, 0]) * dy - (y[pk, 1] - y[pk, 0]) * dx) / det[pk]
+    l0 = 1.0 - l1 - l2
+    tol = -1e-9
+    inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)
+    pk, kk = pk[inside], kk[inside]
+    h = l0[inside] * z[pk, 0] + l1[inside] * z[pk, 1] + l2[inside] * z[pk, 2]
+    slot = si[pk] * K + kk
+    order = np.lexsort((np.abs(h), slot))
+    slot, h = slot[order], h[order]
+    first = np.r_[True, slot[1:] != slot[:-1]]
+    out.ravel()[slot[first]] = h[first]
+    return out
+
+
+def site_values(Hs: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Centre height minus the ring's least-squares plane at the centre, per site (NaN if unreadable)."""
+    ring_uv = uv[:, 1:, :]
+    A = np.concatenate([np.ones(ring_uv.shape[:2] + (1,)), ring_uv], axis=2)  # (S, K, 3)
+    # plane value at (0, 0) = first coefficient = e0^T (A^T A)^-1 A^T h_ring
+    AtA = np.einsum("ski,skj->sij", A, A)
+    coef = np.linalg.solve(AtA + 1e-30 * np.eye(3), np.einsum("ski,sk->si", A, np.nan_to_num(Hs[:, 1:])))
+    val = Hs[:, 0] - coef[:, 0]
+    return np.where(np.isnan(Hs).any(axis=1), np.nan, val)
+
+
+# --------------------------------------------------------------------------- embedding
+
+
+def _assign_bits(P: np.ndarray, n_bits: int, per_bit: int, seed: int) -> np.ndarray:
+    """Bit index of each site: pairs of roughly opposite sites (about the centroid) go to the
+    same bit, pairs are dealt to bits in a keyed order, so each bit has sites on both sides."""
+    n = len(P)
+    rng = np.random.default_rng(seed)
+    u = P - P.mean(axis=0)
+    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-300)[:, None]
+    free = np.ones(n, bool)
+    pairs = []
+    for i in rng.permutation(n):  # one iteration per site (hundreds), not per vertex
+        if not free[i]:
+            continue
+        free[i] = False
+        cand = np.flatnonzero(free)
+        if len(cand) == 0:
+            pairs.append([i])
+            break
+        j = cand[np.argmin(u[cand] @ u[i])]
+        free[j] = False
+        pairs.append([i, j])
+    bit = np.empty(n, np.int64)
+    slots = np.repeat(np.arange(n_bits), per_bit)  # per_bit is even, so pairs fill the slots
+    pos = 0
+    for pair in (pairs[k] for k in rng.permutation(len(pairs))):
+        for i in pair:
+            bit[i] = slots[pos]
+            pos += 1
+    return bit
+
+
+def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
+                 sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
+    """Watermark a mesh with the robust scheme (module docstring); same options/result as ``embed``."""
+    opts = options or EmbedOptions()
+    if not (opts.strength > 0 and np.isfinite(opts.strength)):
+        raise PayloadError(f"strength must be a positive number, got {opts.strength}")
+    if not (0 < opts.base_ratio <= 1):
+        raise PayloadError(f"base ratio must be in (0, 1], got {opts.base_ratio}")
+    per_bit = max(2, 2 * (int(sites_per_bit) // 2))
+    V, F = check_mesh(vertices, faces)
+    report = progress or (lambda f, m: None)
+    secret = make_secret(opts.seed)
+    bits, kind = payload_bits(opts, secret)
+    nb = len(bits)
+    report(0.0, "analysing the mesh")
+    adj = build_adjacency(F, len(V))
+    eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"))
+    sites = select_carriers(V, adj, eligible, nb * per_bit, seed=derive_seed(secret, "robust-sites"))
+    report(0.1, f"{len(sites)} sites chosen")
+    edge = mean_edge_length(V, adj)
+    P = V[sites]
+    # bumps and rings must not overlap: r + RING_DISTANCE * r below the closest site spacing
+    _, _, dd = _pairs_within(P, P, np.full(len(P), 1e300))
+    dmin = float(dd[dd > 0].min()) if np.any(dd > 0) else np.inf
+    r = min(radius_edges * edge, 0.95 * dmin / (1.0 + RING_DISTANCE + 0.3))
+    A = opts.strength * AMPLITUDE_PER_STRENGTH * edge
+
+    vn = vertex_normals(V, F)
+    si, vi, d = _pairs_within(P, V, np.full(len(P), (RING_DISTANCE + 0.3) * r))
+    # site normal: mean vertex normal over the disc (same side as the site's own normal)
+    facing = np.einsum("ij,ij->i", vn[vi], vn[sites][si]) > 0.3
+    disc = facing & (d < r)
+    N = np.stack([np.bincount(si[disc], weights=vn[vi[disc], a], minlength=len(P)) for a in range(3)], 1)
+    N /= np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+    t1, t2 = tangent_frames(N)
+
+    # keyed bit assignment, chips and signs
+    key_stub = WatermarkKey(secret=secret, bits=bits, payload_kind=kind, strength=float(opts.strength),
+                            carrier_index=sites[:nb], carrier_pm_index=sites[:nb], carrier_position=P[:nb],
+                            n_vertices=len(V), n_faces=len(F), mean_edge=1.0, bbox_diagonal=1.0)
+    w = bits ^ key_stub.stream("scramble", nb)
+    bit_of = _assign_bits(P, nb, per_bit, derive_seed(secret, "robust-assign"))
+    rng = np.random.default_rng(derive_seed(secret, "robust-chips"))
+    order = np.lexsort((rng.random(len(P)), bit_of))  # each bit's sites in a keyed order
+    rank = np.arange(len(P)) - np.searchsorted(bit_of[order], bit_of[order])
+    chip = np.empty(len(P))
+    chip[order] = np.where(rank % 2 == 0, 1.0, -1.0)  # balanced: a global bias cancels in a bit
+    sign = chip * np.where(w[bit_of] == 1, 1.0, -1.0)
+
+    # ring stencil vertices: nearest to RING_DISTANCE * r at keyed angles, outside the bump
+    rel = V[vi] - P[si]
+    phi = np.arctan2(np.einsum("ij,ij->i", rel, t2[si]), np.einsum("ij,ij->i", rel, t1[si]))
+    theta0 = np.random.default_rng(derive_seed(secret, "robust-angles")).uniform(0, 2 * np.pi, len(P))
+    ring_ok = facing & (d > 1.05 * r)
+    ring = np.full((len(P), RING), -1, np.int64)
+    for k in range(RING):  # RING (3) iterations
+        target = theta0 + 2 * np.pi * k / RING
+        dphi = np.abs(np.angle(np.exp(1j * (phi - target[si]))))
+        score = dphi + np.abs(d / r - RING_DISTANCE)
+        score[~ring_ok] = np.inf
+        o = np.lexsort((score, si))
+        first = o[np.r_[True, si[o][1:] != si[o][:-1]]]
+        good = np.isfinite(score[first])
+        ring[si[first][good], k] = vi[first][good]
+    usable = (ring >= 0).all(axis=1)
+
+    # the bumps
+    bump = disc & usable[si]
+    wgt = (1.0 - (d[bump] / r) ** 2) ** 2
+    D = np.zeros_like(V)
+    np.add.at(D, vi[bump], (sign[si[bump]] * A * wgt)[:, None] * N[si[bump]])
+    marked = (V + D).astype(np.float32).astype(np.float64)
+
+    # stencils in each site's tangent frame, from the marked positions
+    stencil = np.concatenate([sites[:, None], np.where(ring >= 0, ring, sites[:, None])], axis=1)
+    relm = marked[stencil] - P[:, None, :]
+    uv = np.stack([np.einsum("skj,sj->sk", relm, t1), np.einsum("skj,sj->sk", relm, t2)], axis=2)
+    uv[:, 0, :] = 0.0
+    reach = (RING_DISTANCE + 0.5) * r
+    ref = site_values(heights(V, F, P, N, t1, t2, uv, reach), uv)
+    after = site_values(heights(marked, F, P, N, t1, t2, uv, reach), uv)
+    gain = (after - ref) * sign  # the shift each site was given, ~A
+    usable &= np.isfinite(ref) & np.isfinite(after) & (gain > 0.25 * A)
+    report(0.2, "sites marked")
+
+    protected = np.zeros(len(V), bool)
+    protected[stencil[usable].ravel()] = True
+    base = max(int(round(opts.base_ratio * len(V))), 4)
+
+    def pm_progress(f: float, msg: str) -> None:
+        report(0.25 + 0.7 * f, msg)
+
+    pm, _ = build_progressive_mesh(marked, F, base_vertices=base, protected=protected,
+                                   progress=pm_progress, adjacency=adj)
+    pm_of = np.empty(len(V), np.int64)
+    pm_of[pm.vertex_order] = np.arange(len(V))
+    first_site = np.array([np.flatnonzero(bit_of == b)[0] for b in range(nb)])
+    extra = {
+        "robust_version": EXTRA_VERSION,
+        "radius": r,
+        "amplitude": A,
+        "reach": reach,
+        "site_bit": bit_of.tolist(),
+        "site_chip": chip.astype(int).tolist(),
+        "site_usable": usable.astype(int).tolist(),
+        "site_origin": np.round(P, 9).tolist(),
+        "site_normal": np.round(N, 9).tolist(),
+        "site_uv": np.round(uv, 9).tolist(),
+        "site_ref": np.round(np.nan_to_num(ref), 12).tolist(),
+        "site_gain": np.round(np.where(usable, gain, 0.0), 12).tolist(),
+        "frame": surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)),
+    }
+    key = WatermarkKey(
+        secret=secret, bits=bits, payload_kind=kind, strength=float(opts.strength),
+        carrier_index=sites[first_site], carrier_pm_index=pm_of[sites[first_site]],
+        carrier_position=marked[sites[first_site]].copy(), n_vertices=len(V), n_faces=len(F),
+        mean_edge=mean_edge_length(marked, adj), bbox_diagonal=float(np.linalg.norm(V.max(0) - V.min(0))),
+        scheme=SCHEME, extra=extra,
+    )
+    report(1.0, "done")
+    return EmbedResult(vertices=marked, faces=F, pm=pm, key=key, carriers=sites, bits=bits,
+                       vsnr_db=metrics.vsnr(V, marked), rmse=metrics.vertex_rmse(V, marked))
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _site_arrays(key: WatermarkKey) -> dict:
+    x = key.extra
+    try:
+        out = {
+            "bit": np.asarray(x["site_bit"], np.int64),
+            "chip": np.asarray(x["site_chip"], np.float64),
+            "usable": np.asarray(x["site_usable"], bool),
+            "origin": np.asarray(x["site_origin"], np.float64).reshape(-1, 3),
+            "normal": np.asarray(x["site_normal"], np.float64).reshape(-1, 3),
+            "ref": np.asarray(x["site_ref"], np.float64),
+            "gain": np.asarray(x["site_gain"], np.float64),
+            "reach": float(x["reach"]),
+            "frame": x["frame"],
+        }
+        out["uv"] = np.asarray(x["site_uv"], np.float64).reshape(len(out["bit"]), -1, 2)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
+    n = len(out["bit"])
+    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "origin", "normal", "ref", "gain")) \
+            or out["bit"].min() < 0 or out["bit"].max() >= key.n_bits:
+        raise KeyFileError("the robust key's site data are inconsistent; it is damaged")
+    return out
+
+
+def soft_values(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> np.ndarray:
+    """Soft value per site (~ +-1 when intact, NaN when unreadable) on a mesh in the key's frame."""
+    s = _site_arrays(key)
+    t1, t2 = tangent_frames(s["normal"])
+    H = heights(V, F, s["origin"], s["normal"], t1, t2, s["uv"], s["reach"])
+    val = site_values(H, s["uv"])
+    soft = (val - s["ref"]) / np.where(s["gain"] > 0, s["gain"], 1.0)
+    return np.where(s["usable"], soft, np.nan)
+
+
+def bit_scores(soft: np.ndarray, key: WatermarkKey) -> np.ndarray:
+    """Chip-weighted sum of each bit's readable sites' soft values (0 when none is readable)."""
+    s = _site_arrays(key)
+    ok = np.isfinite(soft)
+    return np.bincount(s["bit"][ok], weights=(s["chip"] * soft)[ok], minlength=key.n_bits)
+
+
+def robust_verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
+    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
+    if key.scheme != SCHEME:
+        raise KeyFileError(f"this key is for the {key.scheme!r} scheme, not {SCHEME!r}; use pmwm.verify")
+    V, F = check_mesh(vertices, faces)
+    s = _site_arrays(key)
+    X, info = register(V, F, s["frame"])
+    soft = soft_values(X, F, key)
+    verdict = _verdict(bit_scores(soft, key), key, "registered", p_threshold)
+    verdict.extra = {"registration": info.init, "residual": info.residual, "scale": info.scale,
+                     "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))}
+    return verdict
