@@ -70,7 +70,7 @@ def main() -> None:
                 lod_rows = pmwm.ber_per_level(pm, res.key)
                 lod_bits = res.key.n_bits
             size = len(to_bytes(pm))
-            head = size - 36 * 0 - pm.n_records * 24
+            head = size - pm.n_records * 24  # header, base mesh, level table, checksum
             rows.append((name, len(src.vertices), t_cli, t_py0, t_read, t_embed, pm.n_records, t_decode,
                          t_verify, t_verify_pos, size, pm.n_records, head))
     lines = [
@@ -85,7 +85,7 @@ def main() -> None:
         lines.append(
             f"| {name} | {n:,} | {t_cli:.2f} s | {t_py0:.2f} s | {t_read:.3f} s | {t_embed:.2f} s | {nrec:,} | "
             f"{t_dec * 1000:.0f} ms | {nrec / t_dec / 1e6:.2f} M | {t_ver * 1000:.1f} ms | {t_verp * 1000:.1f} ms | "
-            f"{size:,} | 24 (+ base mesh {head:,} B) |"
+            f"{size:,} | 24 (+ {head:,} B of header, base mesh and levels) |"
         )
     ig = [r for r in rows if r[0] == "igea"][0]
     per100k = ig[5] * 100_000 / ig[1]
