@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -26,6 +25,7 @@ import time
 from pathlib import Path
 
 import bpy  # first: a process imports bpy once
+from _report import machine, write_section  # benchmarks/ is the script's folder, first on sys.path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,19 +62,6 @@ def make_object(addon, V, F):
     bpy.context.collection.objects.link(ob)
     bpy.context.view_layer.objects.active = ob
     return ob
-
-
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return (f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, "
-            f"Python {platform.python_version()}, numpy {np.__version__}, bpy {bpy.app.version_string}")
 
 
 def main(argv=None) -> int:
@@ -130,20 +117,22 @@ def main(argv=None) -> int:
     def pct(d, k):
         return f"{100 * (d[k] - d['core']) / d['core']:+.1f} %"
 
-    print(f"### Blender add-on overhead ({len(V):,} vertices, {len(F):,} triangles, {res.bits.size} bits)\n")
-    print(f"Machine: {machine()}; load average at the end {os.getloadavg()[0]:.1f}  ")
-    print(f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}`  ")
-    print(f"Mesh: {args.mesh.name}"
+    out: list[str] = []
+    out.append(f"## Blender add-on overhead ({len(V):,} vertices, {len(F):,} triangles, {res.bits.size} bits)\n")
+    out.append(f"Machine: {machine()}, bpy {bpy.app.version_string}; load average at the end {os.getloadavg()[0]:.1f}  ")
+    out.append(f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}`  ")
+    out.append(f"Mesh: {args.mesh.name}"
           + (f" ({n_source:,} vertices) decimated with fast-simplification" if len(V) < n_source else "") + f"; best of {args.repeat} interleaved runs\n")
-    print("| step | wall ms | CPU ms | overhead vs core (wall / CPU) |")
-    print("|---|---:|---:|---:|")
-    print(f"| core alone: `pmwm.embed` + `pmwm.write_key` | {bw['core']*1e3:.0f} | {bc['core']*1e3:.0f} | reference |")
+    out.append("| step | wall ms | CPU ms | overhead vs core (wall / CPU) |")
+    out.append("|---|---:|---:|---:|")
+    out.append(f"| core alone: `pmwm.embed` + `pmwm.write_key` | {bw['core']*1e3:.0f} | {bc['core']*1e3:.0f} | reference |")
     for k, name in (("script", "`bpy.ops.pmwm.watermark` called from a script"),
                     ("click", "`bpy.ops.pmwm.watermark` with an undo push (a panel click)")):
-        print(f"| {name} | {bw[k]*1e3:.0f} | {bc[k]*1e3:.0f} | {pct(bw, k)} / {pct(bc, k)} |")
+        out.append(f"| {name} | {bw[k]*1e3:.0f} | {bc[k]*1e3:.0f} | {pct(bw, k)} / {pct(bc, k)} |")
     for k, name in (("read", "of which mesh transfer in (foreach_get co, calc_loop_triangles)"),
                     ("write", "of which write back (foreach_set co, mesh.update)")):
-        print(f"| {name} | {bw[k]*1e3:.0f} | {bc[k]*1e3:.0f} | {100*bw[k]/bw['core']:.1f} % of core |")
+        out.append(f"| {name} | {bw[k]*1e3:.0f} | {bc[k]*1e3:.0f} | {100*bw[k]/bw['core']:.1f} % of core |")
+    write_section("addon", "\n".join(out))
     return 0
 
 

@@ -90,6 +90,16 @@ def _pairs_within(P: np.ndarray, Q: np.ndarray, radius, budget: int = 1 << 23):
     return np.concatenate(out_i), np.concatenate(out_j), np.concatenate(out_d)
 
 
+def _min_spacing(P: np.ndarray, chunk: int = 1024) -> float:
+    """Smallest distance between two distinct points of P (inf for fewer than two)."""
+    best = np.inf
+    for s in range(0, len(P), chunk):
+        d2 = ((P[s:s + chunk, None, :] - P[None, :, :]) ** 2).sum(axis=2)
+        d2[np.arange(len(d2)), np.arange(s, s + len(d2))] = np.inf
+        best = min(best, float(d2.min()))
+    return float(np.sqrt(best))
+
+
 def heights(V, F, origin, normal, t1, t2, uv, reach: float) -> np.ndarray:
     """Height along ``normal`` of the surface over each stencil point (S, K) (NaN: no surface).
 
@@ -204,8 +214,7 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     edge = mean_edge_length(V, adj)
     P = V[sites]
     # bumps and rings must not overlap: r + RING_DISTANCE * r below the closest site spacing
-    _, _, dd = _pairs_within(P, P, np.full(len(P), 1e300))
-    dmin = float(dd[dd > 0].min()) if np.any(dd > 0) else np.inf
+    dmin = _min_spacing(P)
     r = min(radius_edges * edge, 0.95 * dmin / (1.0 + RING_DISTANCE + 0.3))
     A = opts.strength * AMPLITUDE_PER_STRENGTH * edge
 
