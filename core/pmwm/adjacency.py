@@ -103,7 +103,6 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     """
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     n = int(n_vertices)
-    m = len(faces)
     he_from = faces.ravel()
     he_to = faces[:, [1, 2, 0]].ravel()
     lo = np.minimum(he_from, he_to)

@@ -546,7 +546,6 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
     """Number vertices and faces in refinement order and encode the records."""
     n = len(V)
     base_ids = np.flatnonzero(alive)
-    nb = len(base_ids)
     rev = passes[::-1]
     u_ref = np.concatenate([p.u for p in rev]) if rev else np.zeros(0, np.int64)
     v_ref = np.concatenate([p.v for p in rev]) if rev else np.zeros(0, np.int64)
