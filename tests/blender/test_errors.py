@@ -16,7 +16,7 @@ def _setup(case, bl, tmp_path):
     """Build the scene for one case; returns the operator keyword arguments."""
     key = tmp_path / "owner.key.json"
     pm = tmp_path / "owner.pmwm"
-    ob = bl.suzanne(levels=1)
+    bl.suzanne(levels=1)
     if case == "no_active":
         bpy.context.view_layer.objects.active = None
     elif case == "non_mesh":
@@ -107,7 +107,7 @@ def test_error_reports_and_leaves_scene_unchanged(scene, bl, tmp_path, op, case,
 
 def _real_key(bl, tmp_path):
     active = bpy.context.view_layer.objects.active
-    ob = bl.suzanne(levels=1)
+    bl.suzanne(levels=1)
     key = tmp_path / "valid.key.json"
     bpy.ops.pmwm.watermark(payload="Hi", key_path=str(key), seed=1)
     bl.activate(active)

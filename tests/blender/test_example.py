@@ -33,7 +33,7 @@ def test_watermarks_every_mesh_object_once(scene, bl, example, tmp_path, capfd):
     b.name = "Suzanne / copy"  # a name that is not a safe file name
     twin = bpy.data.objects.new("Twin", a.data)  # shares a's mesh
     bpy.context.collection.objects.link(twin)
-    empty = bl.new_object("Empty mesh", [], [])
+    bl.new_object("Empty mesh", [], [])
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     bpy.context.collection.objects.link(cam)
 
