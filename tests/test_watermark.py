@@ -121,3 +121,14 @@ def test_marked_file_roundtrip_ply(tmp_path, marked):
     src = pmwm.read_mesh(path)
     assert np.array_equal(src.vertices, res.vertices)  # float32 storage is exact
     assert verify(src.vertices, src.faces, res.key).bit_errors == 0
+
+
+@pytest.mark.parametrize("ext", [".obj", ".ply", ".stl", ".off", ".glb"])
+def test_reexported_copies_verify(tmp_path, marked, ext):
+    """A copy re-exported to any supported format (STL and GLB lose the vertex order) still verifies."""
+    _, F, res = marked
+    path = tmp_path / f"copy{ext}"
+    pmwm.write_mesh(path, res.vertices, F)
+    src = pmwm.read_mesh(path)
+    v = verify(src.vertices, src.faces, res.key)
+    assert v.marked and v.bit_errors == 0 and v.payload == "ACME 2026"

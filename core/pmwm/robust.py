@@ -47,7 +47,7 @@ from .watermark import (EmbedOptions, EmbedResult, Progress, Verdict, _verdict, 
 
 SITES_PER_BIT = 6
 RADIUS_EDGES = 2.5  # bump radius in mean edge lengths
-AMPLITUDE_PER_STRENGTH = 0.1  # bump amplitude per unit of strength, in mean edge lengths
+AMPLITUDE_PER_STRENGTH = 0.12  # bump amplitude per unit of strength, in mean edge lengths
 RING = 3  # ring stencil points per site
 RING_DISTANCE = 1.3  # ring stencil distance / r
 REF_POINTS = 1000  # registration samples stored in the key
@@ -136,7 +136,7 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float) -> np.ndarray:
     l1 = (dx * (y[pk, 2] - y[pk, 0]) - dy * (x[pk, 2] - x[pk, 0])) / det[pk]
     l2 = ((x[pk, 1] - x[pk, 0]) * dy - (y[pk, 1] - y[pk, 0]) * dx) / det[pk]
     l0 = 1.0 - l1 - l2
-    tol = -1e-9
+    tol = -1e-7  # a line through a vertex must hit one of its faces despite rounding
     inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)
     pk, kk = pk[inside], kk[inside]
     h = l0[inside] * z[pk, 0] + l1[inside] * z[pk, 1] + l2[inside] * z[pk, 2]
@@ -154,9 +154,12 @@ def site_values(Hs: np.ndarray, uv: np.ndarray) -> np.ndarray:
     A = np.concatenate([np.ones(ring_uv.shape[:2] + (1,)), ring_uv], axis=2)  # (S, K, 3)
     # plane value at (0, 0) = first coefficient = e0^T (A^T A)^-1 A^T h_ring
     AtA = np.einsum("ski,skj->sij", A, A)
-    coef = np.linalg.solve(AtA + 1e-30 * np.eye(3), np.einsum("ski,sk->si", A, np.nan_to_num(Hs[:, 1:])))
+    scale = np.einsum("sii->s", AtA)
+    bad = ~(np.abs(np.linalg.det(AtA)) > 1e-9 * np.maximum(scale, 1e-300) ** 3)  # ring on a line
+    AtA[bad] = np.eye(3)
+    coef = np.linalg.solve(AtA, np.einsum("ski,sk->si", A, np.nan_to_num(Hs[:, 1:]))[..., None])[..., 0]
     val = Hs[:, 0] - coef[:, 0]
-    return np.where(np.isnan(Hs).any(axis=1), np.nan, val)
+    return np.where(np.isnan(Hs).any(axis=1) | bad, np.nan, val)
 
 
 # --------------------------------------------------------------------------- embedding
@@ -209,7 +212,14 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     report(0.0, "analysing the mesh")
     adj = build_adjacency(F, len(V))
     eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"))
-    sites = select_carriers(V, adj, eligible, nb * per_bit, seed=derive_seed(secret, "robust-sites"))
+    while True:  # fewer sites per bit on small meshes, down to 2
+        try:
+            sites = select_carriers(V, adj, eligible, nb * per_bit, seed=derive_seed(secret, "robust-sites"))
+            break
+        except PayloadError:
+            if per_bit <= 2:
+                raise
+            per_bit -= 2
     report(0.1, f"{len(sites)} sites chosen")
     edge = mean_edge_length(V, adj)
     P = V[sites]
@@ -244,7 +254,9 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     rel = V[vi] - P[si]
     phi = np.arctan2(np.einsum("ij,ij->i", rel, t2[si]), np.einsum("ij,ij->i", rel, t1[si]))
     theta0 = np.random.default_rng(derive_seed(secret, "robust-angles")).uniform(0, 2 * np.pi, len(P))
-    ring_ok = facing & (d > 1.05 * r)
+    # ring vertices where the surface is a height field over the site's tangent plane, so the
+    # stencil lines cross it once, cleanly, at every level of detail
+    ring_ok = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.8) & (d > 1.05 * r)
     ring = np.full((len(P), RING), -1, np.int64)
     for k in range(RING):  # RING (3) iterations
         target = theta0 + 2 * np.pi * k / RING
@@ -296,11 +308,12 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         "site_bit": bit_of.tolist(),
         "site_chip": chip.astype(int).tolist(),
         "site_usable": usable.astype(int).tolist(),
-        "site_origin": np.round(P, 9).tolist(),
-        "site_normal": np.round(N, 9).tolist(),
-        "site_uv": np.round(uv, 9).tolist(),
-        "site_ref": np.round(np.nan_to_num(ref), 12).tolist(),
-        "site_gain": np.round(np.where(usable, gain, 0.0), 12).tolist(),
+        # full precision: the stencil lines must pass exactly through the protected vertices
+        "site_origin": P.tolist(),
+        "site_normal": N.tolist(),
+        "site_uv": uv.tolist(),
+        "site_ref": np.nan_to_num(ref).tolist(),
+        "site_gain": np.where(usable, gain, 0.0).tolist(),
         "frame": surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)),
     }
     key = WatermarkKey(
@@ -365,9 +378,27 @@ def robust_verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6)
         raise KeyFileError(f"this key is for the {key.scheme!r} scheme, not {SCHEME!r}; use pmwm.verify")
     V, F = check_mesh(vertices, faces)
     s = _site_arrays(key)
-    X, info = register(V, F, s["frame"])
+    if _in_key_frame(V, s, key):
+        X, extra = V, {"registration": "none (already in the key's frame)"}
+        mode = "aligned"
+    else:
+        X, info = register(V, F, s["frame"])
+        extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
+        mode = "registered"
     soft = soft_values(X, F, key)
-    verdict = _verdict(bit_scores(soft, key), key, "registered", p_threshold)
-    verdict.extra = {"registration": info.init, "residual": info.residual, "scale": info.scale,
-                     "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))}
+    verdict = _verdict(bit_scores(soft, key), key, mode, p_threshold)
+    verdict.extra = {**extra, "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))}
     return verdict
+
+
+def _in_key_frame(V: np.ndarray, s: dict, key: WatermarkKey) -> bool:
+    """True when most site centres sit exactly (float32 precision) on a suspect vertex at one of
+    their two possible marked positions: the marked mesh itself or one of its levels of detail,
+    in its own frame. Registration would only blur it then (it is accurate to ~0.1 % only)."""
+    from .watermark import _nearest
+
+    cand = np.concatenate([s["origin"] + s["gain"][:, None] * s["normal"],
+                           s["origin"] - s["gain"][:, None] * s["normal"]])
+    _, dist = _nearest(V, cand)
+    hit = np.minimum(dist[: len(s["origin"])], dist[len(s["origin"]):]) <= 1e-6 * key.bbox_diagonal
+    return bool(hit[s["usable"]].mean() > 0.5) if s["usable"].any() else False
