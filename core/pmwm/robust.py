@@ -47,7 +47,7 @@ from .watermark import (EmbedOptions, EmbedResult, Progress, Verdict, _verdict, 
 
 SITES_PER_BIT = 6
 RADIUS_EDGES = 2.5  # bump radius in mean edge lengths
-AMPLITUDE_PER_STRENGTH = 0.12  # bump amplitude per unit of strength, in mean edge lengths
+AMPLITUDE_PER_STRENGTH = 0.1  # bump amplitude per unit of strength, in mean edge lengths
 RING = 3  # ring stencil points per site
 RING_DISTANCE = 1.3  # ring stencil distance / r
 REF_POINTS = 1000  # registration samples stored in the key
@@ -100,12 +100,13 @@ def _min_spacing(P: np.ndarray, chunk: int = 1024) -> float:
     return float(np.sqrt(best))
 
 
-def heights(V, F, origin, normal, t1, t2, uv, reach: float) -> np.ndarray:
+def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: Optional[np.ndarray] = None) -> np.ndarray:
     """Height along ``normal`` of the surface over each stencil point (S, K) (NaN: no surface).
 
     Stencil point k of site s is the line origin[s] + u t1[s] + v t2[s] + h normal[s]; every
     triangle within ``reach`` of the site is projected into the site frame and the crossing with
-    the smallest |h| is kept (either face orientation, so flipped copies still read).
+    the smallest |h| is kept (either face orientation, so flipped copies still read). With
+    ``expect`` (S, K, 2), the crossing nearest to either expected height is kept instead.
     """
     S, K = uv.shape[:2]
     out = np.full((S, K), np.nan)
@@ -141,7 +142,18 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float) -> np.ndarray:
     pk, kk = pk[inside], kk[inside]
     h = l0[inside] * z[pk, 0] + l1[inside] * z[pk, 1] + l2[inside] * z[pk, 2]
     slot = si[pk] * K + kk
-    order = np.lexsort((np.abs(h), slot))
+    if len(slot) == 0:
+        return out
+    # a line may cross the surface more than once (folds, thin parts, coarse levels of detail):
+    # take the front-facing crossing (face normal along the site normal) nearest the site, and a
+    # back-facing one only where there is none (copies whose faces were flipped)
+    back = det[pk] < 0
+    if expect is None:
+        dist = np.abs(h)
+    else:
+        e = expect.reshape(S * K, 2)[slot]
+        dist = np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1]))
+    order = np.lexsort((dist, back, slot))
     slot, h = slot[order], h[order]
     first = np.r_[True, slot[1:] != slot[:-1]]
     out.ravel()[slot[first]] = h[first]
@@ -149,7 +161,7 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float) -> np.ndarray:
 
 
 def site_values(Hs: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Centre height minus the ring's least-squares plane at the centre, per site (NaN if unreadable)."""
+    """Centre height minus the ring's least-squares plane under the centre, per site (NaN if unreadable)."""
     ring_uv = uv[:, 1:, :]
     A = np.concatenate([np.ones(ring_uv.shape[:2] + (1,)), ring_uv], axis=2)  # (S, K, 3)
     # plane value at (0, 0) = first coefficient = e0^T (A^T A)^-1 A^T h_ring
@@ -158,7 +170,7 @@ def site_values(Hs: np.ndarray, uv: np.ndarray) -> np.ndarray:
     bad = ~(np.abs(np.linalg.det(AtA)) > 1e-9 * np.maximum(scale, 1e-300) ** 3)  # ring on a line
     AtA[bad] = np.eye(3)
     coef = np.linalg.solve(AtA, np.einsum("ski,sk->si", A, np.nan_to_num(Hs[:, 1:]))[..., None])[..., 0]
-    val = Hs[:, 0] - coef[:, 0]
+    val = Hs[:, 0] - (coef[:, 0] + coef[:, 1] * uv[:, 0, 0] + coef[:, 2] * uv[:, 0, 1])
     return np.where(np.isnan(Hs).any(axis=1) | bad, np.nan, val)
 
 
@@ -225,7 +237,9 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     P = V[sites]
     # bumps and rings must not overlap: r + RING_DISTANCE * r below the closest site spacing
     dmin = _min_spacing(P)
-    r = min(radius_edges * edge, 0.95 * dmin / (1.0 + RING_DISTANCE + 0.3))
+    # (on small meshes they may overlap a little; the stored per-site shift then includes the
+    # neighbours' share, and sites whose shift is not clearly their own sign are left out)
+    r = max(min(radius_edges * edge, 0.95 * dmin / (1.0 + RING_DISTANCE + 0.3)), min(1.5, radius_edges) * edge)
     A = opts.strength * AMPLITUDE_PER_STRENGTH * edge
 
     vn = vertex_normals(V, F)
@@ -280,7 +294,7 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     stencil = np.concatenate([sites[:, None], np.where(ring >= 0, ring, sites[:, None])], axis=1)
     relm = marked[stencil] - P[:, None, :]
     uv = np.stack([np.einsum("skj,sj->sk", relm, t1), np.einsum("skj,sj->sk", relm, t2)], axis=2)
-    uv[:, 0, :] = 0.0
+    # (the centre's own uv is ~0 but kept exact: the line must pass through the vertex itself)
     reach = (RING_DISTANCE + 0.5) * r
     ref = site_values(heights(V, F, P, N, t1, t2, uv, reach), uv)
     after = site_values(heights(marked, F, P, N, t1, t2, uv, reach), uv)
@@ -356,11 +370,21 @@ def _site_arrays(key: WatermarkKey) -> dict:
 
 
 def soft_values(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> np.ndarray:
-    """Soft value per site (~ +-1 when intact, NaN when unreadable) on a mesh in the key's frame."""
+    """Soft value per site (~ +-1 when intact, NaN when unreadable) on a mesh in the key's frame.
+
+    The ring is read first; where the centre line crosses the surface several times (a coarse
+    level of detail folds over a dent), the crossing nearest to either possible marked height
+    (ring plane + stored value +- shift) is taken: symmetric in the sign, so it cannot bias a bit.
+    """
     s = _site_arrays(key)
     t1, t2 = tangent_frames(s["normal"])
-    H = heights(V, F, s["origin"], s["normal"], t1, t2, s["uv"], s["reach"])
-    val = site_values(H, s["uv"])
+    uv = s["uv"]
+    ring = heights(V, F, s["origin"], s["normal"], t1, t2, uv[:, 1:], s["reach"])
+    plane0 = -site_values(np.concatenate([np.zeros((len(uv), 1)), ring], axis=1), uv)
+    centre = (plane0 + s["ref"])[:, None] + np.stack([s["gain"], -s["gain"]], axis=1)
+    expect = np.nan_to_num(centre)[:, None, :]
+    H0 = heights(V, F, s["origin"], s["normal"], t1, t2, uv[:, :1], s["reach"], expect=expect)
+    val = site_values(np.concatenate([H0, ring], axis=1), uv)
     soft = (val - s["ref"]) / np.where(s["gain"] > 0, s["gain"], 1.0)
     return np.where(s["usable"], soft, np.nan)
 
@@ -395,10 +419,12 @@ def _in_key_frame(V: np.ndarray, s: dict, key: WatermarkKey) -> bool:
     """True when most site centres sit exactly (float32 precision) on a suspect vertex at one of
     their two possible marked positions: the marked mesh itself or one of its levels of detail,
     in its own frame. Registration would only blur it then (it is accurate to ~0.1 % only)."""
-    from .watermark import _nearest
+    from .register import _nearest
 
-    cand = np.concatenate([s["origin"] + s["gain"][:, None] * s["normal"],
-                           s["origin"] - s["gain"][:, None] * s["normal"]])
-    _, dist = _nearest(V, cand)
-    hit = np.minimum(dist[: len(s["origin"])], dist[len(s["origin"]):]) <= 1e-6 * key.bbox_diagonal
-    return bool(hit[s["usable"]].mean() > 0.5) if s["usable"].any() else False
+    use = np.flatnonzero(s["usable"])[:64]
+    if len(use) == 0:
+        return False
+    o, g, n = s["origin"][use], s["gain"][use, None], s["normal"][use]
+    _, d2 = _nearest(V, np.concatenate([o + g * n, o - g * n]))
+    dist = np.sqrt(np.minimum(d2[: len(use)], d2[len(use):]))
+    return bool(np.mean(dist <= 1e-6 * key.bbox_diagonal) > 0.5)

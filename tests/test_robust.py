@@ -1,0 +1,107 @@
+"""The robust scheme (pmwm.robust): the payload survives the benchmark's geometric attacks, every
+level of detail reads it, unmarked meshes and wrong keys do not, at no more distortion than the
+paper scheme."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import pmwm
+from pmwm import attacks, metrics
+from pmwm.errors import KeyFileError
+from pmwm.key import make_secret
+from pmwm.robust import robust_embed, robust_verify
+
+from conftest import load
+
+PAYLOAD = "ACME 2026"
+
+
+@pytest.fixture(scope="module")
+def bunny():
+    return load("bunny_wm_benchmark.off")
+
+
+@pytest.fixture(scope="module")
+def marked(bunny):
+    V, F = bunny
+    return robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11))
+
+
+def _reads(res, V, F):
+    v = robust_verify(V, F, res.key)
+    assert v.marked, (v.p_value, v.bit_errors)
+    assert v.p_value < 1e-6
+    assert v.payload == PAYLOAD
+    return v
+
+
+def test_unattacked_and_key_round_trip(marked):
+    key = pmwm.WatermarkKey.from_json(marked.key.to_json())
+    assert key.scheme == "robust"
+    _reads(dataclasses.replace(marked, key=key), marked.vertices, marked.faces)
+
+
+@pytest.mark.parametrize(
+    "name, attack",
+    [
+        ("reorder", lambda V, F: attacks.reorder(V, F, seed=5)),
+        ("similarity", lambda V, F: attacks.similarity(V, F, seed=5)),
+        ("quantize 8 bits", lambda V, F: attacks.quantize(V, F, bits=8)),
+        ("crop 50 %", lambda V, F: attacks.crop_plane(V, F, fraction=0.5, seed=5)),
+        ("simplify 30 %", lambda V, F: attacks.simplify(V, F, ratio=0.3)),
+        ("midpoint subdivision", lambda V, F: attacks.subdivide(V, F, scheme="midpoint")),
+    ],
+)
+def test_payload_survives(marked, name, attack):
+    _reads(marked, *attack(marked.vertices, marked.faces))
+
+
+def test_every_level_of_detail_reads_the_payload(marked):
+    pm = marked.pm
+    for k in [0, *pm.level_records.tolist()]:
+        V, F = pm.decode(records=k)
+        v = robust_verify(V, F, marked.key)
+        assert v.bit_errors == 0 and v.marked, (k, v.bit_errors)
+    assert pm.n_base_vertices < 0.1 * pm.n_vertices
+
+
+def test_unmarked_mesh_and_wrong_keys_are_not_marked(bunny, marked):
+    V, F = bunny
+    assert not robust_verify(V, F, marked.key).marked
+    p_values = []
+    for s in range(8):
+        wrong = dataclasses.replace(marked.key, secret=make_secret(1000 + s))
+        v = robust_verify(marked.vertices, marked.faces, wrong)
+        assert not v.marked
+        p_values.append(v.p_value)
+    # wrong keys read coin flips: p-values spread over (0, 1], not piled up near 0
+    assert np.median(p_values) > 0.05
+
+
+def test_distortion_not_above_the_paper_scheme(bunny, marked):
+    V, F = bunny
+    paper = pmwm.embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, strength=2.0))
+    assert marked.rmse <= paper.rmse
+    mrms_r, haus_r = metrics.surface_distance(V, F, marked.vertices, F, n_samples=20000, seed=1)
+    mrms_p, haus_p = metrics.surface_distance(V, F, paper.vertices, F, n_samples=20000, seed=1)
+    assert mrms_r <= mrms_p
+    assert haus_r <= haus_p
+
+
+def test_paper_key_is_refused(bunny):
+    V, F = load("cow_libigl.off")
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(n_bits=16, seed=1))
+    with pytest.raises(KeyFileError):
+        robust_verify(V, F, res.key)
+
+
+def test_small_mesh_uses_fewer_sites_and_still_reads():
+    V, F = load("cow_libigl.off")
+    res = robust_embed(V, F, pmwm.EmbedOptions(n_bits=64, seed=3))
+    assert len(res.carriers) < 6 * 64
+    v = robust_verify(res.vertices, res.faces, res.key)
+    assert v.marked and v.p_value < 1e-6
