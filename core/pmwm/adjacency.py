@@ -127,11 +127,12 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     boundary_edge = counts == 1
     bad_edge = (counts > 2) | ((counts == 2) & (forward != 1))
 
-    # twin half-edge of every half-edge on a clean two-face edge, else -1
-    twin = np.full(n_he, -1, dtype=np.int64)
-    pair_start = starts[(counts == 2) & ~bad_edge]
-    twin[order[pair_start]] = order[pair_start + 1]
-    twin[order[pair_start + 1]] = order[pair_start]
+    twin = None
+    if detect_pinches:  # twin half-edge of every half-edge on a clean two-face edge, else -1
+        twin = np.full(n_he, -1, dtype=np.int64)
+        pair_start = starts[(counts == 2) & ~bad_edge]
+        twin[order[pair_start]] = order[pair_start + 1]
+        twin[order[pair_start + 1]] = order[pair_start]
     del order, he_edge, first
 
     src = np.concatenate([edges[:, 0], edges[:, 1]])

@@ -386,21 +386,20 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
 
     ``cost`` is per ring entry (u = owner, v = neighbour; inf = not a candidate).
     Each round, a vertex whose cheapest remaining candidate has the best priority
-    within two rings wins (priority: cost quantile, then a fixed pseudo-random order); winners are validated, valid ones accepted (blocking their
-    2-rings), failed candidates dropped so the vertex tries its next one.
+    within two rings wins (priority: cost quantile, then a fixed pseudo-random order);
+    winners are validated, valid ones accepted (blocking their 2-rings), failed
+    candidates dropped so the vertex tries its next one. Later rounds only look
+    around the vertices still in play.
     """
     n = adj.n_vertices
     ptr = adj.ring_ptr
-    owner = adj.ring_owner()
     cost = cost.copy()
-    blocked = np.zeros(n, bool)
+    best = segment_reduce(ptr, cost, np.minimum, np.inf)  # cheapest live candidate per vertex
     big = np.iinfo(np.int64).max
     acc_u, acc_v, bad_u, bad_v = [], [], [], []
     for r in range(64):
         if r >= rounds and acc_u:
             break  # enough rounds; keep going only while nothing valid was found
-        c = np.where(blocked[owner], np.inf, cost)
-        best = segment_reduce(ptr, c, np.minimum, np.inf)
         bu = np.flatnonzero(np.isfinite(best))
         if len(bu) == 0:
             break
@@ -411,33 +410,52 @@ def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
         bucket[np.argsort(best[bu], kind="stable")] = np.arange(nb_) * _BUCKETS // nb_
         val = np.full(n, big, np.int64)
         val[bu] = bucket * nb_ + _tiebreak(nb_, r)
-        m1 = np.minimum(val, segment_reduce(ptr, val[adj.ring_idx], np.minimum, big))
-        m2 = np.minimum(m1, segment_reduce(ptr, m1[adj.ring_idx], np.minimum, big))
-        wu = bu[val[bu] == m2[bu]]
+        near = np.flatnonzero(_dilate(_mask(n, bu), adj))
+        m1 = np.full(n, big, np.int64)
+        m1[near] = np.minimum(val[near], _rows_min(adj, near, val, big))
+        m2 = np.minimum(m1[bu], _rows_min(adj, bu, m1, big))
+        wu = bu[val[bu] == m2]
         # the entry of each winner's cheapest candidate
         cnt = np.diff(ptr)[wu]
         rec = np.repeat(np.arange(len(wu)), cnt)
         pos = ranges(ptr[wu], cnt)
-        is_best = c[pos] == best[wu][rec]
+        cand = np.flatnonzero(cost[pos] == best[wu][rec])
         pick = np.full(len(wu), -1, np.int64)
-        cand = np.flatnonzero(is_best)
         pick_rec, at = np.unique(rec[cand], return_index=True)
         pick[pick_rec] = pos[cand[at]]
         wv = adj.ring_idx[pick]
         ok = _valid(V, adj, wu, wv, area_eps, check_flips)
         cost[pick[~ok]] = np.inf
-        bad_u.append(wu[~ok])
+        failed = wu[~ok]
+        best[failed] = _rows_min(adj, failed, cost, np.inf, per_entry=True)
+        bad_u.append(failed)
         bad_v.append(wv[~ok])
         if ok.any():
             acc_u.append(wu[ok])
             acc_v.append(wv[ok])
-            mark = np.zeros(n, bool)
-            mark[wu[ok]] = True
-            blocked |= _dilate(_dilate(mark, adj), adj)
+            best[_dilate(_dilate(_mask(n, wu[ok]), adj), adj)] = np.inf
     if not acc_u:
         acc_u, acc_v = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
     bad = (np.concatenate(bad_u) * n + np.concatenate(bad_v)) if bad_u else np.zeros(0, np.int64)
     return np.concatenate(acc_u), np.concatenate(acc_v), bad
+
+
+def _mask(n: int, idx: np.ndarray) -> np.ndarray:
+    m = np.zeros(n, bool)
+    m[idx] = True
+    return m
+
+
+def _rows_min(adj: Adjacency, verts: np.ndarray, values: np.ndarray, empty, per_entry: bool = False) -> np.ndarray:
+    """Minimum over each vertex's ring of ``values`` (per neighbour, or per ring entry)."""
+    cnt = np.diff(adj.ring_ptr)[verts]
+    pos = ranges(adj.ring_ptr[verts], cnt)
+    vals = values[pos] if per_entry else values[adj.ring_idx[pos]]
+    out = np.full(len(verts), empty, dtype=np.result_type(vals, type(empty)))
+    nz = cnt > 0
+    if nz.any():
+        out[nz] = np.minimum.reduceat(vals, (np.cumsum(cnt) - cnt)[nz])
+    return out
 
 
 _BUCKETS = 16
