@@ -50,7 +50,8 @@ RADIUS_EDGES = 2.5  # bump radius in mean edge lengths
 AMPLITUDE_PER_STRENGTH = 0.1  # bump amplitude per unit of strength, in mean edge lengths
 RING = 3  # ring stencil points per site
 RING_DISTANCE = 1.3  # ring stencil distance / r
-REF_POINTS = 1000  # registration samples stored in the key
+SOFT_CLIP = 1.5  # soft values are clipped to +-SOFT_CLIP before a bit's sites are summed
+REF_POINTS = 3000  # registration samples stored in the key
 SCHEME = "robust"
 EXTRA_VERSION = 1
 
@@ -149,11 +150,10 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: Optional[np.
     # back-facing one only where there is none (copies whose faces were flipped)
     back = det[pk] < 0
     if expect is None:
-        dist = np.abs(h)
+        order = np.lexsort((np.abs(h), back, slot))
     else:
         e = expect.reshape(S * K, 2)[slot]
-        dist = np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1]))
-    order = np.lexsort((dist, back, slot))
+        order = np.lexsort((back, np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1])), slot))
     slot, h = slot[order], h[order]
     first = np.r_[True, slot[1:] != slot[:-1]]
     out.ravel()[slot[first]] = h[first]
@@ -296,8 +296,12 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     uv = np.stack([np.einsum("skj,sj->sk", relm, t1), np.einsum("skj,sj->sk", relm, t2)], axis=2)
     # (the centre's own uv is ~0 but kept exact: the line must pass through the vertex itself)
     reach = (RING_DISTANCE + 0.5) * r
-    ref = site_values(heights(V, F, P, N, t1, t2, uv, reach), uv)
-    after = site_values(heights(marked, F, P, N, t1, t2, uv, reach), uv)
+    # read at the stencil vertices' own crossings (a line may also cross other parts nearby)
+    Hu = np.einsum("skj,sj->sk", V[stencil] - P[:, None, :], N)[..., None]
+    Hm = np.einsum("skj,sj->sk", relm, N)[..., None]
+    ref = site_values(heights(V, F, P, N, t1, t2, uv, reach, expect=np.concatenate([Hu, Hu], 2)), uv)
+    H_marked = heights(marked, F, P, N, t1, t2, uv, reach, expect=np.concatenate([Hm, Hm], 2))
+    after = site_values(H_marked, uv)
     gain = (after - ref) * sign  # the shift each site was given, ~A
     usable &= np.isfinite(ref) & np.isfinite(after) & (gain > 0.25 * A)
     report(0.2, "sites marked")
@@ -328,6 +332,7 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         "site_uv": uv.tolist(),
         "site_ref": np.nan_to_num(ref).tolist(),
         "site_gain": np.where(usable, gain, 0.0).tolist(),
+        "site_ring_height": np.nan_to_num(H_marked[:, 1:]).tolist(),
         "frame": surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)),
     }
     key = WatermarkKey(
@@ -355,6 +360,7 @@ def _site_arrays(key: WatermarkKey) -> dict:
             "origin": np.asarray(x["site_origin"], np.float64).reshape(-1, 3),
             "normal": np.asarray(x["site_normal"], np.float64).reshape(-1, 3),
             "ref": np.asarray(x["site_ref"], np.float64),
+            "ring_h": np.asarray(x["site_ring_height"], np.float64).reshape(len(x["site_bit"]), -1),
             "gain": np.asarray(x["site_gain"], np.float64),
             "reach": float(x["reach"]),
             "frame": x["frame"],
@@ -372,14 +378,18 @@ def _site_arrays(key: WatermarkKey) -> dict:
 def soft_values(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> np.ndarray:
     """Soft value per site (~ +-1 when intact, NaN when unreadable) on a mesh in the key's frame.
 
-    The ring is read first; where the centre line crosses the surface several times (a coarse
-    level of detail folds over a dent), the crossing nearest to either possible marked height
-    (ring plane + stored value +- shift) is taken: symmetric in the sign, so it cannot bias a bit.
+    Where a stencil line crosses the surface several times (thin parts, or a coarse level of
+    detail folding over a dent), the crossing nearest to the expected height is taken: for the
+    ring, its marked height stored in the key (outside the bumps, so it says nothing of the bits);
+    for the centre, either possible marked height (ring plane + stored value +- shift), which is
+    symmetric in the sign and so cannot bias a bit.
     """
     s = _site_arrays(key)
     t1, t2 = tangent_frames(s["normal"])
     uv = s["uv"]
-    ring = heights(V, F, s["origin"], s["normal"], t1, t2, uv[:, 1:], s["reach"])
+    ring_h = s["ring_h"][:, :, None]
+    ring = heights(V, F, s["origin"], s["normal"], t1, t2, uv[:, 1:], s["reach"],
+                   expect=np.concatenate([ring_h, ring_h], axis=2))
     plane0 = -site_values(np.concatenate([np.zeros((len(uv), 1)), ring], axis=1), uv)
     centre = (plane0 + s["ref"])[:, None] + np.stack([s["gain"], -s["gain"]], axis=1)
     expect = np.nan_to_num(centre)[:, None, :]
@@ -393,7 +403,10 @@ def bit_scores(soft: np.ndarray, key: WatermarkKey) -> np.ndarray:
     """Chip-weighted sum of each bit's readable sites' soft values (0 when none is readable)."""
     s = _site_arrays(key)
     ok = np.isfinite(soft)
-    return np.bincount(s["bit"][ok], weights=(s["chip"] * soft)[ok], minlength=key.n_bits)
+    # clipped: an intact site reads +-1; a site whose stencil line met another part of the shape
+    # (a cropped copy, a thin part) can read anything, and must not outvote the bit's other sites
+    clipped = np.clip(soft, -SOFT_CLIP, SOFT_CLIP)
+    return np.bincount(s["bit"][ok], weights=(s["chip"] * clipped)[ok], minlength=key.n_bits)
 
 
 def robust_verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
