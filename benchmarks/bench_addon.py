@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 import bpy  # first: a process imports bpy once
-from _report import machine, write_section  # benchmarks/ is the script's folder, first on sys.path
+from _report import commit, machine, write_section  # benchmarks/ is the script's folder, first on sys.path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -119,7 +119,7 @@ def main(argv=None) -> int:
     out: list[str] = []
     out.append(f"## Blender add-on overhead ({len(V):,} vertices, {len(F):,} triangles, {res.bits.size} bits)\n")
     out.append(f"Machine: {machine()}, bpy {bpy.app.version_string}; load average at the end {os.getloadavg()[0]:.1f}  ")
-    out.append(f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}`  ")
+    out.append(f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}` at commit {commit()}  ")
     out.append(f"Mesh: {args.mesh.name}"
           + (f" ({n_source:,} vertices) decimated with fast-simplification" if len(V) < n_source else "") + f"; best of {args.repeat} interleaved runs\n")
     out.append("| step | wall ms | CPU ms | overhead vs core (wall / CPU) |")
