@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 import pmwm
+import pmwm.cli
 from pmwm import attacks, metrics
 from pmwm.errors import KeyFileError
 from pmwm.key import make_secret
 from pmwm.robust import robust_embed, robust_verify
 
-from conftest import load
+from conftest import data_path, load
 
 PAYLOAD = "ACME 2026"
 
@@ -105,3 +106,19 @@ def test_small_mesh_uses_fewer_sites_and_still_reads():
     assert len(res.carriers) < 6 * 64
     v = robust_verify(res.vertices, res.faces, res.key)
     assert v.marked and v.p_value < 1e-6
+
+
+def test_scheme_dispatch_library_and_command_line(tmp_path, marked):
+    """`pmwm.verify` reads a robust key with the robust reader; `pmwm embed --scheme robust` works end to end."""
+    V2, F2 = attacks.similarity(marked.vertices, marked.faces, seed=9)
+    v = pmwm.verify(V2, F2, marked.key)
+    assert v.marked and v.payload == PAYLOAD and v.mode == "registered"
+    src = tmp_path / "cow.off"
+    src.write_bytes(data_path("cow_libigl.off").read_bytes())
+    out, key = tmp_path / "m.ply", tmp_path / "k.json"
+    assert pmwm.cli.main(["embed", str(src), "-o", str(out), "--key", str(key), "--scheme", "robust",
+                          "--bits", "10" * 16, "--seed", "2", "-q"]) == 0
+    assert pmwm.read_key(key).scheme == "robust"
+    assert pmwm.cli.main(["verify", str(out), "--key", str(key)]) == 0
+    with pytest.raises(pmwm.PayloadError, match="unknown scheme"):
+        pmwm.embed(marked.vertices, marked.faces, pmwm.EmbedOptions(scheme="nope"))

@@ -88,7 +88,7 @@ def cmd_embed(a) -> int:
     _check_outputs([a.output, a.key, a.pm], [a.input], a.force)
     src = read_mesh(a.input)
     opts = EmbedOptions(payload=a.payload, bits=a.bits, n_bits=a.n_bits, strength=a.strength,
-                        base_ratio=a.base_ratio, seed=a.seed)
+                        base_ratio=a.base_ratio, seed=a.seed, scheme=a.scheme)
     res = embed(src.vertices, src.faces, opts, progress=_progress(a.quiet))
     written: list[str] = []
     try:
@@ -106,6 +106,9 @@ def cmd_embed(a) -> int:
             except OSError:
                 pass
         raise
+    if len(res.bits) < 20:
+        print(f"warning: {len(res.bits)} bits can never give p < 1e-6 (2^-{len(res.bits)} at best); "
+              "use at least 20 bits for a 'marked' verdict", file=sys.stderr)
     if not a.quiet:
         for w in src.warnings:
             print(f"warning: {w}", file=sys.stderr)
@@ -125,7 +128,7 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
     state = "MARKED" if v.marked else "not marked"
     print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "
           f"(threshold {v.p_threshold:g}), correlation {v.correlation:.3f}, "
-          f"{v.carriers_found}/{v.carriers_total} carriers found by {v.mode}")
+          f"{v.carriers_found}/{v.carriers_total} carriers read ({v.mode})")
     if v.payload is not None:
         print(f"payload: {v.payload!r}")
 
@@ -255,6 +258,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, help="seed of every random choice (default: a fresh secret)")
     e.add_argument("--strength", type=float, default=2.0)
     e.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
+    e.add_argument("--scheme", choices=("paper", "robust"), default="paper",
+                   help="paper: the paper's Algorithms 1-2; robust: spread bumps read after registration")
     e.add_argument("--force", action="store_true", help="overwrite existing outputs")
     e.add_argument("-q", "--quiet", action="store_true")
     e.set_defaults(func=cmd_embed)

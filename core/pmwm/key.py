@@ -132,6 +132,8 @@ class WatermarkKey:
                 problems.append(f"a carrier {what} is outside the mesh's {self.n_vertices} vertices")
         if self.n_vertices < 1 or self.n_faces < 1:
             problems.append("mesh counts are not positive")
+        if self.scheme not in ("paper", "robust"):
+            problems.append(f"unknown scheme {self.scheme!r}")
         if self.payload_kind not in ("text", "bits", "random"):
             problems.append(f"unknown payload kind {self.payload_kind!r}")
         if not (0 < self.mean_edge < 1e30 and np.isfinite(self.bbox_diagonal)):

@@ -372,7 +372,14 @@ def _site_arrays(key: WatermarkKey) -> dict:
             "frame": x["frame"],
         }
         out["uv"] = np.asarray(x["site_uv"], np.float64).reshape(len(out["bit"]), -1, 2)
-    except (KeyError, TypeError, ValueError) as exc:
+        fr = out["frame"]
+        shapes = {"points": (-1, 3), "normals": (-1, 3), "centroid": (3,), "axes": (3, 3)}
+        out["frame"] = {k: np.asarray(fr[k], np.float64).reshape(shp) for k, shp in shapes.items()}
+        out["frame"]["scale"] = float(fr["scale"])
+        if not all(np.all(np.isfinite(v)) for v in out["frame"].values()) or out["frame"]["scale"] <= 0 \
+                or len(out["frame"]["points"]) != len(out["frame"]["normals"]) or len(out["frame"]["points"]) < 3:
+            raise ValueError("registration frame")
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
     n = len(out["bit"])
     if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "origin", "normal", "ref", "gain")) \

@@ -53,6 +53,7 @@ class EmbedOptions:
     strength: float = 2.0
     base_ratio: float = 0.03
     seed: Optional[int] = None
+    scheme: str = "paper"  # "paper" (Algorithms 1-2) or "robust" (pmwm.robust)
 
 
 @dataclass
@@ -216,6 +217,12 @@ def _grouped_stats(P: np.ndarray, rec: np.ndarray, k: int):
 def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
     """Watermark a triangle mesh; see the module docstring and docs/api.md."""
     opts = options or EmbedOptions()
+    if opts.scheme == "robust":
+        from .robust import robust_embed
+
+        return robust_embed(vertices, faces, opts, progress=progress)
+    if opts.scheme != "paper":
+        raise PayloadError(f"unknown scheme {opts.scheme!r}; use 'paper' or 'robust'")
     if not (opts.strength > 0 and np.isfinite(opts.strength)):
         raise PayloadError(f"strength must be a positive number, got {opts.strength}")
     if not (0 < opts.base_ratio <= 1):
@@ -354,6 +361,10 @@ def carrier_scores(V: np.ndarray, F: np.ndarray, idx: np.ndarray) -> np.ndarray:
 
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
     """Read the mark from a plain mesh (any order, possibly attacked) with the key."""
+    if key.scheme == "robust":
+        from .robust import robust_verify
+
+        return robust_verify(vertices, faces, key, p_threshold)
     V, F = check_mesh(vertices, faces)
     idx, mode = locate_carriers(V, key)
     score = carrier_scores(V, F, idx)
