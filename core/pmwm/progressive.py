@@ -93,22 +93,28 @@ def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
     nf = len(pm.base_faces)
     F[:nf] = pm.base_faces
     bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k])
+    slot = np.full(nb + k, -1, dtype=np.int64)  # scratch tables, reset after each level
+    tag = np.full(nb + k, -1, dtype=np.int64)
     for a, b in zip(bounds[:-1], bounds[1:]):
-        nf = _split_chunk(pm, F, nf, nb + a, a, b)
+        nf = _split_chunk(pm, F, nf, nb + a, a, b, slot, tag)
     return V, F
 
 
-def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b: int) -> int:
-    """Apply independent records a..b-1 (one level or a prefix of it) in place; returns the face count."""
+def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b: int,
+                 slot: np.ndarray, tag: np.ndarray) -> int:
+    """Apply independent records a..b-1 (one level or a prefix of it) in place; returns the face count.
+
+    ``slot`` and ``tag`` are all -1 on entry and are left so.
+    """
     cnt = b - a
     u = nv + np.arange(cnt, dtype=np.int64)
     v = pm.v[a:b]
     mask = pm.mask[a:b]
     flags = pm.flags[a:b]
-    slot = np.full(nv, -1, dtype=np.int64)
     slot[v] = np.arange(cnt)
     flat = F[:nf].reshape(-1)
     s = slot[flat]
+    slot[v] = -1
     hit = np.flatnonzero(s >= 0)
     rec = s[hit]
     # group the hits by record, keeping face order (radix sort when records fit 16 bits)
@@ -129,12 +135,12 @@ def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b
     prv = F[face, (corner + 2) % 3]
     # ends of the arc: p is a "next" vertex that is no "previous" of the same record, q the
     # reverse; the records' rings are disjoint, so one tag table serves them all
-    tag = np.full(nv + cnt, -1, dtype=np.int64)
     tag[prv] = rec
     pm_ = tag[nxt] != rec
     tag[prv] = -1
     tag[nxt] = rec
     qm_ = tag[prv] != rec
+    tag[nxt] = -1
     p = np.zeros(cnt, dtype=np.int64)
     q = np.zeros(cnt, dtype=np.int64)
     p[rec[pm_]] = nxt[pm_]
