@@ -98,7 +98,7 @@ def main() -> None:
         f"{ig[11]} batched passes of numpy work, each rebuilding the adjacency; a pass can only collapse "
         "vertices whose closed 1-rings are disjoint (about 10 % of the vertices).",
         f"- full decode above 1 M records/s: {ig[6] / ig[7] / 1e6:.2f} M records/s on igea, "
-        f"{rows[0][6] / rows[0][7] / 1e6:.2f} M on the bunny (fewer records per level, so more per-level overhead).",
+        f"{rows[0][6] / rows[0][7] / 1e6:.2f} M on the bunny.",
         f"- verify under 0.5 s beyond loading: {ig[8] * 1000:.0f} ms (index) and {ig[9] * 1000:.0f} ms "
         "(re-ordered copy, carriers found by position).",
         "- at most 24 bytes per record: 24 (float32 position, 32-bit vertex with 2 flag bits, 64-bit face mask).",
