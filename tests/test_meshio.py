@@ -142,8 +142,8 @@ def _tube_obj(path: Path, k: int = 6, rings: int = 3) -> np.ndarray:
     ang = 2 * np.pi * np.arange(k) / k
     pos = np.array([(np.cos(a), np.sin(a), float(r)) for r in range(rings) for a in ang])
     uv = np.array([(c / k, r / (rings - 1)) for r in range(rings) for c in range(k + 1)])
-    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in pos]
-    lines += [f"vt {a!r} {b!r}" for a, b in uv]
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in pos.tolist()]
+    lines += [f"vt {a!r} {b!r}" for a, b in uv.tolist()]
     for r in range(rings - 1):
         for c in range(k):
             quad_v = [r * k + c, r * k + (c + 1) % k, (r + 1) * k + (c + 1) % k, (r + 1) * k + c]
