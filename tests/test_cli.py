@@ -541,3 +541,23 @@ def test_errors_from_a_real_process_are_one_line(sample, bad, out, case):
     fails_cleanly(out, *args, real=True)
     if case == "existing output":
         assert (out / "m.ply").read_bytes() == b"precious\n"
+
+
+# ---------------------------------------------------------------- pmwm attack
+
+
+def test_attack_writes_the_attacked_copy_and_the_mark_survives_reordering(sample, out):
+    noisy, shuffled = out / "noisy.ply", out / "shuffled.ply"
+    proc = call("attack", "noise_paper", sample.mesh, "-o", noisy, "--amplitude", "0.0005", "--seed", 3)
+    assert proc.returncode == 0, proc.stderr
+    a, b = pmwm.read_mesh(sample.mesh), pmwm.read_mesh(noisy)
+    assert len(a.vertices) == len(b.vertices) and not np.array_equal(a.vertices, b.vertices)
+    assert call("attack", "reorder", sample.mesh, "-o", shuffled, "--seed", 4).returncode == 0
+    code, v = verdict(shuffled, "--key", sample.key)
+    assert code == 0 and v["payload"] == PAYLOAD
+
+
+def test_attack_bad_parameter_is_a_one_line_error(sample, out):
+    fails_cleanly(out, "attack", "crop_plane", sample.mesh, "-o", out / "c.ply", "--fraction", "1.5",
+                  mentions=("fraction",))
+    fails_cleanly(out, "attack", "noise_paper", sample.mesh, "-o", out / "n.ply", "--amplitude", "x")
