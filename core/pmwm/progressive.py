@@ -1,10 +1,11 @@
 """Progressive mesh: batched half-edge collapses down to a base mesh, exact vertex splits back up.
 
 Encoding. Each pass picks a set of independent half-edge collapses u -> v (u vanishes,
-v keeps its position) in quadric-error order: a vertex u is collapsed when its
-cheapest valid collapse is the cheapest among all vertices within two rings, so
-the closed 1-rings of the collapsed vertices are disjoint and the whole pass can be
-applied (and undone) at once with numpy. One pass is one level of detail.
+v keeps its position) in quadric-error order: a vertex u is collapsed when the
+priority of its cheapest valid collapse (the cost's quantile bucket, then a fixed
+pseudo-random order, Luby-style) is the best among all vertices within two rings,
+so the closed 1-rings of the collapsed vertices are disjoint and the whole pass can
+be applied (and undone) at once with numpy. One pass is one level of detail.
 
 Records. Refinement runs the passes backwards. Record r adds vertex
 ``n_base_vertices + r`` at ``pos[r]`` next to vertex ``v[r]``. ``mask[r]`` says which
