@@ -143,18 +143,19 @@ def benchmark_settings(quick: bool) -> dict[str, list[Setting]]:
 class OurScheme:
     """pmwm's own scheme behind the bench's uniform interface (docs/api.md)."""
 
-    name = "pmwm"
-
-    def __init__(self, strength: float = 2.0):
+    def __init__(self, strength: float = 2.0, scheme: str = "paper"):
         import pmwm  # noqa: F401  (fails early when the scheme is not available)
 
         self.strength = strength
+        self.scheme = scheme
+        self.name = "pmwm" if scheme == "paper" else f"pmwm-{scheme}"
         self.last_result = None
 
     def embed(self, vertices, faces, bits, seed: int | None = None):
         import pmwm
 
-        opts = pmwm.EmbedOptions(bits="".join(str(int(b)) for b in bits), seed=seed, strength=self.strength)
+        opts = pmwm.EmbedOptions(bits="".join(str(int(b)) for b in bits), seed=seed, strength=self.strength,
+                                 scheme=self.scheme)
         res = pmwm.embed(vertices, faces, opts)
         self.last_result = res
         return res.vertices, res.key
@@ -317,6 +318,7 @@ def run_bench(
     plots: bool = True,
     surface_samples: Optional[int] = None,
     command: Optional[str] = None,
+    section: str = "robustness",
 ) -> BenchResults:
     """Run both protocols and write the markdown report (and raw JSON, PNG plots) to ``out``.
 
@@ -336,7 +338,7 @@ def run_bench(
     methods = list(methods) if methods is not None else default_methods(say)
     samples = surface_samples or (5000 if quick else 20000)
     p_set, b_set = paper_settings(quick), benchmark_settings(quick)
-    res = BenchResults(settings={"command": command or "pmwm.bench.run_bench(...)",
+    res = BenchResults(settings={"command": command or "pmwm.bench.run_bench(...)", "section": section,
                                  "keys": keys, "quick": quick, "seed": seed, "surface_samples": samples,
                                  "methods": [m.name for m in methods]})
     ours = next((m for m in methods if isinstance(m, OurScheme)), None)
@@ -389,11 +391,11 @@ def run_bench(
     res.settings["seconds"] = round(time.perf_counter() - t_start, 1)
     res.markdown = render_markdown(res, p_set, b_set)
     if out:
-        # the report is the "robustness" section of ``out`` (other benchmarks keep theirs);
-        # raw trials and plots go to ``<out stem>-robustness/`` beside it
+        # the report is the ``section`` of ``out`` (other benchmarks keep theirs);
+        # raw trials and plots go to ``<out stem>-<section>/`` beside it
         out_path = Path(out)
-        write_section(out_path, "robustness", res.markdown)
-        raw_dir = out_path.with_name(out_path.stem + "-robustness")
+        write_section(out_path, section, res.markdown)
+        raw_dir = out_path.with_name(f"{out_path.stem}-{section}")
         raw_dir.mkdir(exist_ok=True)
         raw = {"settings": res.settings, "models": res.models,
                "trials": [asdict(t) for t in res.trials], "distortions": [asdict(d) for d in res.distortions]}
@@ -494,7 +496,7 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         f"({platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
         f"numpy {np.__version__}); {st['keys']} keys per model{' (quick mode)' if st['quick'] else ''}, "
         f"seeds {st['seed']}..{st['seed'] + st['keys'] - 1}, {st.get('seconds', 0)} s. "
-        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder `<report name>-robustness/` beside this file (`trials.json`, `correlation_*.png`).",
+        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder `<report name>-{st.get('section', 'robustness')}/` beside this file (`trials.json`, `correlation_*.png`).",
         "",
         "Cells are mean ± std over the keys. **~** marks a cell not distinguishable from chance: pooling all keys' "
         "bits, the number of correct bits is not significant against Binomial(bits, 1/2) at p < 0.01. "
@@ -702,13 +704,17 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--keys", type=int, default=10)
     p.add_argument("--data", help="folder holding the benchmark meshes (default $PMWM_BENCH_DATA)")
     p.add_argument("--cho-only", action="store_true", help="benchmark Cho I and II only")
+    p.add_argument("--with-robust", action="store_true", help="add the robust scheme (--scheme robust) as a method")
+    p.add_argument("--section", default="robustness", help="section of the report file to (re)write")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", default="BENCHMARKS.md")
     a = p.parse_args(argv)
     command = "pmwm bench " + " ".join(argv if argv is not None else sys.argv[1:])
     methods = [cho_method("I"), cho_method("II")] if a.cho_only else None
+    if a.with_robust:
+        methods = (methods or default_methods(print)) + [OurScheme(scheme="robust")]
     run_bench(a.models or None, keys=a.keys, quick=a.quick, out=a.output, data_dir=a.data,
-              methods=methods, plots=not a.no_plots, command=command.strip())
+              methods=methods, plots=not a.no_plots, command=command.strip(), section=a.section)
     return 0
 
 
