@@ -115,19 +115,23 @@ def _vertex_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 # paper protocol
 
 
+def _uniform_noise(vertices, faces, amplitude: float, seed, scale_of_norms) -> MeshArrays:
+    """Uniform noise in [-A*s, A*s] per coordinate, s = scale_of_norms(vertex norms about the mean)."""
+    v, f = _check_mesh(vertices, faces)
+    if amplitude < 0:
+        raise ParameterError(f"amplitude must be >= 0, got {amplitude}")
+    scale = float(scale_of_norms(_centre_norms(v))) if len(v) else 0.0
+    a = float(amplitude) * scale
+    return v + np.random.default_rng(seed).uniform(-a, a, size=v.shape), f
+
+
 def noise_paper(vertices, faces, amplitude: float = 0.005, seed: int | None = None) -> MeshArrays:
     """Add uniform noise in [-A*Rmax, A*Rmax] to every coordinate (paper table 2).
 
     Rmax is the largest vertex distance from the vertex mean, so ``amplitude`` is the paper's "Amp"
     (0.005 ... 0.05). The per-coordinate standard deviation is A*Rmax/sqrt(3).
     """
-    v, f = _check_mesh(vertices, faces)
-    if amplitude < 0:
-        raise ParameterError(f"amplitude must be >= 0, got {amplitude}")
-    r_max = float(_centre_norms(v).max()) if len(v) else 0.0
-    rng = np.random.default_rng(seed)
-    a = float(amplitude) * r_max
-    return v + rng.uniform(-a, a, size=v.shape), f
+    return _uniform_noise(vertices, faces, amplitude, seed, np.max)
 
 
 def smooth_laplacian(
@@ -215,13 +219,7 @@ def noise_benchmark(vertices, faces, amplitude: float = 0.001, seed: int | None 
     dbar is the mean vertex distance from the vertex mean; the benchmark's levels 0.05/0.1/0.3/0.5 %
     are ``amplitude`` 0.0005/0.001/0.003/0.005.
     """
-    v, f = _check_mesh(vertices, faces)
-    if amplitude < 0:
-        raise ParameterError(f"amplitude must be >= 0, got {amplitude}")
-    d_bar = float(_centre_norms(v).mean()) if len(v) else 0.0
-    rng = np.random.default_rng(seed)
-    a = float(amplitude) * d_bar
-    return v + rng.uniform(-a, a, size=v.shape), f
+    return _uniform_noise(vertices, faces, amplitude, seed, np.mean)
 
 
 def quantize(vertices, faces, bits: int = 9, seed: int | None = None) -> MeshArrays:
