@@ -5,7 +5,7 @@ Prints markdown (the lead pastes it into BENCHMARKS.md). 64-bit random payloads,
 
 False positives. (a) ``--fp`` wrong secrets against the marked bunny: the soft site values do not
 depend on the secret, so they are read once and the verdict is taken for every wrong secret exactly
-as ``robust_verify`` takes it (``bit_scores`` -> ``watermark._verdict``). (b) independently
+as ``robust_verify`` takes it (``read_scores`` -> ``watermark._verdict``). (b) independently
 embedded keys (other seeds) against each other's marked meshes. (c) unmarked copies (the original
 with benchmark noise 0.05 %, one seed each) against the true key. (d) other unmarked models against
 the keys. Under "not marked" p should be uniform: the table gives the observed share of p <= alpha.
@@ -26,7 +26,7 @@ import numpy as np
 import pmwm
 from pmwm import attacks, metrics
 from pmwm.key import make_secret
-from pmwm.robust import bit_scores, robust_embed, robust_verify, soft_values
+from pmwm.robust import read_scores, robust_embed, robust_verify
 from pmwm.watermark import _verdict
 
 DATA = Path(os.environ.get("PMWM_TEST_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
@@ -50,8 +50,46 @@ def reexport(ext: str):
     return attack
 
 
+def retriangulate(V, F, seed):
+    """Pair adjacent triangles into quads and split each quad along its other diagonal, as a tool
+    that re-triangulates quads its own way would (a few rounds of a random maximal matching)."""
+    F = np.asarray(F, np.int64).copy()
+    rng = np.random.default_rng(seed)
+    free = np.ones(len(F), bool)
+    for _ in range(4):
+        he = np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)  # half-edges a->b, face = index // 3
+        face = np.repeat(np.arange(len(F)), 3)
+        fwd = he[:, 0] * len(V) + he[:, 1]
+        bwd = he[:, 1] * len(V) + he[:, 0]
+        order = np.argsort(fwd)
+        pos = np.searchsorted(fwd[order], bwd)
+        pos = np.minimum(pos, len(fwd) - 1)
+        twin = np.where(fwd[order][pos] == bwd, order[pos], -1)
+        ok = (twin >= 0) & (face < face[np.maximum(twin, 0)]) & free[face] & free[face[np.maximum(twin, 0)]]
+        e = np.flatnonzero(ok)
+        pri = rng.random(len(e))
+        f1, f2 = face[e], face[twin[e]]
+        best = np.full(len(F), np.inf)
+        np.minimum.at(best, f1, pri)
+        np.minimum.at(best, f2, pri)
+        pick = e[(pri == best[f1]) & (pri == best[f2])]
+        edges = set(map(tuple, np.sort(he, axis=1).tolist()))
+        for h in pick:  # disjoint faces: each quad flips independently
+            fa, fb = face[h], face[twin[h]]
+            a, b = he[h]
+            c = F[fa][(list(F[fa]).index(b) + 1) % 3]
+            d = F[fb][(list(F[fb]).index(a) + 1) % 3]
+            if (min(c, d), max(c, d)) in edges:  # the other diagonal is already an edge: not a flip
+                continue
+            edges.add((min(c, d), max(c, d)))
+            F[fa], F[fb] = (a, d, c), (d, b, c)
+            free[fa] = free[fb] = False
+    return V, F
+
+
 ATTACKS = [
     ("none", lambda V, F, s: (V, F)),
+    ("quads re-triangulated", lambda V, F, s: retriangulate(V, F, s)),
     ("reorder", lambda V, F, s: attacks.reorder(V, F, seed=s)),
     ("similarity", lambda V, F, s: attacks.similarity(V, F, seed=s)),
     ("OBJ", lambda V, F, s: reexport(".obj")(V, F)),
@@ -101,7 +139,7 @@ def robustness(model: str, keys: int, out: list, keep: dict) -> None:
     lod = {"paper": [], "robust": []}
     for k in range(keys):
         for scheme in ("paper", "robust"):
-            opts = pmwm.EmbedOptions(n_bits=64, seed=100 + k, strength=2.0)
+            opts = pmwm.EmbedOptions(n_bits=64, seed=100 + k, strength=2.0, scheme=scheme)
             t = time.perf_counter()
             res = robust_embed(V, F, opts) if scheme == "robust" else pmwm.embed(V, F, opts)
             t = time.perf_counter() - t
@@ -142,8 +180,7 @@ def false_positives(n_wrong: int, n_noise: int, keep: dict, out: list) -> None:
     keys = keep["robust"]
     res = keys[0]
     # (a) wrong secrets, the marked mesh
-    soft = soft_values(res.vertices, res.faces, res.key)
-    scores = bit_scores(soft, res.key)
+    scores, _, _ = read_scores(res.vertices, res.faces, res.key)
     for s in range(n_wrong):
         v = _verdict(scores, dataclasses.replace(res.key, secret=make_secret(10**6 + s)), "aligned", 1e-6)
         ps.append(v.p_value)

@@ -18,12 +18,12 @@ import traceback
 from contextlib import contextmanager
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from . import meshdata, session
-from .props import records_at_level
+from .props import SCHEME_ITEMS, records_at_level
 
 
 class _Failed(Exception):
@@ -111,6 +111,7 @@ class PMWM_OT_watermark(_PmwmOperator, Operator):
     payload: StringProperty(name="Payload", description="Text to embed; empty: 64 random bits",
                             options={"SKIP_SAVE"})
     key_path: StringProperty(name="Key File", subtype="FILE_PATH", options={"SKIP_SAVE"})
+    scheme: EnumProperty(name="Scheme", items=SCHEME_ITEMS, default="robust", options={"SKIP_SAVE"})
     strength: FloatProperty(name="Strength", default=2.0, min=0.01, max=100.0, options={"SKIP_SAVE"})
     base_ratio: FloatProperty(name="Base Ratio", default=0.03, min=0.0001, max=1.0, options={"SKIP_SAVE"})
     seed: IntProperty(name="Seed", description="-1: a fresh random secret", default=-1, min=-1,
@@ -136,6 +137,7 @@ class PMWM_OT_watermark(_PmwmOperator, Operator):
             strength=float(self.option(context, "strength")),
             base_ratio=float(self.option(context, "base_ratio")),
             seed=None if seed < 0 else int(seed),
+            scheme=self.option(context, "scheme"),
         )
         with _progress(context) as progress:
             res = pmwm.embed(V, F, opts, progress=progress)

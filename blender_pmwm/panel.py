@@ -26,6 +26,7 @@ class VIEW3D_PT_pmwm(Panel):
         col = layout.column()
         col.prop(s, "payload")
         col.prop(s, "key_path")
+        col.prop(s, "scheme")
         col.prop(s, "strength")
         col.prop(s, "base_ratio")
         col.prop(s, "seed")

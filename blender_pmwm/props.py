@@ -6,10 +6,16 @@ Nothing of the key is stored here: only the key file *path*, the options and the
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 from bpy.types import PropertyGroup
 
 from . import meshdata, session
+
+SCHEME_ITEMS = [
+    ("robust", "Robust", "Bumps spread over the surface, read after registration: survives noise, smoothing, "
+                         "cropping, simplification, re-export and posing (the default)"),
+    ("paper", "Paper", "The paper's scheme: one carrier vertex per bit against its 1-ring (for comparison)"),
+]
 
 
 def records_at_level(pm, level: int) -> int:
@@ -68,9 +74,16 @@ class PMWM_SceneSettings(PropertyGroup):
         subtype="FILE_PATH",
         default="",
     )
+    scheme: EnumProperty(
+        name="Scheme",
+        description="How the mark is carried",
+        items=SCHEME_ITEMS,
+        default="robust",
+    )
     strength: FloatProperty(
         name="Strength",
-        description="Carrier displacement in neighbour standard deviations (the paper's factor 2)",
+        description="Mark strength: bump height (robust) or carrier displacement in neighbour standard "
+                    "deviations (paper); 2 is the default",
         default=2.0, min=0.01, max=100.0, soft_min=0.5, soft_max=5.0,
     )
     base_ratio: FloatProperty(

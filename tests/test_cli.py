@@ -206,7 +206,9 @@ def test_strength_and_base_ratio_are_applied(sample, out):
     moved_default = np.linalg.norm(pmwm.read_mesh(sample.mesh).vertices - src, axis=1)
     moved_strong = np.linalg.norm(pmwm.read_mesh(out / "s.ply").vertices - src, axis=1)
     assert moved_strong.sum() > 1.5 * moved_default.sum()
-    assert pmwm.read_pm(out / "s.pmwm").n_base_vertices > 2 * pmwm.read_pm(sample.pm).n_base_vertices
+    strong_pm, default_pm = pmwm.read_pm(out / "s.pmwm"), pmwm.read_pm(sample.pm)
+    # (the default base may exceed 3 %: the robust scheme keeps each bump's stencil in the base mesh)
+    assert strong_pm.n_base_vertices >= round(0.2 * strong_pm.n_vertices) > default_pm.n_base_vertices
     assert pmwm.read_key(out / "s.key.json").strength == 4
     code, v = verdict(out / "s.ply", "--key", out / "s.key.json")
     assert code == 0 and v["payload"] == PAYLOAD

@@ -95,7 +95,7 @@ def test_distortion_not_above_the_paper_scheme(bunny, marked):
 
 def test_paper_key_is_refused(bunny):
     V, F = load("cow_libigl.off")
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(n_bits=16, seed=1))
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(n_bits=16, seed=1, scheme="paper"))
     with pytest.raises(KeyFileError):
         robust_verify(V, F, res.key)
 

@@ -15,7 +15,7 @@ from conftest import load
 @pytest.fixture(scope="module")
 def marked(bunny):
     V, F = bunny
-    return V, F, embed(V, F, EmbedOptions(payload="ACME 2026", seed=11))
+    return V, F, embed(V, F, EmbedOptions(payload="ACME 2026", seed=11, scheme="paper"))
 
 
 def test_all_bits_recovered_unattacked(marked):
@@ -74,7 +74,7 @@ def test_unmarked_original_is_not_marked(marked):
 
 def test_wrong_key_is_not_marked(marked):
     _, F, res = marked
-    other = embed(*load("bunny_wm_benchmark.off"), EmbedOptions(payload="ACME 2026", seed=12))
+    other = embed(*load("bunny_wm_benchmark.off"), EmbedOptions(payload="ACME 2026", seed=12, scheme="paper"))
     v = verify(res.vertices, F, other.key)
     assert not v.marked
 

@@ -143,12 +143,12 @@ def benchmark_settings(quick: bool) -> dict[str, list[Setting]]:
 class OurScheme:
     """pmwm's own scheme behind the bench's uniform interface (docs/api.md)."""
 
-    def __init__(self, strength: float = 2.0, scheme: str = "paper"):
+    def __init__(self, strength: float = 2.0, scheme: str = "robust"):
         import pmwm  # noqa: F401  (fails early when the scheme is not available)
 
         self.strength = strength
         self.scheme = scheme
-        self.name = "pmwm" if scheme == "paper" else f"pmwm-{scheme}"
+        self.name = "pmwm" if scheme == "robust" else f"pmwm-{scheme}"  # the default scheme is plain "pmwm"
         self.last_result = None
 
     def embed(self, vertices, faces, bits, seed: int | None = None):
@@ -167,13 +167,14 @@ class OurScheme:
 
 
 def default_methods(progress: Progress = None) -> list:
-    """[pmwm, Cho I, Cho II]; pmwm is left out (with a message) when it cannot be imported."""
+    """[pmwm (robust scheme), pmwm-paper, Cho I, Cho II]; pmwm's are left out (with a message) when it
+    cannot be imported."""
     methods: list = []
     try:
         import pmwm
 
         pmwm.embed, pmwm.verify  # noqa: B018
-        methods.append(OurScheme())
+        methods += [OurScheme(scheme="robust"), OurScheme(scheme="paper")]
     except (ImportError, AttributeError) as exc:
         if progress:
             progress(f"our scheme is not available ({exc}); running Cho only")
@@ -341,7 +342,7 @@ def run_bench(
     res = BenchResults(settings={"command": command or "pmwm.bench.run_bench(...)", "section": section,
                                  "keys": keys, "quick": quick, "seed": seed, "surface_samples": samples,
                                  "methods": [m.name for m in methods]})
-    ours = next((m for m in methods if isinstance(m, OurScheme)), None)
+    ours = [m for m in methods if isinstance(m, OurScheme)]
 
     for name in models:
         label, path, paper_model, note = _resolve_model(name, data_dir)
@@ -357,17 +358,17 @@ def run_bench(
             key_seed = seed + k
             rng = np.random.default_rng(key_seed)
             bits = {n: rng.integers(0, 2, n) for n in (50, 64, 80, 120)}
-            # Table 1: VSNR with M carriers (ours only); M = 50 is reused for the paper protocol
+            # Table 1: VSNR with M carriers (our schemes); M = 50 is reused for the paper protocol
             marked50 = {}
-            if ours is not None:
+            for scheme in ours:
                 for m_bits in (50, 80, 120):
                     t0 = time.perf_counter()
-                    mv, mkey = ours.embed(V, F, bits[m_bits], seed=key_seed)
-                    d = _distortion("table1", label, ours.name, k, bits[m_bits], V, F, mv,
+                    mv, mkey = scheme.embed(V, F, bits[m_bits], seed=key_seed)
+                    d = _distortion("table1", label, scheme.name, k, bits[m_bits], V, F, mv,
                                     time.perf_counter() - t0, 0, None)
                     res.distortions.append(d)
                     if m_bits == 50:
-                        marked50[ours.name] = (mv, mkey, d.embed_seconds)
+                        marked50[scheme.name] = (mv, mkey, d.embed_seconds)
             for method in methods:
                 # paper protocol, 50 bits
                 if method.name in marked50:
@@ -376,7 +377,9 @@ def run_bench(
                     t0 = time.perf_counter()
                     mv, mkey = method.embed(V, F, bits[50], seed=key_seed)
                     secs = time.perf_counter() - t0
-                res.distortions.append(_distortion("paper", label, method.name, k, bits[50], V, F, mv, secs, 0, None))
+                res.distortions.append(
+                    _distortion("paper", label, method.name, k, bits[50], V, F, mv, secs, samples, key_seed)
+                )
                 _run_attacks("paper", label, method, k, key_seed, bits[50], mv, F, mkey, p_set, res.trials)
                 # benchmark protocol, 64 bits
                 t0 = time.perf_counter()
@@ -501,7 +504,8 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         "Cells are mean ± std over the keys. **~** marks a cell not distinguishable from chance: pooling all keys' "
         "bits, the number of correct bits is not significant against Binomial(bits, 1/2) at p < 0.01. "
         "Cho = Cho, Prost, Jung 2007 (IEEE TSP), methods I and II, alpha = 0.05, strength step 0.001. "
-        "pmwm = our scheme at strength 2 (the paper's mu ± 2 sigma).",
+        "pmwm = our default (robust) scheme at strength 2; pmwm-paper = our implementation of the paper's "
+        "scheme at strength 2 (its mu ± 2 sigma).",
         "",
         "## Models",
         "",
@@ -529,15 +533,18 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         rows = []
         for model in present:
             pm = res.models[model]["paper_model"]
-            row = [model + (" (Venus stand-in)" if pm == "venus" else "")]
-            for j, m_bits in enumerate((50, 80, 120)):
-                ds = _select(t1, model=model, n_bits=m_bits)
-                c = _mean_std([d.vsnr for d in ds])
-                u = _mean_std([d.vsnr_uncentred for d in ds])
-                paper = f"{PAPER_TABLE1[pm][j]:.2f}" if pm in PAPER_TABLE1 else "–"
-                row += [_fmt(*c, 1), _fmt(*u, 1), paper]
-            rows.append(row)
-        hdr = ["Model"]
+            for method in methods:
+                if not _select(t1, model=model, method=method):
+                    continue
+                row = [model + (" (Venus stand-in)" if pm == "venus" else ""), method]
+                for j, m_bits in enumerate((50, 80, 120)):
+                    ds = _select(t1, model=model, method=method, n_bits=m_bits)
+                    c = _mean_std([d.vsnr for d in ds])
+                    u = _mean_std([d.vsnr_uncentred for d in ds])
+                    paper = f"{PAPER_TABLE1[pm][j]:.2f}" if pm in PAPER_TABLE1 else "–"
+                    row += [_fmt(*c, 1), _fmt(*u, 1), paper]
+                rows.append(row)
+        hdr = ["Model", "Method"]
         for m_bits in (50, 80, 120):
             hdr += [f"M={m_bits} centred", f"M={m_bits} uncentred", f"M={m_bits} paper"]
         lines += _table(hdr, rows)
@@ -549,11 +556,15 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
             ds = _select(res.distortions, protocol="paper", model=model, method=method)
             if not ds:
                 continue
-            rows.append([model, method, _fmt(*_mean_std([d.vsnr for d in ds]), 1),
+            rows.append([model, method, _fmt(*_mean_std([d.mrms_percent for d in ds]), 4),
+                         _fmt(*_mean_std([d.hausdorff_percent for d in ds]), 3),
                          _fmt(*_mean_std([d.rmse_percent for d in ds]), 4),
+                         _fmt(*_mean_std([d.vsnr for d in ds]), 1),
                          f"{np.mean([d.energy_per_bit for d in ds]):.3g}",
                          f"{np.mean([d.embed_seconds for d in ds]):.2f}"])
-    lines += _table(["Model", "Method", "VSNR (dB)", "vertex RMSE (% diag)", "E/N", "embed (s)"], rows)
+    lines += _table(["Model", "Method", "MRMS (% diag)", "Hausdorff (% diag)", "vertex RMSE (% diag)",
+                     "VSNR (dB)", "E/N", "embed (s)"], rows)
+    lines += ["", f"MRMS / Hausdorff from {st['surface_samples']} area-uniform samples per surface, both directions."]
 
     titles = {"noise": "Table 2: additive uniform noise (correlation)",
               "smoothing": "Table 3: Laplacian smoothing, lambda = 0.03 (correlation)",
@@ -603,8 +614,10 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
                 continue
             rows.append([model, method, _fmt(*_mean_std([d.mrms_percent for d in ds]), 4),
                          _fmt(*_mean_std([d.hausdorff_percent for d in ds]), 3),
+                         _fmt(*_mean_std([d.rmse_percent for d in ds]), 4),
                          _fmt(*_mean_std([d.vsnr for d in ds]), 1), _fmt(*_mean_std([d.psnr for d in ds]), 1)])
-    lines += _table(["Model", "Method", "MRMS (% diag)", "Hausdorff (% diag)", "VSNR (dB)", "PSNR (dB)"], rows)
+    lines += _table(["Model", "Method", "MRMS (% diag)", "Hausdorff (% diag)", "vertex RMSE (% diag)",
+                     "VSNR (dB)", "PSNR (dB)"], rows)
     lines += ["", f"MRMS / Hausdorff from {st['surface_samples']} area-uniform samples per surface, both directions. "
               "Published anchor: Cho et al. on the benchmark's Venus at MRMS 0.008 % (perceptual protocol)."]
     for model in present:
@@ -704,15 +717,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--keys", type=int, default=10)
     p.add_argument("--data", help="folder holding the benchmark meshes (default $PMWM_BENCH_DATA)")
     p.add_argument("--cho-only", action="store_true", help="benchmark Cho I and II only")
-    p.add_argument("--with-robust", action="store_true", help="add the robust scheme (--scheme robust) as a method")
     p.add_argument("--section", default="robustness", help="section of the report file to (re)write")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", default="BENCHMARKS.md")
     a = p.parse_args(argv)
     command = "pmwm bench " + " ".join(argv if argv is not None else sys.argv[1:])
     methods = [cho_method("I"), cho_method("II")] if a.cho_only else None
-    if a.with_robust:
-        methods = (methods or default_methods(print)) + [OurScheme(scheme="robust")]
     run_bench(a.models or None, keys=a.keys, quick=a.quick, out=a.output, data_dir=a.data,
               methods=methods, plots=not a.no_plots, command=command.strip(), section=a.section)
     return 0

@@ -258,8 +258,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, help="seed of every random choice (default: a fresh secret)")
     e.add_argument("--strength", type=float, default=2.0)
     e.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
-    e.add_argument("--scheme", choices=("paper", "robust"), default="paper",
-                   help="paper: the paper's Algorithms 1-2; robust: spread bumps read after registration")
+    e.add_argument("--scheme", choices=("robust", "paper"), default="robust",
+                   help="robust (default): bumps spread over the surface, read after registration; "
+                        "paper: the paper's Algorithms 1-2")
     e.add_argument("--force", action="store_true", help="overwrite existing outputs")
     e.add_argument("-q", "--quiet", action="store_true")
     e.set_defaults(func=cmd_embed)

@@ -1,42 +1,48 @@
-"""A robust watermarking scheme on the progressive mesh (key.scheme == "robust").
+"""The robust watermarking scheme on the progressive mesh (key.scheme == "robust", the default).
 
 Why. The paper's scheme reads each bit from one vertex against its 1-ring: any change of
-connectivity (simplification, subdivision, re-export that re-orders) or a rotation loses it.
-Here every bit is spread over several *sites*, each a smooth bump read geometrically, after
-registering the suspect to the marked mesh.
+connectivity (simplification, subdivision, re-export that re-orders) or a rotation loses it, and
+noise of a fraction of an edge length flips it. Here every bit is spread over several *sites*, each
+a smooth bump along the surface normal, read with a matched filter after registering the suspect to
+the marked mesh.
 
 Embedding.
 - Sites: SOM-suitable vertices (``pmwm.carriers``) picked by seeded farthest-point sampling,
   ``sites_per_bit`` per payload bit, assigned to bits so that each bit's sites are spread around the
   shape (pairs of roughly opposite sites): a plane cutting off half the mesh leaves most bits a site.
-- Each site c with unit normal n (smoothed over its disc) gets a bump along n: vertex v at distance d
-  < r moves by s * A * (1 - (d/r)^2)^2 * n, with s = +-1 its chip (keyed, balanced within the bit)
-  times the bit sign (payload XOR keyed sequence, as in the paper scheme). r is ``radius_edges`` mean
-  edge lengths; A is ``strength`` * ``AMPLITUDE_PER_STRENGTH`` mean edge lengths.
-- Stencil: the site vertex and ``RING`` vertices near distance 1.3 r at keyed angles (outside the
-  bump). All stencil vertices are protected in the progressive mesh, so they exist, unmoved, at
-  every level of detail from the base mesh up.
+- Each site c with unit normal n (averaged over its disc) and tangent frame (t1, t2) gets a bump:
+  vertex v whose tangent-plane distance d to c is below r moves by s * A * p(d) * n, with the
+  profile p(d) = (1 - (d/r)^2)^2 and s = +-1 its chip (keyed, balanced within the bit) times the bit
+  sign (payload XOR keyed sequence). r is ``RADIUS_EDGES`` mean edge lengths; A is ``strength`` *
+  ``AMPLITUDE_PER_STRENGTH`` mean edge lengths.
+- Samples: every vertex within ``OUTER`` * r of the site that faces the site's way. The key stores
+  each sample's tangent coordinates (u, v), its height along n on the UNMARKED mesh and its vertex
+  index; the annulus samples (p = 0) let the reader remove a local offset and tilt.
+- The site vertex and ``RING`` annulus vertices at keyed angles are protected in the progressive
+  mesh, so every level of detail, from the base mesh up, keeps each bump's peak and its surroundings.
 
-Reading (on the registered suspect, ``pmwm.register``). Heights along n are measured where the
-lines through the stencil points (in the site's tangent plane, stored in the key) cross the
-suspect surface. The site value is the centre height minus the ring's plane at the centre. On any
-level of detail the lines pass through the protected vertices themselves, so the value is the full
-mesh's value exactly. The key stores each site's value on the unmarked mesh (a number per site,
-not the mesh), so the soft value is (value - stored) / (expected shift): +-1 when intact, whatever
-the shape's natural curvature there; no distortion is spent on overriding the shape.
-Where a line crosses the surface more than once, the crossing nearest the expected height is
-used (module function ``soft_values``). A bit is the sign of the chip-weighted sum of its sites'
-soft values, each clipped to +-SOFT_CLIP (soft-decision decoding of a repetition code; the clip
-keeps one garbled site from outvoting the others); a bit with no readable site is an erasure and
-gets a keyed coin flip, so the binomial p-value of ``watermark._verdict`` stays exact.
+Reading (on the suspect registered to the key's frame, ``pmwm.register``).
+- Heights along n: by vertex index when the suspect has the marked mesh's vertices in the marked
+  order (noise, smoothing and quantization keep it); otherwise where the line through each sample
+  (u, v) crosses the suspect surface (any order, resolution or re-triangulation).
+- Per site, y = height - stored height is modelled as a * p + offset + tilt + noise; a is estimated
+  by the matched filter of p made orthogonal to (1, u, v), ridge-regularised by the site's own noise
+  level: at low noise the offset and tilt (registration error, smoothing shrinkage) are removed
+  exactly, at high noise the filter tends to p itself, the optimum for white noise. a / A is the
+  site's soft value (+-1 when intact).
+- A bit is the sign of the sum of its sites' chip-weighted soft values, each weighted by its inverse
+  variance (maximum-ratio combining; a site in a damaged or cropped region weighs little). A bit
+  with no readable site is an erasure and gets a keyed coin flip, so the binomial p-value of
+  ``watermark._verdict`` stays exact.
 
-Not blind in the strict sense: the key holds, per site, a few numbers about the unmarked and
-the marked surface there, and 3,000 samples of the marked surface for registration (a key of
-~0.6 MB for 64 bits); never the mesh itself.
+Not blind in the strict sense: the key holds, per sample, its place and its height on the unmarked
+surface (never the faces), and 3,000 samples of the marked surface for registration.
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
 from typing import Optional
 
 import numpy as np
@@ -53,13 +59,17 @@ from .watermark import (EmbedOptions, EmbedResult, Progress, Verdict, _verdict, 
 
 SITES_PER_BIT = 6
 RADIUS_EDGES = 2.5  # bump radius in mean edge lengths
-AMPLITUDE_PER_STRENGTH = 0.1  # bump amplitude per unit of strength, in mean edge lengths
-RING = 3  # ring stencil points per site
-RING_DISTANCE = 1.3  # ring stencil distance / r
-SOFT_CLIP = 1.5  # soft values are clipped to +-SOFT_CLIP before a bit's sites are summed
+AMPLITUDE_PER_STRENGTH = 0.12  # bump amplitude per unit of strength, in mean edge lengths
+OUTER = 1.6  # samples reach OUTER * r from the site (the annulus beyond r is not moved)
+RING = 3  # protected annulus vertices per site
+RING_DISTANCE = 1.3  # their distance / r
+TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of the nuisance fit)
+VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
+MIN_COVER = 0.3  # a site needs this share of its filter energy readable
+INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
 REF_POINTS = 3000  # registration samples stored in the key
 SCHEME = "robust"
-EXTRA_VERSION = 1
+EXTRA_VERSION = 2
 
 
 # --------------------------------------------------------------------------- geometry helpers
@@ -166,20 +176,6 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: Optional[np.
     return out
 
 
-def site_values(Hs: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Centre height minus the ring's least-squares plane under the centre, per site (NaN if unreadable)."""
-    ring_uv = uv[:, 1:, :]
-    A = np.concatenate([np.ones(ring_uv.shape[:2] + (1,)), ring_uv], axis=2)  # (S, K, 3)
-    # plane value at (0, 0) = first coefficient = e0^T (A^T A)^-1 A^T h_ring
-    AtA = np.einsum("ski,skj->sij", A, A)
-    scale = np.einsum("sii->s", AtA)
-    bad = ~(np.abs(np.linalg.det(AtA)) > 1e-9 * np.maximum(scale, 1e-300) ** 3)  # ring on a line
-    AtA[bad] = np.eye(3)
-    coef = np.linalg.solve(AtA, np.einsum("ski,sk->si", A, np.nan_to_num(Hs[:, 1:]))[..., None])[..., 0]
-    val = Hs[:, 0] - (coef[:, 0] + coef[:, 1] * uv[:, 0, 0] + coef[:, 2] * uv[:, 0, 1])
-    return np.where(np.isnan(Hs).any(axis=1) | bad, np.nan, val)
-
-
 # --------------------------------------------------------------------------- embedding
 
 
@@ -241,18 +237,16 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     report(0.1, f"{len(sites)} sites chosen")
     edge = mean_edge_length(V, adj)
     P = V[sites]
-    # bumps and rings must not overlap: r + RING_DISTANCE * r below the closest site spacing
-    dmin = _min_spacing(P)
-    # (on small meshes they may overlap a little; the stored per-site shift then includes the
-    # neighbours' share, and sites whose shift is not clearly their own sign are left out)
-    r = max(min(radius_edges * edge, 0.95 * dmin / (1.0 + RING_DISTANCE + 0.3)), min(1.5, radius_edges) * edge)
+    # a site's samples (to OUTER r) must not reach another site's bump (r): r (1 + OUTER) below the
+    # closest spacing. On small meshes they may overlap a little; a site whose own reading on the
+    # marked mesh is not clearly its sign is then left out (``usable``).
+    r = max(min(radius_edges * edge, 0.95 * _min_spacing(P) / (1.0 + OUTER)), min(1.5, radius_edges) * edge)
     A = opts.strength * AMPLITUDE_PER_STRENGTH * edge
 
     vn = vertex_normals(V, F)
-    si, vi, d = _pairs_within(P, V, np.full(len(P), (RING_DISTANCE + 0.3) * r))
+    si, vi, d = _pairs_within(P, V, np.full(len(P), OUTER * r))
     # site normal: mean vertex normal over the disc (same side as the site's own normal)
-    facing = np.einsum("ij,ij->i", vn[vi], vn[sites][si]) > 0.3
-    disc = facing & (d < r)
+    disc = (np.einsum("ij,ij->i", vn[vi], vn[sites][si]) > 0.3) & (d < r)
     N = np.stack([np.bincount(si[disc], weights=vn[vi[disc], a], minlength=len(P)) for a in range(3)], 1)
     N /= np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
     t1, t2 = tangent_frames(N)
@@ -270,50 +264,48 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     chip[order] = np.where(rank % 2 == 0, 1.0, -1.0)  # balanced: a global bias cancels in a bit
     sign = chip * np.where(w[bit_of] == 1, 1.0, -1.0)
 
-    # ring stencil vertices: nearest to RING_DISTANCE * r at keyed angles, outside the bump
+    # samples: vertices near the site where the surface faces its way (a height field over the
+    # tangent plane), in the site frame; stored as float32, and the profile computed from those
     rel = V[vi] - P[si]
-    phi = np.arctan2(np.einsum("ij,ij->i", rel, t2[si]), np.einsum("ij,ij->i", rel, t1[si]))
+    u = np.einsum("ij,ij->i", rel, t1[si]).astype(np.float32).astype(np.float64)
+    v = np.einsum("ij,ij->i", rel, t2[si]).astype(np.float32).astype(np.float64)
+    samp = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.5) & (np.hypot(u, v) < OUTER * r)
+    si, vi, d, u, v = si[samp], vi[samp], d[samp], u[samp], v[samp]
+    h_ref = np.einsum("ij,ij->i", V[vi] - P[si], N[si])
+    prof = profile(u, v, r)
+
+    # the bumps
+    D = np.zeros_like(V)
+    np.add.at(D, vi, (sign[si] * A * prof)[:, None] * N[si])
+    marked = (V + D).astype(np.float32).astype(np.float64)
+
+    # protected annulus vertices: nearest to RING_DISTANCE * r at keyed angles, facing the site
+    phi = np.arctan2(v, u)
     theta0 = np.random.default_rng(derive_seed(secret, "robust-angles")).uniform(0, 2 * np.pi, len(P))
-    # ring vertices where the surface is a height field over the site's tangent plane, so the
-    # stencil lines cross it once, cleanly, at every level of detail
-    ring_ok = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.8) & (d > 1.05 * r)
+    dt = np.hypot(u, v)
+    ring_ok = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.8) & (dt > 1.05 * r)
     ring = np.full((len(P), RING), -1, np.int64)
     for k in range(RING):  # RING (3) iterations
         target = theta0 + 2 * np.pi * k / RING
         dphi = np.abs(np.angle(np.exp(1j * (phi - target[si]))))
-        score = dphi + np.abs(d / r - RING_DISTANCE)
+        score = dphi + np.abs(dt / r - RING_DISTANCE)
         score[~ring_ok] = np.inf
         o = np.lexsort((score, si))
         first = o[np.r_[True, si[o][1:] != si[o][:-1]]]
         good = np.isfinite(score[first])
         ring[si[first][good], k] = vi[first][good]
-    usable = (ring >= 0).all(axis=1)
-
-    # the bumps
-    bump = disc & usable[si]
-    wgt = (1.0 - (d[bump] / r) ** 2) ** 2
-    D = np.zeros_like(V)
-    np.add.at(D, vi[bump], (sign[si[bump]] * A * wgt)[:, None] * N[si[bump]])
-    marked = (V + D).astype(np.float32).astype(np.float64)
-
-    # stencils in each site's tangent frame, from the marked positions
-    stencil = np.concatenate([sites[:, None], np.where(ring >= 0, ring, sites[:, None])], axis=1)
-    relm = marked[stencil] - P[:, None, :]
-    uv = np.stack([np.einsum("skj,sj->sk", relm, t1), np.einsum("skj,sj->sk", relm, t2)], axis=2)
-    # (the centre's own uv is ~0 but kept exact: the line must pass through the vertex itself)
-    reach = (RING_DISTANCE + 0.5) * r
-    # read at the stencil vertices' own crossings (a line may also cross other parts nearby)
-    Hu = np.einsum("skj,sj->sk", V[stencil] - P[:, None, :], N)[..., None]
-    Hm = np.einsum("skj,sj->sk", relm, N)[..., None]
-    ref = site_values(heights(V, F, P, N, t1, t2, uv, reach, expect=np.concatenate([Hu, Hu], 2)), uv)
-    H_marked = heights(marked, F, P, N, t1, t2, uv, reach, expect=np.concatenate([Hm, Hm], 2))
-    after = site_values(H_marked, uv)
-    gain = (after - ref) * sign  # the shift each site was given, ~A
-    usable &= np.isfinite(ref) & np.isfinite(after) & (gain > 0.25 * A)
+    counts = np.bincount(si, minlength=len(P))
+    samples = _Samples(counts, u, v, h_ref, vi)
+    site = {"origin": P, "normal": N, "radius": r, "amplitude": A, "bit": bit_of, "chip": chip,
+            "usable": (ring >= 0).all(axis=1), "samples": samples}
+    # each site's own reading on the marked mesh: clearly its sign, or left out
+    soft, _ = _site_soft(marked, F, site, by_index=True)
+    usable = site["usable"] & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
     report(0.2, "sites marked")
 
     protected = np.zeros(len(V), bool)
-    protected[stencil[usable].ravel()] = True
+    protected[sites[usable]] = True
+    protected[ring[usable].ravel()] = True
     base = max(int(round(opts.base_ratio * len(V))), 4)
 
     def pm_progress(f: float, msg: str) -> None:
@@ -328,17 +320,14 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         "robust_version": EXTRA_VERSION,
         "radius": r,
         "amplitude": A,
-        "reach": reach,
         "site_bit": bit_of.tolist(),
         "site_chip": chip.astype(int).tolist(),
         "site_usable": usable.astype(int).tolist(),
-        # full precision: the stencil lines must pass exactly through the protected vertices
-        "site_origin": P.tolist(),
+        "site_origin": P.tolist(),  # full precision: the centre sample's line passes through the vertex
         "site_normal": N.tolist(),
-        "site_uv": uv.tolist(),
-        "site_ref": np.nan_to_num(ref).tolist(),
-        "site_gain": np.where(usable, gain, 0.0).tolist(),
-        "site_ring_height": np.nan_to_num(H_marked[:, 1:]).tolist(),
+        "sample_count": counts.tolist(),
+        "samples": _pack(np.stack([u, v, h_ref], axis=1), "<f4"),
+        "sample_vertex": _pack(vi, "<u4"),
         "frame": surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)),
     }
     key = WatermarkKey(
@@ -353,11 +342,48 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
                        vsnr_db=metrics.vsnr(V, marked), rmse=metrics.vertex_rmse(V, marked))
 
 
-# --------------------------------------------------------------------------- reading
+def profile(u: np.ndarray, v: np.ndarray, r: float) -> np.ndarray:
+    """The bump's shape at tangent-plane offset (u, v): (1 - (d/r)^2)^2 inside r, 0 outside."""
+    q = np.minimum((u * u + v * v) / (r * r), 1.0)
+    return (1.0 - q) ** 2
+
+
+# --------------------------------------------------------------------------- key data
+
+
+class _Samples:
+    """Each site's samples, padded to (sites, K): u, v, stored height, vertex index, validity."""
+
+    def __init__(self, counts: np.ndarray, u, v, h, vertex):
+        S, K = len(counts), max(int(counts.max(initial=0)), 1)
+        site = np.repeat(np.arange(S), counts)
+        slot = np.arange(len(site)) - np.repeat(np.cumsum(counts) - counts, counts)
+        self.mask = np.zeros((S, K), bool)
+        self.mask[site, slot] = True
+        self.u, self.v, self.h = (np.zeros((S, K)) for _ in range(3))
+        self.vertex = np.zeros((S, K), np.int64)
+        for name, val in (("u", u), ("v", v), ("h", h), ("vertex", vertex)):
+            getattr(self, name)[site, slot] = val
+
+
+def _pack(a: np.ndarray, dtype: str) -> str:
+    return base64.b64encode(np.ascontiguousarray(a, dtype=dtype).tobytes()).decode("ascii")
+
+
+def _unpack(text, dtype: str, shape: tuple) -> np.ndarray:
+    raw = base64.b64decode(str(text).encode("ascii"), validate=True)
+    a = np.frombuffer(raw, dtype=dtype)
+    if a.size != int(np.prod(shape)):
+        raise ValueError("sample data of the wrong size")
+    return a.reshape(shape).astype(np.float64 if dtype[1] == "f" else np.int64)
 
 
 def _site_arrays(key: WatermarkKey) -> dict:
     x = key.extra
+    version = x.get("robust_version") if isinstance(x, dict) else None
+    if version != EXTRA_VERSION:
+        raise KeyFileError(f"this robust key has format {version!r}, this pmwm reads format {EXTRA_VERSION} "
+                           "(the first robust scheme's keys are not read any more); re-embed with this version")
     try:
         out = {
             "bit": np.asarray(x["site_bit"], np.int64),
@@ -365,65 +391,105 @@ def _site_arrays(key: WatermarkKey) -> dict:
             "usable": np.asarray(x["site_usable"], bool),
             "origin": np.asarray(x["site_origin"], np.float64).reshape(-1, 3),
             "normal": np.asarray(x["site_normal"], np.float64).reshape(-1, 3),
-            "ref": np.asarray(x["site_ref"], np.float64),
-            "ring_h": np.asarray(x["site_ring_height"], np.float64).reshape(len(x["site_bit"]), -1),
-            "gain": np.asarray(x["site_gain"], np.float64),
-            "reach": float(x["reach"]),
-            "frame": x["frame"],
+            "radius": float(x["radius"]),
+            "amplitude": float(x["amplitude"]),
         }
-        out["uv"] = np.asarray(x["site_uv"], np.float64).reshape(len(out["bit"]), -1, 2)
-        fr = out["frame"]
+        counts = np.asarray(x["sample_count"], np.int64)
+        total = int(counts.sum())
+        if len(counts) != len(out["bit"]) or counts.min(initial=0) < 0:
+            raise ValueError("sample counts")
+        uvh = _unpack(x["samples"], "<f4", (total, 3))
+        vertex = _unpack(x["sample_vertex"], "<u4", (total,))
+        out["samples"] = _Samples(counts, uvh[:, 0], uvh[:, 1], uvh[:, 2], vertex)
+        fr = x["frame"]
         shapes = {"points": (-1, 3), "normals": (-1, 3), "centroid": (3,), "axes": (3, 3)}
         out["frame"] = {k: np.asarray(fr[k], np.float64).reshape(shp) for k, shp in shapes.items()}
         out["frame"]["scale"] = float(fr["scale"])
+        out["frame"]["floor"] = float(fr.get("floor", 0.0))
         if not all(np.all(np.isfinite(v)) for v in out["frame"].values()) or out["frame"]["scale"] <= 0 \
                 or len(out["frame"]["points"]) != len(out["frame"]["normals"]) or len(out["frame"]["points"]) < 3:
             raise ValueError("registration frame")
-    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        if not (np.isfinite(uvh).all() and out["radius"] > 0 and out["amplitude"] > 0):
+            raise ValueError("sample values")
+    except (KeyError, TypeError, ValueError, OverflowError, binascii.Error) as exc:
         raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
     n = len(out["bit"])
-    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "origin", "normal", "ref", "gain")) \
-            or out["bit"].min() < 0 or out["bit"].max() >= key.n_bits:
+    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "origin", "normal")) \
+            or out["bit"].min() < 0 or out["bit"].max() >= key.n_bits \
+            or out["samples"].vertex.max(initial=0) >= key.n_vertices:
         raise KeyFileError("the robust key's site data are inconsistent; it is damaged")
     return out
 
 
-def soft_values(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> np.ndarray:
-    """Soft value per site (~ +-1 when intact, NaN when unreadable) on a mesh in the key's frame.
+# --------------------------------------------------------------------------- reading
 
-    Where a stencil line crosses the surface several times (thin parts, or a coarse level of
-    detail folding over a dent), the crossing nearest to the expected height is taken: for the
-    ring, its marked height stored in the key (outside the bumps, so it says nothing of the bits);
-    for the centre, either possible marked height (ring plane + stored value +- shift), which is
-    symmetric in the sign and so cannot bias a bit.
+
+def _sample_heights(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> np.ndarray:
+    """Suspect height along each site's normal at each sample (S, K), NaN where there is none."""
+    sm = s["samples"]
+    P, N = s["origin"], s["normal"]
+    if by_index:
+        H = np.einsum("skj,sj->sk", X[sm.vertex] - P[:, None, :], N)
+        return np.where(sm.mask, H, np.nan)
+    t1, t2 = tangent_frames(N)
+    far = 1e30  # padding lines far outside any face
+    uv = np.stack([np.where(sm.mask, sm.u, far), np.where(sm.mask, sm.v, far)], axis=2)
+    shift = s["amplitude"] * profile(sm.u, sm.v, s["radius"])
+    expect = np.stack([sm.h + shift, sm.h - shift], axis=2)  # the two possible marked heights
+    reach = (OUTER + 0.3) * s["radius"]
+    H = np.full(sm.mask.shape, np.nan)
+    step = max(1, 4096 // max(sm.mask.shape[1], 1))  # bounds the (site, face, sample) table
+    for a in range(0, len(P), step):
+        b = slice(a, a + step)
+        H[b] = heights(X, F, P[b], N[b], t1[b], t2[b], uv[b], reach, expect=expect[b])
+    return H
+
+
+def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
+
+    y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
+    projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
+    the nuisance is removed where the noise is low and the filter tends to p where it is high.
     """
-    s = _site_arrays(key)
-    t1, t2 = tangent_frames(s["normal"])
-    uv = s["uv"]
-    ring_h = s["ring_h"][:, :, None]
-    ring = heights(V, F, s["origin"], s["normal"], t1, t2, uv[:, 1:], s["reach"],
-                   expect=np.concatenate([ring_h, ring_h], axis=2))
-    plane0 = -site_values(np.concatenate([np.zeros((len(uv), 1)), ring], axis=1), uv)
-    centre = (plane0 + s["ref"])[:, None] + np.stack([s["gain"], -s["gain"]], axis=1)
-    expect = np.nan_to_num(centre)[:, None, :]
-    H0 = heights(V, F, s["origin"], s["normal"], t1, t2, uv[:, :1], s["reach"], expect=expect)
-    val = site_values(np.concatenate([H0, ring], axis=1), uv)
-    soft = (val - s["ref"]) / np.where(s["gain"] > 0, s["gain"], 1.0)
-    return np.where(s["usable"], soft, np.nan)
+    sm = s["samples"]
+    r, A = s["radius"], s["amplitude"]
+    H = _sample_heights(X, F, s, by_index)
+    ok = sm.mask & np.isfinite(H)
+    y = np.where(ok, H - sm.h, 0.0)
+    p_all = profile(sm.u, sm.v, r) * sm.mask
+    p = p_all * ok
+    B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
+    BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
+
+    def filt(M):
+        coef = np.linalg.solve(M, np.einsum("ski,sk->si", B, p)[..., None])[..., 0]
+        f = (p - np.einsum("ski,si->sk", B, coef)) * ok
+        return f, np.maximum((f * p).sum(axis=1), 1e-300)
+
+    f0, fp0 = filt(BtB)  # the full nuisance fit, for the noise level
+    a0 = (f0 * y).sum(axis=1) / fp0
+    rest = y - a0[:, None] * p
+    c = np.linalg.solve(BtB, np.einsum("ski,sk->si", B, rest)[..., None])[..., 0]
+    resid = (rest - np.einsum("ski,si->sk", B, c)) * ok
+    s2 = (resid**2).sum(axis=1) / np.maximum(ok.sum(axis=1) - 4, 1)
+    f, fp = filt(BtB + (s2 / (TAU * A) ** 2)[:, None, None] * np.eye(3))
+    with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
+        soft = (f * y).sum(axis=1) / fp / A
+        var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
+    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
+        & np.isfinite(var)
+    return np.where(readable, soft, np.nan), var
 
 
-def bit_scores(soft: np.ndarray, key: WatermarkKey) -> np.ndarray:
-    """Chip-weighted sum of each bit's readable sites' soft values (0 when none is readable)."""
-    s = _site_arrays(key)
-    ok = np.isfinite(soft)
-    # clipped: an intact site reads +-1; a site whose stencil line met another part of the shape
-    # (a cropped copy, a thin part) can read anything, and must not outvote the bit's other sites
-    clipped = np.clip(soft, -SOFT_CLIP, SOFT_CLIP)
-    return np.bincount(s["bit"][ok], weights=(s["chip"] * clipped)[ok], minlength=key.n_bits)
+def bit_scores(soft: np.ndarray, var: np.ndarray, s: dict, n_bits: int) -> np.ndarray:
+    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (0 when none is)."""
+    ok = np.isfinite(soft) & s["usable"]
+    return np.bincount(s["bit"][ok], weights=(s["chip"] * soft / var)[ok], minlength=n_bits)
 
 
-def robust_verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
-    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
+def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict]:
+    """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details."""
     if key.scheme != SCHEME:
         raise KeyFileError(f"this key is for the {key.scheme!r} scheme, not {SCHEME!r}; use pmwm.verify")
     V, F = check_mesh(vertices, faces)
@@ -435,10 +501,32 @@ def robust_verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6)
         X, info = register(V, F, s["frame"])
         extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
         mode = "registered"
-    soft = soft_values(X, F, key)
-    verdict = _verdict(bit_scores(soft, key), key, mode, p_threshold)
-    verdict.extra = {**extra, "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))}
+    by_index = _same_vertices(X, s, key)
+    soft, var = _site_soft(X, F, s, by_index)
+    extra.update({"heights": "by vertex index" if by_index else "by position",
+                  "sites_read": int((np.isfinite(soft) & s["usable"]).sum()), "sites_total": int(len(soft))})
+    return bit_scores(soft, var, s, key.n_bits), mode, extra
+
+
+def robust_verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
+    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
+    scores, mode, extra = read_scores(vertices, faces, key)
+    verdict = _verdict(scores, key, mode, p_threshold)
+    verdict.extra = extra
     return verdict
+
+
+def _same_vertices(X: np.ndarray, s: dict, key: WatermarkKey) -> bool:
+    """True when the suspect has the marked mesh's vertices in their order (noise, smoothing and
+    quantization keep it): the sample vertices lie near their stored places."""
+    sm = s["samples"]
+    if len(X) != key.n_vertices:
+        return False
+    t1, t2 = tangent_frames(s["normal"])
+    P, N = s["origin"][:, None, :], s["normal"][:, None, :]
+    expect = P + sm.u[..., None] * t1[:, None, :] + sm.v[..., None] * t2[:, None, :] + sm.h[..., None] * N
+    dist = np.linalg.norm(X[sm.vertex] - expect, axis=2)[sm.mask]
+    return bool(len(dist) and np.median(dist) < INDEX_MATCH * s["frame"]["scale"])
 
 
 def _in_key_frame(V: np.ndarray, s: dict, key: WatermarkKey) -> bool:
@@ -450,7 +538,7 @@ def _in_key_frame(V: np.ndarray, s: dict, key: WatermarkKey) -> bool:
     use = np.flatnonzero(s["usable"])[:64]
     if len(use) == 0:
         return False
-    o, g, n = s["origin"][use], s["gain"][use, None], s["normal"][use]
+    o, n, g = s["origin"][use], s["normal"][use], s["amplitude"]
     _, d2 = _nearest(V, np.concatenate([o + g * n, o - g * n]))
     dist = np.sqrt(np.minimum(d2[: len(use)], d2[len(use):]))
     return bool(np.mean(dist <= 1e-6 * key.bbox_diagonal) > 0.5)

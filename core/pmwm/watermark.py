@@ -53,7 +53,7 @@ class EmbedOptions:
     strength: float = 2.0
     base_ratio: float = 0.03
     seed: Optional[int] = None
-    scheme: str = "paper"  # "paper" (Algorithms 1-2) or "robust" (pmwm.robust)
+    scheme: str = "robust"  # "robust" (pmwm.robust, the default) or "paper" (Algorithms 1-2)
 
 
 @dataclass
