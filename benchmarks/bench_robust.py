@@ -50,46 +50,9 @@ def reexport(ext: str):
     return attack
 
 
-def retriangulate(V, F, seed):
-    """Pair adjacent triangles into quads and split each quad along its other diagonal, as a tool
-    that re-triangulates quads its own way would (a few rounds of a random maximal matching)."""
-    F = np.asarray(F, np.int64).copy()
-    rng = np.random.default_rng(seed)
-    free = np.ones(len(F), bool)
-    for _ in range(4):
-        he = np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)  # half-edges a->b, face = index // 3
-        face = np.repeat(np.arange(len(F)), 3)
-        fwd = he[:, 0] * len(V) + he[:, 1]
-        bwd = he[:, 1] * len(V) + he[:, 0]
-        order = np.argsort(fwd)
-        pos = np.searchsorted(fwd[order], bwd)
-        pos = np.minimum(pos, len(fwd) - 1)
-        twin = np.where(fwd[order][pos] == bwd, order[pos], -1)
-        ok = (twin >= 0) & (face < face[np.maximum(twin, 0)]) & free[face] & free[face[np.maximum(twin, 0)]]
-        e = np.flatnonzero(ok)
-        pri = rng.random(len(e))
-        f1, f2 = face[e], face[twin[e]]
-        best = np.full(len(F), np.inf)
-        np.minimum.at(best, f1, pri)
-        np.minimum.at(best, f2, pri)
-        pick = e[(pri == best[f1]) & (pri == best[f2])]
-        edges = set(map(tuple, np.sort(he, axis=1).tolist()))
-        for h in pick:  # disjoint faces: each quad flips independently
-            fa, fb = face[h], face[twin[h]]
-            a, b = he[h]
-            c = F[fa][(list(F[fa]).index(b) + 1) % 3]
-            d = F[fb][(list(F[fb]).index(a) + 1) % 3]
-            if (min(c, d), max(c, d)) in edges:  # the other diagonal is already an edge: not a flip
-                continue
-            edges.add((min(c, d), max(c, d)))
-            F[fa], F[fb] = (a, d, c), (d, b, c)
-            free[fa] = free[fb] = False
-    return V, F
-
-
 ATTACKS = [
     ("none", lambda V, F, s: (V, F)),
-    ("quads re-triangulated", lambda V, F, s: retriangulate(V, F, s)),
+    ("quads re-triangulated", lambda V, F, s: attacks.retriangulate(V, F, seed=s)),
     ("reorder", lambda V, F, s: attacks.reorder(V, F, seed=s)),
     ("similarity", lambda V, F, s: attacks.similarity(V, F, seed=s)),
     ("OBJ", lambda V, F, s: reexport(".obj")(V, F)),

@@ -76,6 +76,7 @@ ALL_CALLS = [
     ("crop_plane", {"fraction": 0.3}),
     ("simplify", {"ratio": 0.5}),
     ("subdivide", {"scheme": "midpoint"}),
+    ("retriangulate", {"fraction": 0.8}),
 ]
 
 
@@ -333,3 +334,18 @@ def test_smooth_subdivisions_give_a_closed_refined_mesh(sphere, scheme, face_fac
 def test_unknown_subdivision_scheme_is_rejected(sphere):
     with pytest.raises(ValueError, match="midpoint"):
         A.subdivide(*sphere, scheme="butterfly")
+
+
+def test_retriangulate_flips_diagonals_and_keeps_the_surface(bunny):
+    V, F = bunny
+    V2, F2 = A.retriangulate(V, F, seed=3)
+    assert np.array_equal(V2, V) and len(F2) == len(F)
+    changed = np.any(np.sort(F2, axis=1) != np.sort(F, axis=1), axis=1).mean()
+    assert changed > 0.5  # most faces were re-triangulated
+    adj = build_adjacency(F2, len(V))
+    assert not adj.nonmanifold_vertex.any()  # no duplicated edge
+    # orientation and enclosed volume are kept (a flip inside a planar-ish quad)
+    vol = lambda F_: np.einsum("ij,ij->", np.cross(V[F_[:, 1]], V[F_[:, 2]]), V[F_[:, 0]])
+    assert vol(F2) == pytest.approx(vol(F), rel=1e-3)
+    assert np.array_equal(A.retriangulate(V, F, seed=3)[1], F2)  # seeded
+    assert np.array_equal(A.retriangulate(V, F, fraction=0.0, seed=3)[1], F)

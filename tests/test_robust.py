@@ -55,6 +55,10 @@ def test_unattacked_and_key_round_trip(marked):
         ("crop 50 %", lambda V, F: attacks.crop_plane(V, F, fraction=0.5, seed=5)),
         ("simplify 30 %", lambda V, F: attacks.simplify(V, F, ratio=0.3)),
         ("midpoint subdivision", lambda V, F: attacks.subdivide(V, F, scheme="midpoint")),
+        ("quads re-triangulated", lambda V, F: attacks.retriangulate(V, F, seed=5)),
+        ("paper smoothing 20 it.", lambda V, F: attacks.smooth_laplacian(V, F, lam=0.03, iterations=20)),
+        ("benchmark smoothing 10 it.", lambda V, F: attacks.smooth_laplacian(V, F, lam=0.1, iterations=10)),
+        ("paper crop 20 %", lambda V, F: attacks.crop_paper(V, F, fraction=0.2, seed=5)),
     ],
 )
 def test_payload_survives(marked, name, attack):
@@ -122,3 +126,50 @@ def test_scheme_dispatch_library_and_command_line(tmp_path, marked):
     assert pmwm.cli.main(["verify", str(out), "--key", str(key)]) == 0
     with pytest.raises(pmwm.PayloadError, match="unknown scheme"):
         pmwm.embed(marked.vertices, marked.faces, pmwm.EmbedOptions(scheme="nope"))
+
+
+def test_robust_is_the_default_scheme(bunny):
+    assert pmwm.EmbedOptions().scheme == "robust"
+    V, F = load("cow_libigl.off")
+    assert pmwm.embed(V, F, pmwm.EmbedOptions(n_bits=16, seed=2)).key.scheme == "robust"
+
+
+def test_noise_is_read_by_vertex_index_and_by_position(marked):
+    """Noise keeps the vertex order: heights are read at the vertices themselves (the matched filter);
+    the same noisy copy reordered is read by position, and both carry the payload."""
+    V, F = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=4)
+    v = robust_verify(V, F, marked.key)
+    assert v.extra["heights"] == "by vertex index"
+    assert v.marked and v.bit_errors <= 0.05 * v.carriers_total, v.bit_errors
+    V2, F2 = attacks.reorder(V, F, seed=4)
+    v2 = robust_verify(V2, F2, marked.key)
+    assert v2.extra["heights"] == "by position"
+    assert v2.marked and v2.bit_errors <= 0.1 * v2.carriers_total, v2.bit_errors
+
+
+def test_heavy_noise_reads_better_than_the_paper_scheme(bunny, marked):
+    """Paper-protocol noise at 0.03 Rmax: the paper scheme is at chance; the robust scheme still
+    reads most bits (pooled over a few noise draws)."""
+    V, F = bunny
+    paper = pmwm.embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, scheme="paper"))
+    right = {"robust": 0, "paper": 0}
+    total = 0
+    for seed in range(4):
+        for name, res in (("robust", marked), ("paper", paper)):
+            v = pmwm.verify(*attacks.noise_paper(res.vertices, res.faces, amplitude=0.03, seed=seed), res.key)
+            right[name] += v.matches
+        total += marked.key.n_bits
+    assert right["robust"] > 0.65 * total
+    assert right["robust"] > right["paper"] + 0.1 * total
+
+
+def test_first_format_and_garbled_keys_are_refused(marked):
+    old = dataclasses.replace(marked.key, extra={**marked.key.extra, "robust_version": 1})
+    with pytest.raises(KeyFileError, match="re-embed"):
+        robust_verify(marked.vertices, marked.faces, old)
+    bad = dataclasses.replace(marked.key, extra={**marked.key.extra, "samples": "not base64!"})
+    with pytest.raises(KeyFileError, match="damaged"):
+        robust_verify(marked.vertices, marked.faces, bad)
+    short = dataclasses.replace(marked.key, extra={**marked.key.extra, "samples": marked.key.extra["samples"][:-8]})
+    with pytest.raises(KeyFileError, match="damaged"):
+        robust_verify(marked.vertices, marked.faces, short)

@@ -22,6 +22,9 @@ Benchmark protocol (Wang, Lavoue, Denis, Baskurt, SMI 2010):
   ``simplify``          quadric simplification (optional dependency fast-simplification).
   ``subdivide``         one step of midpoint, Loop or sqrt(3) subdivision.
 
+Beyond both protocols:
+  ``retriangulate``     adjacent triangles joined into quads and split along the other diagonal.
+
 Amplitudes and fractions are plain fractions: ``amplitude=0.001`` is the benchmark's "0.1 %".
 """
 
@@ -373,18 +376,8 @@ def _subdivide_sqrt3(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     n, m = len(v), len(f)
     centroid_idx = n + np.arange(m)
     centroids = v[f].mean(axis=1)
-    he_from = f.ravel()
-    he_to = f[:, [1, 2, 0]].ravel()
-    he_face = np.repeat(np.arange(m), 3)
-    keys = np.minimum(he_from, he_to) * n + np.maximum(he_from, he_to)
-    order = np.argsort(keys, kind="stable")
-    sk = keys[order]
-    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
-    counts = np.diff(np.r_[starts, len(sk)])
-    pair = starts[counts == 2]
-    h1, h2 = order[pair], order[pair + 1]
-    ok = he_from[h1] == he_to[h2]  # opposite directions: consistently oriented two-face edge
-    h1, h2 = h1[ok], h2[ok]
+    he_from, he_to, he_face = f.ravel(), f[:, [1, 2, 0]].ravel(), np.repeat(np.arange(m), 3)
+    h1, h2 = _twin_half_edges(f, n)
     flipped = np.zeros(len(he_from), bool)
     flipped[h1] = True
     flipped[h2] = True
@@ -407,6 +400,61 @@ def _subdivide_sqrt3(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     return np.vstack([v_new, centroids]), np.concatenate([tri_flip, tri_keep]).astype(np.int64)
 
 
+def _twin_half_edges(f: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (h1, h2) of half-edges (h = 3 * face + corner, from f[face, corner] to the next
+    corner) that are the two opposite sides of an edge with exactly two faces, consistently oriented."""
+    he_from, he_to = f.ravel(), f[:, [1, 2, 0]].ravel()
+    keys = np.minimum(he_from, he_to) * n + np.maximum(he_from, he_to)
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+    counts = np.diff(np.r_[starts, len(sk)])
+    pair = starts[counts == 2]
+    h1, h2 = order[pair], order[pair + 1]
+    ok = he_from[h1] == he_to[h2]  # opposite directions: consistently oriented two-face edge
+    return h1[ok], h2[ok]
+
+
+def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = None) -> MeshArrays:
+    """Join adjacent triangles into quads and split each along its other diagonal (edge flips).
+
+    What a tool that stores quads, or re-triangulates them its own way, does to a mesh: same vertices,
+    other faces. About ``fraction`` of the faces are paired (a few rounds of a random matching over
+    the edges); a flip that would duplicate an existing edge is skipped, so a manifold mesh stays one.
+    """
+    v, f = _check_mesh(vertices, faces)
+    fraction = _check_fraction(fraction, "fraction", allow_one=True)
+    f = f.copy()
+    n, m = len(v), len(f)
+    rng = np.random.default_rng(seed)
+    free = rng.random(m) < fraction  # faces that may still be paired
+    for _ in range(4):
+        h1, h2 = _twin_half_edges(f, n)
+        fa, fb = h1 // 3, h2 // 3
+        ok = free[fa] & free[fb] & (fa != fb)
+        h1, h2, fa, fb = h1[ok], h2[ok], fa[ok], fb[ok]
+        # a matching: each edge whose random priority is the smallest around both its faces
+        pri = rng.random(len(h1))
+        best = np.full(m, np.inf)
+        np.minimum.at(best, fa, pri)
+        np.minimum.at(best, fb, pri)
+        pick = (pri == best[fa]) & (pri == best[fb])
+        h1, h2, fa, fb = h1[pick], h2[pick], fa[pick], fb[pick]
+        # edge a->b in face fa = (a, b, c), b->a in face fb = (b, a, d): new faces (a, d, c), (d, b, c)
+        a, b = f.ravel()[h1], f.ravel()[h2]
+        c = f[fa, (h1 % 3 + 2) % 3]
+        d = f[fb, (h2 % 3 + 2) % 3]
+        edge_keys = np.unique(np.sort(np.stack([f.ravel(), f[:, [1, 2, 0]].ravel()], 1), axis=1) @ [n, 1])
+        new_keys = np.minimum(c, d) * n + np.maximum(c, d)
+        pos = np.minimum(np.searchsorted(edge_keys, new_keys), len(edge_keys) - 1)
+        uniq = np.zeros(len(new_keys), bool)
+        uniq[np.unique(new_keys, return_index=True)[1]] = True
+        go = (edge_keys[pos] != new_keys) & uniq & (c != d)
+        f[fa[go]] = np.stack([a[go], d[go], c[go]], 1)
+        f[fb[go]] = np.stack([d[go], b[go], c[go]], 1)
+        free[fa[go]] = free[fb[go]] = False
+    return v, f
+
 # ----------------------------------------------------------------------------------------------
 # registry
 
@@ -425,6 +473,8 @@ ATTACKS: dict[str, Attack] = {
     "crop_plane": crop_plane,
     "simplify": simplify,
     "subdivide": subdivide,
+    # beyond the protocols
+    "retriangulate": retriangulate,
 }
 
 
