@@ -76,7 +76,8 @@ def test_panel_is_in_the_watermark_tab(addon):
 def test_options_and_operators_without_a_mesh(scene, addon):
     log = draw(addon)
     props = _names(log, "prop")
-    assert {"payload", "key_path", "strength", "base_ratio", "seed", "overwrite_key", "show_carriers"} <= set(props)
+    assert {"payload", "key_path", "scheme", "strength", "base_ratio", "seed", "overwrite_key",
+            "show_carriers"} <= set(props)
     ops = _names(log, "operator")
     assert set(ops) == {"pmwm.watermark", "pmwm.export_pm", "pmwm.import_pm", "pmwm.verify"}
     assert not ops["pmwm.watermark"] and not ops["pmwm.verify"]  # greyed out: no active mesh
