@@ -295,12 +295,15 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         good = np.isfinite(score[first])
         ring[si[first][good], k] = vi[first][good]
     counts = np.bincount(si, minlength=len(P))
-    samples = _Samples(counts, u, v, h_ref, vi)
+    stencil = np.concatenate([sites[:, None], np.where(ring >= 0, ring, sites[:, None])], axis=1)
+    samples = _Samples(counts, u, v, h_ref, vi, stencil)
     site = {"origin": P, "normal": N, "radius": r, "amplitude": A, "bit": bit_of, "chip": chip,
             "usable": (ring >= 0).all(axis=1), "samples": samples}
     # each site's own reading on the marked mesh: clearly its sign, or left out
-    soft, _ = _site_soft(marked, F, site, by_index=True)
-    usable = site["usable"] & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
+    usable = site["usable"].copy()
+    for stencil_only in (True, False):  # both readings of the marked mesh: clearly the site's sign
+        soft, _ = _site_soft(marked, F, site, by_index=True, stencil_only=stencil_only)
+        usable &= np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
     report(0.2, "sites marked")
 
     protected = np.zeros(len(V), bool)
@@ -328,6 +331,7 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         "sample_count": counts.tolist(),
         "samples": _pack(np.stack([u, v, h_ref], axis=1), "<f4"),
         "sample_vertex": _pack(vi, "<u4"),
+        "site_stencil": stencil.tolist(),  # the protected vertices: site and ring
         "frame": surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)),
     }
     key = WatermarkKey(
@@ -352,9 +356,10 @@ def profile(u: np.ndarray, v: np.ndarray, r: float) -> np.ndarray:
 
 
 class _Samples:
-    """Each site's samples, padded to (sites, K): u, v, stored height, vertex index, validity."""
+    """Each site's samples, padded to (sites, K): u, v, stored height, vertex index, validity, and
+    whether the sample is one of the site's protected (stencil) vertices."""
 
-    def __init__(self, counts: np.ndarray, u, v, h, vertex):
+    def __init__(self, counts: np.ndarray, u, v, h, vertex, stencil: np.ndarray):
         S, K = len(counts), max(int(counts.max(initial=0)), 1)
         site = np.repeat(np.arange(S), counts)
         slot = np.arange(len(site)) - np.repeat(np.cumsum(counts) - counts, counts)
@@ -364,6 +369,7 @@ class _Samples:
         self.vertex = np.zeros((S, K), np.int64)
         for name, val in (("u", u), ("v", v), ("h", h), ("vertex", vertex)):
             getattr(self, name)[site, slot] = val
+        self.stencil = self.mask & (self.vertex[:, :, None] == stencil[:, None, :]).any(axis=2)
 
 
 def _pack(a: np.ndarray, dtype: str) -> str:
@@ -400,7 +406,8 @@ def _site_arrays(key: WatermarkKey) -> dict:
             raise ValueError("sample counts")
         uvh = _unpack(x["samples"], "<f4", (total, 3))
         vertex = _unpack(x["sample_vertex"], "<u4", (total,))
-        out["samples"] = _Samples(counts, uvh[:, 0], uvh[:, 1], uvh[:, 2], vertex)
+        stencil = np.asarray(x["site_stencil"], np.int64).reshape(len(counts), -1)
+        out["samples"] = _Samples(counts, uvh[:, 0], uvh[:, 1], uvh[:, 2], vertex, stencil)
         fr = x["frame"]
         shapes = {"points": (-1, 3), "normals": (-1, 3), "centroid": (3,), "axes": (3, 3)}
         out["frame"] = {k: np.asarray(fr[k], np.float64).reshape(shp) for k, shp in shapes.items()}
@@ -445,19 +452,46 @@ def _sample_heights(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> np
     return H
 
 
-def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
+def _stencil_heights(X: np.ndarray, s: dict) -> np.ndarray:
+    """Heights of the protected (stencil) samples on a copy in the key's frame, read at the suspect
+    vertex that sits exactly at one of the sample's possible marked places (NaN elsewhere). Lines
+    would also do, but on a coarse level of detail the fan around a vertex may fold over its own
+    line, which then misses it by a rounding error."""
+    from .register import _nearest
+
+    sm = s["samples"]
+    P, N = s["origin"], s["normal"]
+    t1, t2 = tangent_frames(N)
+    si, ki = np.nonzero(sm.stencil)
+    base = P[si] + sm.u[si, ki, None] * t1[si] + sm.v[si, ki, None] * t2[si] + sm.h[si, ki, None] * N[si]
+    shift = (s["amplitude"] * profile(sm.u[si, ki], sm.v[si, ki], s["radius"]))[:, None] * N[si]
+    j, d2 = _nearest(X, np.concatenate([base + shift, base - shift]))
+    m = len(si)
+    pick = np.where(d2[:m] <= d2[m:], j[:m], j[m:])
+    near = np.sqrt(np.minimum(d2[:m], d2[m:])) <= 1e-6 * s["frame"]["scale"] + 1e-4 * s["amplitude"]
+    H = np.full(sm.mask.shape, np.nan)
+    H[si, ki] = np.where(near, np.einsum("ij,ij->i", X[pick] - P[si], N[si]), np.nan)
+    return H
+
+
+def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool, stencil_only: bool = False
+               ) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
 
     y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
     projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
     the nuisance is removed where the noise is low and the filter tends to p where it is high.
+    ``stencil_only``: read only the protected vertices (site and ring: four samples for four
+    unknowns, an exact reading), for the marked mesh and its levels of detail, where the other
+    samples lie on a coarser approximation of the surface.
     """
     sm = s["samples"]
     r, A = s["radius"], s["amplitude"]
-    H = _sample_heights(X, F, s, by_index)
-    ok = sm.mask & np.isfinite(H)
+    H = _stencil_heights(X, s) if stencil_only and not by_index else _sample_heights(X, F, s, by_index)
+    use = sm.stencil if stencil_only else sm.mask
+    ok = use & np.isfinite(H)
     y = np.where(ok, H - sm.h, 0.0)
-    p_all = profile(sm.u, sm.v, r) * sm.mask
+    p_all = profile(sm.u, sm.v, r) * use
     p = p_all * ok
     B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
     BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
@@ -477,7 +511,7 @@ def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> tuple[n
     with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
         soft = (f * y).sum(axis=1) / fp / A
         var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
-    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
+    readable = (ok.sum(axis=1) >= 4) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
         & np.isfinite(var)
     return np.where(readable, soft, np.nan), var
 
@@ -494,7 +528,8 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
         raise KeyFileError(f"this key is for the {key.scheme!r} scheme, not {SCHEME!r}; use pmwm.verify")
     V, F = check_mesh(vertices, faces)
     s = _site_arrays(key)
-    if _in_key_frame(V, s, key):
+    aligned = _in_key_frame(V, s, key)
+    if aligned:
         X, extra = V, {"registration": "none (already in the key's frame)"}
         mode = "aligned"
     else:
@@ -502,8 +537,9 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
         extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
         mode = "registered"
     by_index = _same_vertices(X, s, key)
-    soft, var = _site_soft(X, F, s, by_index)
-    extra.update({"heights": "by vertex index" if by_index else "by position",
+    soft, var = _site_soft(X, F, s, by_index, stencil_only=aligned)
+    extra.update({"heights": ("by vertex index" if by_index else "by position")
+                  + (", protected vertices only" if aligned else ""),
                   "sites_read": int((np.isfinite(soft) & s["usable"]).sum()), "sites_total": int(len(soft))})
     return bit_scores(soft, var, s, key.n_bits), mode, extra
 
