@@ -511,7 +511,8 @@ def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool, stencil_on
     with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
         soft = (f * y).sum(axis=1) / fp / A
         var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
-    readable = (ok.sum(axis=1) >= 4) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
+    # four samples for four unknowns on the stencil (exact there); one more elsewhere
+    readable = (ok.sum(axis=1) >= (4 if stencil_only else 5)) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
         & np.isfinite(var)
     return np.where(readable, soft, np.nan), var
 
