@@ -454,9 +454,10 @@ def _sample_heights(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> np
 
 def _stencil_heights(X: np.ndarray, s: dict) -> np.ndarray:
     """Heights of the protected (stencil) samples on a copy in the key's frame, read at the suspect
-    vertex that sits exactly at one of the sample's possible marked places (NaN elsewhere). Lines
-    would also do, but on a coarse level of detail the fan around a vertex may fold over its own
-    line, which then misses it by a rounding error."""
+    vertex nearest to the sample's unmarked place (NaN when none is within 1.5 bump heights: a
+    vertex moves by its own bump, or a neighbour's on a small mesh). Lines would also do, but on a
+    coarse level of detail the fan around a vertex may fold over its own line, which then misses it
+    by a rounding error."""
     from .register import _nearest
 
     sm = s["samples"]
@@ -464,13 +465,10 @@ def _stencil_heights(X: np.ndarray, s: dict) -> np.ndarray:
     t1, t2 = tangent_frames(N)
     si, ki = np.nonzero(sm.stencil)
     base = P[si] + sm.u[si, ki, None] * t1[si] + sm.v[si, ki, None] * t2[si] + sm.h[si, ki, None] * N[si]
-    shift = (s["amplitude"] * profile(sm.u[si, ki], sm.v[si, ki], s["radius"]))[:, None] * N[si]
-    j, d2 = _nearest(X, np.concatenate([base + shift, base - shift]))
-    m = len(si)
-    pick = np.where(d2[:m] <= d2[m:], j[:m], j[m:])
-    near = np.sqrt(np.minimum(d2[:m], d2[m:])) <= 1e-6 * s["frame"]["scale"] + 1e-4 * s["amplitude"]
+    j, d2 = _nearest(X, base)
+    near = np.sqrt(d2) <= 1.5 * s["amplitude"] + 1e-6 * s["frame"]["scale"]
     H = np.full(sm.mask.shape, np.nan)
-    H[si, ki] = np.where(near, np.einsum("ij,ij->i", X[pick] - P[si], N[si]), np.nan)
+    H[si, ki] = np.where(near, np.einsum("ij,ij->i", X[j] - P[si], N[si]), np.nan)
     return H
 
 
