@@ -166,15 +166,15 @@ class OurScheme:
         return pmwm.verify(vertices, faces, key).bits
 
 
-def default_methods(progress: Progress = None) -> list:
-    """[pmwm (robust scheme), pmwm-paper, Cho I, Cho II]; pmwm's are left out (with a message) when it
-    cannot be imported."""
+def default_methods(progress: Progress = None, strength: float = 2.0) -> list:
+    """[pmwm (robust scheme at ``strength``), pmwm-paper (at 2, its default), Cho I, Cho II]; pmwm's
+    are left out (with a message) when it cannot be imported."""
     methods: list = []
     try:
         import pmwm
 
         pmwm.embed, pmwm.verify  # noqa: B018
-        methods += [OurScheme(scheme="robust"), OurScheme(scheme="paper")]
+        methods += [OurScheme(strength=strength, scheme="robust"), OurScheme(scheme="paper")]
     except (ImportError, AttributeError) as exc:
         if progress:
             progress(f"our scheme is not available ({exc}); running Cho only")
@@ -341,7 +341,9 @@ def run_bench(
     p_set, b_set = paper_settings(quick), benchmark_settings(quick)
     res = BenchResults(settings={"command": command or "pmwm.bench.run_bench(...)", "section": section,
                                  "keys": keys, "quick": quick, "seed": seed, "surface_samples": samples,
-                                 "methods": [m.name for m in methods]})
+                                 "methods": [m.name for m in methods],
+                                 "strength": next((m.strength for m in methods
+                                                   if isinstance(m, OurScheme) and m.scheme == "robust"), 2.0)})
     ours = [m for m in methods if isinstance(m, OurScheme)]
 
     for name in models:
@@ -504,8 +506,8 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         "Cells are mean ± std over the keys. **~** marks a cell not distinguishable from chance: pooling all keys' "
         "bits, the number of correct bits is not significant against Binomial(bits, 1/2) at p < 0.01. "
         "Cho = Cho, Prost, Jung 2007 (IEEE TSP), methods I and II, alpha = 0.05, strength step 0.001. "
-        "pmwm = our default (robust) scheme at strength 2; pmwm-paper = our implementation of the paper's "
-        "scheme at strength 2 (its mu ± 2 sigma).",
+        f"pmwm = our default (robust) scheme at strength {st.get('strength', 2.0):g}; pmwm-paper = our "
+        "implementation of the paper's scheme at strength 2 (its mu ± 2 sigma).",
         "",
         "## Models",
         "",
@@ -717,12 +719,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--keys", type=int, default=10)
     p.add_argument("--data", help="folder holding the benchmark meshes (default $PMWM_BENCH_DATA)")
     p.add_argument("--cho-only", action="store_true", help="benchmark Cho I and II only")
+    p.add_argument("--strength", type=float, default=2.0,
+                   help="strength of the default (robust) scheme; pmwm-paper stays at its default, 2")
     p.add_argument("--section", default="robustness", help="section of the report file to (re)write")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("-o", "--output", default="BENCHMARKS.md")
     a = p.parse_args(argv)
     command = "pmwm bench " + " ".join(argv if argv is not None else sys.argv[1:])
-    methods = [cho_method("I"), cho_method("II")] if a.cho_only else None
+    methods = [cho_method("I"), cho_method("II")] if a.cho_only else default_methods(print, a.strength)
     run_bench(a.models or None, keys=a.keys, quick=a.quick, out=a.output, data_dir=a.data,
               methods=methods, plots=not a.no_plots, command=command.strip(), section=a.section)
     return 0
