@@ -110,6 +110,11 @@ def test_small_mesh_uses_fewer_sites_and_still_reads():
     assert len(res.carriers) < 6 * 64
     v = robust_verify(res.vertices, res.faces, res.key)
     assert v.marked and v.p_value < 1e-6
+    # bumps crowd on a small mesh and reach each other's samples: the marked mesh and every level
+    # of detail still read every bit (at the protected vertices, or all samples where those are spoilt)
+    assert v.bit_errors == 0
+    for k in [0, *res.pm.level_records.tolist()]:
+        assert robust_verify(*res.pm.decode(records=k), res.key).bit_errors == 0, k
 
 
 def test_scheme_dispatch_library_and_command_line(tmp_path, marked):

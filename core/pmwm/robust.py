@@ -299,16 +299,20 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     samples = _Samples(counts, u, v, h_ref, vi, stencil)
     site = {"origin": P, "normal": N, "radius": r, "amplitude": A, "bit": bit_of, "chip": chip,
             "usable": (ring >= 0).all(axis=1), "samples": samples}
-    # each site's own reading on the marked mesh: clearly its sign, or left out
-    usable = site["usable"].copy()
-    for stencil_only in (True, False):  # both readings of the marked mesh: clearly the site's sign
+    # each site's own readings of the marked mesh, all samples (attacked copies) and the protected
+    # ones only (the marked mesh and its levels of detail): clearly its sign, or left out. On small
+    # meshes a neighbour's bump may reach a site's samples and spoil one reading or both.
+    good = {}
+    for stencil_only in (False, True):
         soft, _ = _site_soft(marked, F, site, by_index=True, stencil_only=stencil_only)
-        usable &= np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
+        good[stencil_only] = site["usable"] & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
+    usable, stencil_ok = good[False], good[True]
     report(0.2, "sites marked")
 
     protected = np.zeros(len(V), bool)
-    protected[sites[usable]] = True
-    protected[ring[usable].ravel()] = True
+    keep = usable | stencil_ok
+    protected[sites[keep]] = True
+    protected[ring[keep].ravel()] = True
     base = max(int(round(opts.base_ratio * len(V))), 4)
 
     def pm_progress(f: float, msg: str) -> None:
@@ -326,6 +330,7 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         "site_bit": bit_of.tolist(),
         "site_chip": chip.astype(int).tolist(),
         "site_usable": usable.astype(int).tolist(),
+        "site_stencil_ok": stencil_ok.astype(int).tolist(),
         "site_origin": P.tolist(),  # full precision: the centre sample's line passes through the vertex
         "site_normal": N.tolist(),
         "sample_count": counts.tolist(),
@@ -395,6 +400,7 @@ def _site_arrays(key: WatermarkKey) -> dict:
             "bit": np.asarray(x["site_bit"], np.int64),
             "chip": np.asarray(x["site_chip"], np.float64),
             "usable": np.asarray(x["site_usable"], bool),
+            "stencil_ok": np.asarray(x["site_stencil_ok"], bool),
             "origin": np.asarray(x["site_origin"], np.float64).reshape(-1, 3),
             "normal": np.asarray(x["site_normal"], np.float64).reshape(-1, 3),
             "radius": float(x["radius"]),
@@ -421,7 +427,7 @@ def _site_arrays(key: WatermarkKey) -> dict:
     except (KeyError, TypeError, ValueError, OverflowError, binascii.Error) as exc:
         raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
     n = len(out["bit"])
-    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "origin", "normal")) \
+    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "stencil_ok", "origin", "normal")) \
             or out["bit"].min() < 0 or out["bit"].max() >= key.n_bits \
             or out["samples"].vertex.max(initial=0) >= key.n_vertices:
         raise KeyFileError("the robust key's site data are inconsistent; it is damaged")
@@ -479,17 +485,24 @@ def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool, stencil_on
     y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
     projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
     the nuisance is removed where the noise is low and the filter tends to p where it is high.
-    ``stencil_only``: read only the protected vertices (site and ring: four samples for four
-    unknowns, an exact reading), for the marked mesh and its levels of detail, where the other
-    samples lie on a coarser approximation of the surface.
+    ``stencil_only``: read the protected site vertex alone (its height change over the bump
+    height), for the marked mesh and its levels of detail: exact there, where the other samples lie
+    on a coarser approximation of the surface and nothing has moved the copy.
     """
     sm = s["samples"]
     r, A = s["radius"], s["amplitude"]
-    H = _stencil_heights(X, s) if stencil_only and not by_index else _sample_heights(X, F, s, by_index)
-    use = sm.stencil if stencil_only else sm.mask
-    ok = use & np.isfinite(H)
+    if stencil_only:
+        H = _stencil_heights(X, s) if not by_index else _sample_heights(X, F, s, True)
+        p = np.where(sm.stencil, profile(sm.u, sm.v, r), -1.0)
+        c = np.argmax(p, axis=1)  # the site vertex (u = v = 0, profile 1)
+        rows = np.arange(len(c))
+        soft = (H[rows, c] - sm.h[rows, c]) / (A * np.maximum(p[rows, c], 1e-300))
+        ok = sm.stencil[rows, c] & (p[rows, c] > 0.5)
+        return np.where(ok, soft, np.nan), np.full(len(c), VAR_FLOOR)
+    H = _sample_heights(X, F, s, by_index)
+    ok = sm.mask & np.isfinite(H)
     y = np.where(ok, H - sm.h, 0.0)
-    p_all = profile(sm.u, sm.v, r) * use
+    p_all = profile(sm.u, sm.v, r) * sm.mask
     p = p_all * ok
     B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
     BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
@@ -509,15 +522,15 @@ def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool, stencil_on
     with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
         soft = (f * y).sum(axis=1) / fp / A
         var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
-    # four samples for four unknowns on the stencil (exact there); one more elsewhere
-    readable = (ok.sum(axis=1) >= (4 if stencil_only else 5)) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
+    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
         & np.isfinite(var)
     return np.where(readable, soft, np.nan), var
 
 
 def bit_scores(soft: np.ndarray, var: np.ndarray, s: dict, n_bits: int) -> np.ndarray:
-    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (0 when none is)."""
-    ok = np.isfinite(soft) & s["usable"]
+    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (NaN soft values are
+    not read; 0 when no site of the bit is)."""
+    ok = np.isfinite(soft)
     return np.bincount(s["bit"][ok], weights=(s["chip"] * soft / var)[ok], minlength=n_bits)
 
 
@@ -536,10 +549,15 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
         extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
         mode = "registered"
     by_index = _same_vertices(X, s, key)
-    soft, var = _site_soft(X, F, s, by_index, stencil_only=aligned)
+    soft, var = _site_soft(X, F, s, by_index)
+    soft = np.where(s["usable"], soft, np.nan)
+    if aligned:  # exact at the protected vertices where that reading was right on the marked mesh
+        soft_p, var_p = _site_soft(X, F, s, by_index, stencil_only=True)
+        use_p = s["stencil_ok"] & np.isfinite(soft_p)
+        soft, var = np.where(use_p, soft_p, soft), np.where(use_p, var_p, var)
     extra.update({"heights": ("by vertex index" if by_index else "by position")
-                  + (", protected vertices only" if aligned else ""),
-                  "sites_read": int((np.isfinite(soft) & s["usable"]).sum()), "sites_total": int(len(soft))})
+                  + (", protected vertices first" if aligned else ""),
+                  "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
     return bit_scores(soft, var, s, key.n_bits), mode, extra
 
 
@@ -570,7 +588,7 @@ def _in_key_frame(V: np.ndarray, s: dict, key: WatermarkKey) -> bool:
     in its own frame. Registration would only blur it then (it is accurate to ~0.1 % only)."""
     from .register import _nearest
 
-    use = np.flatnonzero(s["usable"])[:64]
+    use = np.flatnonzero(s["usable"] | s["stencil_ok"])[:64]
     if len(use) == 0:
         return False
     o, n, g = s["origin"][use], s["normal"][use], s["amplitude"]
