@@ -30,6 +30,9 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
   level: at low noise the offset and tilt (registration error, smoothing shrinkage) are removed
   exactly, at high noise the filter tends to p itself, the optimum for white noise. a / A is the
   site's soft value (+-1 when intact).
+- A copy that sits exactly in the key's frame (the marked mesh, any of its levels of detail, a lossless
+  re-export) is read at each protected site vertex alone, exact at every level; where a neighbour's bump
+  spoilt that reading on the marked mesh (small meshes), all samples are read instead.
 - A bit is the sign of the sum of its sites' chip-weighted soft values, each weighted by its inverse
   variance (maximum-ratio combining; a site in a damaged or cropped region weighs little). A bit
   with no readable site is an erasure and gets a keyed coin flip, so the binomial p-value of
