@@ -34,6 +34,16 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
     return cross / safe[:, None], 0.5 * norm
 
 
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals (n, 3); zero for a vertex with no face of positive area."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    vn = np.stack([np.bincount(f.ravel(), weights=np.repeat(cross[:, a], 3), minlength=len(v))
+                   for a in range(3)], axis=1)
+    return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
+
+
 def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6) -> np.ndarray:
     """Sorted 1-ring normal angles (radians) resampled to k values: (n, k) float64."""
     if k < 1:

@@ -25,6 +25,7 @@ import numpy as np
 import trimesh
 
 from .errors import MeshError, OutputExistsError, PmwmError
+from .features import vertex_normals
 
 SUPPORTED_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
@@ -433,21 +434,6 @@ def _obj_material_header(src: SourceMesh, out_path: str) -> str:
     return f"mtllib {rel}\n" + (f"usemtl {name}\n" if name else "")
 
 
-def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (numpy; trimesh's own path wants scipy)."""
-    tri = vertices[faces]
-    face_n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    idx = faces.ravel()
-    n = len(vertices)
-    normals = np.column_stack(
-        [np.bincount(idx, weights=np.repeat(face_n[:, k], 3), minlength=n) for k in range(3)]
-    )
-    length = np.linalg.norm(normals, axis=1)
-    normals[length > 0] /= length[length > 0, None]
-    normals[length == 0] = (0.0, 0.0, 1.0)
-    return normals
-
-
 def _export_trimesh(mesh: trimesh.Trimesh, ext: str) -> bytes:
     """Bytes of a binary/float32 format written by trimesh (vertex order and faces kept)."""
     if ext == ".ply":
@@ -455,7 +441,9 @@ def _export_trimesh(mesh: trimesh.Trimesh, ext: str) -> bytes:
     if ext == ".stl":
         return trimesh.exchange.stl.export_stl(mesh)
     # glTF viewers shade flat without normals, so give them fresh ones for the new positions
-    mesh.vertex_normals = _vertex_normals(np.asarray(mesh.vertices), np.asarray(mesh.faces, dtype=np.int64))
+    normals = vertex_normals(np.asarray(mesh.vertices), np.asarray(mesh.faces, dtype=np.int64))
+    normals[~normals.any(axis=1)] = (0.0, 0.0, 1.0)  # viewers want a unit normal everywhere
+    mesh.vertex_normals = normals
     scene = trimesh.Scene(mesh)
     if ext == ".glb":
         return trimesh.exchange.gltf.export_glb(scene, include_normals=True)

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .features import face_normals, vertex_normals
+
 
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
 ICP_ITERATIONS = 30
@@ -105,13 +107,8 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
 def _samples_with_normals(V: np.ndarray, F: np.ndarray, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Area-uniform surface samples and the smooth (vertex-interpolated) unit normals there."""
     F = np.asarray(F, np.int64).reshape(-1, 3)
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    fn = np.cross(b - a, c - a)
-    area = 0.5 * np.linalg.norm(fn, axis=1)
-    vn = np.zeros_like(V)
-    for k in range(3):
-        np.add.at(vn, F[:, k], fn)
-    vn /= np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
+    _, area = face_normals(V, F)
+    vn = vertex_normals(V, F)
     rng = np.random.default_rng(seed)
     cdf = np.cumsum(area)
     face = np.minimum(np.searchsorted(cdf, rng.uniform(0.0, cdf[-1], n), side="right"), len(F) - 1)
@@ -127,7 +124,7 @@ def _samples_with_normals(V: np.ndarray, F: np.ndarray, n: int, seed: int) -> tu
 
 def _self_floor(P: np.ndarray, V: np.ndarray, F: np.ndarray, seed: int) -> float:
     Q, _ = _samples_with_normals(V, F, SUSPECT_SAMPLES, seed + 1)
-    _, d2 = _nearest(P, Q)
+    _, d2 = nearest(P, Q)
     return float(np.sqrt(np.mean(np.sort(d2)[: int(TRIM * len(d2))])))
 
 
@@ -147,10 +144,15 @@ def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return c, A, float(np.sqrt(max(w.sum(), 1e-300)))
 
 
-def _nearest(T: np.ndarray, Q: np.ndarray, budget: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
-    """Index of the nearest point of T to each query of Q, and the squared distance."""
+def nearest(T: np.ndarray, Q: np.ndarray, budget: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the nearest point of T to each query of Q, and the squared distance (brute force in
+    chunks of about ``budget`` distances; about T's mean, so far-off coordinates keep their digits)."""
     idx = np.empty(len(Q), np.int64)
     d2 = np.empty(len(Q))
+    if len(T) == 0:
+        return np.full(len(Q), -1, np.int64), np.full(len(Q), np.inf)
+    centre = T.mean(axis=0)
+    T, Q = T - centre, Q - centre
     tt = np.einsum("ij,ij->i", T, T)
     step = max(1, budget // max(len(T), 1))
     for s in range(0, len(Q), step):
@@ -167,7 +169,7 @@ def _icp(S, ref_P, ref_N, R, k, t, ref_s, iterations):
     res = np.inf
     for _ in range(iterations):
         X = k * S @ R.T + t
-        j, d2 = _nearest(ref_P, X)
+        j, d2 = nearest(ref_P, X)
         keep = np.argsort(d2)[: max(int(TRIM * len(X)), 7)]
         x, q, n = X[keep], ref_P[j[keep]], ref_N[j[keep]]
         xc = x - x.mean(axis=0)  # linearise about the sources' centroid: better conditioned
@@ -187,7 +189,7 @@ def _icp(S, ref_P, ref_N, R, k, t, ref_s, iterations):
         if abs(ds) < 1e-7 and angle < 1e-7 and np.linalg.norm(dt) < 1e-7 * ref_s:
             break
     X = k * S @ R.T + t
-    j, d2 = _nearest(ref_P, X)
+    j, d2 = nearest(ref_P, X)
     keep = np.argsort(d2)[: max(int(TRIM * len(X)), 7)]
     res = float(np.sqrt(np.mean(d2[keep]))) / ref_s  # trimmed point-to-point: no sliding
     return R, k, t, res

@@ -56,9 +56,10 @@ from .carriers import eligible_carriers, select_carriers
 from .errors import KeyFileError, PayloadError
 from .key import WatermarkKey, derive_seed, make_secret
 from .progressive import build_progressive_mesh
-from .register import register, surface_frame
+from .features import vertex_normals
+from .register import nearest, register, surface_frame
 from .watermark import (EmbedOptions, EmbedResult, Progress, Verdict, _verdict, check_mesh,
-                        mean_edge_length, payload_bits)
+                        check_options, mean_edge_length, payload_bits)
 
 SITES_PER_BIT = 6
 RADIUS_EDGES = 2.5  # bump radius in mean edge lengths
@@ -76,14 +77,6 @@ EXTRA_VERSION = 2
 
 
 # --------------------------------------------------------------------------- geometry helpers
-
-
-def vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (zero for isolated vertices)."""
-    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    vn = np.stack([np.bincount(F.ravel(), weights=np.repeat(fn[:, a], 3), minlength=len(V))
-                   for a in range(3)], axis=1)
-    return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
 
 def tangent_frames(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -120,13 +113,13 @@ def _min_spacing(P: np.ndarray, chunk: int = 1024) -> float:
     return float(np.sqrt(best))
 
 
-def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: Optional[np.ndarray] = None) -> np.ndarray:
-    """Height along ``normal`` of the surface over each stencil point (S, K) (NaN: no surface).
+def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) -> np.ndarray:
+    """Height along ``normal`` of the surface over each sample point (S, K) (NaN: no surface).
 
-    Stencil point k of site s is the line origin[s] + u t1[s] + v t2[s] + h normal[s]; every
-    triangle within ``reach`` of the site is projected into the site frame and the crossing with
-    the smallest |h| is kept (either face orientation, so flipped copies still read). With
-    ``expect`` (S, K, 2), the crossing nearest to either expected height is kept instead.
+    Sample k of site s is the line origin[s] + u t1[s] + v t2[s] + h normal[s]; every triangle
+    within ``reach`` of the site is projected into the site frame, and of the crossings the one
+    nearest to either expected height ``expect`` (S, K, 2) is kept (either face orientation, so
+    flipped copies still read).
     """
     S, K = uv.shape[:2]
     out = np.full((S, K), np.nan)
@@ -165,14 +158,11 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: Optional[np.
     if len(slot) == 0:
         return out
     # a line may cross the surface more than once (folds, thin parts, coarse levels of detail):
-    # take the front-facing crossing (face normal along the site normal) nearest the site, and a
-    # back-facing one only where there is none (copies whose faces were flipped)
+    # take the crossing nearest an expected height, a front-facing one (face normal along the
+    # site normal) before a back-facing one at the same distance (copies whose faces were flipped)
     back = det[pk] < 0
-    if expect is None:
-        order = np.lexsort((np.abs(h), back, slot))
-    else:
-        e = expect.reshape(S * K, 2)[slot]
-        order = np.lexsort((back, np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1])), slot))
+    e = expect.reshape(S * K, 2)[slot]
+    order = np.lexsort((back, np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1])), slot))
     slot, h = slot[order], h[order]
     first = np.r_[True, slot[1:] != slot[:-1]]
     out.ravel()[slot[first]] = h[first]
@@ -215,11 +205,7 @@ def _assign_bits(P: np.ndarray, n_bits: int, per_bit: int, seed: int) -> np.ndar
 def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
                  sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
     """Watermark a mesh with the robust scheme (module docstring); same options/result as ``embed``."""
-    opts = options or EmbedOptions()
-    if not (opts.strength > 0 and np.isfinite(opts.strength)):
-        raise PayloadError(f"strength must be a positive number, got {opts.strength}")
-    if not (0 < opts.base_ratio <= 1):
-        raise PayloadError(f"base ratio must be in (0, 1], got {opts.base_ratio}")
+    opts = check_options(options or EmbedOptions())
     per_bit = max(2, 2 * (int(sites_per_bit) // 2))
     V, F = check_mesh(vertices, faces)
     report = progress or (lambda f, m: None)
@@ -298,22 +284,19 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         good = np.isfinite(score[first])
         ring[si[first][good], k] = vi[first][good]
     counts = np.bincount(si, minlength=len(P))
-    stencil = np.concatenate([sites[:, None], np.where(ring >= 0, ring, sites[:, None])], axis=1)
-    samples = _Samples(counts, u, v, h_ref, vi, stencil)
-    site = {"origin": P, "normal": N, "radius": r, "amplitude": A, "bit": bit_of, "chip": chip,
-            "usable": (ring >= 0).all(axis=1), "samples": samples}
-    # each site's own readings of the marked mesh, all samples (attacked copies) and the protected
-    # ones only (the marked mesh and its levels of detail): clearly its sign, or left out. On small
-    # meshes a neighbour's bump may reach a site's samples and spoil one reading or both.
-    good = {}
-    for stencil_only in (False, True):
-        soft, _ = _site_soft(marked, F, site, by_index=True, stencil_only=stencil_only)
-        good[stencil_only] = site["usable"] & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
-    usable, stencil_ok = good[False], good[True]
+    site = {"origin": P, "normal": N, "t1": t1, "t2": t2, "radius": r, "amplitude": A,
+            "samples": _Samples(counts, u, v, h_ref, vi)}
+    # each site's own readings of the marked mesh, by all samples (attacked copies) and by its
+    # vertex alone (the marked mesh and its levels of detail): clearly its sign, or left out. On
+    # small meshes a neighbour's bump may reach a site's samples and spoil one reading or both.
+    ring_found = (ring >= 0).all(axis=1)
+    good = [ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
+            for soft in (_site_soft(marked, F, site, by_index=True)[0], _centre_soft(marked, site, True))]
+    usable, centre_ok = good
     report(0.2, "sites marked")
 
     protected = np.zeros(len(V), bool)
-    keep = usable | stencil_ok
+    keep = usable | centre_ok
     protected[sites[keep]] = True
     protected[ring[keep].ravel()] = True
     base = max(int(round(opts.base_ratio * len(V))), 4)
@@ -333,13 +316,12 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
         "site_bit": bit_of.tolist(),
         "site_chip": chip.astype(int).tolist(),
         "site_usable": usable.astype(int).tolist(),
-        "site_stencil_ok": stencil_ok.astype(int).tolist(),
+        "site_centre_ok": centre_ok.astype(int).tolist(),
         "site_origin": P.tolist(),  # full precision: the centre sample's line passes through the vertex
         "site_normal": N.tolist(),
         "sample_count": counts.tolist(),
         "samples": _pack(np.stack([u, v, h_ref], axis=1), "<f4"),
         "sample_vertex": _pack(vi, "<u4"),
-        "site_stencil": stencil.tolist(),  # the protected vertices: site and ring
         "frame": surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)),
     }
     key = WatermarkKey(
@@ -364,10 +346,10 @@ def profile(u: np.ndarray, v: np.ndarray, r: float) -> np.ndarray:
 
 
 class _Samples:
-    """Each site's samples, padded to (sites, K): u, v, stored height, vertex index, validity, and
-    whether the sample is one of the site's protected (stencil) vertices."""
+    """Each site's samples, padded to (sites, K): u, v, stored height, vertex index, validity; and
+    the slot of the site's own vertex (u = v = 0), -1 where it is not a sample."""
 
-    def __init__(self, counts: np.ndarray, u, v, h, vertex, stencil: np.ndarray):
+    def __init__(self, counts: np.ndarray, u, v, h, vertex):
         S, K = len(counts), max(int(counts.max(initial=0)), 1)
         site = np.repeat(np.arange(S), counts)
         slot = np.arange(len(site)) - np.repeat(np.cumsum(counts) - counts, counts)
@@ -377,7 +359,8 @@ class _Samples:
         self.vertex = np.zeros((S, K), np.int64)
         for name, val in (("u", u), ("v", v), ("h", h), ("vertex", vertex)):
             getattr(self, name)[site, slot] = val
-        self.stencil = self.mask & (self.vertex[:, :, None] == stencil[:, None, :]).any(axis=2)
+        at_site = self.mask & (self.u == 0) & (self.v == 0)
+        self.centre = np.where(at_site.any(axis=1), np.argmax(at_site, axis=1), -1)
 
 
 def _pack(a: np.ndarray, dtype: str) -> str:
@@ -403,7 +386,7 @@ def _site_arrays(key: WatermarkKey) -> dict:
             "bit": np.asarray(x["site_bit"], np.int64),
             "chip": np.asarray(x["site_chip"], np.float64),
             "usable": np.asarray(x["site_usable"], bool),
-            "stencil_ok": np.asarray(x["site_stencil_ok"], bool),
+            "centre_ok": np.asarray(x["site_centre_ok"], bool),
             "origin": np.asarray(x["site_origin"], np.float64).reshape(-1, 3),
             "normal": np.asarray(x["site_normal"], np.float64).reshape(-1, 3),
             "radius": float(x["radius"]),
@@ -415,8 +398,8 @@ def _site_arrays(key: WatermarkKey) -> dict:
             raise ValueError("sample counts")
         uvh = _unpack(x["samples"], "<f4", (total, 3))
         vertex = _unpack(x["sample_vertex"], "<u4", (total,))
-        stencil = np.asarray(x["site_stencil"], np.int64).reshape(len(counts), -1)
-        out["samples"] = _Samples(counts, uvh[:, 0], uvh[:, 1], uvh[:, 2], vertex, stencil)
+        out["samples"] = _Samples(counts, uvh[:, 0], uvh[:, 1], uvh[:, 2], vertex)
+        out["t1"], out["t2"] = tangent_frames(out["normal"])
         fr = x["frame"]
         shapes = {"points": (-1, 3), "normals": (-1, 3), "centroid": (3,), "axes": (3, 3)}
         out["frame"] = {k: np.asarray(fr[k], np.float64).reshape(shp) for k, shp in shapes.items()}
@@ -430,7 +413,7 @@ def _site_arrays(key: WatermarkKey) -> dict:
     except (KeyError, TypeError, ValueError, OverflowError, binascii.Error) as exc:
         raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
     n = len(out["bit"])
-    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "stencil_ok", "origin", "normal")) \
+    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "centre_ok", "origin", "normal")) \
             or out["bit"].min() < 0 or out["bit"].max() >= key.n_bits \
             or out["samples"].vertex.max(initial=0) >= key.n_vertices:
         raise KeyFileError("the robust key's site data are inconsistent; it is damaged")
@@ -447,7 +430,7 @@ def _sample_heights(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> np
     if by_index:
         H = np.einsum("skj,sj->sk", X[sm.vertex] - P[:, None, :], N)
         return np.where(sm.mask, H, np.nan)
-    t1, t2 = tangent_frames(N)
+    t1, t2 = s["t1"], s["t2"]
     far = 1e30  # padding lines far outside any face
     uv = np.stack([np.where(sm.mask, sm.u, far), np.where(sm.mask, sm.v, far)], axis=2)
     shift = s["amplitude"] * profile(sm.u, sm.v, s["radius"])
@@ -461,47 +444,42 @@ def _sample_heights(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> np
     return H
 
 
-def _stencil_heights(X: np.ndarray, s: dict) -> np.ndarray:
-    """Heights of the protected (stencil) samples on a copy in the key's frame, read at the suspect
-    vertex nearest to the sample's unmarked place (NaN when none is within 1.5 bump heights: a
-    vertex moves by its own bump, or a neighbour's on a small mesh). Lines would also do, but on a
-    coarse level of detail the fan around a vertex may fold over its own line, which then misses it
-    by a rounding error."""
-    from .register import _nearest
+def _centre_heights(X: np.ndarray, P: np.ndarray, N: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Height along N of the suspect vertex nearest each site's place P (NaN when none is within
+    ``reach``), and how far off the line P + h N that vertex lies."""
+    j, d2 = nearest(X, P)
+    rel = X[j] - P
+    h = np.einsum("ij,ij->i", rel, N)
+    off = np.linalg.norm(rel - h[:, None] * N, axis=1)
+    return np.where(d2 <= reach * reach, h, np.nan), off
 
+
+def _centre_soft(X: np.ndarray, s: dict, by_index: bool) -> np.ndarray:
+    """Soft value per site read at the site's own vertex alone (its height change over the bump
+    height; NaN where unreadable): exact on the marked mesh and its levels of detail, where the
+    site vertex is kept and the other samples lie on a coarser surface. By position it is the
+    suspect vertex within 1.5 bump heights of the site's place (a neighbour's bump may add to its
+    own on a small mesh); lines would miss it where a coarse fan folds over its own vertex."""
     sm = s["samples"]
-    P, N = s["origin"], s["normal"]
-    t1, t2 = tangent_frames(N)
-    si, ki = np.nonzero(sm.stencil)
-    base = P[si] + sm.u[si, ki, None] * t1[si] + sm.v[si, ki, None] * t2[si] + sm.h[si, ki, None] * N[si]
-    j, d2 = _nearest(X, base)
-    near = np.sqrt(d2) <= 1.5 * s["amplitude"] + 1e-6 * s["frame"]["scale"]
-    H = np.full(sm.mask.shape, np.nan)
-    H[si, ki] = np.where(near, np.einsum("ij,ij->i", X[j] - P[si], N[si]), np.nan)
-    return H
+    P, N, A = s["origin"], s["normal"], s["amplitude"]
+    has = sm.centre >= 0
+    if by_index:
+        v = sm.vertex[np.arange(len(P)), np.maximum(sm.centre, 0)]
+        h = np.einsum("ij,ij->i", X[v] - P, N)
+    else:
+        h, _ = _centre_heights(X, P, N, 1.5 * A + 1e-6 * s["frame"]["scale"])
+    return np.where(has, h / A, np.nan)
 
 
-def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool, stencil_only: bool = False
-               ) -> tuple[np.ndarray, np.ndarray]:
+def _site_soft(X: np.ndarray, F: np.ndarray, s: dict, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
 
     y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
     projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
     the nuisance is removed where the noise is low and the filter tends to p where it is high.
-    ``stencil_only``: read the protected site vertex alone (its height change over the bump
-    height), for the marked mesh and its levels of detail: exact there, where the other samples lie
-    on a coarser approximation of the surface and nothing has moved the copy.
     """
     sm = s["samples"]
     r, A = s["radius"], s["amplitude"]
-    if stencil_only:
-        H = _stencil_heights(X, s) if not by_index else _sample_heights(X, F, s, True)
-        p = np.where(sm.stencil, profile(sm.u, sm.v, r), -1.0)
-        c = np.argmax(p, axis=1)  # the site vertex (u = v = 0, profile 1)
-        rows = np.arange(len(c))
-        soft = (H[rows, c] - sm.h[rows, c]) / (A * np.maximum(p[rows, c], 1e-300))
-        ok = sm.stencil[rows, c] & (p[rows, c] > 0.5)
-        return np.where(ok, soft, np.nan), np.full(len(c), VAR_FLOOR)
     H = _sample_heights(X, F, s, by_index)
     ok = sm.mask & np.isfinite(H)
     y = np.where(ok, H - sm.h, 0.0)
@@ -552,14 +530,18 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
         extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
         mode = "registered"
     by_index = _same_vertices(X, s, key)
-    soft, var = _site_soft(X, F, s, by_index)
-    soft = np.where(s["usable"], soft, np.nan)
-    if aligned:  # exact at the protected vertices where that reading was right on the marked mesh
-        soft_p, var_p = _site_soft(X, F, s, by_index, stencil_only=True)
-        use_p = s["stencil_ok"] & np.isfinite(soft_p)
-        soft, var = np.where(use_p, soft_p, soft), np.where(use_p, var_p, var)
+    soft, var = np.full(len(s["bit"]), np.nan), np.full(len(s["bit"]), VAR_FLOOR)
+    full = s["usable"].copy()
+    if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
+        centre = _centre_soft(X, s, by_index)
+        at_centre = s["centre_ok"] & np.isfinite(centre)
+        soft[at_centre] = centre[at_centre]
+        full &= ~at_centre
+    if full.any():
+        soft_f, var_f = _site_soft(X, F, s, by_index)
+        soft[full], var[full] = soft_f[full], var_f[full]
     extra.update({"heights": ("by vertex index" if by_index else "by position")
-                  + (", protected vertices first" if aligned else ""),
+                  + (", site vertices first" if aligned else ""),
                   "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
     return bit_scores(soft, var, s, key.n_bits), mode, extra
 
@@ -578,23 +560,21 @@ def _same_vertices(X: np.ndarray, s: dict, key: WatermarkKey) -> bool:
     sm = s["samples"]
     if len(X) != key.n_vertices:
         return False
-    t1, t2 = tangent_frames(s["normal"])
+    t1, t2 = s["t1"][:, None, :], s["t2"][:, None, :]
     P, N = s["origin"][:, None, :], s["normal"][:, None, :]
-    expect = P + sm.u[..., None] * t1[:, None, :] + sm.v[..., None] * t2[:, None, :] + sm.h[..., None] * N
+    expect = P + sm.u[..., None] * t1 + sm.v[..., None] * t2 + sm.h[..., None] * N
     dist = np.linalg.norm(X[sm.vertex] - expect, axis=2)[sm.mask]
     return bool(len(dist) and np.median(dist) < INDEX_MATCH * s["frame"]["scale"])
 
 
 def _in_key_frame(V: np.ndarray, s: dict, key: WatermarkKey) -> bool:
-    """True when most site centres sit exactly (float32 precision) on a suspect vertex at one of
-    their two possible marked positions: the marked mesh itself or one of its levels of detail,
-    in its own frame. Registration would only blur it then (it is accurate to ~0.1 % only)."""
-    from .register import _nearest
-
-    use = np.flatnonzero(s["usable"] | s["stencil_ok"])[:64]
+    """True when most site vertices sit exactly (float32 precision) at one of their two possible
+    marked places, P +- A N: the marked mesh itself or one of its levels of detail, in its own
+    frame. Registration would only blur it then (it is accurate to ~0.1 % only)."""
+    use = np.flatnonzero(s["usable"] | s["centre_ok"])[:64]
     if len(use) == 0:
         return False
-    o, n, g = s["origin"][use], s["normal"][use], s["amplitude"]
-    _, d2 = _nearest(V, np.concatenate([o + g * n, o - g * n]))
-    dist = np.sqrt(np.minimum(d2[: len(use)], d2[len(use):]))
-    return bool(np.mean(dist <= 1e-6 * key.bbox_diagonal) > 0.5)
+    tol = 1e-6 * key.bbox_diagonal
+    h, off = _centre_heights(V, s["origin"][use], s["normal"][use], 2.0 * s["amplitude"])
+    exact = (off <= tol) & (np.abs(np.abs(h) - s["amplitude"]) <= tol)
+    return bool(np.mean(exact) > 0.5)

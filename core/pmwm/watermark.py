@@ -37,6 +37,7 @@ from .carriers import eligible_carriers, select_carriers
 from .errors import MeshError, PayloadError
 from .key import WatermarkKey, derive_seed, make_secret
 from .progressive import ProgressiveMesh, build_progressive_mesh
+from .register import nearest
 
 Progress = Optional[Callable[[float, str], None]]
 DEFAULT_BITS = 64
@@ -214,19 +215,24 @@ def _grouped_stats(P: np.ndarray, rec: np.ndarray, k: int):
     return mu, np.sqrt(var), cnt
 
 
-def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
-    """Watermark a triangle mesh; see the module docstring and docs/api.md."""
-    opts = options or EmbedOptions()
-    if opts.scheme == "robust":
-        from .robust import robust_embed
-
-        return robust_embed(vertices, faces, opts, progress=progress)
-    if opts.scheme != "paper":
-        raise PayloadError(f"unknown scheme {opts.scheme!r}; use 'paper' or 'robust'")
+def check_options(opts: EmbedOptions) -> EmbedOptions:
+    """``opts`` when its scheme, strength and base ratio make sense, else PayloadError."""
+    if opts.scheme not in ("robust", "paper"):
+        raise PayloadError(f"unknown scheme {opts.scheme!r}; use 'robust' or 'paper'")
     if not (opts.strength > 0 and np.isfinite(opts.strength)):
         raise PayloadError(f"strength must be a positive number, got {opts.strength}")
     if not (0 < opts.base_ratio <= 1):
         raise PayloadError(f"base ratio must be in (0, 1], got {opts.base_ratio}")
+    return opts
+
+
+def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
+    """Watermark a triangle mesh; see the module docstring and docs/api.md."""
+    opts = check_options(options or EmbedOptions())
+    if opts.scheme == "robust":
+        from .robust import robust_embed
+
+        return robust_embed(vertices, faces, opts, progress=progress)
     V, F = check_mesh(vertices, faces)
     report = progress or (lambda f, m: None)
     secret = make_secret(opts.seed)
@@ -314,26 +320,10 @@ def locate_carriers(V: np.ndarray, key: WatermarkKey) -> tuple[np.ndarray, str]:
     if best is not None:
         return best[1], "index"
     found = np.full(key.n_bits, -1, np.int64)
-    nearest, dist = _nearest(V, key.carrier_position)
-    ok = dist <= tol
-    found[ok] = nearest[ok]
+    near, d2 = nearest(V, key.carrier_position)
+    ok = d2 <= tol * tol
+    found[ok] = near[ok]
     return found, "position"
-
-
-def _nearest(V: np.ndarray, Q: np.ndarray, chunk: int = 1 << 20) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest vertex of V to each query point (brute force in chunks: queries are few)."""
-    best = np.full(len(Q), -1, np.int64)
-    bestd = np.full(len(Q), np.inf)
-    step = max(1, chunk // max(len(Q), 1))
-    for s in range(0, len(V), step):
-        block = V[s : s + step]
-        d2 = ((block[None, :, :] - Q[:, None, :]) ** 2).sum(axis=2)
-        j = np.argmin(d2, axis=1)
-        dj = d2[np.arange(len(Q)), j]
-        better = dj < bestd
-        best[better] = s + j[better]
-        bestd[better] = dj[better]
-    return best, np.sqrt(bestd)
 
 
 def carrier_scores(V: np.ndarray, F: np.ndarray, idx: np.ndarray) -> np.ndarray:
