@@ -458,11 +458,7 @@ def _rows_min(adj: Adjacency, verts: np.ndarray, values: np.ndarray, empty, per_
     cnt = np.diff(adj.ring_ptr)[verts]
     pos = ranges(adj.ring_ptr[verts], cnt)
     vals = values[pos] if per_entry else values[adj.ring_idx[pos]]
-    out = np.full(len(verts), empty, dtype=np.result_type(vals, type(empty)))
-    nz = cnt > 0
-    if nz.any():
-        out[nz] = np.minimum.reduceat(vals, (np.cumsum(cnt) - cnt)[nz])
-    return out
+    return segment_reduce(np.r_[0, np.cumsum(cnt)], vals, np.minimum, empty)
 
 
 _BUCKETS = 16
