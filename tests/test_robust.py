@@ -53,7 +53,9 @@ def test_unattacked_and_key_round_trip(marked):
         ("similarity", lambda V, F: attacks.similarity(V, F, seed=5)),
         ("quantize 8 bits", lambda V, F: attacks.quantize(V, F, bits=8)),
         ("crop 50 %", lambda V, F: attacks.crop_plane(V, F, fraction=0.5, seed=5)),
+        ("simplify 10 %", lambda V, F: attacks.simplify(V, F, ratio=0.1)),
         ("simplify 30 %", lambda V, F: attacks.simplify(V, F, ratio=0.3)),
+        ("Loop subdivision", lambda V, F: attacks.subdivide(V, F, scheme="loop")),
         ("midpoint subdivision", lambda V, F: attacks.subdivide(V, F, scheme="midpoint")),
         ("quads re-triangulated", lambda V, F: attacks.retriangulate(V, F, seed=5)),
         ("paper smoothing 20 it.", lambda V, F: attacks.smooth_laplacian(V, F, lam=0.03, iterations=20)),
@@ -63,6 +65,16 @@ def test_unattacked_and_key_round_trip(marked):
 )
 def test_payload_survives(marked, name, attack):
     _reads(marked, *attack(marked.vertices, marked.faces))
+
+
+@pytest.mark.parametrize("ext", [".obj", ".ply", ".stl", ".off", ".glb"])
+def test_reexported_copies_read_the_payload(tmp_path, marked, ext):
+    """Re-exported to every supported format (STL and GLB lose the vertex order): the payload exact."""
+    path = tmp_path / f"copy{ext}"
+    pmwm.write_mesh(path, marked.vertices, marked.faces)
+    src = pmwm.read_mesh(path)
+    v = _reads(marked, src.vertices, src.faces)
+    assert v.bit_errors == 0
 
 
 def test_every_level_of_detail_reads_the_payload(marked):
@@ -118,17 +130,23 @@ def test_small_mesh_uses_fewer_sites_and_still_reads():
 
 
 def test_scheme_dispatch_library_and_command_line(tmp_path, marked):
-    """`pmwm.verify` reads a robust key with the robust reader; `pmwm embed --scheme robust` works end to end."""
+    """`pmwm.verify` reads a robust key with the robust reader; `pmwm embed` makes robust keys by default
+    and paper keys with `--scheme paper`, and both verify end to end."""
     V2, F2 = attacks.similarity(marked.vertices, marked.faces, seed=9)
     v = pmwm.verify(V2, F2, marked.key)
     assert v.marked and v.payload == PAYLOAD and v.mode == "registered"
     src = tmp_path / "cow.off"
     src.write_bytes(data_path("cow_libigl.off").read_bytes())
     out, key = tmp_path / "m.ply", tmp_path / "k.json"
-    assert pmwm.cli.main(["embed", str(src), "-o", str(out), "--key", str(key), "--scheme", "robust",
+    assert pmwm.cli.main(["embed", str(src), "-o", str(out), "--key", str(key),
                           "--bits", "10" * 16, "--seed", "2", "-q"]) == 0
     assert pmwm.read_key(key).scheme == "robust"
     assert pmwm.cli.main(["verify", str(out), "--key", str(key)]) == 0
+    out_p, key_p = tmp_path / "p.ply", tmp_path / "p.json"
+    assert pmwm.cli.main(["embed", str(src), "-o", str(out_p), "--key", str(key_p), "--scheme", "paper",
+                          "--bits", "10" * 16, "--seed", "2", "-q"]) == 0
+    assert pmwm.read_key(key_p).scheme == "paper"
+    assert pmwm.cli.main(["verify", str(out_p), "--key", str(key_p)]) == 0
     with pytest.raises(pmwm.PayloadError, match="unknown scheme"):
         pmwm.embed(marked.vertices, marked.faces, pmwm.EmbedOptions(scheme="nope"))
 
