@@ -195,6 +195,18 @@ def _icp(S, ref_P, ref_N, R, k, t, ref_s, iterations):
     return R, k, t, res
 
 
+def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """Least-squares similarity (R, k, t) with dst ~ k R src + t for paired points (Umeyama 1991):
+    the exact registration when the correspondences are known."""
+    ms, md = src.mean(axis=0), dst.mean(axis=0)
+    a, b = src - ms, dst - md
+    U, sv, Wt = np.linalg.svd(b.T @ a)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt)) or 1.0])
+    R = U @ D @ Wt
+    k = float(np.trace(np.diag(sv) @ D) / max(np.einsum("ij,ij->", a, a), 1e-300))
+    return R, k, md - k * R @ ms
+
+
 def _rodrigues(axis: np.ndarray, angle: float) -> np.ndarray:
     K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
