@@ -77,6 +77,24 @@ def test_reexported_copies_read_the_payload(tmp_path, marked, ext):
     assert v.bit_errors == 0
 
 
+def test_cropped_and_moved_copies_are_registered(marked):
+    """Half the mesh cut off by a random plane, then rotated, scaled and moved: PCA of the half is not
+    the mesh's, so registration tries plane cuts of the key's reference samples."""
+    exact = 0
+    for seed in range(2, 8):
+        V, F = attacks.similarity(*attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=seed), seed=seed)
+        v = robust_verify(V, F, marked.key)
+        exact += v.marked and v.payload == PAYLOAD and v.bit_errors == 0
+    assert exact >= 5, exact
+
+
+def test_noisy_copy_in_any_pose_is_registered_by_vertex_index(marked):
+    V, F = attacks.noise_benchmark(*attacks.similarity(marked.vertices, marked.faces, seed=3), 0.003, seed=3)
+    v = robust_verify(V, F, marked.key)
+    assert v.extra["registration"] == "by vertex index" and v.extra["heights"] == "by vertex index"
+    _reads(marked, V, F)
+
+
 def test_every_level_of_detail_reads_the_payload(marked):
     pm = marked.pm
     for k in [0, *pm.level_records.tolist()]:

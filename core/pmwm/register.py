@@ -18,6 +18,11 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
    sampling noise (two samplings of the same surface, stored in the key as ``floor``).
    The winner gets 30 more ICP iterations. Accuracy is ~0.1 % of the size: enough for the robust
    reading, which is relative to a ring around each site.
+4. A copy cut by a plane AND moved defeats both starts: its PCA is not the reference's. When no start
+   reaches twice the sampling noise, the reference samples are cut by ``CUT_DIRECTIONS`` planes at
+   ``CUT_KEEP`` shares each; the cuts whose PCA shape (eigenvalue ratios) is closest to the suspect's
+   give ``CUT_CANDIDATES`` x 4 more starts, screened by ICP on a third of the samples. The best
+   ``CUT_FINALISTS`` and the best plain start are refined in full, and the smallest residual wins.
 
 Nearest neighbours are chunked brute force over a few thousand points (numpy only, no scipy).
 """
@@ -35,6 +40,11 @@ TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to hal
 ICP_ITERATIONS = 30
 COARSE_ITERATIONS = 8
 SUSPECT_SAMPLES = 1500
+CUT_DIRECTIONS = 128  # plane directions tried for cropped-and-moved copies (Fibonacci sphere)
+CUT_KEEP = (0.5, 0.6, 0.7, 0.8, 0.9)  # shares of the reference kept by each cut
+CUT_CANDIDATES = 16  # cuts whose PCA shape is closest to the suspect's
+CUT_FINALISTS = 4  # screened cut starts refined in full
+SIGNS = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1))  # proper sign flips of PCA axes
 
 
 @dataclass
@@ -74,13 +84,7 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
     V = np.asarray(suspect_V, np.float64)
     S, _ = _samples_with_normals(V, suspect_F, SUSPECT_SAMPLES, seed)
     c, A, s = _pca(S)
-    inits = [("identity", np.eye(3), 1.0, np.zeros(3))]
-    for signs in ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)):
-        R = ref_A.T @ np.diag(signs) @ A  # rows of A are the axes
-        if np.linalg.det(R) < 0:
-            R = ref_A.T @ np.diag(signs) @ np.diag([1, 1, -1]) @ A
-        k = ref_s / max(s, 1e-300)
-        inits.append((f"pca{signs}", R, k, ref_c - k * R @ c))
+    inits = [("identity", np.eye(3), 1.0, np.zeros(3))] + _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
     k_pca = ref_s / max(s, 1e-300)
     floor = float(frame.get("floor", 0.0))
     best = None
@@ -94,11 +98,58 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
             break
     if best is None:
         best = inits[1] + (np.inf,)
-    name, R, k, t, _ = best
-    R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, ICP_ITERATIONS)
-    best = (name, R, k, t, res)
-    name, R, k, t, res = best
+    finalists = [best]
+    if not best[4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
+        sub = slice(None, None, 3)
+        screened = []
+        for name, R, k, t in _cut_starts(ref_P, S):
+            R, k, t, res = _icp(S[sub], ref_P[sub], ref_N[sub], R, k, t, ref_s, COARSE_ITERATIONS)
+            if 0.3 * k_pca < k < 3.0 * k_pca:
+                screened.append((name, R, k, t, res))
+        finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
+    refined = []
+    for name, R, k, t, _ in finalists:
+        R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, ICP_ITERATIONS)
+        refined.append((res, len(refined), name, R, k, t))
+    res, _, name, R, k, t = min(refined)
     return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
+
+
+def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s) -> list:
+    """Similarity starts mapping a PCA frame (c, A, s) onto a reference one, for the 4 sign flips."""
+    out = []
+    for signs in SIGNS:
+        R = ref_A.T @ np.diag(signs) @ A  # rows of A are the axes
+        if np.linalg.det(R) < 0:
+            R = ref_A.T @ np.diag(signs) @ np.diag([1, 1, -1]) @ A
+        k = ref_s / max(s, 1e-300)
+        out.append((f"{label}{signs}", R, k, ref_c - k * R @ c))
+    return out
+
+
+def _cut_starts(ref_P: np.ndarray, S: np.ndarray) -> list:
+    """Starts from the plane cuts of the reference samples whose PCA shape best matches the suspect's."""
+    i = np.arange(CUT_DIRECTIONS) + 0.5
+    z = 1.0 - 2.0 * i / CUT_DIRECTIONS
+    th = np.pi * (1.0 + 5.0**0.5) * i
+    dirs = np.stack([np.sqrt(1.0 - z * z) * np.cos(th), np.sqrt(1.0 - z * z) * np.sin(th), z], axis=1)
+    proj = ref_P @ dirs.T
+    cuts = proj <= np.quantile(proj, CUT_KEEP, axis=0)[:, None, :]  # (keep, point, direction)
+    cuts = cuts.transpose(0, 2, 1).reshape(-1, len(ref_P))
+    shape = lambda P: np.log(np.maximum(_spread(P), 1e-300))  # noqa: E731
+    target = shape(S)
+    dist = np.array([np.abs(shape(ref_P[m]) - target).sum() for m in cuts])
+    c, A, s = _pca(S)
+    out = []
+    for j in np.argsort(dist, kind="stable")[:CUT_CANDIDATES]:
+        out += _pca_starts(f"cut{j}", *_pca(ref_P[cuts[j]]), c, A, s)
+    return out
+
+
+def _spread(P: np.ndarray) -> np.ndarray:
+    """Ratios of consecutive PCA variances (scale- and rotation-free shape of a point set)."""
+    w = np.sort(np.linalg.eigvalsh(np.cov((P - P.mean(axis=0)).T, bias=True)))[::-1]
+    return w[:2] / np.maximum(w[1:], 1e-300)
 
 
 # --------------------------------------------------------------------------- helpers

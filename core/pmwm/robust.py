@@ -579,13 +579,21 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
     if aligned:
         X, extra = V, {"registration": "none (already in the key's frame)"}
         mode = "aligned"
+        by_index = _same_vertices(X, s, key)
     else:
-        X, info = register(V, F, s["frame"])
-        extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
         mode = "registered"
-    by_index = _same_vertices(X, s, key)
-    if by_index and not aligned:
-        X = _refine_by_index(X, s)
+        # the marked vertices in their order (noise, smoothing, quantization, any pose): the
+        # similarity fit of the sample vertices is the registration, no ICP needed
+        X = _refine_by_index(V, s) if len(V) == key.n_vertices else V
+        by_index = len(V) == key.n_vertices and _same_vertices(X, s, key)
+        if by_index:
+            extra = {"registration": "by vertex index"}
+        else:
+            X, info = register(V, F, s["frame"])
+            extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
+            by_index = _same_vertices(X, s, key)
+            if by_index:
+                X = _refine_by_index(X, s)
     soft, var = np.full(len(s["bit"]), np.nan), np.full(len(s["bit"]), VAR_FLOOR)
     full = s["usable"].copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
