@@ -88,6 +88,18 @@ def test_cropped_and_moved_copies_are_registered(marked):
     assert exact >= 5, exact
 
 
+def test_similarity_fit_recovers_a_similarity_exactly():
+    from pmwm.register import similarity_fit
+
+    rng = np.random.default_rng(0)
+    P = rng.normal(size=(50, 3))
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    Q *= np.sign(np.linalg.det(Q))  # a rotation, not a reflection
+    R, k, t = similarity_fit(P, 3.5 * P @ Q.T + [1.0, -2.0, 0.5])
+    np.testing.assert_allclose(R, Q, atol=1e-12)
+    np.testing.assert_allclose([k, *t], [3.5, 1.0, -2.0, 0.5], atol=1e-12)
+
+
 def test_noisy_copy_in_any_pose_is_registered_by_vertex_index(marked):
     V, F = attacks.noise_benchmark(*attacks.similarity(marked.vertices, marked.faces, seed=3), 0.003, seed=3)
     v = robust_verify(V, F, marked.key)

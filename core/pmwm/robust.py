@@ -444,8 +444,9 @@ def _site_arrays(key: WatermarkKey) -> dict:
             raise ValueError("sample values")
     except (KeyError, TypeError, ValueError, OverflowError, binascii.Error) as exc:
         raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
-    n = len(out["bit"])
-    if n == 0 or any(len(out[k]) != n for k in ("chip", "usable", "centre_ok", "swirl_ok", "origin", "normal")) \
+    n = len(out["bit"]) if np.ndim(out["bit"]) == 1 else 0
+    if n == 0 or any(np.ndim(out[k]) == 0 or len(out[k]) != n
+                     for k in ("chip", "usable", "centre_ok", "swirl_ok", "origin", "normal")) \
             or out["bit"].min() < 0 or out["bit"].max() >= key.n_bits \
             or out["samples"].vertex.max(initial=0) >= key.n_vertices:
         raise KeyFileError("the robust key's site data are inconsistent; it is damaged")
