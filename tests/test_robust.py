@@ -88,6 +88,25 @@ def test_cropped_and_moved_copies_are_registered(marked):
     assert exact >= 5, exact
 
 
+def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
+    """Over 500 random planes each cutting off half the vertices, every bit keeps at least one site
+    (the bit assignment is spread over cuts); a cropped copy is read in the key's frame, at the
+    site vertices that survived."""
+    from pmwm.robust import _site_arrays
+
+    V, F = bunny
+    s = _site_arrays(marked.key)
+    d = np.random.default_rng(99).standard_normal((500, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    kept = (s["origin"] @ d.T) <= np.quantile(V @ d.T, 0.5, axis=0)
+    per_bit = np.zeros((marked.key.n_bits, len(d)))
+    np.add.at(per_bit, s["bit"], kept)
+    assert per_bit.min() >= 1, int((per_bit.min(axis=0) == 0).sum())
+    X, FF = attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=1)
+    v = _reads(marked, X, FF)
+    assert v.mode == "aligned" and v.extra["heights"] == "by position, site vertices first"
+
+
 def test_similarity_fit_recovers_a_similarity_exactly():
     from pmwm.register import similarity_fit
 

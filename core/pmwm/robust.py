@@ -82,8 +82,12 @@ RING_DISTANCE = 1.3  # their distance / r
 TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of the nuisance fit)
 VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
+IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
 INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
 REF_POINTS = 3000  # registration samples stored in the key
+CUT_TESTS = 256  # plane directions the bit assignment is checked against
+CUT_KEEP_MIN = 2  # sites a bit should keep under each tested cut
+SWAP_ROUNDS = 20  # swap attempts per site in that check
 SCHEME = "robust"
 EXTRA_VERSION = 2
 
@@ -185,8 +189,10 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
 
 
 def _assign_bits(P: np.ndarray, n_bits: int, per_bit: int, seed: int) -> np.ndarray:
-    """Bit index of each site: pairs of roughly opposite sites (about the centroid) go to the
-    same bit, pairs are dealt to bits in a keyed order, so each bit has sites on both sides."""
+    """Bit index of each site, so that a plane cutting off up to half the sites leaves every bit
+    some: pairs of roughly opposite sites (about the centroid) are dealt to bits in a keyed order,
+    then keyed swaps between bits remove the (bit, cut) pairs where a bit keeps fewer than
+    ``CUT_KEEP_MIN`` sites, over ``CUT_TESTS`` plane directions cutting 50 % and 60 % of the sites."""
     n = len(P)
     rng = np.random.default_rng(seed)
     u = P - P.mean(axis=0)
@@ -211,6 +217,38 @@ def _assign_bits(P: np.ndarray, n_bits: int, per_bit: int, seed: int) -> np.ndar
         for i in pair:
             bit[i] = slots[pos]
             pos += 1
+    return _spread_over_cuts(P, bit, n_bits, rng)
+
+
+def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng) -> np.ndarray:
+    """Keyed local search: swap sites between bits while the number of (bit, cut) pairs with
+    fewer than CUT_KEEP_MIN kept sites does not grow (each swap is one site-for-site exchange, so
+    every bit keeps its number of sites)."""
+    d = rng.standard_normal((CUT_TESTS, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    proj = P @ d.T  # (sites, directions)
+    kept = np.concatenate([proj <= np.quantile(proj, q, axis=0) for q in (0.5, 0.4)], axis=1)
+    count = np.zeros((n_bits, kept.shape[1]), np.int64)
+    np.add.at(count, bit, kept.astype(np.int64))
+    need = min(CUT_KEEP_MIN, int(np.bincount(bit).min()))
+    bit = bit.copy()
+    for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
+        bad = np.argwhere(count < need)
+        if len(bad) == 0:
+            break
+        b, c = bad[rng.integers(len(bad))]
+        mine = np.flatnonzero((bit == b) & ~kept[:, c])
+        other = np.flatnonzero((bit != b) & kept[:, c])
+        if len(mine) == 0 or len(other) == 0:
+            continue
+        i, j = mine[rng.integers(len(mine))], other[rng.integers(len(other))]
+        a = bit[j]
+        delta = kept[j].astype(np.int64) - kept[i]
+        new_b, new_a = count[b] + delta, count[a] - delta
+        before = (count[b] < need).sum() + (count[a] < need).sum()
+        if (new_b < need).sum() + (new_a < need).sum() <= before:
+            count[b], count[a] = new_b, new_a
+            bit[i], bit[j] = a, b
     return bit
 
 
@@ -651,13 +689,15 @@ def _refine_by_index(X: np.ndarray, s: dict) -> np.ndarray:
 
 
 def _in_key_frame(V: np.ndarray, s: dict, key: WatermarkKey) -> bool:
-    """True when most site vertices sit exactly (float32 precision) at one of their two possible
-    marked places, P +- A N: the marked mesh itself or one of its levels of detail, in its own
-    frame. Registration would only blur it then (it is accurate to ~0.1 % only)."""
-    use = np.flatnonzero(s["usable"] | s["centre_ok"])[:64]
+    """True when site vertices sit exactly (float32 precision) at one of their two possible marked
+    places, P +- A N: the marked mesh itself, one of its levels of detail, or a copy that kept part
+    of it in place (a crop, a light simplification), in its own frame. IN_PLACE_SHARE of the sites
+    is enough (a chance coincidence at 1e-6 of the size is impossible); registration would only blur
+    such a copy (it is accurate to ~0.1 % only)."""
+    use = np.flatnonzero(s["usable"] | s["centre_ok"])
     if len(use) == 0:
         return False
     tol = 1e-6 * key.bbox_diagonal
     h, off = _centre_heights(V, s["origin"][use], s["normal"][use], 2.0 * s["amplitude"])
     exact = (off <= tol) & (np.abs(np.abs(h) - s["amplitude"]) <= tol)
-    return bool(np.mean(exact) > 0.5)
+    return bool(exact.sum() >= max(3, IN_PLACE_SHARE * len(use)))
