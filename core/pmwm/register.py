@@ -102,7 +102,7 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
     if not best[4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
         sub = slice(None, None, 3)
         screened = []
-        for name, R, k, t in _cut_starts(ref_P, S):
+        for name, R, k, t in _cut_starts(ref_P, S, c, A, s):
             R, k, t, res = _icp(S[sub], ref_P[sub], ref_N[sub], R, k, t, ref_s, COARSE_ITERATIONS)
             if 0.3 * k_pca < k < 3.0 * k_pca:
                 screened.append((name, R, k, t, res))
@@ -127,8 +127,9 @@ def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s) -> list:
     return out
 
 
-def _cut_starts(ref_P: np.ndarray, S: np.ndarray) -> list:
-    """Starts from the plane cuts of the reference samples whose PCA shape best matches the suspect's."""
+def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:
+    """Starts from the plane cuts of the reference samples whose PCA shape best matches the
+    suspect's (S, with PCA frame c, A, s)."""
     i = np.arange(CUT_DIRECTIONS) + 0.5
     z = 1.0 - 2.0 * i / CUT_DIRECTIONS
     th = np.pi * (1.0 + 5.0**0.5) * i
@@ -136,20 +137,23 @@ def _cut_starts(ref_P: np.ndarray, S: np.ndarray) -> list:
     proj = ref_P @ dirs.T
     cuts = proj <= np.quantile(proj, CUT_KEEP, axis=0)[:, None, :]  # (keep, point, direction)
     cuts = cuts.transpose(0, 2, 1).reshape(-1, len(ref_P))
-    shape = lambda P: np.log(np.maximum(_spread(P), 1e-300))  # noqa: E731
-    target = shape(S)
-    dist = np.array([np.abs(shape(ref_P[m]) - target).sum() for m in cuts])
-    c, A, s = _pca(S)
+    dist = np.abs(_log_spread(ref_P, cuts) - _log_spread(S, np.ones((1, len(S)), bool))).sum(axis=1)
     out = []
     for j in np.argsort(dist, kind="stable")[:CUT_CANDIDATES]:
         out += _pca_starts(f"cut{j}", *_pca(ref_P[cuts[j]]), c, A, s)
     return out
 
 
-def _spread(P: np.ndarray) -> np.ndarray:
-    """Ratios of consecutive PCA variances (scale- and rotation-free shape of a point set)."""
-    w = np.sort(np.linalg.eigvalsh(np.cov((P - P.mean(axis=0)).T, bias=True)))[::-1]
-    return w[:2] / np.maximum(w[1:], 1e-300)
+def _log_spread(P: np.ndarray, masks: np.ndarray) -> np.ndarray:
+    """Log ratios of consecutive PCA variances of each masked subset of P (rows of ``masks``): a
+    scale- and rotation-free shape, (subsets, 2)."""
+    W = masks.astype(np.float64)
+    n = W.sum(axis=1)[:, None]
+    mu = W @ P / n
+    C = np.einsum("cn,ni,nj->cij", W, P - P.mean(axis=0), P - P.mean(axis=0)) / n[..., None]
+    m = mu - P.mean(axis=0)
+    w = np.linalg.eigvalsh(C - m[:, :, None] * m[:, None, :])[:, ::-1]
+    return np.log(np.maximum(w[:, :2], 1e-300) / np.maximum(w[:, 1:], 1e-300))
 
 
 # --------------------------------------------------------------------------- helpers

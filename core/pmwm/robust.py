@@ -35,11 +35,11 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
   level: at low noise the offset and tilt (registration error, smoothing shrinkage) are removed
   exactly, at high noise the filter tends to p itself, the optimum for white noise. a / A is the
   site's soft value (+-1 when intact).
-- By vertex index, the registration is first refined by the similarity that fits the sample vertices
+- By vertex index, the suspect is registered by the similarity that fits the sample vertices
   to their stored places (thousands of known pairs), and each site's swirl is read as well: the
-  sample vertices' tangent-plane shifts fitted as a * w + a common shift; it joins the bit's sum as
-  one more soft value with its own variance (large under smoothing, which also moves vertices
-  along the surface).
+  sample vertices' tangent-plane shifts fitted as a * w + a common shift, combined with the site's
+  bump reading by inverse variance (its variance is large under smoothing, which also moves
+  vertices along the surface).
 - A copy that sits exactly in the key's frame (the marked mesh, any of its levels of detail, a lossless
   re-export) is read at each protected site vertex alone, exact at every level; where a neighbour's bump
   spoilt that reading on the marked mesh (small meshes), all samples are read instead.
@@ -317,12 +317,11 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
     # the bumps
     D = np.zeros_like(V)
     np.add.at(D, vi, (sign[si] * A * prof)[:, None] * N[si])
-    if At > 0:  # the swirl, in each vertex's own tangent plane: it moves vertices, not the surface
-        gu, gv = swirl(u, v, r)
-        e = gu[:, None] * t1[si] + gv[:, None] * t2[si]
-        n = vn[vi]
-        e -= np.einsum("ij,ij->i", e, n)[:, None] * n
-        np.add.at(D, vi, (sign[si] * At)[:, None] * e)
+    # the swirls, in each vertex's own tangent plane: they move vertices, not the surface
+    gu, gv = swirl(u, v, r)
+    e = gu[:, None] * t1[si] + gv[:, None] * t2[si]
+    e -= np.einsum("ij,ij->i", e, vn[vi])[:, None] * vn[vi]
+    np.add.at(D, vi, (sign[si] * At)[:, None] * e)
     marked = (V + D).astype(np.float32).astype(np.float64)
 
     # protected annulus vertices: nearest to RING_DISTANCE * r at keyed angles, facing the site
@@ -351,7 +350,7 @@ def robust_embed(vertices, faces, options: Optional[EmbedOptions] = None, progre
             for soft in (_site_soft(marked, F, site, by_index=True)[0], _centre_soft(marked, site, True))]
     usable, centre_ok = good
     # and by its swirl (read by vertex index): a neighbour's bump may tilt it on a small mesh
-    swirl_ok = np.abs(_swirl_soft(marked, site)[0] - sign) < 0.5 if At > 0 else np.zeros(len(P), bool)
+    swirl_ok = np.abs(_swirl_soft(marked, site)[0] - sign) < 0.5
     report(0.2, "sites marked")
 
     protected = np.zeros(len(V), bool)
@@ -598,14 +597,21 @@ def _swirl_soft(X: np.ndarray, s: dict) -> tuple[np.ndarray, np.ndarray]:
     return np.where(readable, a / B, np.nan), s2 / gg / B**2 + VAR_FLOOR
 
 
+def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse-variance combination of two readings of the same sites (NaN: not read)."""
+    wa = np.where(np.isfinite(soft_a), 1.0 / var_a, 0.0)
+    wb = np.where(np.isfinite(soft_b), 1.0 / var_b, 0.0)
+    w = wa + wb
+    with np.errstate(invalid="ignore", divide="ignore"):
+        soft = (np.nan_to_num(soft_a) * wa + np.nan_to_num(soft_b) * wb) / w
+    return np.where(w > 0, soft, np.nan), np.where(w > 0, 1.0 / np.maximum(w, 1e-300), var_a)
+
+
 def bit_scores(soft: np.ndarray, var: np.ndarray, s: dict, n_bits: int) -> np.ndarray:
-    """Inverse-variance weighted, chip-signed sum of each bit's readable site readings (NaN soft
-    values are not read; 0 when no site of the bit is). Rows beyond the sites (the swirl
-    readings) belong to the sites in the same order."""
+    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (NaN soft values are
+    not read; 0 when no site of the bit is)."""
     ok = np.isfinite(soft)
-    reps = len(soft) // len(s["bit"])
-    bit, chip = np.tile(s["bit"], reps), np.tile(s["chip"], reps)
-    return np.bincount(bit[ok], weights=(chip * soft / var)[ok], minlength=n_bits)
+    return np.bincount(s["bit"][ok], weights=(s["chip"] * soft / var)[ok], minlength=n_bits)
 
 
 def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict]:
@@ -624,7 +630,7 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
         # the marked vertices in their order (noise, smoothing, quantization, any pose): the
         # similarity fit of the sample vertices is the registration, no ICP needed
         X = _refine_by_index(V, s) if len(V) == key.n_vertices else V
-        by_index = len(V) == key.n_vertices and _same_vertices(X, s, key)
+        by_index = _same_vertices(X, s, key)
         if by_index:
             extra = {"registration": "by vertex index"}
         else:
@@ -643,13 +649,12 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
     if full.any():
         soft_f, var_f = _site_soft(X, F, s, by_index)
         soft[full], var[full] = soft_f[full], var_f[full]
-        if by_index and s["swirl"] > 0:
+        if by_index and s["swirl"] > 0:  # keys from before the swirl have none
             soft_t, var_t = _swirl_soft(X, s)
-            soft = np.concatenate([soft, np.where(full & s["swirl_ok"], soft_t, np.nan)])
-            var = np.concatenate([var, var_t])
+            soft, var = _combine(soft, var, np.where(full & s["swirl_ok"], soft_t, np.nan), var_t)
     extra.update({"heights": ("by vertex index" if by_index else "by position")
                   + (", site vertices first" if aligned else ""),
-                  "sites_read": int(np.isfinite(soft[:len(s["bit"])]).sum()), "sites_total": int(len(s["bit"]))})
+                  "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
     return bit_scores(soft, var, s, key.n_bits), mode, extra
 
 
