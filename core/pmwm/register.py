@@ -110,8 +110,9 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
     refined = []
     for name, R, k, t, _ in finalists:
         R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, ICP_ITERATIONS)
-        refined.append((res, len(refined), name, R, k, t))
-    res, _, name, R, k, t = min(refined)
+        # a fit that collapsed (k -> 0 maps every point near one spot) has a tiny residual: not a fit
+        refined.append((not (0.3 * k_pca < k < 3.0 * k_pca), res, len(refined), name, R, k, t))
+    _, res, _, name, R, k, t = min(refined)
     return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
 
 
