@@ -9,7 +9,10 @@ the marked mesh.
 Embedding.
 - Sites: SOM-suitable vertices (``pmwm.carriers``) picked by seeded farthest-point sampling,
   ``sites_per_bit`` per payload bit, assigned to bits so that each bit's sites are spread around the
-  shape (pairs of roughly opposite sites): a plane cutting off half the mesh leaves most bits a site.
+  shape (pairs of roughly opposite sites, then keyed swaps checked against 512 plane cuts): a plane
+  cutting off half the mesh leaves every bit a site. Vertex density varies over a scan, and with it
+  the energy a site carries; pairs are dealt richest first in a snake order of the bits, and swaps
+  that keep the cuts even the bits out (a bit's error rate is convex in its energy).
 - Each site c with unit normal n (averaged over its disc) and tangent frame (t1, t2) gets a bump:
   vertex v whose tangent-plane distance d to c is below r moves by s * A * p(d) * n, with the
   profile p(d) = (1 - (d/r)^2)^2 and s = +-1 its chip (keyed, balanced within the bit) times the bit
@@ -21,8 +24,12 @@ Embedding.
   surface distance (MRMS) barely sees it, while a copy that keeps the vertex order gives it back to
   the reader: at equal MRMS, the energy a noise attack has to drown is tripled.
 - Samples: every vertex within ``OUTER`` * r of the site that faces the site's way. The key stores
-  each sample's tangent coordinates (u, v), its height along n on the UNMARKED mesh and its vertex
-  index; the annulus samples (p = 0) let the reader remove a local offset and tilt.
+  each sample's tangent coordinates (u, v), its height along n on the UNMARKED mesh, its vertex
+  index and its vertex normal in the site frame (float16; the reader rebuilds from it what marking
+  did to each vertex); the annulus samples (p = 0) let the reader remove a local offset and tilt.
+- A site whose own readings of the marked mesh all miss its sign (a neighbour's bump on a small or
+  unevenly meshed surface) is not marked at all, nor a swirl that does not read: no distortion is
+  spent where no reading will look.
 - The site vertex and ``RING`` annulus vertices at keyed angles are protected in the progressive
   mesh, so every level of detail, from the base mesh up, keeps each bump's peak and its surroundings.
 
@@ -35,11 +42,15 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
   level: at low noise the offset and tilt (registration error, smoothing shrinkage) are removed
   exactly, at high noise the filter tends to p itself, the optimum for white noise. a / A is the
   site's soft value (+-1 when intact).
-- By vertex index, the suspect is registered by the similarity that fits the sample vertices
-  to their stored places (thousands of known pairs), and each site's swirl is read as well: the
-  sample vertices' tangent-plane shifts fitted as a * w + a common shift, combined with the site's
-  bump reading by inverse variance (its variance is large under smoothing, which also moves
-  vertices along the surface).
+- By vertex index, the suspect is registered by the similarity that fits the stored places of the
+  sample vertices to the suspect's (thousands of known pairs; fitted in that direction because the
+  stored places are noiseless, so heavy noise does not shrink the scale), and each site's swirl is
+  read as well: the sample vertices' tangent-plane shifts fitted as a * w' + a common shift, combined
+  with the site's bump reading by inverse variance (its variance is large under smoothing, which also
+  moves vertices along the surface). w' and the height template p' are what marking moved each
+  vertex: the embedder keeps the swirl off each vertex's own normal, so on a curved patch part of
+  it runs along the site normal and is read with the bump. Every site whose reading by index was
+  clean on the marked mesh is read, whether or not its protected ring was found.
 - A copy that sits exactly in the key's frame (the marked mesh, any of its levels of detail, a lossless
   re-export) is read at each protected site vertex alone, exact at every level; where a neighbour's bump
   spoilt that reading on the marked mesh (small meshes), all samples are read instead.
