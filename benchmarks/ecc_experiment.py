@@ -27,6 +27,8 @@ for s in range(NS):
         reg = (b << (K - 1)) | s
         OUT[s, b] = [parity(reg & g) for g in G]
         NXT[s, b] = reg >> 1
+# the two (state, bit) pairs, as 2 * state + bit, that lead to each state (ties: lowest first)
+PRED = np.stack([np.flatnonzero(NXT.ravel() == s) for s in range(NS)])
 def encode(bits):
     s = 0; out = []
     for b in list(bits) + [0] * (K - 1):
@@ -38,13 +40,9 @@ def viterbi(llr, n):  # llr > 0 means coded bit 1
     sgn = 2.0 * OUT - 1.0  # (NS, 2, 2)
     for t in range(T):
         l = llr[2 * t: 2 * t + 2]
-        cand = metric[:, None] + (sgn * l).sum(axis=2)  # (NS, 2)
-        new = np.full(NS, -np.inf); src = np.zeros(NS, np.int64); bb = np.zeros(NS, np.int8)
-        for b in range(2):
-            ns = NXT[:, b]; c = cand[:, b]
-            for i in range(NS):
-                if c[i] > new[ns[i]]: new[ns[i]] = c[i]; src[ns[i]] = i; bb[ns[i]] = b
-        metric = new; back[t] = src; bitb[t] = bb
+        cand = (metric[:, None] + (sgn * l).sum(axis=2)).ravel()  # (NS * 2,), index 2 s + b
+        pick = PRED[np.arange(NS), np.argmax(cand[PRED], axis=1)]  # best of each state's 2 predecessors
+        metric = cand[pick]; back[t] = pick // 2; bitb[t] = pick % 2
     s = 0; out = []
     for t in range(T - 1, -1, -1):
         out.append(bitb[t, s]); s = back[t, s]

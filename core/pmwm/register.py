@@ -86,11 +86,17 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
     c, A, s = _pca(S)
     inits = [("identity", np.eye(3), 1.0, np.zeros(3))] + _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
     k_pca = ref_s / max(s, 1e-300)
+
+    def plausible(k: float) -> bool:
+        """A fit whose scale is far from the PCA one collapsed (k -> 0 maps every point near one spot,
+        a tiny residual) or exploded: not a fit."""
+        return 0.3 * k_pca < k < 3.0 * k_pca
+
     floor = float(frame.get("floor", 0.0))
     best = None
     for name, R, k, t in inits:
         R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, COARSE_ITERATIONS)
-        if not (0.3 * k_pca < k < 3.0 * k_pca):  # collapsed or exploded: not a fit
+        if not plausible(k):
             continue
         if best is None or res < best[4]:
             best = (name, R, k, t, res)
@@ -104,14 +110,13 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
         screened = []
         for name, R, k, t in _cut_starts(ref_P, S, c, A, s):
             R, k, t, res = _icp(S[sub], ref_P[sub], ref_N[sub], R, k, t, ref_s, COARSE_ITERATIONS)
-            if 0.3 * k_pca < k < 3.0 * k_pca:
+            if plausible(k):
                 screened.append((name, R, k, t, res))
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
     refined = []
     for name, R, k, t, _ in finalists:
         R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, ICP_ITERATIONS)
-        # a fit that collapsed (k -> 0 maps every point near one spot) has a tiny residual: not a fit
-        refined.append((not (0.3 * k_pca < k < 3.0 * k_pca), res, len(refined), name, R, k, t))
+        refined.append((not plausible(k), res, len(refined), name, R, k, t))  # plausible fits first
     _, res, _, name, R, k, t = min(refined)
     return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
 

@@ -477,7 +477,9 @@ def index_templates(sm, r: float, ratio: float) -> tuple[np.ndarray, np.ndarray]
     """What marking moved each sample vertex, per unit of bump amplitude: along the site normal
     (S, K) and in the site's tangent plane, (t1, t2) components (S, K, 2), per unit of swirl. The
     swirl is embedded off each vertex's own normal, so on a curved patch part of it runs along the
-    site normal; ``ratio`` is swirl / bump amplitude. Without stored normals: the plain fields."""
+    site normal; ``ratio`` is swirl / bump amplitude. Without stored normals: the plain fields. (A
+    site left without a swirl has too few samples to read one, and its swirl's normal part is
+    negligible: its bump still reads its sign to 1e-5 on the marked Venus head.)"""
     p = profile(sm.u, sm.v, r)
     gu, gv = swirl(sm.u, sm.v, r)
     if sm.normal_tt is not None:
