@@ -4,9 +4,11 @@
     python build_addon.py [--out-dir dist] [--trimesh VERSION] [--no-validate]
 
 The zip holds ``blender_manifest.toml`` and the add-on (``blender_pmwm/``) at its root, and under
-``wheels/`` the pure-python wheels the add-on imports: ``pmwm`` itself (built from this checkout with
-``pip wheel --no-deps``) and ``trimesh`` (``pip download --no-deps``). numpy is never bundled:
-Blender ships it. The manifest's ``wheels`` list is rewritten to name exactly the bundled files, and
+``wheels/`` the pure-python wheels the add-on imports: ``pmwm`` itself and ``trimesh`` (``pip download
+--no-deps``). The pmwm wheel holds the library only: it is built (``pip wheel --no-deps``) from a copy
+of ``core/pmwm`` with a pyproject derived from this checkout's, without the evaluation package
+``pmwm_bench``, its ``pmwm.commands`` entry point and the extras; the build checks that. numpy is
+never bundled: Blender ships it. The manifest's ``wheels`` list is rewritten to name exactly the bundled files, and
 the archive is checked with Blender's own validator (``blender_ext.py validate``, found inside the
 installed ``bpy`` wheel). The archive is reproducible: sorted entries, fixed timestamps.
 """
@@ -16,6 +18,7 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import importlib.util
+import json
 import re
 import shutil
 import subprocess
@@ -36,17 +39,91 @@ def _run(cmd: list[str]) -> None:
     subprocess.run(cmd, check=True)
 
 
+LIBRARY = "pmwm"  # the one package the extension carries
+PLUGIN_GROUP = "pmwm.commands"  # entry points of the evaluation (pmwm bench): not in the extension
+
+
+def _toml_key(key: str) -> str:
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a TOML basic string: JSON's escapes are TOML's
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"cannot write {type(value).__name__} to TOML")
+
+
+def dump_toml(doc: dict) -> str:
+    """TOML text of ``doc`` (tables of strings, numbers, booleans, lists and inline tables): enough for
+    a pyproject; tomllib reads it back to ``doc``."""
+    lines: list[str] = []
+
+    def table(name: str, d: dict) -> None:
+        scalars = [(k, v) for k, v in d.items() if not isinstance(v, dict)]
+        if name and (scalars or not d):  # a table holding only subtables needs no header of its own
+            lines.append(f"[{name}]")
+        lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in scalars)
+        if scalars or (name and not d):
+            lines.append("")
+        for k, v in d.items():
+            if isinstance(v, dict):
+                table(f"{name}.{_toml_key(k)}" if name else _toml_key(k), v)
+
+    table("", doc)
+    return "\n".join(lines)
+
+
+def library_pyproject(text: str) -> str:
+    """The pyproject of the library alone, from the project's: the same metadata without the extras and
+    the ``pmwm.commands`` entry point; setuptools finds ``pmwm`` and its subpackages only."""
+    meta = tomllib.loads(text)
+    project = {k: v for k, v in meta["project"].items() if k != "optional-dependencies"}
+    groups = {g: eps for g, eps in project.pop("entry-points", {}).items() if g != PLUGIN_GROUP}
+    if groups:
+        project["entry-points"] = groups
+    setuptools_cfg = dict(meta.get("tool", {}).get("setuptools", {}))
+    setuptools_cfg["packages"] = {"find": {"where": ["core"], "include": [LIBRARY, f"{LIBRARY}.*"]}}
+    data = setuptools_cfg.get("package-data", {})
+    setuptools_cfg["package-data"] = {k: v for k, v in data.items() if k == LIBRARY or k.startswith(LIBRARY + ".")}
+    return dump_toml({"build-system": meta["build-system"], "project": project, "tool": {"setuptools": setuptools_cfg}})
+
+
+def check_library_wheel(wheel: Path) -> None:
+    """Refuse a pmwm wheel that carries anything but the library (another package, the bench plugin)."""
+    with zipfile.ZipFile(wheel) as zf:
+        names = zf.namelist()
+        extra = sorted({n.split("/")[0] for n in names if not n.startswith((LIBRARY + "/", f"{LIBRARY}-"))})
+        eps = next((zf.read(n).decode() for n in names if n.endswith(".dist-info/entry_points.txt")), "")
+    if extra:
+        raise SystemExit(f"{wheel.name} holds more than the {LIBRARY} package: {extra}")
+    if f"[{PLUGIN_GROUP}]" in eps:
+        raise SystemExit(f"{wheel.name} declares the {PLUGIN_GROUP} entry points of the evaluation")
+
+
 def build_pmwm_wheel(dest: Path) -> Path:
-    """Build the pmwm wheel from a clean copy of the project (keeps build/ out of the checkout)."""
+    """Build the library's wheel from a clean copy of ``core/pmwm`` (keeps build/ out of the checkout,
+    and pmwm_bench out of the wheel)."""
     with tempfile.TemporaryDirectory(prefix="pmwm-src-") as tmp:
         src = Path(tmp)
-        for name in ("pyproject.toml", "README.md", "LICENSE", "LICENSE.txt", "COPYING"):
+        for name in ("README.md", "LICENSE", "LICENSE.txt", "COPYING"):
             if (ROOT / name).is_file():
                 shutil.copy2(ROOT / name, src / name)
-        shutil.copytree(ROOT / "core", src / "core",
+        (src / "pyproject.toml").write_text(library_pyproject((ROOT / "pyproject.toml").read_text(encoding="utf-8")),
+                                            encoding="utf-8")
+        shutil.copytree(ROOT / "core" / LIBRARY, src / "core" / LIBRARY,
                         ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info"))
         _run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(dest), str(src)])
-    return _one(dest, "pmwm-*.whl")
+    wheel = _one(dest, "pmwm-*.whl")
+    check_library_wheel(wheel)
+    return wheel
 
 
 def download_trimesh_wheel(dest: Path, version: str) -> Path:

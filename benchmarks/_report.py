@@ -1,54 +1,47 @@
-"""Write a benchmark's figures into its own section of BENCHMARKS.md (replaced on each run)."""
+"""Shared helper of the benchmark scripts: the report file, the meshes, the command line that ran.
+
+The provenance every section states (``commit``, ``machine``) and the section writer live in
+``pmwm_bench.report``; the model catalogue in ``pmwm_bench.models``. The scripts look meshes up in
+$PMWM_TEST_DATA (or $PMWM_BENCH_DATA), else in ../shared/data beside the checkout.
+"""
 
 from __future__ import annotations
 
 import os
-import platform
-import subprocess
 import sys
 from pathlib import Path
+
+import numpy as np
+
+from pmwm_bench import models, report
+from pmwm_bench.report import commit, machine  # noqa: F401  (re-exported for the scripts)
 
 ROOT = Path(__file__).resolve().parents[1]
 REPORT = ROOT / "BENCHMARKS.md"
 
 
-def machine() -> str:
-    """One line naming the machine the figures come from."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    mem = ""
-    try:
-        kb = int(Path("/proc/meminfo").read_text().split()[1])
-        mem = f", {kb / 2**20:.0f} GiB RAM"
-    except (OSError, ValueError, IndexError):
-        pass
-    import numpy
-
-    return (f"{cpu}, {os.cpu_count()} cores{mem}; Python {platform.python_version()}, "
-            f"numpy {numpy.__version__}, {platform.system()} {platform.release()}")
+def data_dirs() -> list[Path]:
+    """Where the scripts look for meshes, before $PMWM_BENCH_DATA: $PMWM_TEST_DATA, ../shared/data."""
+    dirs = [Path(os.environ["PMWM_TEST_DATA"])] if os.environ.get("PMWM_TEST_DATA") else []
+    return dirs + [ROOT.parent / "shared" / "data"]
 
 
-def commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
+def mesh_path(name: str) -> Path:
+    """The file of catalogue model (or file name, or path) ``name``; FileNotFoundError if absent."""
+    return models.model_path(name, data_dirs())
+
+
+def load(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (n, 3), faces (m, 3)) of catalogue model (or file name, or path) ``name``."""
+    return models.load(mesh_path(name))
 
 
 def write_section(name: str, body: str) -> None:
     """Replace (or append) the section ``name`` of BENCHMARKS.md with ``body``, and print it."""
-    from pmwm.report import write_section as write
-
-    write(REPORT, name, body)
+    report.write_section(REPORT, name, body)
     print(body)
 
 
 def command() -> str:
+    """The command line that ran the script, relative to the checkout."""
     return "python " + " ".join([os.path.relpath(sys.argv[0], ROOT), *sys.argv[1:]])

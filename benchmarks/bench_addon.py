@@ -2,8 +2,8 @@
 
     python benchmarks/bench_addon.py [--mesh PATH] [--vertices 100000] [--repeat 3]
 
-The mesh (default: the Igea statue from shared/data, decimated with fast-simplification to about
-100k vertices) becomes a Blender object. "core" times what the operator delegates:
+The mesh (default: the catalogue's Igea statue, from $PMWM_TEST_DATA or ../shared/data, decimated
+with fast-simplification to about 100k vertices) becomes a Blender object. "core" times what the operator delegates:
 ``pmwm.embed`` + ``pmwm.write_key`` on the same float32-rounded arrays. "operator" times
 ``bpy.ops.pmwm.watermark`` as a script calls it, and as a panel click does (with an undo push).
 The difference is the add-on's overhead: mesh transfer (foreach_get, loop triangulation), write
@@ -24,11 +24,10 @@ import time
 from pathlib import Path
 
 import bpy  # first: a process imports bpy once
-from _report import commit, machine, write_section  # benchmarks/ is the script's folder, first on sys.path
+from _report import commit, machine, mesh_path, write_section  # benchmarks/ is the script's folder, first on sys.path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_MESH = ROOT.parent / "shared" / "data" / "igea_cyberware.ply"
 
 
 def load_addon():
@@ -65,10 +64,11 @@ def make_object(addon, V, F):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", type=Path, default=DEFAULT_MESH)
+    ap.add_argument("--mesh", type=Path, default=None, help="mesh file (default: the catalogue's igea)")
     ap.add_argument("--vertices", type=int, default=100_000)
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args(argv)
+    args.mesh = args.mesh or mesh_path("igea")
 
     import pmwm
 

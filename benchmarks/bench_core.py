@@ -1,6 +1,6 @@
 """Speed and size of the core: embed end to end, full decode, verify, bytes per record.
 
-Run: python benchmarks/bench_core.py  (needs ../shared/data beside the checkout)
+Run: python benchmarks/bench_core.py  (meshes from $PMWM_TEST_DATA or ../shared/data beside the checkout)
 Writes the "core" section of BENCHMARKS.md.
 """
 
@@ -16,13 +16,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import command, commit, machine, write_section  # noqa: E402
+from _report import command, commit, machine, mesh_path, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
 from pmwm.pmfile import to_bytes  # noqa: E402
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
-MODELS = [("bunny", "bunny_wm_benchmark.off"), ("igea", "igea_cyberware.ply")]
+MODELS = ("bunny", "igea")  # names in the catalogue, pmwm_bench.models
 
 
 def best_of(fn, repeat: int = 3) -> float:
@@ -39,8 +38,8 @@ def main() -> None:
     lod_rows: list = []
     lod_bits = 0
     with tempfile.TemporaryDirectory() as tmp:
-        for name, file in MODELS:
-            src_path = str(DATA / file)
+        for name in MODELS:
+            src_path = str(mesh_path(name))
             out = os.path.join(tmp, f"{name}_marked.ply")
             key = os.path.join(tmp, f"{name}.key.json")
             pmf = os.path.join(tmp, f"{name}.pmwm")

@@ -2,10 +2,12 @@
 
 Run: python benchmarks/bench_robust.py [--keys 5] [--models bunny,dragon] [--fp 1000] [--noise-copies 100]
 Prints markdown (the lead pastes it into BENCHMARKS.md). 64-bit random payloads, one per key (seed).
+Models are names of the catalogue (``pmwm_bench.models``), read from $PMWM_TEST_DATA or ../shared/data.
 
 False positives. (a) ``--fp`` wrong secrets against the marked bunny: the soft site values do not
 depend on the secret, so they are read once and the verdict is taken for every wrong secret exactly
-as ``robust_verify`` takes it (``read_scores`` -> ``watermark._verdict``). (b) independently
+as the robust reader takes it (``pmwm.schemes.robust.read_scores`` ->
+``pmwm.base.verdict_from_scores``). (b) independently
 embedded keys (other seeds) against each other's marked meshes. (c) unmarked copies (the original
 with benchmark noise 0.05 %, one seed each) against the true key. (d) other unmarked models against
 the keys. Under "not marked" p should be uniform: the table gives the observed share of p <= alpha.
@@ -23,21 +25,17 @@ from pathlib import Path
 
 import numpy as np
 
-import pmwm
-from pmwm import attacks, metrics
-from pmwm.key import make_secret
-from pmwm.robust import read_scores, robust_embed, robust_verify
-from pmwm.watermark import _verdict
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import load  # noqa: E402
 
-DATA = Path(os.environ.get("PMWM_TEST_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
-MODELS = {"bunny": "bunny_wm_benchmark.off", "dragon": "dragon_wm_benchmark.off"}
-OTHERS = ["armadillo_libigl.obj", "venus_head_jigsaw.ply", "horse_cyberware.ply", "igea_cyberware.ply",
-          "camelhead.off", "rocker_arm.obj"]
+import pmwm  # noqa: E402
+from pmwm import attacks, metrics  # noqa: E402
+from pmwm.base import verdict_from_scores  # noqa: E402
+from pmwm.key import make_secret  # noqa: E402
+from pmwm.schemes.robust import read_scores  # noqa: E402
 
-
-def load(name: str):
-    src = pmwm.read_mesh(str(DATA / name))
-    return src.vertices, src.faces
+#: unmarked models the keys are tried against (catalogue names)
+OTHERS = ["armadillo", "venus-head", "horse", "igea", "camelhead", "rocker-arm"]
 
 
 def reexport(ext: str):
@@ -79,24 +77,24 @@ ATTACKS = [
 ]
 
 
-def _verify(scheme: str, V, F, key):
+def _verify(V, F, key):
     try:
-        return robust_verify(V, F, key) if scheme == "robust" else pmwm.verify(V, F, key)
+        return pmwm.verify(V, F, key)
     except pmwm.PmwmError:
         return None
 
 
-def lod_worst_ber(res, scheme: str) -> float:
+def lod_worst_ber(res) -> float:
     worst = 0.0
     for k in [0, *res.pm.level_records.tolist()]:
         V, F = res.pm.decode(records=k)
-        v = _verify(scheme, V, F, res.key)
+        v = _verify(V, F, res.key)
         worst = max(worst, 1.0 if v is None else v.bit_errors / v.carriers_total)
     return worst
 
 
 def robustness(model: str, keys: int, out: list, keep: dict, attacks_too: bool = True) -> None:
-    V, F = load(MODELS[model])
+    V, F = load(model)
     rows = {name: {"paper": [], "robust": []} for name, _ in ATTACKS}
     dist = {"paper": [], "robust": []}
     lod = {"paper": [], "robust": []}
@@ -104,17 +102,17 @@ def robustness(model: str, keys: int, out: list, keep: dict, attacks_too: bool =
         for scheme in ("paper", "robust"):
             opts = pmwm.EmbedOptions(n_bits=64, seed=100 + k, strength=2.0, scheme=scheme)
             t = time.perf_counter()
-            res = robust_embed(V, F, opts) if scheme == "robust" else pmwm.embed(V, F, opts)
+            res = pmwm.embed(V, F, opts)
             t = time.perf_counter() - t
             mrms, haus = metrics.surface_distance(V, F, res.vertices, F, n_samples=20000, seed=k)
             dist[scheme].append((100 * res.rmse / metrics.bbox_diagonal(V), mrms, haus, res.vsnr_db, t,
                                  res.pm.n_base_vertices))
-            lod[scheme].append(lod_worst_ber(res, scheme))
+            lod[scheme].append(lod_worst_ber(res))
             if scheme == "robust" and model == "bunny":
                 keep.setdefault("robust", []).append(res)
             for name, attack in (ATTACKS if attacks_too else []):
                 Va, Fa = attack(res.vertices, res.faces, 1000 + k)
-                v = _verify(scheme, Va, Fa, res.key)
+                v = _verify(Va, Fa, res.key)
                 rows[name][scheme].append((1.0, 1.0, False) if v is None else
                                           (v.bit_errors / v.carriers_total, v.p_value, v.marked))
     out.append(f"\n### {model} ({len(V)} vertices), {keys} keys, 64-bit payloads, strength 2\n")
@@ -147,7 +145,8 @@ def false_positives(n_wrong: int, n_noise: int, keep: dict, out: list) -> None:
     # (a) wrong secrets, the marked mesh
     scores, _, _ = read_scores(res.vertices, res.faces, res.key)
     for s in range(n_wrong):
-        v = _verdict(scores, dataclasses.replace(res.key, secret=make_secret(10**6 + s)), "aligned", 1e-6)
+        wrong = dataclasses.replace(res.key, secret=make_secret(10**6 + s))
+        v = verdict_from_scores(scores, wrong, "aligned", 1e-6)
         ps.append(v.p_value)
         marked += v.marked
     where.append(("wrong secret, marked bunny", n_wrong))
@@ -156,16 +155,16 @@ def false_positives(n_wrong: int, n_noise: int, keep: dict, out: list) -> None:
     for i, a in enumerate(keys):
         for j, b in enumerate(keys):
             if i != j:
-                v = robust_verify(a.vertices, a.faces, b.key)
+                v = pmwm.verify(a.vertices, a.faces, b.key)
                 ps.append(v.p_value)
                 marked += v.marked
                 nb += 1
     where.append(("independent keys on other marked bunnies", nb))
     # (c) unmarked noisy copies of the original with the true key
-    V, F = load(MODELS["bunny"])
+    V, F = load("bunny")
     for s in range(n_noise):
         Vn, Fn = attacks.noise_benchmark(V, F, 0.0005, seed=s) if s else (V, F)
-        v = robust_verify(Vn, Fn, res.key)
+        v = pmwm.verify(Vn, Fn, res.key)
         ps.append(v.p_value)
         marked += v.marked
     where.append(("unmarked bunny (+0.05 % noise, new seed each) with the true key", n_noise))
@@ -174,10 +173,10 @@ def false_positives(n_wrong: int, n_noise: int, keep: dict, out: list) -> None:
     for name in OTHERS:
         try:
             Vo, Fo = load(name)
-        except (pmwm.PmwmError, OSError):
+        except (pmwm.PmwmError, OSError):  # FileNotFoundError: a model not in the data folder
             continue
         for r in keys:
-            v = robust_verify(Vo, Fo, r.key)
+            v = pmwm.verify(Vo, Fo, r.key)
             ps.append(v.p_value)
             marked += v.marked
             nd += 1

@@ -1,6 +1,6 @@
 """Scale: `pmwm embed` of a mesh of over one million faces, its time and peak memory.
 
-The mesh is data/igea_cyberware.ply (268,686 faces) after one midpoint subdivision
+The mesh is the catalogue's igea (igea_cyberware.ply) (268,686 faces) after one midpoint subdivision
 (1,074,744 faces, 537,370 vertices). Run: python benchmarks/bench_scale.py
 Writes the "scale" section of BENCHMARKS.md.
 """
@@ -16,17 +16,14 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import command, commit, machine, write_section  # noqa: E402
+from _report import command, commit, load, machine, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
 from pmwm.attacks import subdivide  # noqa: E402
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
-
 
 def main() -> None:
-    src = pmwm.read_mesh(DATA / "igea_cyberware.ply")
-    V, F = subdivide(src.vertices, src.faces, scheme="midpoint")
+    V, F = subdivide(*load("igea"), scheme="midpoint")
     with tempfile.TemporaryDirectory() as tmp:
         big = os.path.join(tmp, "igea_x4.ply")
         pmwm.write_mesh(big, V, F)

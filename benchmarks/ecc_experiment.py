@@ -6,18 +6,21 @@ equal embedding energy (the coded strength scaled until the vertex RMSE matches)
 reader's per-bit scores (inverse-variance weighted sums: log-likelihood ratios up to a factor).
 Erasures (score 0) count as errors in both columns (pmwm.verify would flip a keyed coin for them).
 
-Run: PMWM_TEST_DATA=../shared/data python benchmarks/ecc_experiment.py dragon_wm_benchmark.off 3
+Run: PMWM_TEST_DATA=../shared/data python benchmarks/ecc_experiment.py dragon 3
+(a catalogue name of pmwm_bench.models, a file name in the data folder, or a path).
 """
-import os
 import sys
+from pathlib import Path
 
 import numpy as np
 
-import pmwm
-from pmwm import attacks, metrics
-from pmwm.robust import read_scores, robust_embed
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import load  # noqa: E402
 
-DATA = os.environ.get("PMWM_TEST_DATA", "../shared/data")
+import pmwm  # noqa: E402
+from pmwm import attacks, metrics  # noqa: E402
+from pmwm.schemes.robust import embed as robust_embed  # noqa: E402  (takes sites_per_bit)
+from pmwm.schemes.robust import read_scores  # noqa: E402
 G = (0o133, 0o171); K = 7; NS = 1 << (K - 1)
 def parity(x): return bin(x).count("1") & 1
 # state = last K-1 input bits; output for (state, bit)
@@ -50,7 +53,7 @@ def viterbi(llr, n):  # llr > 0 means coded bit 1
 
 assert (viterbi(2.0 * encode([1, 0, 1, 1, 0]) - 1, 5) == [1, 0, 1, 1, 0]).all()
 name = sys.argv[1]; keys = int(sys.argv[2])
-src = pmwm.read_mesh(os.path.join(DATA, name)); V, F = src.vertices, src.faces
+V, F = load(name)
 att = {"noise 0.01": lambda M: attacks.noise_paper(M, F, 0.01, seed=1), "noise 0.03": lambda M: attacks.noise_paper(M, F, 0.03, seed=1),
        "noise 0.05": lambda M: attacks.noise_paper(M, F, 0.05, seed=1), "smooth 30": lambda M: attacks.smooth_laplacian(M, F, 0.1, 30),
        "smooth 50": lambda M: attacks.smooth_laplacian(M, F, 0.1, 50), "quant 7": lambda M: attacks.quantize(M, F, 7),

@@ -20,14 +20,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import command, commit, machine, write_section  # noqa: E402
+from _report import command, commit, load, machine, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
 from pmwm.errors import KeyFileError, PMFormatError  # noqa: E402
 from pmwm.key import WatermarkKey  # noqa: E402
-from pmwm.pmfile import _HEADER, from_bytes, to_bytes  # noqa: E402
-
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+from pmwm.pmfile import HEADER, from_bytes, to_bytes  # noqa: E402
 
 
 def mutate_pm(data: bytes, rng: np.random.Generator) -> bytes:
@@ -50,11 +48,11 @@ def mutate_pm(data: bytes, rng: np.random.Generator) -> bytes:
         body = bytearray(b[:-32])
         if kind == 4:
             field = rng.integers(2, 8)
-            vals = list(_HEADER.unpack_from(body, 0))
+            vals = list(HEADER.unpack_from(body, 0))
             vals[field] = int(rng.choice([0, 1, vals[field] + rng.integers(-3, 4), 2**32 - 1, rng.integers(0, 2**32)])) % 2**32 if field >= 3 else int(rng.integers(0, 2**16))
-            _HEADER.pack_into(body, 0, *vals)
+            HEADER.pack_into(body, 0, *vals)
         else:
-            i = rng.integers(_HEADER.size, len(body))
+            i = rng.integers(HEADER.size, len(body))
             body[i] = rng.integers(0, 256)
         b = body + hashlib.sha256(body).digest()
     return bytes(b)
@@ -87,8 +85,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
-    src = pmwm.read_mesh(DATA / "cow_libigl.off")
-    res = pmwm.embed(src.vertices, src.faces, pmwm.EmbedOptions(bits="1" * 16 + "0" * 16, seed=3))
+    V0, F0 = load("cow")
+    res = pmwm.embed(V0, F0, pmwm.EmbedOptions(bits="1" * 16 + "0" * 16, seed=3))
     pm_bytes = to_bytes(res.pm)
     key_text = res.key.to_json()
     counts = {"pm": [0, 0, 0], "key": [0, 0, 0]}  # tried, rejected cleanly, failures

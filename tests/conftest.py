@@ -1,29 +1,12 @@
-"""Shared fixtures: paths to the test meshes in ../shared/data and small mesh builders."""
+"""Shared fixtures and small mesh builders. The test meshes themselves come from meshes.py: the
+bunny shipped with the package, and meshes generated in code, so the suite needs only the clone."""
 
 from __future__ import annotations
-
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("PMWM_TEST_DATA", ROOT.parent / "shared" / "data"))
-
-
-def data_path(name: str) -> Path:
-    path = DATA / name
-    if not path.exists():
-        raise FileNotFoundError(f"test mesh {path} is missing: the tests need ../shared/data beside the checkout")
-    return path
-
-
-def load(name: str) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh
-
-    m = trimesh.load(str(data_path(name)), process=False)
-    return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
+import meshes
 
 
 def canonical_faces(F: np.ndarray) -> np.ndarray:
@@ -58,4 +41,4 @@ def quad_torus_obj(nu: int = 40, nv: int = 24, R: float = 1.0, r: float = 0.35) 
 
 @pytest.fixture(scope="session")
 def bunny():
-    return load("bunny_wm_benchmark.off")
+    return meshes.bunny()

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import trimesh
@@ -14,7 +12,7 @@ from pmwm.errors import PayloadError
 from pmwm.features import face_normals, smoothness_feature
 from pmwm.som import FLAT, PEAK, SUITABLE, classify_smoothness, train_som
 
-DATA = Path("/work/shared/data")
+import meshes
 
 
 def grid(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
@@ -29,22 +27,21 @@ def grid(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
     return v, f
 
 
-def load(name: str):
-    mesh = trimesh.load(DATA / name, process=False)
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    f = np.asarray(mesh.faces, dtype=np.int64)
+def with_adjacency(mesh):
+    v, f = mesh
     return v, f, build_adjacency(f, len(v))
 
 
 @pytest.fixture(scope="module")
 def bunny():
-    v, f, adj = load("bunny_wm_benchmark.off")
+    v, f, adj = with_adjacency(meshes.bunny())
     return v, adj, eligible_carriers(v, adj, seed=7)
 
 
 @pytest.fixture(scope="module")
 def camel():
-    v, f, adj = load("camelhead.off")
+    """An open, disk-like mesh (one boundary loop)."""
+    v, f, adj = with_adjacency(meshes.open_cap())
     return v, adj, eligible_carriers(v, adj, seed=3)
 
 
@@ -187,7 +184,7 @@ def test_bunny_carriers_are_eligible_and_spread(bunny):
 
 def test_carriers_avoid_boundary_and_each_others_two_ring(camel):
     v, adj, ok = camel
-    assert adj.boundary_vertex.any()  # the camel head is open: the test means something
+    assert adj.boundary_vertex.any()  # the mesh is open: the test means something
     assert not (ok & ~adj.manifold_interior).any()
     assert (adj.valence[ok] >= 4).all()
     c = select_carriers(v, adj, ok, 300, seed=5)

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 import trimesh
 
+import meshes
 import pmwm
-from conftest import data_path
 from pmwm import cli
 
-COW = data_path("cow_libigl.off")
+COW = meshes.mesh_file("blob.off")  # a small closed organic mesh (2.9k vertices), generated
 PAYLOAD = "test"
 VERDICT_FIELDS = {
     "marked", "p_value", "bits", "payload", "matches", "bit_errors", "correlation", "carriers_found", "carriers_total",
@@ -92,7 +92,7 @@ def sorted_rows(a: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def sample(tmp_path_factory) -> SimpleNamespace:
-    """The cow (2.7k vertices) marked once with --seed 1 --payload test, under a permissive umask."""
+    """The small mesh COW (2.9k vertices) marked once with --seed 1 --payload test, under a permissive umask."""
     d = tmp_path_factory.mktemp("sample")
     s = SimpleNamespace(dir=d, mesh=d / "cow_marked.ply", key=d / "cow.key.json", pm=d / "cow.pmwm")
     s.proc = run("embed", COW, "-o", s.mesh, "--key", s.key, "--pm", s.pm, "--seed", 1, "--payload", PAYLOAD,
@@ -103,7 +103,7 @@ def sample(tmp_path_factory) -> SimpleNamespace:
 
 @pytest.fixture(scope="module")
 def other_key(tmp_path_factory) -> Path:
-    """The key of the same cow marked with another seed."""
+    """The key of the same mesh marked with another seed."""
     d = tmp_path_factory.mktemp("other")
     proc = run("embed", COW, "-o", d / "cow2.ply", "--key", d / "cow2.key.json", "--seed", 2, "--payload", PAYLOAD, "-q")
     assert proc.returncode == 0, proc.stderr
@@ -563,3 +563,27 @@ def test_attack_bad_parameter_is_a_one_line_error(sample, out):
     fails_cleanly(out, "attack", "crop_plane", sample.mesh, "-o", out / "c.ply", "--fraction", "1.5",
                   mentions=("fraction",))
     fails_cleanly(out, "attack", "noise_paper", sample.mesh, "-o", out / "n.ply", "--amplitude", "x")
+
+
+@pytest.mark.parametrize("scheme", ["cho1", "cho2"])
+def test_cho_schemes_behind_the_same_commands(tmp_path, scheme):
+    """`pmwm embed --scheme cho1|cho2`, then `pmwm verify` (which reads the scheme from the key) of a
+    copy moved by a similarity transform and re-ordered: every bit."""
+    bunny = Path(pmwm.__file__).parent / "data" / "bunny.off"
+    bits = "".join(map(str, np.random.default_rng(3).integers(0, 2, 64)))
+    marked, key = tmp_path / "m.ply", tmp_path / "m.key.json"
+    assert call("embed", bunny, "-o", marked, "--key", key, "--bits", bits, "--scheme", scheme, "--seed", 5,
+                "-q").returncode == 0
+    assert json.loads(key.read_text())["scheme"] == scheme
+    src = pmwm.read_mesh(marked)
+    from pmwm import attacks
+
+    V, F = attacks.reorder(*attacks.similarity(src.vertices, src.faces, seed=1), seed=2)
+    pmwm.write_mesh(tmp_path / "suspect.obj", V, F)
+    code, v = verdict(tmp_path / "suspect.obj", "--key", key)
+    assert code == 0 and v["marked"] and v["bits"] == bits and v["mode"] == "blind"
+
+
+def test_unknown_scheme_is_refused_with_the_list(tmp_path):
+    fails_cleanly(tmp_path, "embed", COW, "-o", tmp_path / "m.ply", "--key", tmp_path / "k.json",
+                  "--scheme", "cho3", mentions=("cho1", "robust"))

@@ -12,14 +12,15 @@ import numpy as np
 import pytest
 
 import pmwm
-from pmwm.watermark import EmbedOptions, embed, verify
+from pmwm import EmbedOptions, embed, verify
 
-from conftest import data_path, load
+import meshes
 
 
 @pytest.fixture(scope="module")
 def fandisk():
-    return load("fandisk.obj")
+    """A CAD-like part: flat faces and sharp creases."""
+    return meshes.cad_part()
 
 
 def _embed_ok(V, F):
@@ -94,7 +95,7 @@ def _sha(path) -> str:
 
 def test_verify_never_modifies_its_inputs_and_outputs_hold_no_key(tmp_path):
     mesh = tmp_path / "cow.off"
-    mesh.write_bytes(data_path("cow_libigl.off").read_bytes())
+    mesh.write_bytes(meshes.mesh_file("blob.off").read_bytes())
     out, key, pmf = tmp_path / "m.ply", tmp_path / "k.json", tmp_path / "m.pmwm"
     run = [sys.executable, "-m", "pmwm"]
     subprocess.run(run + ["embed", str(mesh), "-o", str(out), "--key", str(key), "--pm", str(pmf),

@@ -13,9 +13,11 @@ from hypothesis import strategies as st
 
 from pmwm import meshio
 from pmwm.errors import MeshError, OutputExistsError, PmwmError
-from pmwm.meshio import atomic_output, atomic_write_bytes, read_mesh, weld, write_marked, write_mesh
+from pmwm.atomic import atomic_output, atomic_write_bytes
+from pmwm.meshio import read_mesh, weld, write_marked, write_mesh
 
-DATA = Path("/work/shared/data")
+import meshes
+
 PACKAGED_BUNNY = Path(meshio.__file__).parent / "data" / "bunny.off"
 
 
@@ -365,16 +367,17 @@ def test_weld_is_exact_when_the_hash_collides(monkeypatch):
     assert len(got[0]) == 200
 
 
-# ---------------------------------------------------------------- the shared test meshes
+# ---------------------------------------------------------------- the test meshes
 
 
 @pytest.mark.parametrize(
     "path, n_vertices, n_faces",
     [
-        (DATA / "camelhead.off", 11_381, 22_704),
-        (DATA / "bunny_wm_benchmark.off", 34_835, 69_666),
+        (meshes.mesh_file("open_cap.off"), 11_140, 22_090),  # CRLF line ends, trailing spaces
+        (meshes.mesh_file("blob.off"), 2_906, 5_808),  # an edge count in the header, runs of spaces
         (PACKAGED_BUNNY, 34_835, 69_666),
     ],
+    ids=["open_cap.off", "blob.off", "bunny.off"],
 )
 def test_data_meshes_read_with_their_documented_counts(path, n_vertices, n_faces):
     src = read_mesh(path)

@@ -10,7 +10,8 @@ import pmwm
 from pmwm.pmfile import from_bytes, to_bytes
 from pmwm.progressive import build_progressive_mesh
 
-from conftest import canonical_faces, load, quad_torus_obj
+import meshes
+from conftest import canonical_faces, quad_torus_obj
 
 
 def _check_every_level(V, F, base_ratio=0.03, protected=None):
@@ -52,7 +53,7 @@ def test_bunny_every_level_exact(bunny):
 
 
 def test_open_boundary_every_level_exact():
-    V, F = load("camelhead.off")
+    V, F = meshes.open_cap()
     pm = _check_every_level(V, F)
     # the boundary stays one loop at every level
     for k in [0, int(pm.level_records[len(pm.level_records) // 2])]:
@@ -91,7 +92,7 @@ def test_decode_by_vertex_count(bunny):
 
 
 def test_nonmanifold_vertex_is_kept_and_reconstructed():
-    V, F = load("cow.obj")  # one pinched vertex
+    V, F = meshes.pinched_torus()  # one pinched vertex
     adj = pmwm.adjacency.build_adjacency(F, len(V))
     pinched = np.flatnonzero(adj.nonmanifold_vertex)
     assert len(pinched) == 1

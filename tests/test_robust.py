@@ -1,10 +1,11 @@
-"""The robust scheme (pmwm.robust): the payload survives the benchmark's geometric attacks, every
+"""The robust scheme (pmwm.schemes.robust): the payload survives the benchmark's geometric attacks, every
 level of detail reads it, unmarked meshes and wrong keys do not, at no more distortion than the
 paper scheme."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -14,16 +15,16 @@ import pmwm.cli
 from pmwm import attacks, metrics
 from pmwm.errors import KeyFileError
 from pmwm.key import make_secret
-from pmwm.robust import robust_embed, robust_verify
+from pmwm.schemes.robust import embed as robust_embed, key_data, verify as robust_verify
 
-from conftest import data_path, load
+import meshes
 
 PAYLOAD = "ACME 2026"
 
 
 @pytest.fixture(scope="module")
 def bunny():
-    return load("bunny_wm_benchmark.off")
+    return meshes.bunny()
 
 
 @pytest.fixture(scope="module")
@@ -92,15 +93,15 @@ def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
     """Over 500 random planes each cutting off half the vertices, every bit keeps at least one site
     (the bit assignment is spread over cuts); a cropped copy is read in the key's frame, at the
     site vertices that survived."""
-    from pmwm.robust import _site_arrays
+
 
     V, F = bunny
-    s = _site_arrays(marked.key)
+    s = key_data(marked.key)
     d = np.random.default_rng(99).standard_normal((500, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
-    kept = (s["origin"] @ d.T) <= np.quantile(V @ d.T, 0.5, axis=0)
+    kept = (s.origin @ d.T) <= np.quantile(V @ d.T, 0.5, axis=0)
     per_bit = np.zeros((marked.key.n_bits, len(d)))
-    np.add.at(per_bit, s["bit"], kept)
+    np.add.at(per_bit, s.bit, kept)
     assert per_bit.min() >= 1, int((per_bit.min(axis=0) == 0).sum())
     X, FF = attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=1)
     v = _reads(marked, X, FF)
@@ -131,59 +132,59 @@ def test_registration_by_vertex_index_is_unbiased_under_heavy_noise(marked):
     vertices back where they were, to a fraction of a bump height, not shrunk toward the centre (a
     least-squares fit from the noisy points to the stored ones shrinks the scale by ~1 %, which
     moves far sites by several bump heights and costs the reading)."""
-    from pmwm.robust import _refine_by_index, _site_arrays
+    from pmwm.schemes.robust.read import _refine_by_index
 
     X, F = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.05, seed=2)
     moved, _ = attacks.similarity(X, F, seed=5)
-    s = _site_arrays(marked.key)
+    s = key_data(marked.key)
     back = _refine_by_index(moved, s)
     err = np.linalg.norm(back - X, axis=1)
-    assert np.median(err) < 0.5 * s["amplitude"], (np.median(err), s["amplitude"])
+    assert np.median(err) < 0.5 * s.amplitude, (np.median(err), s.amplitude)
 
 
 def test_readings_by_vertex_index_of_the_marked_mesh_are_exact(bunny, marked):
     """On the marked mesh the by-index readings (bump and swirl) give each site's sign exactly: the
     templates are what marking did to each vertex (the swirl is embedded off each vertex's own normal;
     read with the plain field, curved patches read it short)."""
-    from pmwm.robust import _site_arrays, _site_soft, _swirl_soft
+    from pmwm.schemes.robust.read import site_soft, swirl_soft
 
-    s = _site_arrays(marked.key)
+    s = key_data(marked.key)
     scr = marked.key.stream("scramble", marked.key.n_bits)
-    sign = s["chip"] * np.where((marked.bits ^ scr)[s["bit"]] == 1, 1.0, -1.0)
-    bump = _site_soft(marked.vertices, marked.faces, s, by_index=True)[0]
-    turn = _swirl_soft(marked.vertices, s)[0]
-    assert np.abs(bump - sign)[s["index_ok"]].max() < 0.01
-    assert np.abs(turn - sign)[s["swirl_ok"]].max() < 0.01
+    sign = s.chip * np.where((marked.bits ^ scr)[s.bit] == 1, 1.0, -1.0)
+    bump = site_soft(marked.vertices, marked.faces, s, by_index=True)[0]
+    turn = swirl_soft(marked.vertices, s)[0]
+    assert np.abs(bump - sign)[s.index_ok].max() < 0.01
+    assert np.abs(turn - sign)[s.swirl_ok].max() < 0.01
 
 
 def test_sites_no_reading_uses_are_not_marked_and_every_clean_site_is_read():
     """On a small mesh some sites are spoilt by a neighbour's bump: a site no reading uses is not
     displaced at all; a site whose protected ring was not found but reads cleanly by vertex index is
     read on copies that keep the vertex order."""
-    from pmwm.robust import _site_arrays
 
-    V, F = load("cow_libigl.off")
+
+    V, F = meshes.blob()
     res = robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11))
-    s = _site_arrays(res.key)
-    dead = ~(s["usable"] | s["centre_ok"] | s["index_ok"])
-    assert dead.any() and s["index_ok"].sum() > s["usable"].sum()
+    s = key_data(res.key)
+    dead = ~(s.usable | s.centre_ok | s.index_ok)
+    assert dead.any() and s.index_ok.sum() > s.usable.sum()
     moved = np.linalg.norm(res.vertices - V, axis=1)
     assert moved[res.carriers[dead]].max() < 1e-6 * res.key.bbox_diagonal
     v = robust_verify(*attacks.noise_paper(res.vertices, F, amplitude=0.003, seed=1), res.key)
-    assert v.extra["heights"] == "by vertex index" and v.extra["sites_read"] == s["index_ok"].sum()
+    assert v.extra["heights"] == "by vertex index" and v.extra["sites_read"] == s.index_ok.sum()
 
 
 def test_bits_get_even_energies():
     """Sites carry uneven energies (vertex density varies over a scan): the bit assignment evens the
     bits out, still under the plane-cut rule."""
-    from pmwm.robust import _assign_bits
+    from pmwm.schemes.robust.layout import assign_bits
 
     cv = {"even": [], "blind": []}
     for seed in range(6):
         rng = np.random.default_rng(seed)
         P, e = rng.normal(size=(300, 3)), rng.lognormal(0.0, 1.0, 300)
         for name, given in (("blind", np.zeros(300)), ("even", e)):
-            total = np.bincount(_assign_bits(P, 50, 6, seed, given), weights=e, minlength=50)
+            total = np.bincount(assign_bits(P, 50, 6, seed, given), weights=e, minlength=50)
             cv[name].append(total.std() / total.mean())
     assert np.mean(cv["even"]) < 0.93 * np.mean(cv["blind"]), cv
 
@@ -243,13 +244,13 @@ def test_fifty_bits_at_less_surface_distance_than_the_paper_scheme_and_read_thro
 def test_swirl_alone_carries_the_payload_by_vertex_index(bunny, marked):
     """Undo every bump along its site normal: the surface is back to the original, only the in-surface
     swirl is left, and a copy that keeps the vertex order still reads the payload from it."""
-    from pmwm.robust import _site_arrays
+
 
     V, F = bunny
-    s = _site_arrays(marked.key)
-    sm = s["samples"]
+    s = key_data(marked.key)
+    sm = s.samples
     vi = sm.vertex[sm.mask]
-    N = np.broadcast_to(s["normal"][:, None, :], sm.mask.shape + (3,))[sm.mask]
+    N = np.broadcast_to(s.normal[:, None, :], sm.mask.shape + (3,))[sm.mask]
     X = marked.vertices.copy()
     X[vi] -= np.einsum("ij,ij->i", X[vi] - V[vi], N)[:, None] * N
     mrms, _ = metrics.surface_distance(V, F, X, F, n_samples=20000, seed=1)
@@ -261,14 +262,14 @@ def test_swirl_alone_carries_the_payload_by_vertex_index(bunny, marked):
 
 
 def test_paper_key_is_refused(bunny):
-    V, F = load("cow_libigl.off")
+    V, F = meshes.blob()
     res = pmwm.embed(V, F, pmwm.EmbedOptions(n_bits=16, seed=1, scheme="paper"))
     with pytest.raises(KeyFileError):
         robust_verify(V, F, res.key)
 
 
 def test_small_mesh_uses_fewer_sites_and_still_reads():
-    V, F = load("cow_libigl.off")
+    V, F = meshes.blob()
     res = robust_embed(V, F, pmwm.EmbedOptions(n_bits=64, seed=3))
     assert len(res.carriers) < 6 * 64
     v = robust_verify(res.vertices, res.faces, res.key)
@@ -287,7 +288,7 @@ def test_scheme_dispatch_library_and_command_line(tmp_path, marked):
     v = pmwm.verify(V2, F2, marked.key)
     assert v.marked and v.payload == PAYLOAD and v.mode == "registered"
     src = tmp_path / "cow.off"
-    src.write_bytes(data_path("cow_libigl.off").read_bytes())
+    src.write_bytes(meshes.mesh_file("blob.off").read_bytes())
     out, key = tmp_path / "m.ply", tmp_path / "k.json"
     assert pmwm.cli.main(["embed", str(src), "-o", str(out), "--key", str(key),
                           "--bits", "10" * 16, "--seed", "2", "-q"]) == 0
@@ -304,7 +305,7 @@ def test_scheme_dispatch_library_and_command_line(tmp_path, marked):
 
 def test_robust_is_the_default_scheme(bunny):
     assert pmwm.EmbedOptions().scheme == "robust"
-    V, F = load("cow_libigl.off")
+    V, F = meshes.blob()
     assert pmwm.embed(V, F, pmwm.EmbedOptions(n_bits=16, seed=2)).key.scheme == "robust"
 
 
@@ -321,29 +322,28 @@ def test_noise_is_read_by_vertex_index_and_by_position(marked):
     assert v2.marked and v2.bit_errors <= 0.1 * v2.carriers_total, v2.bit_errors
 
 
-def test_heavy_noise_reads_better_than_the_paper_scheme(bunny, marked):
-    """Paper-protocol noise at 0.03 Rmax: the paper scheme is at chance; the robust scheme still
-    reads most bits (pooled over a few noise draws)."""
-    V, F = bunny
-    paper = pmwm.embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, scheme="paper"))
-    right = {"robust": 0, "paper": 0}
-    total = 0
-    for seed in range(4):
-        for name, res in (("robust", marked), ("paper", paper)):
-            v = pmwm.verify(*attacks.noise_paper(res.vertices, res.faces, amplitude=0.03, seed=seed), res.key)
-            right[name] += v.matches
-        total += marked.key.n_bits
-    assert right["robust"] > 0.65 * total
-    assert right["robust"] > right["paper"] + 0.1 * total
+def test_noise_on_a_reordered_copy_is_still_read(marked):
+    """Paper-protocol noise at 0.01 Rmax on a re-ordered copy: no vertex order to read by, so the
+    copy is registered by its surface, and still read marked with most bits right."""
+    for seed in range(3):
+        noisy = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=seed)
+        v = pmwm.verify(*attacks.reorder(*noisy, seed=seed), marked.key)
+        assert v.mode == "registered" and v.extra["heights"] == "by position"
+        assert v.marked and v.matches >= 0.85 * v.carriers_total, v.matches
 
 
-def test_first_format_and_garbled_keys_are_refused(marked):
-    old = dataclasses.replace(marked.key, extra={**marked.key.extra, "robust_version": 1})
-    with pytest.raises(KeyFileError, match="re-embed"):
+def test_first_format_and_garbled_keys_are_refused_when_the_key_is_read(marked, tmp_path):
+    """A damaged robust key is refused by pmwm.read_key, before any suspect is loaded."""
+    path = tmp_path / "k.json"
+    pmwm.write_key(path, marked.key)
+    good = json.loads(path.read_text())
+    samples = good["extra"]["samples"]
+    for change, words in (({"robust_version": 1}, "re-embed"), ({"samples": "not base64!"}, "damaged"),
+                          ({"samples": samples[:-8]}, "damaged"), ({"site_bit": 3}, "damaged"),
+                          ({"frame": {"points": []}}, "damaged")):
+        path.write_text(json.dumps({**good, "extra": {**good["extra"], **change}}))
+        with pytest.raises(KeyFileError, match=words):
+            pmwm.read_key(path)
+    old = dataclasses.replace(marked.key, extra={**marked.key.extra, "robust_version": 1}, data=None)
+    with pytest.raises(KeyFileError, match="re-embed"):  # a key built in memory is read when first used
         robust_verify(marked.vertices, marked.faces, old)
-    bad = dataclasses.replace(marked.key, extra={**marked.key.extra, "samples": "not base64!"})
-    with pytest.raises(KeyFileError, match="damaged"):
-        robust_verify(marked.vertices, marked.faces, bad)
-    short = dataclasses.replace(marked.key, extra={**marked.key.extra, "samples": marked.key.extra["samples"][:-8]})
-    with pytest.raises(KeyFileError, match="damaged"):
-        robust_verify(marked.vertices, marked.faces, short)

@@ -7,9 +7,9 @@ import pytest
 
 import pmwm
 from pmwm import attacks
-from pmwm.watermark import EmbedOptions, ber_per_level, embed, verify, verify_pm
+from pmwm import EmbedOptions, ber_per_level, embed, verify, verify_pm
 
-from conftest import load
+import meshes
 
 
 @pytest.fixture(scope="module")
@@ -74,13 +74,13 @@ def test_unmarked_original_is_not_marked(marked):
 
 def test_wrong_key_is_not_marked(marked):
     _, F, res = marked
-    other = embed(*load("bunny_wm_benchmark.off"), EmbedOptions(payload="ACME 2026", seed=12, scheme="paper"))
+    other = embed(*meshes.bunny(), EmbedOptions(payload="ACME 2026", seed=12, scheme="paper"))
     v = verify(res.vertices, F, other.key)
     assert not v.marked
 
 
 def test_same_seed_reproduces_and_bits_roundtrip():
-    V, F = load("fandisk.obj")
+    V, F = meshes.cad_part()
     a = embed(V, F, EmbedOptions(bits="1011001110001111", seed=4))
     b = embed(V, F, EmbedOptions(bits="1011001110001111", seed=4))
     assert np.array_equal(a.vertices, b.vertices) and a.key.to_json() == b.key.to_json()
@@ -91,14 +91,14 @@ def test_same_seed_reproduces_and_bits_roundtrip():
 
 
 def test_random_payload_default_64_bits():
-    V, F = load("fandisk.obj")
+    V, F = meshes.cad_part()
     res = embed(V, F, EmbedOptions(seed=1))
     assert len(res.bits) == 64
     assert verify(res.vertices, F, res.key).matches == 64
 
 
 def test_too_many_bits_for_a_small_mesh():
-    V, F = load("cow_libigl.off")
+    V, F = meshes.blob()
     with pytest.raises(pmwm.PayloadError, match="fewer bits"):
         embed(V, F, EmbedOptions(n_bits=2000, seed=1))
 
@@ -109,7 +109,7 @@ def test_too_many_bits_for_a_small_mesh():
      EmbedOptions(strength=-1), EmbedOptions(base_ratio=0)],
 )
 def test_bad_options(opts):
-    V, F = load("cow_libigl.off")
+    V, F = meshes.blob()
     with pytest.raises(pmwm.PmwmError):
         embed(V, F, opts)
 
@@ -132,3 +132,38 @@ def test_reexported_copies_verify(tmp_path, marked, ext):
     src = pmwm.read_mesh(path)
     v = verify(src.vertices, src.faces, res.key)
     assert v.marked and v.bit_errors == 0 and v.payload == "ACME 2026"
+
+
+def test_noisy_copy_in_the_marked_order_is_read_by_index(marked):
+    """Uniform noise of 0.01 of the max norm moves carriers by more than a quarter of an edge, but the
+    copy keeps the marked faces: carriers are read by index, every bit right. Re-ordered as well, the
+    copy is still searched by position."""
+    _, F, res = marked
+    for seed in range(3):
+        v = verify(*attacks.noise_paper(res.vertices, F, amplitude=0.01, seed=seed), res.key)
+        assert (v.mode, v.extra["carriers"]) == ("index", "faces fingerprint") and v.bit_errors == 0
+    noisy = attacks.noise_paper(res.vertices, F, amplitude=0.01, seed=1)
+    v = verify(*attacks.reorder(*noisy, seed=2), res.key)
+    assert v.mode == "position" and v.matches > 0.7 * v.carriers_total
+
+
+def test_noisy_levels_of_detail_are_read_by_index(marked):
+    """The progressive mesh's numbering: its full level by the fingerprint, a coarser one (whose
+    faces the key cannot know) because its carriers sit near their places."""
+    _, _, res = marked
+    full = res.pm.decode()
+    v = verify(*attacks.noise_paper(*full, amplitude=0.005, seed=4), res.key)
+    assert (v.mode, v.extra["carriers"]) == ("index", "faces fingerprint") and v.bit_errors == 0
+    coarse = res.pm.decode(records=res.pm.n_records // 2)
+    v = verify(*attacks.noise_paper(*coarse, amplitude=0.005, seed=4), res.key)
+    assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.marked
+
+
+def test_keys_without_a_fingerprint_still_read_by_index_when_carriers_are_in_place(marked):
+    """Keys written before the fingerprint (empty fields) fall back to the position test."""
+    import dataclasses
+
+    _, F, res = marked
+    old = dataclasses.replace(res.key, faces_fingerprint="", pm_faces_fingerprint="")
+    v = verify(*attacks.noise_paper(res.vertices, F, amplitude=0.002, seed=0), old)
+    assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.bit_errors == 0

@@ -37,30 +37,14 @@ from typing import Callable
 import numpy as np
 
 from .adjacency import build_adjacency, gather_rows, segment_owner
-from .errors import MeshError, ParameterError
+from .errors import ParameterError
+from .validate import check_mesh
 
 MeshArrays = tuple[np.ndarray, np.ndarray]
 
 
 # ----------------------------------------------------------------------------------------------
 # helpers
-
-
-def _check_mesh(vertices, faces) -> MeshArrays:
-    """Copies of the inputs as float64 (n, 3) / int64 (m, 3); MeshError when they are not a mesh."""
-    v = np.array(vertices, dtype=np.float64, copy=True)
-    f = np.array(faces, dtype=np.int64, copy=True)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise MeshError(f"vertices must be an (n, 3) array, got shape {v.shape}; pass xyz positions")
-    if f.size == 0:
-        f = f.reshape(0, 3)
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise MeshError(f"faces must be an (m, 3) triangle array, got shape {f.shape}; triangulate first")
-    if f.size and (f.min() < 0 or f.max() >= len(v)):
-        raise MeshError("faces reference vertices that do not exist; fix the face indices")
-    if not np.isfinite(v).all():
-        raise MeshError("vertices contain NaN or infinite coordinates; clean the mesh first")
-    return v, f
 
 
 def _check_fraction(value: float, name: str, allow_one: bool = False) -> float:
@@ -120,7 +104,7 @@ def _vertex_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 def _uniform_noise(vertices, faces, amplitude: float, seed, scale_of_norms) -> MeshArrays:
     """Uniform noise in [-A*s, A*s] per coordinate, s = scale_of_norms(vertex norms about the mean)."""
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     if amplitude < 0:
         raise ParameterError(f"amplitude must be >= 0, got {amplitude}")
     scale = float(scale_of_norms(_centre_norms(v))) if len(v) else 0.0
@@ -147,7 +131,7 @@ def smooth_laplacian(
     smoothed as a curve and does not shrink into the surface (MeshLab's "1D boundary smoothing"
     default). Isolated vertices do not move. ``seed`` is ignored (deterministic).
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     iterations = int(iterations)
     if iterations < 0:
         raise ParameterError(f"iterations must be >= 0, got {iterations}")
@@ -183,7 +167,7 @@ def crop_paper(vertices, faces, fraction: float = 0.1, seed: int | None = None) 
     component is smaller than the request, the disc continues from the nearest remaining vertex).
     Faces touching a removed vertex are deleted; survivors keep their relative order.
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     fraction = _check_fraction(fraction, "fraction")
     n = len(v)
     k = int(round(fraction * n))
@@ -232,7 +216,7 @@ def quantize(vertices, faces, bits: int = 9, seed: int | None = None) -> MeshArr
     2**bits - 1 (the box corners are levels), rounding to the nearest level. A flat axis is kept.
     ``seed`` is ignored (deterministic).
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     bits = int(bits)
     if not 1 <= bits <= 52:
         raise ParameterError(f"bits must be in 1..52, got {bits}")
@@ -259,7 +243,7 @@ def similarity(
     growing are equally likely) and each component of t uniformly in +-max_translation * dbar, dbar
     being the mean vertex distance from the vertex mean.
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     if isinstance(scale_range, str):  # "0.1,10" from the command line
         scale_range = tuple(scale_range.replace(":", ",").split(","))
     lo, hi = (float(x) for x in scale_range)
@@ -278,7 +262,7 @@ def reorder(vertices, faces, seed: int | None = None) -> MeshArrays:
 
     The geometry and the orientation of every face are unchanged; only the numbering differs.
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     rng = np.random.default_rng(seed)
     n, m = len(v), len(f)
     perm = rng.permutation(n)  # new vertex i is old vertex perm[i]
@@ -299,7 +283,7 @@ def crop_plane(vertices, faces, fraction: float = 0.1, seed: int | None = None) 
     round(fraction * n) vertices (those with the largest projection on the normal) are removed.
     Faces touching a removed vertex are deleted; survivors keep their relative order.
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     fraction = _check_fraction(fraction, "fraction")
     n = len(v)
     k = int(round(fraction * n))
@@ -318,7 +302,7 @@ def simplify(vertices, faces, ratio: float = 0.5, seed: int | None = None) -> Me
     Uses fast-simplification (optional dependency). The benchmark's levels run from 10 % to 97.5 %.
     ``seed`` is ignored (deterministic).
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     ratio = _check_fraction(ratio, "ratio")
     if ratio == 0 or len(f) == 0:
         return v, f
@@ -341,7 +325,7 @@ def subdivide(vertices, faces, scheme: str = "midpoint", seed: int | None = None
     relaxed with alpha_n = (4 - 2 cos(2 pi / n)) / 9; boundary (and inconsistently oriented) edges
     are not flipped and boundary vertices are not moved. ``seed`` is ignored (deterministic).
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     if scheme == "midpoint":
         return _subdivide_midpoint(v, f)
     if scheme == "loop":
@@ -422,7 +406,7 @@ def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = Non
     other faces. About ``fraction`` of the faces are paired (a few rounds of a random matching over
     the edges); a flip that would duplicate an existing edge is skipped, so a manifold mesh stays one.
     """
-    v, f = _check_mesh(vertices, faces)
+    v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     fraction = _check_fraction(fraction, "fraction", allow_one=True)
     f = f.copy()
     n, m = len(v), len(f)

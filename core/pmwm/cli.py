@@ -18,11 +18,14 @@ from typing import Optional, Sequence
 
 
 from . import __version__
+from .api import embed, read_key, verify, verify_pm
+from .atomic import atomic_write_bytes
+from .base import EmbedOptions, Verdict
 from .errors import OutputExistsError, PmwmError
-from .key import read_key, write_key
-from .meshio import SUPPORTED_EXTENSIONS, atomic_write_bytes, read_mesh, write_marked, write_mesh
+from .key import write_key
+from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .pmfile import read_pm, record_size, write_pm
-from .watermark import EmbedOptions, Verdict, embed, verify, verify_pm
+from .schemes import SCHEMES
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
 
@@ -228,9 +231,19 @@ def cmd_demo(a) -> int:
 
 
 def cmd_bench(argv: Sequence[str]) -> int:
-    from .bench import main as bench_main
+    """``pmwm bench``: the evaluation (package ``pmwm_bench``), found as the ``bench`` entry point of
+    the ``pmwm.commands`` group; the library never imports it."""
+    from importlib.metadata import entry_points
 
-    return bench_main(list(argv))
+    found = list(entry_points(group="pmwm.commands", name="bench"))
+    if not found:
+        raise UsageError("pmwm bench needs the evaluation part, installed from a checkout with "
+                         "pip install '.[bench]'")
+    try:
+        command = found[0].load()
+    except ImportError as exc:
+        raise UsageError(f"pmwm bench cannot start ({exc}); install the bench extra: pip install '.[bench]'") from None
+    return command(list(argv))
 
 
 # --------------------------------------------------------------------------- parser
@@ -256,11 +269,11 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--bits", help="payload bits, e.g. 0110...")
     e.add_argument("--n-bits", type=int, default=64, help="random payload length without --payload/--bits")
     e.add_argument("--seed", type=int, help="seed of every random choice (default: a fresh secret)")
-    e.add_argument("--strength", type=float, default=2.0)
+    e.add_argument("--strength", type=float,
+                   help="robust and paper: a factor (default 2); cho1, cho2: Cho's alpha (default 0.05)")
     e.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
-    e.add_argument("--scheme", choices=("robust", "paper"), default="robust",
-                   help="robust (default): bumps spread over the surface, read after registration; "
-                        "paper: the paper's Algorithms 1-2")
+    e.add_argument("--scheme", choices=tuple(SCHEMES), default="robust",
+                   help="; ".join(f"{s.name}: {s.description}" for s in SCHEMES.values()))
     e.add_argument("--force", action="store_true", help="overwrite existing outputs")
     e.add_argument("-q", "--quiet", action="store_true")
     e.set_defaults(func=cmd_embed)
@@ -320,7 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bench", add_help=False,
                        help="run the robustness benchmark (both protocols, pmwm vs Cho); "
                             "'pmwm bench --help' for its options")
-    b.add_argument("args", nargs=argparse.REMAINDER)  # handed to pmwm.bench.main by main()
+    b.add_argument("args", nargs=argparse.REMAINDER)  # handed to the bench entry point by main()
     return p
 
 

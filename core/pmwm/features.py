@@ -88,3 +88,12 @@ def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6) -> np.n
     a_hi = angle[start[:, None] + hi]
     out[has] = a_lo * (1.0 - w) + a_hi * w
     return out
+
+
+def mean_edge_length(V: np.ndarray, adj: Adjacency) -> float:
+    """Mean length of the mesh's edges, V : (n, 3) float64 (0 without edges): the scale of every
+    mark and tolerance."""
+    e = adj.edges
+    if len(e) == 0:
+        return 0.0
+    return float(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1).mean())

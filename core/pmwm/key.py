@@ -3,7 +3,10 @@
 The key is a secret. It holds the secret from which every random choice derives
 (carrier choice, the keyed bit scrambling), the payload bits, and the carriers:
 their index in the marked mesh, their index in the progressive mesh and their
-marked position (for re-synchronising a re-ordered or cropped copy). Whoever
+marked position (for re-synchronising a re-ordered or cropped copy), and a fingerprint of the
+marked mesh's connectivity (a copy with the same faces keeps the vertex order, whatever the noise).
+A scheme keeps its own data under ``extra``, read into a typed object (``data``) by that scheme
+(``pmwm.schemes``) when the key file is read. Whoever
 holds it can read the mark, and could locate and erase it; it does not let anyone
 mark another mesh in your name without your mesh, and it is never stored in the
 marked mesh, the .pmwm file or the .blend.
@@ -20,7 +23,7 @@ from typing import Optional
 import numpy as np
 
 from .errors import KeyFileError
-from .meshio import atomic_write_bytes
+from .atomic import atomic_write_bytes
 
 KEY_FORMAT = "pmwm-key"
 KEY_VERSION = 1
@@ -42,15 +45,18 @@ class WatermarkKey:
     mean_edge: float  # mean edge length of the marked mesh (position tolerance scale)
     bbox_diagonal: float
     scheme: str = "paper"
-    extra: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)  # the scheme's data as stored in JSON (its writer's output)
+    faces_fingerprint: str = ""  # face_fingerprint of the marked mesh's faces ("" in older keys)
+    pm_faces_fingerprint: str = ""  # the same in the progressive mesh's vertex order
+    data: object = field(default=None, repr=False, compare=False)  # the scheme's typed data
 
     @property
     def n_bits(self) -> int:
         return len(self.bits)
 
     def stream(self, label: str, n: int) -> np.ndarray:
-        """A keyed pseudo-random bit sequence (uint8) for one purpose."""
-        return np.random.default_rng(derive_seed(self.secret, label)).integers(0, 2, n).astype(np.uint8)
+        """A keyed pseudo-random bit sequence (n,) uint8 for one purpose (``keyed_bits``)."""
+        return keyed_bits(self.secret, label, n)
 
     def to_json(self) -> str:
         doc = {
@@ -66,6 +72,8 @@ class WatermarkKey:
                 "n_faces": self.n_faces,
                 "mean_edge": self.mean_edge,
                 "bbox_diagonal": self.bbox_diagonal,
+                "faces_sha256": self.faces_fingerprint,
+                "pm_faces_sha256": self.pm_faces_fingerprint,
             },
             "carriers": [
                 [int(i), int(j), *map(float, p)]
@@ -109,6 +117,8 @@ class WatermarkKey:
                 bbox_diagonal=float(mesh["bbox_diagonal"]),
                 scheme=str(doc.get("scheme", "paper")),
                 extra=dict(doc.get("extra", {})),
+                faces_fingerprint=str(mesh.get("faces_sha256", "")),
+                pm_faces_fingerprint=str(mesh.get("pm_faces_sha256", "")),
             )
         except KeyError as exc:
             raise KeyFileError(f"{name} lacks the field {exc.args[0]!r}; it is damaged or not a pmwm key") from None
@@ -121,7 +131,8 @@ class WatermarkKey:
         problems = []
         if len(self.secret) != 64 or any(c not in "0123456789abcdef" for c in self.secret):
             problems.append("secret is not 64 hex digits")
-        if self.n_bits == 0 or self.n_bits != len(self.carrier_index):
+        if self.n_bits == 0 or len(self.carrier_index) not in (0, self.n_bits) \
+                or not (len(self.carrier_index) == len(self.carrier_pm_index) == len(self.carrier_position)):
             problems.append("bit count and carrier count differ")
         if np.any(self.bits > 1):
             problems.append("bits are not 0/1")
@@ -132,8 +143,6 @@ class WatermarkKey:
                 problems.append(f"a carrier {what} is outside the mesh's {self.n_vertices} vertices")
         if self.n_vertices < 1 or self.n_faces < 1:
             problems.append("mesh counts are not positive")
-        if self.scheme not in ("paper", "robust"):
-            problems.append(f"unknown scheme {self.scheme!r}")
         if self.payload_kind not in ("text", "bits", "random"):
             problems.append(f"unknown payload kind {self.payload_kind!r}")
         if not (0 < self.mean_edge < 1e30 and np.isfinite(self.bbox_diagonal)):
@@ -145,6 +154,11 @@ class WatermarkKey:
 def derive_seed(secret: str, label: str) -> int:
     """A 64-bit seed for one purpose, derived from the key secret."""
     return int.from_bytes(hashlib.sha256(f"{secret}:{label}".encode()).digest()[:8], "little")
+
+
+def keyed_bits(secret: str, label: str, n: int) -> np.ndarray:
+    """A pseudo-random bit sequence (n,) uint8 drawn from the secret for one purpose (``label``)."""
+    return np.random.default_rng(derive_seed(secret, label)).integers(0, 2, n).astype(np.uint8)
 
 
 def make_secret(seed: Optional[int]) -> str:
@@ -159,8 +173,19 @@ def write_key(path, key: WatermarkKey, *, overwrite: bool = False) -> None:
     atomic_write_bytes(path, key.to_json().encode(), force=overwrite, mode=0o600)
 
 
-def read_key(path) -> WatermarkKey:
-    """Read and check a key file; KeyFileError on anything wrong."""
+def face_fingerprint(faces: np.ndarray) -> str:
+    """SHA-256 (hex) of a face array, faces : (m, 3) int, independent of the order of the faces and
+    of where each triangle's vertex list starts (its orientation counts): equal for two meshes with
+    the same connectivity over the same vertex numbering."""
+    F = np.asarray(faces, np.int64).reshape(-1, 3)
+    G = np.take_along_axis(F, (np.argmin(F, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
+    G = np.ascontiguousarray(G[np.lexsort(G.T[::-1])], dtype="<i8")
+    return hashlib.sha256(G.tobytes()).hexdigest()
+
+
+def read_key_json(path) -> WatermarkKey:
+    """Read a key file and check its generic part (``pmwm.read_key`` also reads the scheme's data);
+    KeyFileError on anything wrong."""
     path = os.fspath(path)
     if os.path.isdir(path):
         raise KeyFileError(f"{path} is a directory, not a key file")

@@ -1,4 +1,4 @@
-"""Mesh file input/output through trimesh, plus atomic file writing.
+"""Mesh file input/output through trimesh.
 
 Why this module exists: the watermark lives in vertex positions, so a file must come in and go out
 without trimesh quietly merging, reordering or rounding vertices. Everything is loaded with
@@ -8,7 +8,7 @@ with new positions. OBJ and OFF are written by this module (trimesh's writers ro
 number of decimals); each coordinate is written with ``repr`` so float64 values read back bit-exactly.
 PLY, STL and GLB store float32 positions (``SourceMesh.float32`` tells whether the input already fits).
 
-``atomic_output`` / ``atomic_write_bytes`` are generic: the key and PM writers use them too.
+Files are written through ``pmwm.atomic``.
 """
 
 from __future__ import annotations
@@ -16,16 +16,15 @@ from __future__ import annotations
 import io
 import os
 import re
-import secrets
-from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Iterator
 
 import numpy as np
 import trimesh
 
-from .errors import MeshError, OutputExistsError, PmwmError
+from .atomic import atomic_write_bytes
+from .errors import MeshError, PmwmError
 from .features import vertex_normals
+from .validate import check_mesh, check_vertices
 
 SUPPORTED_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
@@ -36,8 +35,6 @@ __all__ = [
     "write_mesh",
     "write_marked",
     "weld",
-    "atomic_output",
-    "atomic_write_bytes",
 ]
 
 
@@ -52,105 +49,6 @@ class SourceMesh:
     float32: bool  # every coordinate is exactly representable as float32
     warnings: list[str] = field(default_factory=list)
     path: str = ""
-
-
-# --------------------------------------------------------------------------------------------
-# atomic writing (generic: used by the mesh, key and PM writers)
-# --------------------------------------------------------------------------------------------
-
-
-def _fsync_path(path: str) -> None:
-    fd = os.open(path, os.O_RDWR)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_dir(folder: str) -> None:
-    """Make the rename durable where the OS allows it (a no-op on Windows)."""
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def _remove_quietly(path: str) -> None:
-    try:
-        os.unlink(path)
-    except OSError:
-        pass
-
-
-@contextmanager
-def atomic_output(path, *, force: bool = False, mode: int | None = None) -> Iterator[str]:
-    """Yield a temporary path next to ``path``; on success move it onto ``path`` atomically.
-
-    Refuses an existing target unless ``force`` (OutputExistsError) and a missing folder
-    (PmwmError). The temporary file already exists (empty) and keeps the target's extension, so
-    writers that sniff the extension work. After the body it is fsynced and renamed; when the
-    body raises it is removed and the target is untouched. ``mode`` (e.g. 0o600) is applied to
-    the temporary file from its creation, so a secret is never readable by others.
-    """
-    target = os.fspath(path)
-    folder = os.path.dirname(os.path.abspath(target))
-    if not os.path.isdir(folder):
-        raise PmwmError(f"folder {folder} does not exist; create it first or choose another output path")
-    if os.path.isdir(target):
-        raise PmwmError(f"{target} is a directory; give a file name to write")
-    if not force and os.path.lexists(target):
-        raise OutputExistsError(f"{target} exists; pass --force to overwrite")
-
-    stem, ext = os.path.splitext(os.path.basename(target))
-    create_mode = 0o666 if mode is None else mode
-    while True:
-        tmp = os.path.join(folder, f".{stem}.tmp-{secrets.token_hex(4)}{ext}")
-        try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, create_mode)
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise PmwmError(f"cannot write {target}: {exc.strerror or exc}") from None
-        os.close(fd)
-        break
-
-    try:
-        yield tmp
-        if mode is not None:
-            os.chmod(tmp, mode)
-        _fsync_path(tmp)
-        if force:
-            os.replace(tmp, target)
-        else:
-            try:  # no-clobber: fails if the target appeared while we were writing
-                os.link(tmp, target)
-            except FileExistsError:
-                raise OutputExistsError(f"{target} exists; pass --force to overwrite") from None
-            except OSError:  # the filesystem has no hard links
-                if os.path.lexists(target):
-                    raise OutputExistsError(f"{target} exists; pass --force to overwrite") from None
-                os.replace(tmp, target)
-            else:
-                _remove_quietly(tmp)
-    except BaseException as exc:
-        _remove_quietly(tmp)
-        if isinstance(exc, OSError) and not isinstance(exc, PmwmError):
-            raise PmwmError(f"cannot write {target}: {exc.strerror or exc}") from exc
-        raise
-    _fsync_dir(folder)
-
-
-def atomic_write_bytes(path, data: bytes, *, force: bool = False, mode: int | None = None) -> None:
-    """Write ``data`` to ``path`` atomically (see ``atomic_output``); ``mode`` e.g. 0o600 for secrets."""
-    with atomic_output(path, force=force, mode=mode) as tmp:
-        with open(tmp, "wb") as fh:
-            fh.write(data)
 
 
 # --------------------------------------------------------------------------------------------
@@ -477,17 +375,6 @@ def _visual_copy(visual):
         return None
 
 
-def _check_vertices(vertices, expected_rows: int | None, what: str) -> np.ndarray:
-    v = np.asarray(vertices, dtype=np.float64)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise MeshError(f"{what} must be an (n, 3) array, got shape {v.shape}")
-    if expected_rows is not None and len(v) != expected_rows:
-        raise MeshError(f"{what} has {len(v)} rows but the mesh has {expected_rows} vertices")
-    if not np.isfinite(v).all():
-        raise MeshError(f"{what} holds non-finite (NaN/inf) coordinates")
-    return v
-
-
 def write_mesh(path, vertices, faces, *, force: bool = False) -> None:
     """Write a triangle mesh; the format comes from the extension. Atomic.
 
@@ -496,13 +383,7 @@ def write_mesh(path, vertices, faces, *, force: bool = False) -> None:
     """
     p = os.fspath(path)
     ext = _extension(p)
-    v = _check_vertices(vertices, None, "vertices")
-    f = np.asarray(faces)
-    if f.ndim != 2 or f.shape[1] != 3 or (f.size and not np.issubdtype(f.dtype, np.integer)):
-        raise MeshError(f"faces must be an (m, 3) integer array, got shape {f.shape} ({f.dtype})")
-    f = f.astype(np.int64)
-    if len(f) and (f.min() < 0 or f.max() >= len(v)):
-        raise MeshError("faces reference vertices that do not exist")
+    v, f = check_mesh(vertices, faces, need_faces=False)
     if ext == ".obj":
         data = _obj_text(v, f).encode("ascii")
     elif ext == ".off":
@@ -530,7 +411,7 @@ def write_marked(path, src: SourceMesh, canonical_vertices, *, force: bool = Fal
     """
     p = os.fspath(path)
     ext = _extension(p)
-    v = _check_vertices(canonical_vertices, len(src.vertices), "marked vertices")
+    v = check_vertices(canonical_vertices, "marked vertices", rows=len(src.vertices))
     positions = v[src.source_to_canonical]
     faces = np.asarray(src.source.faces, dtype=np.int64)
     if ext == ".off":

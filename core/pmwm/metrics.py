@@ -23,25 +23,15 @@ import math
 import numpy as np
 
 from .errors import MeshError, PayloadError
+from .sampling import sample_surface
+from .validate import parse_bits
 
 # ----------------------------------------------------------------------------------------------
 # bits
 
 
-def _as_bits(x) -> np.ndarray:
-    """Bits as a float array: 0.0, 1.0, or NaN for an erasure."""
-    if isinstance(x, str):
-        arr = np.frombuffer(x.encode("ascii", "replace"), dtype=np.uint8)
-        out = np.full(len(arr), np.nan)
-        out[arr == ord("0")] = 0.0
-        out[arr == ord("1")] = 1.0
-        return out
-    arr = np.asarray(x, dtype=np.float64).ravel()
-    return np.where((arr == 0) | (arr == 1), arr, np.nan)
-
-
 def _bit_pair(a, b) -> tuple[np.ndarray, np.ndarray]:
-    x, y = _as_bits(a), _as_bits(b)
+    x, y = parse_bits(a, erasures=True), parse_bits(b, erasures=True)
     if len(x) != len(y):
         raise PayloadError(f"bit sequences differ in length ({len(x)} vs {len(y)}); compare equal payloads")
     if len(x) == 0:
@@ -168,26 +158,6 @@ def energy_per_bit(orig, marked, n_bits: int) -> float:
 
 # ----------------------------------------------------------------------------------------------
 # surface distance
-
-
-def sample_surface(vertices, faces, n_samples: int, seed: int | None = None) -> np.ndarray:
-    """``n_samples`` points uniform over the surface (area-weighted face, uniform barycentric)."""
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if len(f) == 0:
-        raise MeshError("the mesh has no faces; surface metrics need triangles")
-    rng = np.random.default_rng(seed)
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    cdf = np.cumsum(area)
-    if cdf[-1] <= 0:
-        raise MeshError("all faces are degenerate (zero area); surface metrics need a surface")
-    face = np.searchsorted(cdf, rng.uniform(0.0, cdf[-1], n_samples), side="right")
-    face = np.minimum(face, len(f) - 1)
-    r1, r2 = rng.uniform(size=n_samples), rng.uniform(size=n_samples)
-    flip = r1 + r2 > 1.0
-    r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
-    return a[face] + r1[:, None] * (b[face] - a[face]) + r2[:, None] * (c[face] - a[face])
 
 
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -354,8 +324,8 @@ def surface_distance(
     """
     rng = np.random.default_rng(seed)
     s1, s2 = rng.integers(0, 2**63 - 1, size=2)
-    p1 = sample_surface(v1, f1, n_samples, int(s1))
-    p2 = sample_surface(v2, f2, n_samples, int(s2))
+    p1, _ = sample_surface(v1, f1, n_samples, int(s1))
+    p2, _ = sample_surface(v2, f2, n_samples, int(s2))
     d12 = point_surface_distance(p1, v2, f2)
     d21 = point_surface_distance(p2, v1, f1)
     diag = bbox_diagonal(v1)
@@ -377,7 +347,6 @@ __all__ = [
     "q_function",
     "matched_filter_bound",
     "energy_per_bit",
-    "sample_surface",
     "closest_point_on_triangles",
     "point_surface_distance",
     "surface_distance",

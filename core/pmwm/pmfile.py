@@ -25,12 +25,12 @@ import struct
 import numpy as np
 
 from .errors import PMFormatError
-from .meshio import atomic_write_bytes
+from .atomic import atomic_write_bytes
 from .progressive import FLAG_SECOND, FLAG_SINGLE, ProgressiveMesh
 
 MAGIC = b"\x89PMWM\r\n\x1a"
 VERSION = 1
-_HEADER = struct.Struct("<8sHHIIIII")
+HEADER = struct.Struct("<8sHHIIIII")
 _DIGEST = 32
 _FLAG_F64 = 1
 _V_BITS = 30  # v is stored in the low 30 bits, split flags in the top 2
@@ -52,7 +52,7 @@ def to_bytes(pm: ProgressiveMesh) -> bytes:
         raise PMFormatError(f"a .pmwm file holds at most {MAX_VERTICES} vertices; this mesh has {pm.n_vertices}")
     f64 = not pm.float32
     ftype = "<f8" if f64 else "<f4"
-    header = _HEADER.pack(
+    header = HEADER.pack(
         MAGIC,
         VERSION,
         _FLAG_F64 if f64 else 0,
@@ -80,9 +80,9 @@ def to_bytes(pm: ProgressiveMesh) -> bytes:
 
 def from_bytes(data: bytes, name: str = "the file") -> ProgressiveMesh:
     """Parse and check a .pmwm file; PMFormatError on any inconsistency."""
-    if len(data) < _HEADER.size + _DIGEST:
+    if len(data) < HEADER.size + _DIGEST:
         raise PMFormatError(f"{name} is too short to be a .pmwm progressive mesh ({len(data)} bytes)")
-    magic, version, flags, nb, fb, nr, nl, _ = _HEADER.unpack_from(data, 0)
+    magic, version, flags, nb, fb, nr, nl, _ = HEADER.unpack_from(data, 0)
     if magic != MAGIC:
         raise PMFormatError(f"{name} is not a .pmwm progressive mesh (wrong magic bytes)")
     if version > VERSION:
@@ -96,14 +96,14 @@ def from_bytes(data: bytes, name: str = "the file") -> ProgressiveMesh:
     f64 = bool(flags & _FLAG_F64)
     fsize = 8 if f64 else 4
     rdt = _record_dtype(f64)
-    expected = _HEADER.size + nb * 3 * fsize + fb * 12 + nl * 4 + nr * rdt.itemsize + _DIGEST
+    expected = HEADER.size + nb * 3 * fsize + fb * 12 + nl * 4 + nr * rdt.itemsize + _DIGEST
     if len(data) != expected:
         raise PMFormatError(
             f"{name} is truncated or padded: its header promises {expected} bytes, it has {len(data)}"
         )
     if hashlib.sha256(memoryview(data)[:-_DIGEST]).digest() != bytes(data[-_DIGEST:]):
         raise PMFormatError(f"{name} is corrupted (checksum mismatch); get a fresh copy")
-    off = _HEADER.size
+    off = HEADER.size
     ftype = "<f8" if f64 else "<f4"
     base_v = np.frombuffer(data, ftype, nb * 3, off).reshape(nb, 3).astype(np.float64)
     off += nb * 3 * fsize
@@ -169,16 +169,16 @@ def read_pm(path) -> ProgressiveMesh:
         raise PMFormatError(f"{path} is a directory, not a .pmwm file")
     try:
         with open(path, "rb") as fh:
-            head = fh.read(_HEADER.size)
+            head = fh.read(HEADER.size)
             fh.seek(0, os.SEEK_END)
             size = fh.tell()
             if len(head) < 8 or head[:8] != MAGIC:
                 raise PMFormatError(f"{path} is not a .pmwm progressive mesh (wrong magic bytes)")
-            if len(head) == _HEADER.size:
-                _, _, flags, nb, fb, nr, nl, _ = _HEADER.unpack(head)
+            if len(head) == HEADER.size:
+                _, _, flags, nb, fb, nr, nl, _ = HEADER.unpack(head)
                 fsize = 8 if flags & _FLAG_F64 else 4
                 rsize = _record_dtype(bool(flags & _FLAG_F64)).itemsize
-                expected = _HEADER.size + nb * 3 * fsize + fb * 12 + nl * 4 + nr * rsize + _DIGEST
+                expected = HEADER.size + nb * 3 * fsize + fb * 12 + nl * 4 + nr * rsize + _DIGEST
                 if expected != size:
                     raise PMFormatError(
                         f"{path} is truncated or padded: its header promises {expected} bytes, it has {size}"

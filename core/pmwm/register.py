@@ -33,7 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .features import face_normals, vertex_normals
+from .sampling import sample_surface
+from .spatial import nearest
 
 
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
@@ -58,31 +59,55 @@ class RegistrationInfo:
     init: str  # "identity" or "pca<signs>"
 
 
-def surface_frame(vertices: np.ndarray, faces: np.ndarray, n_samples: int, seed: int) -> dict:
-    """Reference frame of a surface as a JSON-ready dict: points, normals, centroid, axes, scale."""
-    P, N = _samples_with_normals(vertices, faces, n_samples, seed)
+@dataclass
+class SurfaceFrame:
+    """A reference surface for registration, as the key stores it.
+
+    points, normals : (k, 3) float64 surface samples (rounded to 9 and 6 decimals, as stored) and
+    their smooth unit normals; centroid (3,), axes (3, 3) (rows) and scale of their PCA; floor: the
+    trimmed RMS nearest-sample distance between two samplings of the same surface, / scale.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    centroid: np.ndarray
+    axes: np.ndarray
+    scale: float
+    floor: float = 0.0
+
+    def to_json(self) -> dict:
+        return {"points": self.points.tolist(), "normals": self.normals.tolist(),
+                "centroid": self.centroid.tolist(), "axes": self.axes.tolist(), "scale": self.scale,
+                "floor": self.floor}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "SurfaceFrame":
+        """The frame from its JSON form; ValueError, KeyError or TypeError when it is not one."""
+        shapes = {"points": (-1, 3), "normals": (-1, 3), "centroid": (3,), "axes": (3, 3)}
+        arrays = {k: np.asarray(d[k], np.float64).reshape(shp) for k, shp in shapes.items()}
+        frame = cls(**arrays, scale=float(d["scale"]), floor=float(d.get("floor", 0.0)))
+        if not all(np.all(np.isfinite(v)) for v in (*arrays.values(), frame.scale, frame.floor)) \
+                or frame.scale <= 0 or len(frame.points) != len(frame.normals) or len(frame.points) < 3:
+            raise ValueError("registration frame")
+        return frame
+
+
+def surface_frame(vertices: np.ndarray, faces: np.ndarray, n_samples: int, seed: int) -> SurfaceFrame:
+    """The reference frame of a surface: ``n_samples`` area-uniform samples and their PCA."""
+    P, N = sample_surface(vertices, faces, n_samples, seed, normals=True)
     centroid, axes, scale = _pca(P)
-    return {
-        "points": np.round(P, 9).tolist(),
-        "normals": np.round(N, 6).tolist(),
-        "centroid": centroid.tolist(),
-        "axes": axes.tolist(),
-        "scale": scale,
-        # trimmed RMS nearest-sample distance between two samplings of the same surface
-        "floor": _self_floor(P, vertices, faces, seed) / scale,
-    }
+    return SurfaceFrame(points=np.round(P, 9), normals=np.round(N, 6), centroid=centroid, axes=axes,
+                        scale=scale, floor=_self_floor(P, vertices, faces, seed) / scale)
 
 
-def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: int = 0
+def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0
              ) -> tuple[np.ndarray, RegistrationInfo]:
-    """The suspect's vertices mapped into the reference frame, and how (see the module docstring)."""
-    ref_P = np.asarray(frame["points"], np.float64)
-    ref_N = np.asarray(frame["normals"], np.float64)
-    ref_c = np.asarray(frame["centroid"], np.float64)
-    ref_A = np.asarray(frame["axes"], np.float64)
-    ref_s = float(frame["scale"])
+    """The suspect's vertices mapped into the reference frame, and how (see the module docstring).
+
+    suspect_V : (n, 3) float64, suspect_F : (m, 3) int64; returns (n, 3) float64."""
+    ref_P, ref_N, ref_c, ref_A, ref_s = frame.points, frame.normals, frame.centroid, frame.axes, frame.scale
     V = np.asarray(suspect_V, np.float64)
-    S, _ = _samples_with_normals(V, suspect_F, SUSPECT_SAMPLES, seed)
+    S, _ = sample_surface(V, suspect_F, SUSPECT_SAMPLES, seed)
     c, A, s = _pca(S)
     inits = [("identity", np.eye(3), 1.0, np.zeros(3))] + _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
     k_pca = ref_s / max(s, 1e-300)
@@ -92,7 +117,7 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: dict, seed: in
         a tiny residual) or exploded: not a fit."""
         return 0.3 * k_pca < k < 3.0 * k_pca
 
-    floor = float(frame.get("floor", 0.0))
+    floor = frame.floor
     best = None
     for name, R, k, t in inits:
         R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, COARSE_ITERATIONS)
@@ -165,26 +190,8 @@ def _log_spread(P: np.ndarray, masks: np.ndarray) -> np.ndarray:
 # --------------------------------------------------------------------------- helpers
 
 
-def _samples_with_normals(V: np.ndarray, F: np.ndarray, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Area-uniform surface samples and the smooth (vertex-interpolated) unit normals there."""
-    F = np.asarray(F, np.int64).reshape(-1, 3)
-    _, area = face_normals(V, F)
-    vn = vertex_normals(V, F)
-    rng = np.random.default_rng(seed)
-    cdf = np.cumsum(area)
-    face = np.minimum(np.searchsorted(cdf, rng.uniform(0.0, cdf[-1], n), side="right"), len(F) - 1)
-    r1, r2 = rng.uniform(size=n), rng.uniform(size=n)
-    flip = r1 + r2 > 1.0
-    r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
-    w = np.stack([1.0 - r1 - r2, r1, r2], axis=1)
-    P = np.einsum("ij,ijk->ik", w, V[F[face]])
-    N = np.einsum("ij,ijk->ik", w, vn[F[face]])
-    N /= np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
-    return P, N
-
-
 def _self_floor(P: np.ndarray, V: np.ndarray, F: np.ndarray, seed: int) -> float:
-    Q, _ = _samples_with_normals(V, F, SUSPECT_SAMPLES, seed + 1)
+    Q, _ = sample_surface(V, F, SUSPECT_SAMPLES, seed + 1)
     _, d2 = nearest(P, Q)
     return float(np.sqrt(np.mean(np.sort(d2)[: int(TRIM * len(d2))])))
 
@@ -203,26 +210,6 @@ def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
             A[i] = -A[i]
     A[2] = np.cross(A[0], A[1])
     return c, A, float(np.sqrt(max(w.sum(), 1e-300)))
-
-
-def nearest(T: np.ndarray, Q: np.ndarray, budget: int = 1 << 22) -> tuple[np.ndarray, np.ndarray]:
-    """Index of the nearest point of T to each query of Q, and the squared distance (brute force in
-    chunks of about ``budget`` distances; about T's mean, so far-off coordinates keep their digits)."""
-    idx = np.empty(len(Q), np.int64)
-    d2 = np.empty(len(Q))
-    if len(T) == 0:
-        return np.full(len(Q), -1, np.int64), np.full(len(Q), np.inf)
-    centre = T.mean(axis=0)
-    T, Q = T - centre, Q - centre
-    tt = np.einsum("ij,ij->i", T, T)
-    step = max(1, budget // max(len(T), 1))
-    for s in range(0, len(Q), step):
-        q = Q[s:s + step]
-        D = tt[None, :] - 2.0 * q @ T.T
-        j = np.argmin(D, axis=1)
-        idx[s:s + step] = j
-        d2[s:s + step] = np.maximum(D[np.arange(len(q)), j] + np.einsum("ij,ij->i", q, q), 0.0)
-    return idx, d2
 
 
 def _icp(S, ref_P, ref_N, R, k, t, ref_s, iterations):

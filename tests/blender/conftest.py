@@ -19,8 +19,6 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT.parent / "shared" / "data"
-BUNNY = DATA / "bunny_wm_benchmark.off"
 
 
 def _load_addon():
@@ -93,11 +91,11 @@ _BUNNY_CACHE: dict = {}
 
 
 def bunny():
-    """The benchmark bunny (34,835 vertices) as a mesh object."""
+    """The benchmark bunny (34,835 vertices), the sample shipped in the package, as a mesh object."""
     import pmwm
 
     if "src" not in _BUNNY_CACHE:
-        _BUNNY_CACHE["src"] = pmwm.read_mesh(str(BUNNY))
+        _BUNNY_CACHE["src"] = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
     src = _BUNNY_CACHE["src"]
     return new_object("bunny", src.vertices, src.faces)
 

@@ -1,4 +1,5 @@
-"""Cho, Prost and Jung 2007 (IEEE TSP 55(1)): blind watermarking by the distribution of vertex norms.
+"""Cho, Prost and Jung 2007 (IEEE TSP 55(1)) as schemes "cho1" and "cho2": blind watermarking by the
+distribution of vertex norms.
 
 The paper pmwm implements compares itself with this method; the benchmark protocol's published
 anchor is also Cho's. Both methods (DESIGN.md section 6, last paragraph):
@@ -18,7 +19,9 @@ anchor is also Cho's. Both methods (DESIGN.md section 6, last paragraph):
 
 The decoder is blind: it recomputes c, rho_min and rho_max from the suspect mesh, which makes it
 invariant to similarity transforms and vertex/face reordering. The key records rho_min/rho_max at
-embedding only as a diagnostic (e.g. the scale of a suspect copy). Moving vertices shifts the vertex
+embedding only as a diagnostic (e.g. the scale of a suspect copy). ``strength`` is alpha (0.05 by
+default). As in pmwm's other schemes, the bits embedded are the payload XOR a keyed sequence (so an
+unmarked mesh reads as chance and the binomial p-value is exact) and the marked mesh is float32. Moving vertices shifts the vertex
 mean slightly; the embedder checks its own output with the decoder and, for any bin that the shift
 pushed across the threshold, re-embeds with a larger margin (up to a few rounds).
 """
@@ -26,66 +29,47 @@ pushed across the threshold, re-embeds with a larger margin (up to a few rounds)
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Optional
 
 import numpy as np
 
-from .errors import KeyFileError, MeshError, PayloadError, ParameterError
+from ..adjacency import build_adjacency
+from ..base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed, verdict_from_scores
+from ..errors import KeyFileError, MeshError, PayloadError
+from ..key import WatermarkKey, keyed_bits
+from ..progressive import build_progressive_mesh
+from ..validate import check_mesh
 
-_THRESHOLD = {"I": 0.5, "II": 1.0 / 3.0}
+DEFAULT_ALPHA = 0.05
+STRENGTH_STEP = 0.001  # the grid of the exponent k (Cho's step)
 
 
 @dataclass(frozen=True)
-class ChoKey:
-    """What the Cho decoder needs (method, n_bits) plus the embedding parameters, for the record."""
+class ChoKeyData:
+    """What the Cho decoder needs (method) plus the embedding parameters, for the record."""
 
     method: str  # "I" or "II"
-    n_bits: int
     alpha: float
     rho_min: float  # at embedding, diagnostic only: detection recomputes it
     rho_max: float
-    strength_step: float = 0.001
+    strength_step: float = STRENGTH_STEP
 
-    def to_dict(self) -> dict:
+    def to_extra(self) -> dict:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "ChoKey":
+    def from_extra(cls, d: dict) -> "ChoKeyData":
         try:
-            return cls(
-                method=str(d["method"]),
-                n_bits=int(d["n_bits"]),
-                alpha=float(d["alpha"]),
-                rho_min=float(d["rho_min"]),
-                rho_max=float(d["rho_max"]),
-                strength_step=float(d.get("strength_step", 0.001)),
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise KeyFileError(f"not a Cho key ({exc}); pass the key returned by cho_embed") from exc
+            out = cls(method=str(d["method"]), alpha=float(d["alpha"]), rho_min=float(d["rho_min"]),
+                      rho_max=float(d["rho_max"]), strength_step=float(d.get("strength_step", STRENGTH_STEP)))
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
+            raise KeyFileError(f"the Cho key lacks or garbles its data ({exc}); it is damaged") from None
+        if out.method not in _THRESHOLD or not 0 < out.alpha < _THRESHOLD[out.method]:
+            raise KeyFileError("the Cho key's method or alpha is out of range; it is damaged")
+        return out
 
 
-def _check_method(method: str) -> str:
-    m = str(method).upper()
-    if m not in _THRESHOLD:
-        raise ParameterError(f"unknown Cho method {method!r}; use 'I' or 'II'")
-    return m
-
-
-def _as_bit_array(bits) -> np.ndarray:
-    if isinstance(bits, str):
-        if not bits or set(bits) - {"0", "1"}:
-            raise PayloadError("bits must be a non-empty string of '0'/'1'; e.g. '0110'")
-        return np.frombuffer(bits.encode(), dtype=np.uint8) - ord("0")
-    arr = np.asarray(bits).ravel()
-    if arr.size == 0 or not np.isin(arr, (0, 1)).all():
-        raise PayloadError("bits must be a non-empty sequence of 0/1; e.g. [0, 1, 1, 0]")
-    return arr.astype(np.uint8)
-
-
-def _vertices(vertices) -> np.ndarray:
-    v = np.array(vertices, dtype=np.float64, copy=True)
-    if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
-        raise MeshError(f"vertices must be a non-empty (n, 3) array, got shape {v.shape}")
-    return v
+_THRESHOLD = {"I": 0.5, "II": 1.0 / 3.0}
 
 
 @dataclass
@@ -154,22 +138,13 @@ def _solve_k(bins: _Bins, bits: np.ndarray, targets: np.ndarray, method: str, st
     return k_of(lo)
 
 
-def cho_embed(
-    vertices, faces, bits, method: str = "I", alpha: float = 0.05, strength_step: float = 0.001
-) -> tuple[np.ndarray, ChoKey]:
-    """Embed ``bits`` (one per norm bin) with Cho's method I or II; returns (marked vertices, key).
-
-    ``faces`` is unused (the method works on vertex positions only) but kept for a uniform
-    signature. PayloadError when a bin holds no vertex (too many bits for the mesh).
-    """
-    method = _check_method(method)
-    v = _vertices(vertices)
-    b = _as_bit_array(bits)
+def _embed_bits(v: np.ndarray, b: np.ndarray, method: str, alpha: float, strength_step: float
+                ) -> tuple[np.ndarray, _Bins]:
+    """Marked vertices (n, 3) float64 (float32-exact) carrying ``b`` (N,) uint8, one bit per norm bin,
+    and the bins of the input. PayloadError when a bin holds no vertex (too many bits for the mesh)."""
     n_bits = len(b)
     if not 0 < alpha < _THRESHOLD[method]:
-        raise ParameterError(f"alpha must be in (0, {_THRESHOLD[method]:.3f}), got {alpha}")
-    if not 0 < strength_step < 1:
-        raise ParameterError(f"strength_step must be in (0, 1), got {strength_step}")
+        raise PayloadError(f"Cho's strength (alpha) must be in (0, {_THRESHOLD[method]:.3f}), got {alpha}")
     bins = _bins(v, n_bits)
     if (bins.count == 0).any():
         empty = int(np.flatnonzero(bins.count == 0)[0])
@@ -185,53 +160,64 @@ def cho_embed(
         rho_new = bins.lo[bins.bin] + bins.width * r_new
         moved = r_new != bins.r  # r = 0 and r = 1 (the extremes) stay bit-exact
         marked = np.where(moved[:, None], bins.centre + bins.unit * rho_new[:, None], v)
-        wrong = _decode(marked, n_bits, method) != b
+        marked = marked.astype(np.float32).astype(np.float64)  # as every marked mesh is stored
+        wrong = (_statistics(marked, n_bits, method) > thr) != (b == 1)
         if not wrong.any():
             break
         margin = np.where(wrong, margin + 0.5 * alpha, margin)  # the centre shift ate the margin
-    key = ChoKey(method, n_bits, float(alpha), bins.rho_min, bins.rho_max, float(strength_step))
-    return marked, key
+    return marked, bins
 
 
-def _decode(v: np.ndarray, n_bits: int, method: str) -> np.ndarray:
+def _statistics(v: np.ndarray, n_bits: int, method: str) -> np.ndarray:
+    """Each norm bin's statistic (N,) float64 (NaN for an empty bin): the bin mean of r (method I)
+    or of s^2 (method II)."""
     bins = _bins(v, n_bits)
     values = bins.r if method == "I" else 2.0 * bins.r - 1.0
-    stat = _statistic(values, bins.bin, bins.count, method)
-    return (np.nan_to_num(stat, nan=-1.0) > _THRESHOLD[method]).astype(np.uint8)
+    return _statistic(values, bins.bin, bins.count, method)
 
 
-def cho_extract(vertices, faces, key: ChoKey) -> np.ndarray:
-    """Blind decoding: (n_bits,) uint8 bits; an empty bin reads as 0. ``faces`` is unused."""
-    if isinstance(key, dict):
-        key = ChoKey.from_dict(key)
-    return _decode(_vertices(vertices), int(key.n_bits), _check_method(key.method))
+def _embed(method: str, name: str):
+    def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
+        """Watermark a mesh with Cho's method (module docstring); vertices : (n, 3) float64, faces :
+        (m, 3) int64 (kept as they are). The progressive mesh is built on the marked mesh."""
+        job = start_embed(vertices, faces, options, progress, name, DEFAULT_ALPHA)
+        V, F = job.vertices, job.faces
+        job.report(0.0, "marking the norm distribution")
+        w = job.bits ^ keyed_bits(job.secret, "scramble", len(job.bits))
+        marked, bins = _embed_bits(V, w, method, job.strength, STRENGTH_STEP)
+        adj = build_adjacency(F, len(V))
+        base = max(int(round(job.options.base_ratio * len(V))), 4)
+        pm, _ = build_progressive_mesh(marked, F, base_vertices=base, adjacency=adj,
+                                       progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
+        data = ChoKeyData(method, job.strength, bins.rho_min, bins.rho_max, STRENGTH_STEP)
+        none = np.zeros(0, np.int64)
+        return finish_embed(job, name, marked, adj, pm, none, none, extra=data.to_extra(), data=data)
+
+    return embed
 
 
-@dataclass(frozen=True)
-class ChoMethod:
-    """Uniform adapter for the bench: ``embed(v, f, bits, seed)`` and ``extract(v, f, key)``."""
+def _verify(method: str):
+    def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
+        """Blind reading of Cho's method: every bin's statistic against its threshold, from the
+        suspect alone (any order, pose or scale); an empty bin is an erasure."""
+        V, _ = check_mesh(vertices, faces)
+        if len(V) < 2:
+            raise MeshError("the suspect has fewer than two vertices; Cho's method reads a distribution")
+        score = np.nan_to_num(_statistics(V, key.n_bits, method) - _THRESHOLD[method], nan=0.0)
+        return verdict_from_scores(score, key, "blind", p_threshold)
 
-    method: str = "I"
-    alpha: float = 0.05
-    strength_step: float = 0.001
-
-    @property
-    def name(self) -> str:
-        return f"Cho {self.method}"
-
-    def embed(self, vertices, faces, bits, seed: int | None = None) -> tuple[np.ndarray, ChoKey]:
-        """Cho's method is keyless: ``seed`` is accepted for a uniform interface and ignored."""
-        return cho_embed(vertices, faces, bits, self.method, self.alpha, self.strength_step)
-
-    def extract(self, vertices, faces, key: ChoKey) -> np.ndarray:
-        return cho_extract(vertices, faces, key)
+    return verify
 
 
-def cho_method(name: str = "I", alpha: float = 0.05, strength_step: float = 0.001) -> ChoMethod:
-    """``cho_method("I")`` / ``("II")`` (also "cho-i", "cho2", ...) -> adapter object."""
-    key = str(name).upper().replace("CHO", "").strip(" -_")
-    key = {"1": "I", "2": "II"}.get(key, key)
-    return ChoMethod(_check_method(key), float(alpha), float(strength_step))
+def load_key_data(key: WatermarkKey) -> ChoKeyData:
+    """The Cho data of a key, checked against the key's scheme name."""
+    data = ChoKeyData.from_extra(key.extra if isinstance(key.extra, dict) else {})
+    if {"I": "cho1", "II": "cho2"}[data.method] != key.scheme:
+        raise KeyFileError(f"this key says scheme {key.scheme!r} but holds Cho method {data.method}; it is damaged")
+    return data
 
 
-__all__ = ["ChoKey", "ChoMethod", "cho_embed", "cho_extract", "cho_method"]
+CHO1 = Scheme("cho1", DEFAULT_ALPHA, _embed("I", "cho1"), _verify("I"), load_key_data,
+              "Cho et al. 2007, method I: the mean of each vertex-norm bin")
+CHO2 = Scheme("cho2", DEFAULT_ALPHA, _embed("II", "cho2"), _verify("II"), load_key_data,
+              "Cho et al. 2007, method II: the variance of each vertex-norm bin")

@@ -1,0 +1,58 @@
+"""The public entry points: mark, read, and read keys, whatever the scheme.
+
+``embed`` hands the mesh to the scheme named in the options, ``verify`` to the scheme named in the
+key; ``read_key`` reads a key file and the scheme's own data in it, so that a damaged key is
+refused before any suspect mesh is loaded. See docs/api.md.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from .base import EmbedOptions, EmbedResult, Progress, Verdict
+from .errors import KeyFileError
+from .key import WatermarkKey, read_key_json
+from .progressive import ProgressiveMesh
+from .schemes import get_scheme
+
+__all__ = ["embed", "verify", "verify_pm", "ber_per_level", "read_key", "load_key_data"]
+
+
+def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
+    """Watermark a triangle mesh, vertices : (n, 3) float64, faces : (m, 3) int64, with the scheme of
+    ``options`` (default: robust). ``progress(fraction, message)`` is called as the work advances."""
+    opts = options or EmbedOptions()
+    return get_scheme(opts.scheme).embed(vertices, faces, opts, progress)
+
+
+def load_key_data(key: WatermarkKey) -> WatermarkKey:
+    """``key`` with its scheme's data read and checked (``key.data``); KeyFileError when damaged."""
+    scheme = get_scheme(key.scheme, KeyFileError)
+    key.data = scheme.load_key_data(key)
+    return key
+
+
+def read_key(path) -> WatermarkKey:
+    """Read a key file and check it, its scheme's data included; KeyFileError on anything wrong."""
+    return load_key_data(read_key_json(path))
+
+
+def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
+    """Read the mark from a suspect mesh (any order, possibly attacked) with the key's scheme."""
+    return get_scheme(key.scheme, KeyFileError).verify(vertices, faces, key, p_threshold)
+
+
+def verify_pm(pm: ProgressiveMesh, key: WatermarkKey, records: Optional[int] = None,
+              p_threshold: float = 1e-6) -> Verdict:
+    """Read the mark from a progressive mesh at a level of detail (default: full)."""
+    V, F = pm.decode(records=records)
+    return verify(V, F, key, p_threshold)
+
+
+def ber_per_level(pm: ProgressiveMesh, key: WatermarkKey) -> list[tuple[int, int, float]]:
+    """(records, vertices, BER) at the base mesh and at the end of every level."""
+    out = []
+    for k in [0, *pm.level_records.tolist()]:
+        v = verify_pm(pm, key, records=k)
+        out.append((k, pm.n_base_vertices + k, v.bit_errors / v.carriers_total))
+    return out

@@ -1,0 +1,253 @@
+"""Types and steps every scheme shares: options, result, verdict, payload bits, the decision.
+
+Below the schemes (``pmwm.schemes.*`` import this module, never the reverse). The keyed
+pseudo-random streams every scheme draws from are ``WatermarkKey.stream`` and ``derive_seed``
+(``pmwm.key``).
+
+Verdict. A scheme reads one score per payload bit (sign = the scrambled bit, 0 = an erasure). An
+erasure gets a keyed coin flip, so that with K of N bits matching, p = P(Binomial(N, 1/2) >= K) is
+the exact false-positive probability of an unmarked mesh or a wrong key; the mesh is ``marked``
+when p < p_threshold (1e-6 by default).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Sequence, Union
+
+import numpy as np
+
+from . import metrics
+from .errors import PayloadError
+from .adjacency import Adjacency
+from .features import mean_edge_length
+from .key import WatermarkKey, derive_seed, face_fingerprint, make_secret
+from .progressive import ProgressiveMesh
+from .validate import MAX_COORDINATE, check_mesh, parse_bits
+
+__all__ = ["Progress", "DEFAULT_BITS", "EmbedOptions", "EmbedResult", "Verdict", "payload_bits",
+           "decode_text", "check_options", "verdict_from_scores", "no_progress", "Scheme", "EmbedJob",
+           "start_embed", "finish_embed"]
+
+Progress = Optional[Callable[[float, str], None]]
+DEFAULT_BITS = 64
+
+
+def no_progress(fraction: float, message: str) -> None:
+    """The progress callback used when none is given."""
+
+
+@dataclass
+class EmbedOptions:
+    """Options of ``pmwm.embed`` (see docs/api.md).
+
+    scheme: "robust" (the default), "paper" (the paper's Algorithms 1-2), "cho1" or "cho2" (Cho et
+    al. 2007, methods I and II). strength: None for the scheme's default; for robust and paper a
+    factor (2), for cho1/cho2 Cho's margin alpha (0.05).
+    """
+
+    payload: Optional[str] = None
+    bits: Optional[Union[str, Sequence[int]]] = None
+    n_bits: int = DEFAULT_BITS
+    strength: Optional[float] = None
+    base_ratio: float = 0.03
+    seed: Optional[int] = None
+    scheme: str = "robust"
+
+
+@dataclass
+class EmbedResult:
+    """The marked mesh, its progressive mesh and the key.
+
+    vertices : (n, 3) float64 marked positions (float32-exact), in the input's vertex order.
+    faces : (m, 3) int64, the input's. carriers : (k,) int64 vertices that carry the mark
+    (robust: sites; Cho: none, the mark is global). bits : (N,) uint8 payload bits.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    pm: ProgressiveMesh
+    key: WatermarkKey
+    carriers: np.ndarray
+    bits: np.ndarray
+    vsnr_db: float
+    rmse: float
+
+
+@dataclass
+class Verdict:
+    """The answer of ``pmwm.verify``."""
+
+    marked: bool
+    p_value: float
+    bits: str
+    payload: Optional[str]
+    matches: int
+    bit_errors: int
+    correlation: float
+    carriers_found: int
+    carriers_total: int
+    mode: str
+    p_threshold: float = 1e-6
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "marked": self.marked,
+            "p_value": self.p_value,
+            "p_threshold": self.p_threshold,
+            "bits": self.bits,
+            "payload": self.payload,
+            "matches": self.matches,
+            "bit_errors": self.bit_errors,
+            "correlation": self.correlation,
+            "carriers_found": self.carriers_found,
+            "carriers_total": self.carriers_total,
+            "mode": self.mode,
+        }
+
+
+# --------------------------------------------------------------------------- payload bits
+
+
+def payload_bits(options: EmbedOptions, secret: str) -> tuple[np.ndarray, str]:
+    """The payload as (N,) uint8 bits and its kind: text (UTF-8, padded to at least 64 bits),
+    explicit bits, or random (drawn from the key's secret)."""
+    if options.payload is not None and options.bits is not None:
+        raise PayloadError("give a text payload or explicit bits, not both")
+    if options.payload is not None:
+        data = options.payload.encode("utf-8")
+        if not data:
+            raise PayloadError("the payload text is empty; give some text or use --bits")
+        data = data + b"\0" * max(0, DEFAULT_BITS // 8 - len(data))
+        return np.unpackbits(np.frombuffer(data, np.uint8)), "text"
+    if options.bits is not None:
+        return parse_bits(options.bits), "bits"
+    if options.n_bits < 1:
+        raise PayloadError("the number of bits must be at least 1")
+    rng = np.random.default_rng(derive_seed(secret, "random-payload"))
+    return rng.integers(0, 2, options.n_bits).astype(np.uint8), "random"
+
+
+def decode_text(bits: np.ndarray) -> Optional[str]:
+    """Text payload from bits (trailing NUL bytes dropped); None if not valid UTF-8."""
+    if len(bits) % 8:
+        return None
+    data = np.packbits(np.asarray(bits, np.uint8)).tobytes().rstrip(b"\0")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+
+
+def check_options(opts: EmbedOptions, default_strength: float) -> float:
+    """The strength to use (``opts.strength`` or the scheme's default) when the options make sense,
+    else a PayloadError."""
+    strength = default_strength if opts.strength is None else opts.strength
+    if not (isinstance(strength, (int, float, np.floating)) and strength > 0 and np.isfinite(strength)):
+        raise PayloadError(f"strength must be a positive number, got {strength}")
+    if not (0 < opts.base_ratio <= 1):
+        raise PayloadError(f"base ratio must be in (0, 1], got {opts.base_ratio}")
+    return float(strength)
+
+
+# --------------------------------------------------------------------------- the steps of every embedder
+
+
+@dataclass
+class EmbedJob:
+    """What every embedder starts from: the checked options and mesh, the key's secret (from the
+    seed, or fresh) and the payload bits. vertices : (n, 3) float64, faces : (m, 3) int64."""
+
+    options: EmbedOptions
+    strength: float
+    vertices: np.ndarray
+    faces: np.ndarray
+    secret: str
+    bits: np.ndarray
+    payload_kind: str
+    report: Callable[[float, str], None]
+
+
+def start_embed(vertices, faces, options: Optional[EmbedOptions], progress: Progress, scheme: str,
+                default_strength: float) -> EmbedJob:
+    """Check the options and the mesh, draw the secret and the payload: the first steps of every
+    scheme's embedder (a PayloadError or MeshError naming what is wrong)."""
+    opts = options or EmbedOptions(scheme=scheme)
+    strength = check_options(opts, default_strength)
+    V, F = check_mesh(vertices, faces, max_coordinate=MAX_COORDINATE)
+    secret = make_secret(opts.seed)
+    bits, kind = payload_bits(opts, secret)
+    return EmbedJob(opts, strength, V, F, secret, bits, kind, progress or no_progress)
+
+
+def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, pm: ProgressiveMesh,
+                 key_carriers: np.ndarray, carriers: np.ndarray, extra: Optional[dict] = None,
+                 data: object = None) -> EmbedResult:
+    """The key and the result, the last step of every embedder. marked : (n, 3) float64 the marked
+    mesh; key_carriers : (k,) int64 the vertices the key records (index, progressive-mesh index and
+    marked place; k = 0 or one per bit); carriers : the vertices reported as carrying the mark;
+    extra, data: the scheme's key data as stored and as read."""
+    V, F = job.vertices, job.faces
+    pm_of = np.empty(len(V), np.int64)
+    pm_of[pm.vertex_order] = np.arange(len(V))
+    key = WatermarkKey(
+        secret=job.secret, bits=job.bits, payload_kind=job.payload_kind, strength=job.strength,
+        carrier_index=key_carriers, carrier_pm_index=pm_of[key_carriers],
+        carrier_position=marked[key_carriers].copy(), n_vertices=len(V), n_faces=len(F),
+        mean_edge=mean_edge_length(marked, adj), bbox_diagonal=float(np.linalg.norm(V.max(0) - V.min(0))),
+        scheme=scheme, extra=extra if extra is not None else {}, data=data,
+        faces_fingerprint=face_fingerprint(F), pm_faces_fingerprint=face_fingerprint(pm_of[F]),
+    )
+    job.report(1.0, "done")
+    return EmbedResult(vertices=marked, faces=F, pm=pm, key=key, carriers=carriers, bits=job.bits,
+                       vsnr_db=metrics.vsnr(V, marked), rmse=metrics.vertex_rmse(V, marked))
+
+
+# --------------------------------------------------------------------------- the decision
+
+
+def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_threshold: float) -> Verdict:
+    """The verdict from one score per bit, score : (N,) float64 (sign = scrambled bit, 0 = erasure)."""
+    n = key.n_bits
+    erased = score == 0
+    w = (score > 0).astype(np.uint8)
+    coin = key.stream("erasure", n)
+    w[erased] = coin[erased]
+    bits = w ^ key.stream("scramble", n)
+    matches = int(np.sum(bits == key.bits))
+    p = metrics.binomial_tail(matches, n)
+    payload = decode_text(bits) if key.payload_kind == "text" else None
+    return Verdict(
+        marked=bool(p < p_threshold),
+        p_value=float(p),
+        bits="".join(map(str, bits.tolist())),
+        payload=payload,
+        matches=matches,
+        bit_errors=n - matches,
+        correlation=float(metrics.correlation(key.bits, bits)),
+        carriers_found=int(np.sum(~erased)),
+        carriers_total=n,
+        mode=mode,
+        p_threshold=p_threshold,
+    )
+
+
+# --------------------------------------------------------------------------- the scheme interface
+
+
+@dataclass(frozen=True)
+class Scheme:
+    """One watermarking scheme behind ``pmwm.embed`` / ``pmwm.verify`` (``pmwm.schemes.SCHEMES``).
+
+    embed(vertices, faces, options, progress) -> EmbedResult; verify(vertices, faces, key,
+    p_threshold) -> Verdict; load_key_data(key) -> the scheme's typed key data (validated; a
+    KeyFileError when damaged), called when a key file is read, before any suspect is loaded.
+    """
+
+    name: str
+    default_strength: float
+    embed: Callable[..., EmbedResult]
+    verify: Callable[..., Verdict]
+    load_key_data: Callable[[WatermarkKey], object]
+    description: str = ""

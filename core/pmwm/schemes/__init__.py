@@ -1,0 +1,30 @@
+"""The watermarking schemes, each behind the same interface (``pmwm.base.Scheme``).
+
+- ``robust`` (the default): bumps and swirls spread over sites, registered, matched-filter reading.
+- ``paper``: the paper's Algorithms 1-2 (one carrier vertex per bit, read against its 1-ring).
+- ``cho1``, ``cho2``: Cho et al. 2007, methods I and II (the distribution of vertex norms; blind).
+
+Each scheme module imports the shared layers below it (``base``, ``key``, geometry), never another
+scheme and never ``pmwm.api``.
+"""
+
+from __future__ import annotations
+
+from ..base import Scheme
+from ..errors import PayloadError
+from .cho import CHO1, CHO2
+from .paper import SCHEME as PAPER
+from .robust import SCHEME as ROBUST
+
+SCHEMES: dict[str, Scheme] = {s.name: s for s in (ROBUST, PAPER, CHO1, CHO2)}
+DEFAULT_SCHEME = "robust"
+
+__all__ = ["SCHEMES", "DEFAULT_SCHEME", "get_scheme"]
+
+
+def get_scheme(name: str, error=PayloadError) -> Scheme:
+    """The scheme called ``name``, or ``error`` (a PmwmError class) naming the ones there are."""
+    try:
+        return SCHEMES[name]
+    except (KeyError, TypeError):
+        raise error(f"unknown scheme {name!r}; use one of {', '.join(SCHEMES)}") from None

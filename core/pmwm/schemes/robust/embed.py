@@ -1,0 +1,171 @@
+"""Embedding the robust mark (see ``pmwm.schemes.robust``): sites, their samples, the keyed bit
+layout, the bumps and swirls, the readability checks, the protected vertices and the key data."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Optional
+
+import numpy as np
+
+from ...adjacency import build_adjacency
+from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, start_embed
+from ...carriers import eligible_carriers, select_carriers
+from ...errors import PayloadError
+from ...features import mean_edge_length, vertex_normals
+from ...key import derive_seed, keyed_bits
+from ...progressive import build_progressive_mesh
+from ...register import surface_frame
+from ...spatial import min_spacing, pairs_within
+from .fields import OUTER, index_templates, profile, swirl, tangent_frames
+from .keydata import RobustKeyData, Samples
+from .layout import assign_bits
+from .read import NAME, centre_soft, site_soft, swirl_soft
+
+DEFAULT_STRENGTH = 2.0
+SITES_PER_BIT = 6
+RADIUS_EDGES = 2.5  # bump radius in mean edge lengths
+AMPLITUDE_PER_STRENGTH = 0.09  # bump amplitude per unit of strength, in mean edge lengths
+SWIRL_PER_STRENGTH = 0.09  # in-surface swirl amplitude per unit of strength, in mean edge lengths
+RING = 3  # protected annulus vertices per site
+RING_DISTANCE = 1.3  # their distance / r
+REF_POINTS = 3000  # registration samples stored in the key
+
+
+def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
+          sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
+    """Watermark a mesh with the robust scheme (``pmwm.schemes.robust``); same options and result as
+    ``pmwm.embed``. vertices : (n, 3) float64, faces : (m, 3) int64."""
+    job = start_embed(vertices, faces, options, progress, NAME, DEFAULT_STRENGTH)
+    V, F, secret, bits, report, strength = job.vertices, job.faces, job.secret, job.bits, job.report, job.strength
+    per_bit = max(2, 2 * (int(sites_per_bit) // 2))
+    nb = len(bits)
+    report(0.0, "analysing the mesh")
+    adj = build_adjacency(F, len(V))
+    eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"))
+    while True:  # fewer sites per bit on small meshes, down to 2
+        try:
+            sites = select_carriers(V, adj, eligible, nb * per_bit, seed=derive_seed(secret, "robust-sites"))
+            break
+        except PayloadError:
+            if per_bit <= 2:
+                raise
+            per_bit -= 2
+    report(0.1, f"{len(sites)} sites chosen")
+    edge = mean_edge_length(V, adj)
+    P = V[sites]
+    # a site's samples (to OUTER r) must not reach another site's bump (r): r (1 + OUTER) below the
+    # closest spacing. On small meshes they may overlap a little; a site whose own reading on the
+    # marked mesh is not clearly its sign is then left out (``usable``).
+    r = max(min(radius_edges * edge, 0.95 * min_spacing(P) / (1.0 + OUTER)), min(1.5, radius_edges) * edge)
+    A = strength * AMPLITUDE_PER_STRENGTH * edge
+    At = strength * SWIRL_PER_STRENGTH * edge
+
+    vn = vertex_normals(V, F)
+    si, vi, d = pairs_within(P, V, np.full(len(P), OUTER * r))
+    # site normal: mean vertex normal over the disc (same side as the site's own normal)
+    disc = (np.einsum("ij,ij->i", vn[vi], vn[sites][si]) > 0.3) & (d < r)
+    N = np.stack([np.bincount(si[disc], weights=vn[vi[disc], a], minlength=len(P)) for a in range(3)], 1)
+    N /= np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
+    t1, t2 = tangent_frames(N)
+
+    # samples: vertices near the site where the surface faces its way (a height field over the
+    # tangent plane), in the site frame; stored as float32, and the profile computed from those
+    rel = V[vi] - P[si]
+    u = np.einsum("ij,ij->i", rel, t1[si]).astype(np.float32).astype(np.float64)
+    v = np.einsum("ij,ij->i", rel, t2[si]).astype(np.float32).astype(np.float64)
+    samp = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.5) & (np.hypot(u, v) < OUTER * r)
+    si, vi, d, u, v = si[samp], vi[samp], d[samp], u[samp], v[samp]
+    h_ref = np.einsum("ij,ij->i", V[vi] - P[si], N[si])
+    normal_tt = np.stack([np.einsum("ij,ij->i", vn[vi], t1[si]), np.einsum("ij,ij->i", vn[vi], t2[si])], axis=1)
+    normal_tt = normal_tt.astype(np.float16).astype(np.float64)  # as stored
+    prof = profile(u, v, r)
+    counts = np.bincount(si, minlength=len(P))
+    samples = Samples(counts, u, v, h_ref, vi, normal_tt)
+
+    # keyed bit assignment (even readable energy per bit), chips and signs
+    w = bits ^ keyed_bits(secret, "scramble", nb)
+    tp, tg = index_templates(samples, r, At / A)
+    energy = A * A * (tp * tp).sum(axis=1) + At * At * (tg * tg).sum(axis=(1, 2))
+    bit_of = assign_bits(P, nb, per_bit, derive_seed(secret, "robust-assign"), energy)
+    rng = np.random.default_rng(derive_seed(secret, "robust-chips"))
+    order = np.lexsort((rng.random(len(P)), bit_of))  # each bit's sites in a keyed order
+    rank = np.arange(len(P)) - np.searchsorted(bit_of[order], bit_of[order])
+    chip = np.empty(len(P))
+    chip[order] = np.where(rank % 2 == 0, 1.0, -1.0)  # balanced: a global bias cancels in a bit
+    sign = chip * np.where(w[bit_of] == 1, 1.0, -1.0)
+
+    # the bumps, and the swirls in each vertex's own tangent plane (they move vertices, not the surface)
+    gu, gv = swirl(u, v, r)
+    e = gu[:, None] * t1[si] + gv[:, None] * t2[si]
+    e -= np.einsum("ij,ij->i", e, vn[vi])[:, None] * vn[vi]
+
+    def mark(bump_sign: np.ndarray, swirl_sign: np.ndarray) -> np.ndarray:
+        D = np.zeros_like(V)
+        np.add.at(D, vi, (bump_sign[si] * A * prof)[:, None] * N[si] + (swirl_sign[si] * At)[:, None] * e)
+        return (V + D).astype(np.float32).astype(np.float64)
+
+    marked = mark(sign, sign)
+
+    # protected annulus vertices: nearest to RING_DISTANCE * r at keyed angles, facing the site
+    phi = np.arctan2(v, u)
+    theta0 = np.random.default_rng(derive_seed(secret, "robust-angles")).uniform(0, 2 * np.pi, len(P))
+    dt = np.hypot(u, v)
+    ring_ok = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.8) & (dt > 1.05 * r)
+    ring = np.full((len(P), RING), -1, np.int64)
+    for k in range(RING):  # RING (3) iterations
+        target = theta0 + 2 * np.pi * k / RING
+        dphi = np.abs(np.angle(np.exp(1j * (phi - target[si]))))
+        score = dphi + np.abs(dt / r - RING_DISTANCE)
+        score[~ring_ok] = np.inf
+        o = np.lexsort((score, si))
+        first = o[np.r_[True, si[o][1:] != si[o][:-1]]]
+        good = np.isfinite(score[first])
+        ring[si[first][good], k] = vi[first][good]
+    none = np.zeros(len(P), bool)
+    site = RobustKeyData(bit=bit_of, chip=chip, usable=none, centre_ok=none, swirl_ok=none, index_ok=none,
+                         origin=P, normal=N, radius=r, amplitude=A, swirl=At, samples=samples, frame=None)
+    # each site's own readings of the marked mesh, by all samples (attacked copies) and by its
+    # vertex alone (the marked mesh and its levels of detail): clearly its sign, or left out. On
+    # small meshes a neighbour's bump may reach a site's samples and spoil one reading or both.
+    ring_found = (ring >= 0).all(axis=1)
+
+    def readable(marked: np.ndarray) -> list[np.ndarray]:
+        at_vertices = site_soft(marked, F, site, by_index=True)[0]
+        usable, centre_ok = [ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
+                             for soft in (at_vertices, centre_soft(marked, site, True))]
+        # copies with the marked vertex order are read at every site that reads cleanly by index,
+        # also where no protected ring was found (that ring only matters to coarser levels)
+        index_ok = np.isfinite(at_vertices) & (np.abs(at_vertices - sign) < 0.5)
+        # and by its swirl (read by vertex index): a neighbour's bump may tilt it on a small mesh
+        swirl_ok = np.abs(swirl_soft(marked, site)[0] - sign) < 0.5
+        return [usable, centre_ok, index_ok, swirl_ok]
+
+    usable, centre_ok, index_ok, swirl_ok = readable(marked)
+    # a bump or swirl no reading uses is not embedded: its distortion would buy nothing
+    dead, no_swirl = ~(usable | centre_ok | index_ok), ~swirl_ok
+    if dead.any() or no_swirl.any():
+        marked = mark(np.where(dead, 0.0, sign), np.where(dead | no_swirl, 0.0, sign))
+        usable, centre_ok, index_ok, swirl_ok = (f & ~dead for f in readable(marked))
+        swirl_ok &= ~no_swirl
+    report(0.2, "sites marked")
+
+    protected = np.zeros(len(V), bool)
+    keep = usable | centre_ok
+    protected[sites[keep]] = True
+    protected[ring[keep].ravel()] = True
+    base = max(int(round(job.options.base_ratio * len(V))), 4)
+
+    def pm_progress(f: float, msg: str) -> None:
+        report(0.25 + 0.7 * f, msg)
+
+    pm, _ = build_progressive_mesh(marked, F, base_vertices=base, protected=protected,
+                                   progress=pm_progress, adjacency=adj)
+    first_site = np.array([np.flatnonzero(bit_of == b)[0] for b in range(nb)])
+    data = dataclasses.replace(
+        site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
+        frame=surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)))
+    stored = data.to_extra()
+    # read back from its stored form, so that this key reads exactly as the key file will
+    return finish_embed(job, NAME, marked, adj, pm, sites[first_site], sites, extra=stored,
+                        data=RobustKeyData.from_extra(stored, nb, len(V)))

@@ -1,0 +1,108 @@
+"""The robust scheme's fields on the surface: the site frame, the bump profile, the swirl, what
+marking moved each sample vertex (templates), and where a line through a sample crosses a surface.
+
+Shapes: S sites, K samples per site (padded); u, v : (S, K) tangent-plane offsets in the site frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...spatial import pairs_within
+
+SWIRL_PEAK = 0.2862  # max of (rho / r) (1 - (rho / r)^2)^2: the swirl field peaks at 1
+OUTER = 1.6  # samples reach OUTER * r from the site (the annulus beyond r is not moved)
+
+
+def tangent_frames(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents per unit normal, a deterministic function of the normal."""
+    helper = np.eye(3)[np.argmin(np.abs(N), axis=1)]
+    t1 = np.cross(N, helper)
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return t1, np.cross(N, t1)
+
+
+def profile(u: np.ndarray, v: np.ndarray, r: float) -> np.ndarray:
+    """The bump's shape at tangent-plane offset (u, v): (1 - (d/r)^2)^2 inside r, 0 outside."""
+    q = np.minimum((u * u + v * v) / (r * r), 1.0)
+    return (1.0 - q) ** 2
+
+
+def swirl(u: np.ndarray, v: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """The in-surface field at (u, v), (t1, t2) components: a rotation about the site, zero at the
+    site and beyond r, peaking at 1 (orthogonal to a shift and to a shrink of the neighbourhood)."""
+    w = profile(u, v, r) / (r * SWIRL_PEAK)
+    return -v * w, u * w
+
+
+def index_templates(sm, r: float, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+    """What marking moved each sample vertex, per unit of bump amplitude: along the site normal
+    (S, K) and in the site's tangent plane, (t1, t2) components (S, K, 2), per unit of swirl. The
+    swirl is embedded off each vertex's own normal, so on a curved patch part of it runs along the
+    site normal; ``ratio`` is swirl / bump amplitude. Without stored normals: the plain fields. (A
+    site left without a swirl has too few samples to read one, and its swirl's normal part is
+    negligible: its bump still reads its sign to 1e-5 on the marked Venus head.)"""
+    p = profile(sm.u, sm.v, r)
+    gu, gv = swirl(sm.u, sm.v, r)
+    if sm.normal_tt is not None:
+        a, b = sm.normal_tt[..., 0], sm.normal_tt[..., 1]
+        k = gu * a + gv * b  # the field's part along the vertex normal, removed by the embedder
+        p = p - ratio * k * np.sqrt(np.maximum(1.0 - a * a - b * b, 0.0))
+        gu, gv = gu - k * a, gv - k * b
+    return p * sm.mask, np.stack([gu, gv], axis=2) * sm.mask[..., None]
+
+
+def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) -> np.ndarray:
+    """Height along ``normal`` of the surface over each sample point (S, K) (NaN: no surface).
+
+    Sample k of site s is the line origin[s] + u t1[s] + v t2[s] + h normal[s]; every triangle
+    within ``reach`` of the site is projected into the site frame, and of the crossings the one
+    nearest to either expected height ``expect`` (S, K, 2) is kept (either face orientation, so
+    flipped copies still read).
+    """
+    S, K = uv.shape[:2]
+    out = np.full((S, K), np.nan)
+    F = np.asarray(F, np.int64)
+    if len(F) == 0 or S == 0:
+        return out
+    tri = V[F]
+    cen = tri.mean(axis=1)
+    rad = np.sqrt(((tri - cen[:, None, :]) ** 2).sum(axis=2).max(axis=1))
+    # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
+    si, fi, d = pairs_within(origin, cen, reach + rad.max())
+    keep = d < reach + rad[fi]
+    si, fi = si[keep], fi[keep]
+    if len(si) == 0:
+        return out
+    rel = tri[fi] - origin[si][:, None, :]  # (p, 3, 3)
+    x = np.einsum("pvj,pj->pv", rel, t1[si])
+    y = np.einsum("pvj,pj->pv", rel, t2[si])
+    z = np.einsum("pvj,pj->pv", rel, normal[si])
+    det = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    ok = np.abs(det) > 1e-30
+    si, x, y, z, det = si[ok], x[ok], y[ok], z[ok], det[ok]
+    P = len(si)
+    pk = np.repeat(np.arange(P), K)
+    kk = np.tile(np.arange(K), P)
+    qu, qv = uv[si[pk], kk, 0], uv[si[pk], kk, 1]
+    dx, dy = qu - x[pk, 0], qv - y[pk, 0]
+    l1 = (dx * (y[pk, 2] - y[pk, 0]) - dy * (x[pk, 2] - x[pk, 0])) / det[pk]
+    l2 = ((x[pk, 1] - x[pk, 0]) * dy - (y[pk, 1] - y[pk, 0]) * dx) / det[pk]
+    l0 = 1.0 - l1 - l2
+    tol = -1e-7  # a line through a vertex must hit one of its faces despite rounding
+    inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)
+    pk, kk = pk[inside], kk[inside]
+    h = l0[inside] * z[pk, 0] + l1[inside] * z[pk, 1] + l2[inside] * z[pk, 2]
+    slot = si[pk] * K + kk
+    if len(slot) == 0:
+        return out
+    # a line may cross the surface more than once (folds, thin parts, coarse levels of detail):
+    # take the crossing nearest an expected height, a front-facing one (face normal along the
+    # site normal) before a back-facing one at the same distance (copies whose faces were flipped)
+    back = det[pk] < 0
+    e = expect.reshape(S * K, 2)[slot]
+    order = np.lexsort((back, np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1])), slot))
+    slot, h = slot[order], h[order]
+    first = np.r_[True, slot[1:] != slot[:-1]]
+    out.ravel()[slot[first]] = h[first]
+    return out

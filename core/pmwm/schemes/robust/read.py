@@ -1,0 +1,251 @@
+"""Reading the robust mark (see ``pmwm.schemes.robust``): heights along each site's normal, by vertex
+index or where lines cross the suspect surface, the matched filter per site, the swirl by index,
+and the per-bit scores. Shapes: S sites, K samples per site."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...base import Verdict, verdict_from_scores
+from ...errors import KeyFileError
+from ...key import WatermarkKey
+from ...register import register, similarity_fit
+from ...spatial import nearest
+from ...validate import check_mesh
+from .fields import OUTER, heights, index_templates, profile
+from .keydata import RobustKeyData
+
+NAME = "robust"
+TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of the nuisance fit)
+VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
+MIN_COVER = 0.3  # a site needs this share of its filter energy readable
+IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
+INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
+
+
+def key_data(key: WatermarkKey) -> RobustKeyData:
+    """The key's robust data: read when the key file was read, or read now (and kept) from ``extra``."""
+    if key.scheme != NAME:
+        raise KeyFileError(f"this key is for the {key.scheme!r} scheme, not {NAME!r}; use pmwm.verify")
+    if not isinstance(key.data, RobustKeyData):
+        key.data = RobustKeyData.from_extra(key.extra, key.n_bits, key.n_vertices)
+    return key.data
+
+
+def _sample_heights(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) -> np.ndarray:
+    """Suspect height along each site's normal at each sample (S, K), NaN where there is none."""
+    sm = s.samples
+    P, N = s.origin, s.normal
+    if by_index:
+        H = np.einsum("skj,sj->sk", X[sm.vertex] - P[:, None, :], N)
+        return np.where(sm.mask, H, np.nan)
+    t1, t2 = s.t1, s.t2
+    far = 1e30  # padding lines far outside any face
+    uv = np.stack([np.where(sm.mask, sm.u, far), np.where(sm.mask, sm.v, far)], axis=2)
+    shift = s.amplitude * profile(sm.u, sm.v, s.radius)
+    expect = np.stack([sm.h + shift, sm.h - shift], axis=2)  # the two possible marked heights
+    reach = (OUTER + 0.3) * s.radius
+    H = np.full(sm.mask.shape, np.nan)
+    step = max(1, 4096 // max(sm.mask.shape[1], 1))  # bounds the (site, face, sample) table
+    for a in range(0, len(P), step):
+        b = slice(a, a + step)
+        H[b] = heights(X, F, P[b], N[b], t1[b], t2[b], uv[b], reach, expect=expect[b])
+    return H
+
+
+def _centre_heights(X: np.ndarray, P: np.ndarray, N: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Height along N of the suspect vertex nearest each site's place P (NaN when none is within
+    ``reach``), and how far off the line P + h N that vertex lies."""
+    j, d2 = nearest(X, P)
+    rel = X[j] - P
+    h = np.einsum("ij,ij->i", rel, N)
+    off = np.linalg.norm(rel - h[:, None] * N, axis=1)
+    return np.where(d2 <= reach * reach, h, np.nan), off
+
+
+def centre_soft(X: np.ndarray, s: RobustKeyData, by_index: bool) -> np.ndarray:
+    """Soft value per site read at the site's own vertex alone (its height change over the bump
+    height; NaN where unreadable): exact on the marked mesh and its levels of detail, where the
+    site vertex is kept and the other samples lie on a coarser surface. By position it is the
+    suspect vertex within 1.5 bump heights of the site's place (a neighbour's bump may add to its
+    own on a small mesh); lines would miss it where a coarse fan folds over its own vertex."""
+    sm = s.samples
+    P, N, A = s.origin, s.normal, s.amplitude
+    has = sm.centre >= 0
+    if by_index:
+        v = sm.vertex[np.arange(len(P)), np.maximum(sm.centre, 0)]
+        h = np.einsum("ij,ij->i", X[v] - P, N)
+    else:
+        h, _ = _centre_heights(X, P, N, 1.5 * A + 1e-6 * s.frame.scale)
+    return np.where(has, h / A, np.nan)
+
+
+def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
+
+    y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
+    projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
+    the nuisance is removed where the noise is low and the filter tends to p where it is high.
+    """
+    sm = s.samples
+    r, A = s.radius, s.amplitude
+    H = _sample_heights(X, F, s, by_index)
+    ok = sm.mask & np.isfinite(H)
+    y = np.where(ok, H - sm.h, 0.0)
+    # vertex heights (by index) also carry the swirl's part along the site normal
+    p_all = index_templates(sm, r, s.swirl / A)[0] if by_index else profile(sm.u, sm.v, r) * sm.mask
+    p = p_all * ok
+    B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
+    BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
+
+    def filt(M):
+        coef = np.linalg.solve(M, np.einsum("ski,sk->si", B, p)[..., None])[..., 0]
+        f = (p - np.einsum("ski,si->sk", B, coef)) * ok
+        return f, np.maximum((f * p).sum(axis=1), 1e-300)
+
+    f0, fp0 = filt(BtB)  # the full nuisance fit, for the noise level
+    a0 = (f0 * y).sum(axis=1) / fp0
+    rest = y - a0[:, None] * p
+    c = np.linalg.solve(BtB, np.einsum("ski,sk->si", B, rest)[..., None])[..., 0]
+    resid = (rest - np.einsum("ski,si->sk", B, c)) * ok
+    s2 = (resid**2).sum(axis=1) / np.maximum(ok.sum(axis=1) - 4, 1)
+    f, fp = filt(BtB + (s2 / (TAU * A) ** 2)[:, None, None] * np.eye(3))
+    with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
+        soft = (f * y).sum(axis=1) / fp / A
+        var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
+    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
+        & np.isfinite(var)
+    return np.where(readable, soft, np.nan), var
+
+
+def swirl_soft(X: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
+    """(soft value, variance) per site of the in-surface swirl, read by vertex index: the sample
+    vertices' tangent-plane shifts fitted as a * swirl + a common shift (a / swirl amplitude)."""
+    sm = s.samples
+    r, B = s.radius, s.swirl
+    D = X[sm.vertex] - _sample_places(s)
+    d = np.stack([np.einsum("skj,sj->sk", D, s.t1), np.einsum("skj,sj->sk", D, s.t2)], axis=2)
+    g = index_templates(sm, r, B / s.amplitude)[1]
+    m = sm.mask[..., None]
+    n = np.maximum(sm.mask.sum(axis=1), 1)[:, None, None]
+    d = np.where(m, d - (d * m).sum(axis=1, keepdims=True) / n, 0.0)
+    g = np.where(m, g - (g * m).sum(axis=1, keepdims=True) / n, 0.0)
+    gg = np.maximum((g * g).sum(axis=(1, 2)), 1e-300)
+    a = (g * d).sum(axis=(1, 2)) / gg
+    s2 = ((d - a[:, None, None] * g) ** 2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3, 1)
+    readable = sm.mask.sum(axis=1) >= 5
+    return np.where(readable, a / B, np.nan), s2 / gg / B**2 + VAR_FLOOR
+
+
+def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse-variance combination of two readings of the same sites (NaN: not read)."""
+    wa = np.where(np.isfinite(soft_a), 1.0 / var_a, 0.0)
+    wb = np.where(np.isfinite(soft_b), 1.0 / var_b, 0.0)
+    w = wa + wb
+    with np.errstate(invalid="ignore", divide="ignore"):
+        soft = (np.nan_to_num(soft_a) * wa + np.nan_to_num(soft_b) * wb) / w
+    return np.where(w > 0, soft, np.nan), np.where(w > 0, 1.0 / np.maximum(w, 1e-300), var_a)
+
+
+def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int) -> np.ndarray:
+    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (NaN soft values are
+    not read; 0 when no site of the bit is)."""
+    ok = np.isfinite(soft)
+    return np.bincount(s.bit[ok], weights=(s.chip * soft / var)[ok], minlength=n_bits)
+
+
+def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict]:
+    """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details."""
+    s = key_data(key)
+    V, F = check_mesh(vertices, faces)
+    aligned = _in_key_frame(V, s, key)
+    if aligned:
+        X, extra = V, {"registration": "none (already in the key's frame)"}
+        mode = "aligned"
+        by_index = _same_vertices(X, s, key)
+    else:
+        mode = "registered"
+        # the marked vertices in their order (noise, smoothing, quantization, any pose): the
+        # similarity fit of the sample vertices is the registration, no ICP needed
+        X = _refine_by_index(V, s) if len(V) == key.n_vertices else V
+        by_index = _same_vertices(X, s, key)
+        if by_index:
+            extra = {"registration": "by vertex index"}
+        else:
+            X, info = register(V, F, s.frame)
+            extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
+            by_index = _same_vertices(X, s, key)
+            if by_index:
+                X = _refine_by_index(X, s)
+    soft, var = np.full(len(s.bit), np.nan), np.full(len(s.bit), VAR_FLOOR)
+    full = (s.index_ok if by_index else s.usable).copy()
+    if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
+        centre = centre_soft(X, s, by_index)
+        at_centre = s.centre_ok & np.isfinite(centre)
+        soft[at_centre] = centre[at_centre]
+        full &= ~at_centre
+    if full.any():
+        soft_f, var_f = site_soft(X, F, s, by_index)
+        soft[full], var[full] = soft_f[full], var_f[full]
+        if by_index and s.swirl > 0:  # keys from before the swirl have none
+            soft_t, var_t = swirl_soft(X, s)
+            soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
+    extra.update({"heights": ("by vertex index" if by_index else "by position")
+                  + (", site vertices first" if aligned else ""),
+                  "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
+    return bit_scores(soft, var, s, key.n_bits), mode, extra
+
+
+def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
+    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
+    scores, mode, extra = read_scores(vertices, faces, key)
+    verdict = verdict_from_scores(scores, key, mode, p_threshold)
+    verdict.extra = extra
+    return verdict
+
+
+def _same_vertices(X: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> bool:
+    """True when the suspect has the marked mesh's vertices in their order (noise, smoothing and
+    quantization keep it): the sample vertices lie near their stored places."""
+    if len(X) != key.n_vertices:
+        return False
+    sm = s.samples
+    dist = np.linalg.norm(X[sm.vertex] - _sample_places(s), axis=2)[sm.mask]
+    return bool(len(dist) and np.median(dist) < INDEX_MATCH * s.frame.scale)
+
+
+def _sample_places(s: RobustKeyData) -> np.ndarray:
+    """Each sample's place on the unmarked surface, in the key's frame, (sites, K, 3)."""
+    sm = s.samples
+    t1, t2 = s.t1[:, None, :], s.t2[:, None, :]
+    P, N = s.origin[:, None, :], s.normal[:, None, :]
+    return P + sm.u[..., None] * t1 + sm.v[..., None] * t2 + sm.h[..., None] * N
+
+
+def _refine_by_index(X: np.ndarray, s: RobustKeyData) -> np.ndarray:
+    """X mapped by the similarity that best fits its sample vertices to their stored places: with
+    thousands of known pairs this is far tighter than surface ICP, whose error at high noise
+    otherwise tilts every site (the bumps are sign-balanced, so they do not pull the fit). The
+    noiseless stored places are fitted to the suspect, not the other way: noise in the points fitted
+    from shrinks the least-squares scale (regression dilution; 1 % at noise 0.05 of the size, which
+    moves far sites by bump heights)."""
+    sm = s.samples
+    R, k, t = similarity_fit(_sample_places(s)[sm.mask], X[sm.vertex[sm.mask]])
+    if not (np.isfinite(k) and k > 1e-12):  # the sample vertices collapsed to a point: nothing to fit
+        return X
+    return (X - t) @ R / k
+
+
+def _in_key_frame(V: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> bool:
+    """True when site vertices sit exactly (float32 precision) at one of their two possible marked
+    places, P +- A N: the marked mesh itself, one of its levels of detail, or a copy that kept part
+    of it in place (a crop, a light simplification), in its own frame. IN_PLACE_SHARE of the sites
+    is enough (a chance coincidence at 1e-6 of the size is impossible); registration would only blur
+    such a copy (it is accurate to ~0.1 % only)."""
+    use = np.flatnonzero(s.usable | s.centre_ok)
+    if len(use) == 0:
+        return False
+    tol = 1e-6 * key.bbox_diagonal
+    h, off = _centre_heights(V, s.origin[use], s.normal[use], 2.0 * s.amplitude)
+    exact = (off <= tol) & (np.abs(np.abs(h) - s.amplitude) <= tol)
+    return bool(exact.sum() >= max(3, IN_PLACE_SHARE * len(use)))

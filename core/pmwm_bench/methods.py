@@ -1,0 +1,110 @@
+"""The methods compared, all behind pmwm's public interface: ``pmwm.embed`` / ``pmwm.verify``.
+
+One class serves the four schemes; the scheme name selects the method and the display name is the
+one the tables of BENCHMARKS.md use:
+
+=========  ============  ==================================================
+scheme     display name  what ``strength`` means
+=========  ============  ==================================================
+robust     pmwm          bump height factor (2: 0.24 mean edge lengths)
+paper      pmwm-paper    the paper's factor (mu +- strength * sigma)
+cho1       Cho I         Cho et al. 2007's alpha (margin of the bin mean)
+cho2       Cho II        Cho et al. 2007's alpha (margin of the bin moment)
+=========  ============  ==================================================
+
+``strength=None`` leaves the choice to the scheme: its ``default_strength`` in ``pmwm.SCHEMES``
+(2 for robust and paper, 0.05 for Cho's methods).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+
+import pmwm
+
+#: scheme name (``pmwm.EmbedOptions.scheme``) -> display name in every table
+DISPLAY: dict[str, str] = {"robust": "pmwm", "paper": "pmwm-paper", "cho1": "Cho I", "cho2": "Cho II"}
+#: what each scheme's strength is, in a few words (for the reports)
+STRENGTH_MEANING: dict[str, str] = {
+    "robust": "bump height factor", "paper": "the paper's factor", "cho1": "alpha", "cho2": "alpha",
+}
+#: the schemes that are pmwm's own (the paper protocol's Table 1 measures these only)
+PMWM_SCHEMES: tuple[str, ...] = ("robust", "paper")
+ALL_SCHEMES: tuple[str, ...] = tuple(DISPLAY)
+
+_ALIASES = {"pmwm": "robust", "pmwm-robust": "robust", "pmwm-paper": "paper", "cho i": "cho1", "cho-i": "cho1",
+            "choi": "cho1", "cho ii": "cho2", "cho-ii": "cho2", "choii": "cho2", "cho-1": "cho1", "cho-2": "cho2"}
+
+
+def scheme_of(name: str) -> str:
+    """The scheme name of a scheme or display name ("robust", "pmwm", "Cho II", "cho-ii", "cho2", ...)."""
+    key = str(name).strip().lower()
+    key = _ALIASES.get(key, key)
+    if key not in DISPLAY:
+        raise ValueError(f"unknown method {name!r}; use one of {', '.join(DISPLAY)}")
+    return key
+
+
+def bits_string(bits: Any) -> str:
+    """A payload as the '0'/'1' string ``pmwm.EmbedOptions(bits=...)`` takes; ``bits``: (n,) of 0/1."""
+    if isinstance(bits, str):
+        return bits
+    return "".join("1" if int(b) else "0" for b in np.asarray(bits).ravel())
+
+
+@dataclass(frozen=True)
+class SchemeMethod:
+    """One watermarking method of pmwm (``scheme``) at ``strength`` (None: the scheme's default).
+
+    ``embed(V, F, bits, seed) -> (marked vertices (n, 3), key)`` and ``extract(V, F, key) -> bits``
+    (a '0'/'1' string) are the uniform interface the runner and the sweep drive.
+    """
+
+    scheme: str
+    strength: Optional[float] = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "scheme", scheme_of(self.scheme))
+
+    @property
+    def name(self) -> str:
+        """Display name (``DISPLAY``)."""
+        return DISPLAY[self.scheme]
+
+    @property
+    def effective_strength(self) -> float:
+        """The strength the scheme embeds with (its default when ``strength`` is None)."""
+        return pmwm.SCHEMES[self.scheme].default_strength if self.strength is None else float(self.strength)
+
+    @property
+    def is_pmwm(self) -> bool:
+        """True for pmwm's own schemes (robust, paper), False for the Cho baselines."""
+        return self.scheme in PMWM_SCHEMES
+
+    def options(self, bits: Any, seed: Optional[int]) -> pmwm.EmbedOptions:
+        """The ``pmwm.EmbedOptions`` of one embedding."""
+        strength = None if self.strength is None else float(self.strength)
+        return pmwm.EmbedOptions(bits=bits_string(bits), seed=seed, strength=strength, scheme=self.scheme)
+
+    def embed(self, vertices: np.ndarray, faces: np.ndarray, bits: Any, seed: Optional[int] = None
+              ) -> tuple[np.ndarray, Any]:
+        """Mark (vertices (n, 3), faces (m, 3)) with ``bits`` ((b,) 0/1 or a '0'/'1' string), every random
+        choice from ``seed``; returns (marked vertices (n, 3), the key ``pmwm.verify`` reads)."""
+        res = pmwm.embed(vertices, faces, self.options(bits, seed))
+        return res.vertices, res.key
+
+    def extract(self, vertices: np.ndarray, faces: np.ndarray, key: Any) -> str:
+        """The bits read from a suspect copy (vertices (n', 3), faces (m', 3)), a '0'/'1' string."""
+        return pmwm.verify(vertices, faces, key).bits
+
+
+def default_methods(strength: Optional[float] = None) -> list[SchemeMethod]:
+    """[pmwm (robust, at ``strength``; None: its default 2), pmwm-paper, Cho I, Cho II] at their defaults."""
+    return [SchemeMethod("robust", strength), SchemeMethod("paper"), SchemeMethod("cho1"), SchemeMethod("cho2")]
+
+
+__all__ = ["ALL_SCHEMES", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod", "bits_string",
+           "default_methods", "scheme_of"]

@@ -1,0 +1,105 @@
+"""The library's layout: no import cycle inside pmwm, the shared types below every scheme, and
+neither the evaluation nor Blender imported by any library module."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pmwm
+
+PKG = Path(pmwm.__file__).parent
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(PKG.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def modules() -> dict[str, Path]:
+    return {module_name(p): p for p in sorted(PKG.rglob("*.py"))}
+
+
+def imports(name: str, path: Path, known: set[str]) -> set[str]:
+    """Every module (of ``known``, or outside pmwm by its top name) that ``path`` imports anywhere
+    in its body, functions included."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join(anchor + ([node.module] if node.module else []))
+            for a in node.names:
+                sub = f"{base}.{a.name}"
+                out.add(sub if sub in known else base)
+    return out
+
+
+def graph() -> dict[str, set[str]]:
+    mods = modules()
+    known = set(mods)
+    return {m: imports(m, p, known) for m, p in mods.items()}
+
+
+def cycles(g: dict[str, set[str]]) -> list[list[str]]:
+    found, state, stack = [], {}, []
+
+    def visit(m: str) -> None:
+        state[m] = 1
+        stack.append(m)
+        for n in sorted(g.get(m, ())):
+            if n not in g:
+                continue
+            if state.get(n) == 1:
+                found.append(stack[stack.index(n):] + [n])
+            elif n not in state:
+                visit(n)
+        stack.pop()
+        state[m] = 2
+
+    for m in sorted(g):
+        if m not in state:
+            visit(m)
+    return found
+
+
+def test_the_graph_sees_relative_and_nested_imports():
+    g = graph()
+    assert "pmwm.base" in g["pmwm.schemes.paper"] and "pmwm.schemes.robust.read" in g["pmwm.schemes.robust.embed"]
+    assert "pmwm.api" in g["pmwm"] and "pmwm.schemes" in g["pmwm.api"]
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == [["a", "b", "c", "a"]]  # the detector works
+
+
+def test_no_import_cycle_inside_pmwm():
+    assert cycles(graph()) == []
+
+
+def test_shared_layers_import_no_scheme_and_no_entry_point():
+    g = graph()
+    below = [m for m in g if not m.startswith(("pmwm.schemes", "pmwm.api", "pmwm.cli", "pmwm.__main__"))
+             and m != "pmwm"]
+    assert "pmwm.base" in below and "pmwm.key" in below
+    for m in below:
+        bad = {n for n in g[m] if n.startswith(("pmwm.schemes", "pmwm.api", "pmwm.cli"))}
+        assert not bad, f"{m} imports {bad}"
+    for m in g:  # a scheme never imports another scheme
+        if m.startswith("pmwm.schemes."):
+            own = ".".join(m.split(".")[:3])
+            others = {n for n in g[m] if n.startswith("pmwm.schemes.") and not n.startswith(own)}
+            assert not others, f"{m} imports {others}"
+
+
+def test_no_library_module_imports_the_evaluation_or_blender():
+    for m, deps in graph().items():
+        assert not {d for d in deps if d.split(".")[0] in ("pmwm_bench", "bpy", "matplotlib")}, m
+
+
+def test_atomic_writing_and_keys_do_not_pull_in_trimesh():
+    g = graph()
+    for m in ("pmwm.atomic", "pmwm.key", "pmwm.pmfile"):
+        assert "trimesh" not in g[m] and "pmwm.meshio" not in g[m], m
