@@ -14,7 +14,8 @@ from typing import Optional, Sequence
 from .methods import ALL_SCHEMES, SchemeMethod, scheme_of
 from .models import CATALOGUE, DATA_ENV
 from .runner import run_bench
-from .sweep import DEFAULT_GRID, QUICK_ATTACKS, QUICK_GRID, SECTION, SWEEP_ATTACKS, run_sweep, sweep_attacks
+from .sweep import (DEFAULT_GRID, EXTRA_ATTACKS, QUICK_ATTACKS, QUICK_GRID, SECTION, SWEEP_ATTACKS, run_sweep,
+                    sweep_attacks)
 
 EPILOG = f"""\
 modes:
@@ -67,7 +68,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--grid", action="append", default=[], metavar="SCHEME=a,b,c",
                    help="sweep: the strengths of one scheme (repeatable)")
     p.add_argument("--attacks", default=None, metavar="A,B",
-                   help=f"sweep: attacks to run, of {', '.join(a.key for a in SWEEP_ATTACKS)} (default all)")
+                   help=f"sweep: attacks to run, of {', '.join(a.key for a in SWEEP_ATTACKS + EXTRA_ATTACKS)} "
+                        f"(default: {', '.join(a.key for a in SWEEP_ATTACKS)})")
     p.add_argument("--samples", type=int, default=None,
                    help="surface samples per mesh for MRMS / Hausdorff (default 20,000; --quick: 5,000 bench, "
                         "2,000 sweep)")

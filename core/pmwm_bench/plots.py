@@ -86,6 +86,8 @@ def write_sweep_plots(res: "SweepResults", folder: Path) -> list[Path]:
     plt = pyplot()
     if plt is None:
         return []
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
     st = res.settings
     models = [m for m, info in res.models.items() if not info.get("missing")]
     if not models:
@@ -95,6 +97,8 @@ def write_sweep_plots(res: "SweepResults", folder: Path) -> list[Path]:
     for attack in st["attacks"]:
         fig, axes = plt.subplots(1, len(models), figsize=(max(6.5, 5 * len(models)), 4.0), squeeze=False)
         for ax, model in zip(axes[0], models):
+            xs = [p.mrms_mean for p in res.points if (p.model, p.attack) == (model, attack)]
+            x_lo, x_hi = (min(xs), max(xs)) if xs else (0.001, 0.1)
             for i, method in enumerate(st["methods"]):
                 pts = sorted((p for p in res.points if (p.model, p.method, p.attack) == (model, method, attack)),
                              key=lambda p: p.mrms_mean)
@@ -111,6 +115,10 @@ def write_sweep_plots(res: "SweepResults", folder: Path) -> list[Path]:
             if comp is not None and comp.overlap is not None:
                 ax.axvspan(*comp.overlap, color="gray", alpha=0.12, label="MRMS overlap")
             ax.set_xscale("log")
+            ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))  # 0.01, not 1e-2
+            ax.xaxis.set_minor_formatter(NullFormatter())  # unlabelled minor ticks: no overlap
+            ax.set_xticks([t for t in (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
+                           if 0.5 * x_lo <= t <= 2.0 * x_hi])
             ax.set_xlabel("MRMS (% of bbox diagonal)")
             ax.set_ylabel("BER")
             ax.set_ylim(-0.02, 0.6)

@@ -63,6 +63,14 @@ SWEEP_ATTACKS: tuple[SweepAttack, ...] = (
     SweepAttack("simplification", "simplification 50 %", "simplify", {"ratio": 0.5},
                 "quadric simplification (fast-simplification) removing 50 % of the faces"),
 )
+#: attacks run only when named (``--attacks``): the paper protocol's heavy noise, where the paper
+#: scheme, reading a same-order copy by index, is strongest
+EXTRA_ATTACKS: tuple[SweepAttack, ...] = (
+    SweepAttack("paper-noise-0.03", "paper noise A = 0.03", "noise_paper", {"amplitude": 0.03},
+                "uniform noise in ±0.03·Rmax per coordinate (Rmax = max vertex norm; paper protocol)"),
+    SweepAttack("paper-noise-0.05", "paper noise A = 0.05", "noise_paper", {"amplitude": 0.05},
+                "uniform noise in ±0.05·Rmax per coordinate (Rmax = max vertex norm; paper protocol)"),
+)
 #: the attacks of ``--quick`` (both fast to read for every scheme)
 QUICK_ATTACKS: tuple[str, ...] = ("noise", "quantization")
 
@@ -262,10 +270,11 @@ def compare(res: SweepResults) -> list[EqualMrms]:
 
 
 def sweep_attacks(names: Optional[Sequence[str]] = None) -> list[SweepAttack]:
-    """The attacks named (keys of ``SWEEP_ATTACKS``), all of them by default."""
+    """The attacks named (keys of ``SWEEP_ATTACKS`` or ``EXTRA_ATTACKS``), those of ``SWEEP_ATTACKS``
+    by default."""
     if names is None:
         return list(SWEEP_ATTACKS)
-    by_key = {a.key: a for a in SWEEP_ATTACKS}
+    by_key = {a.key: a for a in SWEEP_ATTACKS + EXTRA_ATTACKS}
     unknown = [n for n in names if n not in by_key]
     if unknown:
         raise ValueError(f"unknown sweep attack(s) {', '.join(unknown)}; use {', '.join(by_key)}")
@@ -380,5 +389,5 @@ def run_sweep(
 
 
 __all__ = ["DEFAULT_GRID", "DEFAULT_SWEEP_MODELS", "EqualMrms", "QUICK_ATTACKS", "QUICK_GRID", "SECTION",
-           "SWEEP_ATTACKS", "SweepAttack", "SweepEmbedding", "SweepPoint", "SweepResults", "SweepTrial",
+           "SWEEP_ATTACKS", "EXTRA_ATTACKS", "SweepAttack", "SweepEmbedding", "SweepPoint", "SweepResults", "SweepTrial",
            "aggregate", "compare", "compare_at_equal_mrms", "run_sweep", "sweep_attacks"]
