@@ -23,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import command, commit, load, machine, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
+from pmwm.api import load_key_data  # noqa: E402
 from pmwm.errors import KeyFileError, PMFormatError  # noqa: E402
 from pmwm.key import WatermarkKey  # noqa: E402
 from pmwm.pmfile import HEADER, from_bytes, to_bytes  # noqa: E402
@@ -109,7 +110,7 @@ def main() -> None:
         c = counts["key"]
         c[0] += 1
         try:
-            key = WatermarkKey.from_json(text)
+            key = load_key_data(WatermarkKey.from_json(text))
             pmwm.verify(V, F, key)
         except KeyFileError:
             c[1] += 1

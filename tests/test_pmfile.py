@@ -494,7 +494,7 @@ def test_a_key_with_impossible_carrier_indices_is_refused_or_verifies_cleanly(co
     doc["carriers"][0][0] = index
     doc["carriers"][0][1] = pm_index
     try:
-        key = WatermarkKey.from_json(json.dumps(doc))
+        key = load_key_data(WatermarkKey.from_json(json.dumps(doc)))
     except KeyFileError:
         return
     verdict = pmwm.verify(cow.vertices, cow.faces, key)
@@ -546,7 +546,7 @@ def test_mutated_key_documents_give_keyfileerror_or_a_key_that_verifies_cleanly(
     else:
         parent[path[-1]] = data.draw(_json_values, label="value")
     try:
-        key = WatermarkKey.from_json(json.dumps(doc))
+        key = load_key_data(WatermarkKey.from_json(json.dumps(doc)))
     except KeyFileError:
         return
     try:  # an accepted key must be usable: a verdict, or a clean pmwm error
@@ -575,7 +575,7 @@ def test_mutated_key_text_gives_keyfileerror_or_a_key(edits):
         elif buf:
             del buf[i % len(buf)]
     try:
-        key = WatermarkKey.from_json("".join(buf))
+        key = load_key_data(WatermarkKey.from_json("".join(buf)))
     except KeyFileError:
         return
     assert isinstance(key, WatermarkKey)

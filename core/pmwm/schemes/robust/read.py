@@ -134,7 +134,8 @@ def swirl_soft(X: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]
     a = (g * d).sum(axis=(1, 2)) / gg
     s2 = ((d - a[:, None, None] * g) ** 2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3, 1)
     readable = sm.mask.sum(axis=1) >= 5
-    return np.where(readable, a / B, np.nan), s2 / gg / B**2 + VAR_FLOOR
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # a damaged key: no weight, no warning
+        return np.where(readable, a / B, np.nan), s2 / gg / B**2 + VAR_FLOOR
 
 
 def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
