@@ -7,7 +7,7 @@ data when there is no file, as in Blender) and of the key file; the date and the
 chart of each bit's confidence (inline SVG, from ``Verdict.scores``); and pictures of the suspect
 from three views with the places the mark was read highlighted (``Verdict.places``), rendered here
 by a small numpy z-buffer rasteriser and written as base64 PNG (zlib), so the report needs neither
-Blender nor matplotlib, and loads nothing from the network (no script, no external resource).
+Blender nor a plotting library, and loads nothing from the network (no script, no external resource).
 
 It never holds the key's secret. Its pictures do show where the mark was read on the suspect.
 """

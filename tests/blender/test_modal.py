@@ -178,3 +178,15 @@ def test_default_key_path_saved_blend_is_beside_it(scene, bl, key_prefs, tmp_pat
     key = blend.parent / "Head_v2.pmwm-key.json"
     assert key.is_file() and not (tmp_path / "key-folder").exists()
     assert bpy.ops.pmwm.verify() == {"FINISHED"} and scene.pmwm.verdict_payload == "Beside"
+
+
+def test_invoked_without_an_interface_it_runs_synchronously(scene, bl, tmp_path):
+    """A script that invokes the operators in --background gets the result at once, as with execute."""
+    assert bpy.app.background
+    ob = bl.suzanne(levels=1)
+    before = bl.positions(ob).copy()
+    key = tmp_path / "invoked.key.json"
+    assert bpy.ops.pmwm.watermark("INVOKE_DEFAULT", payload="Inv", key_path=str(key), seed=3) == {"FINISHED"}
+    assert key.is_file() and not np.array_equal(bl.positions(ob), before)
+    assert bpy.ops.pmwm.verify("INVOKE_DEFAULT", key_path=str(key)) == {"FINISHED"}
+    assert scene.pmwm.verdict_marked and scene.pmwm.verdict_payload == "Inv"
