@@ -14,7 +14,8 @@ if ! command -v chromium >/dev/null 2>&1; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
         echo "+ apt-get install chromium (for the report's browser test)"
         apt-get update -q </dev/null
-        DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium </dev/null
+        # fonts-dejavu-core: the report's font, named in case recommended packages are turned off
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium fonts-dejavu-core </dev/null
     else
         echo "tests/run-all.sh: chromium is missing; install it first (Debian: sudo apt-get install chromium)" >&2
         exit 2
