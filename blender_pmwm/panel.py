@@ -39,8 +39,8 @@ def _key_field(layout, context) -> None:
     default = prefs.default_key_path(context, ob) if ob is not None else ""
     layout.prop(s, "key_path", placeholder=bpy.path.basename(default) if default else "<object>.pmwm-key.json")
     if not s.key_path and ob is not None:
-        where = "beside the .blend" if default.startswith("//") else f"in {prefs.key_folder(context)}"
-        layout.label(text=f"Key: {bpy.path.basename(default)} {where}", icon="INFO")
+        layout.label(text=f"Key: {bpy.path.basename(default)}", icon="INFO")
+        layout.label(text="beside the .blend" if default.startswith("//") else f"in {prefs.key_folder(context)}")
 
 
 class VIEW3D_PT_pmwm(_Sidebar, Panel):
@@ -104,11 +104,11 @@ class VIEW3D_PT_pmwm_advanced(_Sidebar, Panel):
         s = context.scene.pmwm
         col = layout.column()
         col.prop(s, "strength")
-        col.label(text="Higher survives more damage, moves the surface more")
+        col.label(text="Higher: more robust, more visible")
         col.prop(s, "base_ratio")
-        col.label(text="Size of the coarsest level streamed first")
+        col.label(text="Size of the first streamed level")
         col.prop(s, "seed")
-        col.label(text="-1: a fresh secret each time (kept in the key)")
+        col.label(text="-1: fresh secret, kept in the key")
 
 
 class VIEW3D_PT_pmwm_pm(_Sidebar, Panel):

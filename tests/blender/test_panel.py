@@ -109,7 +109,7 @@ def test_advanced_options_are_in_the_advanced_sub_panel_with_a_line_each(scene, 
     assert [e[1] for e in advanced if e[0] == "prop"] == ["strength", "base_ratio", "seed"]
     kinds = [e[0] for e in advanced]
     assert kinds == ["prop", "label"] * 3  # one explaining line under each option
-    assert "fresh secret" in _labels(advanced)
+    assert "fresh secret" in _labels(advanced) and "robust" in _labels(advanced)
     mark = {e[1] for e in draw(addon, "VIEW3D_PT_pmwm_mark") if e[0] == "prop"}
     assert {"payload", "key_path", "scheme", "overwrite_key", "show_carriers"} == mark
 
@@ -164,8 +164,10 @@ def test_buttons_greyed_in_edit_mode_say_why(scene, addon, bl):
 def test_key_field_shows_the_default_key_path(scene, addon, bl, key_prefs, tmp_path):
     bl.suzanne(levels=0)
     labels = _labels(draw(addon, "VIEW3D_PT_pmwm_mark"))
-    assert f"Key: Suzanne.pmwm-key.json in {tmp_path / 'key-folder'}" in labels
+    assert f"Key: Suzanne.pmwm-key.json | in {tmp_path / 'key-folder'}" in labels
     key_fields = [e for e in draw(addon, "VIEW3D_PT_pmwm_verify") if e[0] == "prop" and e[1] == "key_path"]
     assert key_fields[0][3]["placeholder"] == "Suzanne.pmwm-key.json"
+    # the lines under the Advanced options are short enough for the default sidebar width
+    assert all(len(e[1]) <= 36 for e in draw(addon, "VIEW3D_PT_pmwm_advanced") if e[0] == "label")
     scene.pmwm.key_path = str(tmp_path / "chosen.json")
     assert "Key:" not in _labels(draw(addon, "VIEW3D_PT_pmwm_mark"))
