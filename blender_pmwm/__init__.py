@@ -11,6 +11,11 @@ Scripting API (also usable with ``blender --background --python script.py``)::
     bpy.ops.pmwm.export_pm(filepath="//suzanne.pmwm")
     bpy.ops.pmwm.import_pm(filepath="//suzanne.pmwm", level=-1)   # -1: full resolution
     bpy.ops.pmwm.verify(key_path="//suzanne.key.json")
+    bpy.ops.pmwm.save_report(filepath="//suzanne-report.html")   # after verify: an HTML report
+
+An empty key_path is <object name>.pmwm-key.json beside the saved .blend, or in the key folder of the
+add-on's preferences. Clicked in the interface, watermark and verify run in the background (status
+bar progress, Esc cancels); from scripts they run synchronously.
 
 watermark/export_pm/verify act on the active mesh object in Object Mode. Arguments left out of
 watermark and verify take the Scene options (``scene.pmwm``). A failure raises RuntimeError with
@@ -19,7 +24,7 @@ the error message and leaves the scene unchanged. See examples/watermark_all.py.
 
 import bpy
 
-from . import operators, panel, props, session
+from . import operators, panel, prefs, props, session
 
 
 @bpy.app.handlers.persistent
@@ -28,7 +33,7 @@ def _forget_session(_dummy=None) -> None:
     session.clear()
 
 
-_modules = (props, operators, panel)
+_modules = (props, prefs, operators, panel)
 
 
 def register() -> None:

@@ -1,28 +1,40 @@
-"""Operators: pmwm.watermark, pmwm.export_pm, pmwm.import_pm, pmwm.verify.
+"""Operators: pmwm.watermark, pmwm.export_pm, pmwm.import_pm, pmwm.verify, pmwm.save_report.
 
 Each one reads its options, moves mesh data with foreach_get/foreach_set, calls ``pmwm`` and turns
 ``pmwm.PmwmError`` into ``self.report({'ERROR'}, ...)`` + ``{'CANCELLED'}``. Everything is computed
 first and written back only on success, so a failure leaves the object and the scene as they were.
 ``pmwm`` is imported inside the operators to keep Blender's start-up fast.
 
+Watermark and Verify run in three steps (a *task*): prepare (main thread: options, checks, mesh data
+read with foreach_get), compute (``pmwm.embed`` / ``pmwm.verify`` on numpy arrays, no bpy), finish
+(main thread: key file, write-back, verdict). ``execute`` (scripts, ``--background``) runs them in a
+row. Invoked from the interface, the compute step runs in a worker thread (``jobs.BackgroundJob``)
+driven by a modal operator with a timer (``ModalRun``): progress in the status bar, Esc cancels (the
+core unwinds at its next progress call; the object is untouched: nothing is written before finish),
+and finish, the only step that changes the scene, runs on the main thread at the end, as one undo step.
+
 Scripting API (``blender --background --python script.py``): the keyword arguments of watermark
-and verify override the Scene options (``scene.pmwm``); arguments left out take the Scene's values.
-watermark and verify work on the base mesh in object space (``object.data``: modifiers and the
-object transform are not applied), the data an exporter writes when both are neutral.
+and verify override the Scene options (``scene.pmwm``); arguments left out take the Scene's values;
+an empty key path is the default key path (``prefs.default_key_path``). watermark and verify work on
+the base mesh in object space (``object.data``: modifiers and the object transform are not applied),
+the data an exporter writes when both are neutral.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import traceback
 from contextlib import contextmanager
 
 import bpy
+import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from . import meshdata, session
+from . import meshdata, prefs, session
+from .jobs import BackgroundJob
 from .props import SCHEME_ITEMS, records_at_level
 
 
@@ -45,16 +57,35 @@ def _progress(context):
         wm.progress_end()
 
 
+def _mesh_problem(ob) -> str | None:
+    """Why ``ob`` cannot be watermarked or verified now (a one-line reason with the way out), or None."""
+    if ob is None:
+        return "no active object: select a mesh object"
+    if ob.type != "MESH":
+        return f"'{ob.name}' is a {ob.type.lower()} object, not a mesh: select a mesh object"
+    if ob.mode != "OBJECT":
+        return f"'{ob.name}' is in {ob.mode.replace('_', ' ').title()} Mode: switch to Object Mode first"
+    what = session.busy(ob)
+    if what:
+        return f"'{ob.name}' is being {what}: wait for it to finish, or press Esc to cancel it"
+    return None
+
+
 def _active_mesh(context):
     """The active object if it is a mesh in Object Mode; else raise _Failed naming the way out."""
     ob = context.active_object
-    if ob is None:
-        raise _Failed("no active object: select a mesh object")
-    if ob.type != "MESH":
-        raise _Failed(f"'{ob.name}' is a {ob.type.lower()} object, not a mesh: select a mesh object")
-    if ob.mode != "OBJECT":
-        raise _Failed(f"'{ob.name}' is in {ob.mode.replace('_', ' ').title()} Mode: switch to Object Mode first")
+    problem = _mesh_problem(ob)
+    if problem:
+        raise _Failed(problem)
     return ob
+
+
+def _poll_mesh(cls, context) -> bool:
+    problem = _mesh_problem(context.active_object)
+    if problem:
+        cls.poll_message_set(problem)
+        return False
+    return True
 
 
 def _read_mesh(ob):
@@ -68,18 +99,230 @@ def _read_mesh(ob):
 
 def _file_path(raw: str, what: str) -> str:
     if not raw:
-        raise _Failed(f"no {what} path given: set one in the Watermark panel or pass it to the operator")
+        raise _Failed(f"no {what} path given: choose a file")
     return os.path.abspath(bpy.path.abspath(raw))
+
+
+def _key_path(context, ob, raw: str) -> tuple[str, bool]:
+    """(absolute key path, True when it is the default path in the preferences' key folder)."""
+    if raw:
+        return os.path.abspath(bpy.path.abspath(raw)), False
+    path = prefs.default_key_path(context, ob)
+    return os.path.abspath(bpy.path.abspath(path)), not path.startswith("//")
+
+
+def _sha256(path: str) -> str:
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()
+
+
+# ----------------------------------------------------------------------------- tasks
+
+
+class _Task:
+    """One Watermark or Verify run: prepared on the main thread (``__init__``), computed anywhere
+    (``compute``, numpy and pmwm only), finished on the main thread (``finish``, the only step that
+    changes the scene or writes a file)."""
+
+    verb = ""  # "watermarked" / "verified"
+    doing = ""  # "watermarking" / "verifying"
+
+    def _remember_mesh(self, ob) -> None:
+        self.name = ob.name
+        self.pointer = ob.as_pointer()
+        self.V, self.F = _read_mesh(ob)
+        self.positions32 = meshdata.read_positions32(ob.data)
+
+    def compute(self, progress):
+        raise NotImplementedError
+
+    def finish(self, context, result, report):
+        raise NotImplementedError
+
+    def current_object(self):
+        """The object this task read, if it still holds exactly the mesh that was read; else _Failed
+        (the user may edit, undo or delete while the worker runs)."""
+        ob = bpy.data.objects.get(self.name)
+        same = (ob is not None and ob.as_pointer() == self.pointer and ob.type == "MESH" and ob.mode == "OBJECT"
+                and session.same_positions(self.positions32, meshdata.read_positions32(ob.data))
+                and np.array_equal(meshdata.read_triangles(ob.data), self.F))
+        if not same:
+            raise _Failed(f"'{self.name}' changed while it was being {self.verb}: nothing was written; "
+                          f"run it again")
+        return ob
+
+
+class WatermarkTask(_Task):
+    """pmwm.watermark: embed into the active object's base mesh, write its key file."""
+
+    verb, doing = "watermarked", "watermarking"
+
+    def __init__(self, context, payload: str = "", key_path: str = "", scheme: str = "robust",
+                 strength: float = 2.0, base_ratio: float = 0.03, seed: int = -1, overwrite_key: bool = False):
+        import pmwm
+
+        ob = _active_mesh(context)
+        self.key_path, self.make_folder = _key_path(context, ob, key_path)
+        self.overwrite = bool(overwrite_key)
+        if os.path.isdir(self.key_path):
+            raise _Failed(f"key file path is a folder: {self.key_path}")
+        if os.path.exists(self.key_path) and not self.overwrite:
+            raise _Failed(f"key file exists: {self.key_path}: choose another path or enable Overwrite Key")
+        folder = os.path.dirname(self.key_path)
+        if not self.make_folder and not os.path.isdir(folder):
+            raise _Failed(f"folder does not exist: {folder}")
+        if self.make_folder and os.path.exists(folder) and not os.path.isdir(folder):
+            raise _Failed(f"the key folder {folder} is a file: set another Key Folder in the add-on's preferences")
+        self._remember_mesh(ob)
+        self.opts = pmwm.EmbedOptions(payload=payload or None, strength=float(strength),
+                                      base_ratio=float(base_ratio), seed=None if seed < 0 else int(seed),
+                                      scheme=scheme)
+
+    def compute(self, progress):
+        import pmwm
+
+        return pmwm.embed(self.V, self.F, self.opts, progress=progress)
+
+    def finish(self, context, res, report):
+        import pmwm
+
+        ob = self.current_object()
+        if self.make_folder:
+            os.makedirs(os.path.dirname(self.key_path), exist_ok=True)
+        pmwm.write_key(self.key_path, res.key, overwrite=self.overwrite)
+
+        # Success: write back (nothing before this touched the scene).
+        mesh = ob.data
+        meshdata.write_base_positions(mesh, res.vertices)
+        session.remember(ob, session.Marked(
+            name=ob.name, pm=res.pm, carriers=res.carriers, positions=meshdata.read_positions32(mesh),
+            n_bits=len(res.bits), vsnr_db=float(res.vsnr_db)))
+        if ob.modifiers or mesh.shape_keys is not None:
+            report({"WARNING"}, f"'{ob.name}' has modifiers or shape keys: the base mesh was watermarked; "
+                                "apply topology-changing modifiers before watermarking to mark what you ship")
+        if context.scene.pmwm.show_carriers:
+            meshdata.mark_carriers(ob, res.carriers)
+            report({"WARNING"}, "carriers are in vertex group 'pmwm_carriers': "
+                                "turn Show Carriers off before sharing the .blend")
+        report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {len(res.carriers)} carriers, "
+                         f"VSNR {res.vsnr_db:.1f} dB; key written to {self.key_path}")
+
+
+class VerifyTask(_Task):
+    """pmwm.verify: read the mark of a key file from the active object; the verdict goes to the panel."""
+
+    verb, doing = "verified", "verifying"
+
+    def __init__(self, context, key_path: str = ""):
+        import pmwm
+
+        ob = _active_mesh(context)
+        self.key_path, _ = _key_path(context, ob, key_path)
+        if not os.path.isfile(self.key_path):
+            raise _Failed(f"key file not found: {self.key_path}: set Key File to the key written when "
+                          "this object was watermarked")
+        self.key = pmwm.read_key(self.key_path)
+        self.key_sha256 = _sha256(self.key_path)
+        self._remember_mesh(ob)
+
+    def compute(self, progress):
+        import pmwm
+
+        return pmwm.verify(self.V, self.F, self.key)
+
+    def finish(self, context, verdict, report):
+        ob = self.current_object()
+        s = context.scene.pmwm
+        s.verdict_object = ob.name
+        s.verdict_marked = bool(verdict.marked)
+        s.verdict_p_value = f"{verdict.p_value:.3g}"
+        s.verdict_payload = verdict.payload if verdict.payload is not None else verdict.bits
+        s.verdict_matches = f"{verdict.matches}/{len(verdict.bits)}"
+        session.remember_verified(ob, session.Verified(
+            name=ob.name, verdict=verdict, key=self.key, key_path=self.key_path, key_sha256=self.key_sha256,
+            positions=self.positions32, faces=self.F))
+        state = "MARKED" if verdict.marked else "not marked"
+        found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
+        report({"INFO"}, f"'{ob.name}' is {state}: p-value {verdict.p_value:.3g}, "
+                         f"{verdict.matches}/{len(verdict.bits)} bits match, {found}")
+
+
+class ModalRun:
+    """The modal path of one task: ``start`` puts its compute step in a worker thread; ``step`` is
+    called for each event: Esc cancels, a timer tick shows the progress, and once the worker is done
+    the task is finished on this (the main) thread. No window-manager calls here (the operator adds
+    the timer and the handler), so the steps can be driven headless."""
+
+    def __init__(self, task: _Task, report):
+        self.task = task
+        self.report = report
+        self.job = BackgroundJob(task.compute)
+        self.status_text: str | None = None
+        self.finished = False
+
+    def start(self, context) -> None:
+        session.set_busy(self.task.pointer, self.task.verb)
+        self.job.start()
+        self._show(context)
+
+    def _status(self, context, text: str | None) -> None:
+        self.status_text = text
+        workspace = getattr(context, "workspace", None)
+        if workspace is not None and getattr(context, "window", None) is not None:
+            workspace.status_text_set(text)
+
+    def _show(self, context) -> None:
+        job, verb = self.job, self.task.doing.capitalize()
+        if isinstance(self.task, WatermarkTask):
+            detail = f"{int(100 * job.fraction)}%" + (f", {job.message}" if job.message else "")
+        else:
+            detail = f"{job.elapsed:.0f} s"
+        self._status(context, f"{verb} '{self.task.name}': {detail} (Esc to cancel)")
+
+    def _end(self, context) -> None:
+        session.set_busy(self.task.pointer, None)
+        self._status(context, None)
+
+    def cancel(self, context) -> None:
+        """Stop: the worker unwinds at its next progress call, its result is dropped."""
+        self.job.cancel()
+        self._end(context)
+
+    def step(self, context, event_type: str) -> set:
+        if event_type == "ESC":
+            self.cancel(context)
+            self.report({"WARNING"}, f"{self.task.doing.capitalize()} '{self.task.name}' cancelled: "
+                                     "nothing was changed")
+            return {"CANCELLED"}
+        if not self.job.done:
+            if event_type == "TIMER":
+                self._show(context)
+                return {"RUNNING_MODAL"}
+            return {"PASS_THROUGH"}  # the rest of the interface keeps working
+        self._end(context)
+        if self.job.error is not None:
+            raise self.job.error
+        if self.job.cancelled:
+            return {"CANCELLED"}
+        self.task.finish(context, self.job.result, self.report)
+        self.finished = True
+        return {"FINISHED"}
+
+
+# ----------------------------------------------------------------------------- operators
 
 
 class _PmwmOperator:
     """Shared execute wrapper: every failure becomes an ERROR report and CANCELLED."""
 
     def execute(self, context):
+        return self._guard(self.run, context)
+
+    def _guard(self, fn, *args):
         import pmwm
 
         try:
-            return self.run(context)
+            return fn(*args)
         except (_Failed, pmwm.PmwmError) as exc:
             self.report({"ERROR"}, str(exc))
         except OSError as exc:
@@ -101,7 +344,55 @@ class _PmwmOperator:
         return value
 
 
-class PMWM_OT_watermark(_PmwmOperator, Operator):
+class _BackgroundOperator(_PmwmOperator):
+    """execute: the task's three steps in a row. invoke (a click in the interface): compute in a worker
+    thread under a modal operator (``ModalRun``); without a window it falls back to execute."""
+
+    def make_task(self, context) -> _Task:
+        raise NotImplementedError
+
+    def run(self, context):
+        task = self.make_task(context)
+        with _progress(context) as progress:
+            result = task.compute(progress)
+        task.finish(context, result, self.report)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        return self._guard(self._start, context)
+
+    def _start(self, context):
+        self._run = ModalRun(self.make_task(context), self.report)
+        self._run.start(context)
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _stop_timer(self, context) -> None:
+        if getattr(self, "_timer", None) is not None:
+            context.window_manager.event_timer_remove(self._timer)
+            self._timer = None
+
+    def modal(self, context, event):
+        result = self._guard(self._run.step, context, event.type)
+        if result not in ({"RUNNING_MODAL"}, {"PASS_THROUGH"}):
+            if not self._run.finished and not self._run.job.done:
+                self._run.cancel(context)
+            self._run._end(context)
+            self._stop_timer(context)
+            for area in context.screen.areas if context.screen else ():
+                area.tag_redraw()
+        return result
+
+    def cancel(self, context):  # Blender ends the modal operator (e.g. a file is loaded)
+        self._run.cancel(context)
+        self._stop_timer(context)
+
+
+class PMWM_OT_watermark(_BackgroundOperator, Operator):
     """Watermark the active mesh object and write its key file"""
 
     bl_idname = "pmwm.watermark"
@@ -110,7 +401,9 @@ class PMWM_OT_watermark(_PmwmOperator, Operator):
 
     payload: StringProperty(name="Payload", description="Text to embed; empty: 64 random bits",
                             options={"SKIP_SAVE"})
-    key_path: StringProperty(name="Key File", subtype="FILE_PATH", options={"SKIP_SAVE"})
+    key_path: StringProperty(name="Key File", description="Empty: <object name>.pmwm-key.json beside the "
+                             ".blend, or in the key folder of the preferences", subtype="FILE_PATH",
+                             options={"SKIP_SAVE"})
     scheme: EnumProperty(name="Scheme", items=SCHEME_ITEMS, default="robust", options={"SKIP_SAVE"})
     strength: FloatProperty(name="Strength", default=2.0, min=0.01, max=100.0, options={"SKIP_SAVE"})
     base_ratio: FloatProperty(name="Base Ratio", default=0.03, min=0.0001, max=1.0, options={"SKIP_SAVE"})
@@ -118,47 +411,32 @@ class PMWM_OT_watermark(_PmwmOperator, Operator):
                       options={"SKIP_SAVE"})
     overwrite_key: BoolProperty(name="Overwrite Key", default=False, options={"SKIP_SAVE"})
 
-    def run(self, context):
-        import pmwm
+    @classmethod
+    def poll(cls, context):
+        return _poll_mesh(cls, context)
 
-        ob = _active_mesh(context)
-        key_path = _file_path(self.option(context, "key_path"), "key file")
-        overwrite = self.option(context, "overwrite_key")
-        if os.path.isdir(key_path):
-            raise _Failed(f"key file path is a folder: {key_path}")
-        if os.path.exists(key_path) and not overwrite:
-            raise _Failed(f"key file exists: {key_path}: choose another path or enable Overwrite Key")
-        if not os.path.isdir(os.path.dirname(key_path)):
-            raise _Failed(f"folder does not exist: {os.path.dirname(key_path)}")
-        V, F = _read_mesh(ob)
-        seed = self.option(context, "seed")
-        opts = pmwm.EmbedOptions(
-            payload=self.option(context, "payload") or None,
-            strength=float(self.option(context, "strength")),
-            base_ratio=float(self.option(context, "base_ratio")),
-            seed=None if seed < 0 else int(seed),
-            scheme=self.option(context, "scheme"),
-        )
-        with _progress(context) as progress:
-            res = pmwm.embed(V, F, opts, progress=progress)
-        pmwm.write_key(key_path, res.key, overwrite=overwrite)
+    def make_task(self, context):
+        names = ("payload", "key_path", "scheme", "strength", "base_ratio", "seed", "overwrite_key")
+        return WatermarkTask(context, **{n: self.option(context, n) for n in names})
 
-        # Success: write back (nothing above touched the scene).
-        mesh = ob.data
-        meshdata.write_base_positions(mesh, res.vertices)
-        session.remember(ob, session.Marked(
-            name=ob.name, pm=res.pm, carriers=res.carriers, positions=meshdata.read_positions32(mesh),
-            n_bits=len(res.bits), vsnr_db=float(res.vsnr_db)))
-        if ob.modifiers or mesh.shape_keys is not None:
-            self.report({"WARNING"}, f"'{ob.name}' has modifiers or shape keys: the base mesh was watermarked; "
-                                     "apply topology-changing modifiers before watermarking to mark what you ship")
-        if context.scene.pmwm.show_carriers:
-            meshdata.mark_carriers(ob, res.carriers)
-            self.report({"WARNING"}, "carriers are in vertex group 'pmwm_carriers': "
-                                     "turn Show Carriers off before sharing the .blend")
-        self.report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {len(res.carriers)} carriers, "
-                              f"VSNR {res.vsnr_db:.1f} dB; key written to {key_path}")
-        return {"FINISHED"}
+
+class PMWM_OT_verify(_BackgroundOperator, Operator):
+    """Verify whether the active mesh object carries the watermark of a key file"""
+
+    bl_idname = "pmwm.verify"
+    bl_label = "Verify"
+    bl_options = {"REGISTER"}
+
+    key_path: StringProperty(name="Key File", description="Empty: <object name>.pmwm-key.json beside the "
+                             ".blend, or in the key folder of the preferences", subtype="FILE_PATH",
+                             options={"SKIP_SAVE"})
+
+    @classmethod
+    def poll(cls, context):
+        return _poll_mesh(cls, context)
+
+    def make_task(self, context):
+        return VerifyTask(context, key_path=self.option(context, "key_path"))
 
 
 class PMWM_OT_export_pm(_PmwmOperator, Operator, ExportHelper):
@@ -170,6 +448,16 @@ class PMWM_OT_export_pm(_PmwmOperator, Operator, ExportHelper):
 
     filename_ext = ".pmwm"
     filter_glob: StringProperty(default="*.pmwm", options={"HIDDEN"})
+
+    @classmethod
+    def poll(cls, context):
+        if not _poll_mesh(cls, context):
+            return False
+        if session.lookup(context.active_object) is None:
+            cls.poll_message_set(f"'{context.active_object.name}' was not watermarked in this session: "
+                                 "watermark this object first")
+            return False
+        return True
 
     def run(self, context):
         import pmwm
@@ -232,40 +520,60 @@ class PMWM_OT_import_pm(_PmwmOperator, Operator, ImportHelper):
         return {"FINISHED"}
 
 
-class PMWM_OT_verify(_PmwmOperator, Operator):
-    """Verify whether the active mesh object carries the watermark of a key file"""
+class PMWM_OT_save_report(_PmwmOperator, Operator, ExportHelper):
+    """Save the last verification of the active object as a self-contained HTML report (verdict, hashes, \
+per-bit chart, pictures)"""
 
-    bl_idname = "pmwm.verify"
-    bl_label = "Verify"
+    bl_idname = "pmwm.save_report"
+    bl_label = "Save Report"
     bl_options = {"REGISTER"}
 
-    key_path: StringProperty(name="Key File", subtype="FILE_PATH", options={"SKIP_SAVE"})
+    filename_ext = ".html"
+    filter_glob: StringProperty(default="*.html", options={"HIDDEN"})
+
+    @classmethod
+    def poll(cls, context):
+        if not _poll_mesh(cls, context):
+            return False
+        if session.lookup_verified(context.active_object) is None:
+            cls.poll_message_set(f"'{context.active_object.name}' was not verified in this session: "
+                                 "verify this object first")
+            return False
+        return True
+
+    def invoke(self, context, event):
+        ob = context.active_object
+        if not self.filepath and ob is not None:
+            folder = os.path.dirname(bpy.data.filepath) if bpy.data.filepath else prefs.key_folder(context)
+            self.filepath = os.path.join(folder, prefs.file_stem(ob.name) + ".pmwm-report.html")
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
 
     def run(self, context):
-        import pmwm
+        from pmwm.verify_report import write_report
 
         ob = _active_mesh(context)
-        key_path = _file_path(self.option(context, "key_path"), "key file")
-        if not os.path.isfile(key_path):
-            raise _Failed(f"key file not found: {key_path}")
-        key = pmwm.read_key(key_path)
-        V, F = _read_mesh(ob)
-        verdict = pmwm.verify(V, F, key)
-
-        s = context.scene.pmwm
-        s.verdict_object = ob.name
-        s.verdict_marked = bool(verdict.marked)
-        s.verdict_p_value = f"{verdict.p_value:.3g}"
-        s.verdict_payload = verdict.payload if verdict.payload is not None else verdict.bits
-        s.verdict_matches = f"{verdict.matches}/{len(verdict.bits)}"
-        state = "MARKED" if verdict.marked else "not marked"
-        found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
-        self.report({"INFO"}, f"'{ob.name}' is {state}: p-value {verdict.p_value:.3g}, "
-                              f"{verdict.matches}/{len(verdict.bits)} bits match, {found}")
+        rec = session.lookup_verified(ob)
+        if rec is None:
+            raise _Failed(f"'{ob.name}' was not verified in this session: verify this object first")
+        if not (session.same_positions(rec.positions, meshdata.read_positions32(ob.data))
+                and np.array_equal(meshdata.read_triangles(ob.data), rec.faces)):
+            raise _Failed(f"'{ob.name}' changed since it was verified: verify it again")
+        if not os.path.isfile(rec.key_path) or _sha256(rec.key_path) != rec.key_sha256:
+            raise _Failed(f"the key file {rec.key_path} changed or went away since the verification: verify again")
+        path = _file_path(self.filepath, "report")
+        if not path.lower().endswith((".html", ".htm")):
+            raise _Failed(f"{path}: give the report an .html name")
+        if os.path.realpath(path) == os.path.realpath(rec.key_path):
+            raise _Failed(f"{path} is the key file: choose another name for the report")
+        blend = os.path.basename(bpy.data.filepath) if bpy.data.filepath else "an unsaved .blend"
+        write_report(path, rec.verdict, rec.key, rec.positions, rec.faces, key_path=rec.key_path,
+                     suspect_name=f"Blender object '{ob.name}' in {blend}", force=True)
+        self.report({"INFO"}, f"Report on '{ob.name}' written to {path}")
         return {"FINISHED"}
 
 
-classes = (PMWM_OT_watermark, PMWM_OT_export_pm, PMWM_OT_import_pm, PMWM_OT_verify)
+classes = (PMWM_OT_watermark, PMWM_OT_export_pm, PMWM_OT_import_pm, PMWM_OT_verify, PMWM_OT_save_report)
 
 
 register, unregister = bpy.utils.register_classes_factory(classes)

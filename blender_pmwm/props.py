@@ -70,7 +70,9 @@ class PMWM_SceneSettings(PropertyGroup):
     )
     key_path: StringProperty(
         name="Key File",
-        description="JSON key file written by Watermark and read by Verify. Keep it secret",
+        description="JSON key file written by Watermark and read by Verify; keep it secret. Empty: "
+                    "<object name>.pmwm-key.json beside the saved .blend, or in the key folder of the "
+                    "add-on's preferences",
         subtype="FILE_PATH",
         default="",
     )
@@ -82,13 +84,15 @@ class PMWM_SceneSettings(PropertyGroup):
     )
     strength: FloatProperty(
         name="Strength",
-        description="Mark strength: bump height (robust) or carrier displacement in neighbour standard "
-                    "deviations (paper); 2 is the default",
+        description="How far the mark moves the surface: bump height (robust) or carrier displacement in "
+                    "neighbour standard deviations (paper). Higher survives more damage and shows more; 2 is "
+                    "the default",
         default=2.0, min=0.01, max=100.0, soft_min=0.5, soft_max=5.0,
     )
     base_ratio: FloatProperty(
         name="Base Ratio",
-        description="Vertices of the progressive mesh's base mesh as a fraction of the input",
+        description="Vertices of the progressive mesh's base mesh (its coarsest level, streamed first) "
+                    "as a fraction of the input",
         default=0.03, min=0.0001, max=1.0, soft_max=0.5, precision=3,
     )
     seed: IntProperty(

@@ -24,7 +24,22 @@ class Marked:
     vsnr_db: float
 
 
+@dataclass
+class Verified:
+    """The last verification of one object (memory only), for its report."""
+
+    name: str
+    verdict: object  # pmwm.Verdict
+    key: object  # pmwm.WatermarkKey
+    key_path: str
+    key_sha256: str
+    positions: np.ndarray  # (n, 3) float32 positions read, to detect later edits
+    faces: np.ndarray  # (m, 3) int64 triangles read
+
+
 _MARKED: dict[int, Marked] = {}
+_VERIFIED: dict[int, Verified] = {}
+_BUSY: dict[int, str] = {}  # object pointer -> what runs on it in the background
 _PM_FILES: dict[tuple[str, int], object] = {}
 
 
@@ -38,9 +53,36 @@ def lookup(ob) -> Marked | None:
     return _MARKED.get(ob.as_pointer())
 
 
+def remember_verified(ob, verified: Verified) -> None:
+    """Record the last verification of ``ob``."""
+    _VERIFIED[ob.as_pointer()] = verified
+
+
+def lookup_verified(ob) -> Verified | None:
+    """The last verification of ``ob`` in this session, or None."""
+    return _VERIFIED.get(ob.as_pointer())
+
+
+def busy(ob) -> str | None:
+    """What runs on ``ob`` in the background ("watermarking", "verifying"), or None."""
+    return _BUSY.get(ob.as_pointer())
+
+
+def set_busy(pointer: int, what: str | None) -> None:
+    if what is None:
+        _BUSY.pop(pointer, None)
+    else:
+        _BUSY[pointer] = what
+
+
+def same_positions(stored: np.ndarray, positions32: np.ndarray) -> bool:
+    """True when two float32 position arrays are exactly equal."""
+    return stored.shape == positions32.shape and np.array_equal(stored, positions32)
+
+
 def is_current(marked: Marked, positions32: np.ndarray) -> bool:
     """True when the mesh still holds exactly the positions the watermark wrote."""
-    return marked.positions.shape == positions32.shape and np.array_equal(marked.positions, positions32)
+    return same_positions(marked.positions, positions32)
 
 
 def load_pm(path: str):
@@ -61,4 +103,6 @@ def load_pm(path: str):
 def clear() -> None:
     """Forget everything (on file load and when the add-on is disabled)."""
     _MARKED.clear()
+    _VERIFIED.clear()
+    _BUSY.clear()
     _PM_FILES.clear()

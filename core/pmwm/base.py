@@ -90,6 +90,14 @@ class Verdict:
     mode: str
     p_threshold: float = 1e-6
     extra: dict = field(default_factory=dict)
+    # What the verdict was read from (for reports; not in to_dict): scores (N,) float64, one soft
+    # score per bit as read (sign = the scrambled bit, magnitude = confidence, 0 = erasure);
+    # places (k, 3) float64, where the mark was read, in the suspect's coordinates (robust: the
+    # sites read; paper: the carriers found; Cho: none, the mark is global), place_bits (k,) int64
+    # the bit each place carries.
+    scores: Optional[np.ndarray] = None
+    places: Optional[np.ndarray] = None
+    place_bits: Optional[np.ndarray] = None
 
     def to_dict(self) -> dict:
         return {
@@ -230,6 +238,9 @@ def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_thres
         carriers_total=n,
         mode=mode,
         p_threshold=p_threshold,
+        scores=np.asarray(score, np.float64).copy(),
+        places=np.zeros((0, 3)),
+        place_bits=np.zeros(0, np.int64),
     )
 
 

@@ -18,7 +18,7 @@ from typing import Optional, Sequence
 
 
 from . import __version__
-from .api import embed, read_key, verify, verify_pm
+from .api import embed, read_key, verify
 from .atomic import atomic_write_bytes
 from .base import EmbedOptions, Verdict
 from .errors import OutputExistsError, PmwmError
@@ -137,17 +137,28 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
 
 
 def cmd_verify(a) -> int:
+    if a.report is not None:
+        if not a.report.lower().endswith((".html", ".htm")):
+            raise UsageError(f"--report {a.report}: give an .html file name")
+        _check_outputs([a.report], [a.suspect, a.key], a.force)
     key = read_key(a.key)
     if a.suspect.lower().endswith(".pmwm"):
         pm = read_pm(a.suspect)
         records = pm.records_for_vertices(a.vertices) if a.vertices is not None else a.level
-        v = verify_pm(pm, key, records=records, p_threshold=a.p_threshold)
+        V, F = pm.decode(records=records)
     else:
         if a.level is not None or a.vertices is not None:
             raise UsageError("--level/--vertices apply to a .pmwm progressive mesh only")
         src = read_mesh(a.suspect)
-        v = verify(src.vertices, src.faces, key, p_threshold=a.p_threshold)
+        V, F = src.vertices, src.faces
+    v = verify(V, F, key, p_threshold=a.p_threshold)
+    if a.report is not None:
+        from .verify_report import write_report
+
+        write_report(a.report, v, key, V, F, suspect_path=a.suspect, key_path=a.key, force=a.force)
     _print_verdict(v, a.json)
+    if a.report is not None and not a.json:
+        print(f"report -> {a.report}")
     return EXIT_OK if v.marked else EXIT_NOT_MARKED
 
 
@@ -285,6 +296,9 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--level", type=int, help="(.pmwm) records to apply")
     v.add_argument("--vertices", type=int, help="(.pmwm) level of detail by vertex count")
     v.add_argument("--p-threshold", type=float, default=1e-6)
+    v.add_argument("--report", metavar="REPORT.html",
+                   help="also write a self-contained HTML verification report (verdict, hashes, per-bit chart, views)")
+    v.add_argument("--force", action="store_true", help="overwrite an existing report")
     v.set_defaults(func=cmd_verify)
 
     d = sub.add_parser("decode", help="write a level of detail of a .pmwm as a mesh")

@@ -1,4 +1,4 @@
-"""Fixtures for the Blender add-on tests: headless bpy 5.0.1, the add-on loaded from blender_pmwm/.
+"""Fixtures for the Blender add-on tests: headless bpy (4.2 LTS or 5.2 LTS), the add-on loaded from blender_pmwm/.
 
 A process imports bpy once; every test starts from an empty scene (read_homefile(use_empty=True)).
 The add-on is registered from the source folder as the package ``blender_pmwm`` (no sys.path edit);
@@ -40,6 +40,20 @@ def addon():
     module.register()
     yield module
     module.unregister()
+
+
+@pytest.fixture
+def key_prefs(addon, tmp_path):
+    """The add-on's preferences, as when the extension is enabled (here it is registered from its
+    folder, so Blender has no entry for it yet), with the key folder in tmp_path."""
+    addons = bpy.context.preferences.addons
+    entry = addons.get("blender_pmwm")
+    if entry is None:
+        entry = addons.new()
+        entry.module = "blender_pmwm"
+    entry.preferences.key_folder = str(tmp_path / "key-folder")
+    yield entry.preferences
+    addons.remove(entry)
 
 
 @pytest.fixture
@@ -128,8 +142,11 @@ def snapshot(folder: Path | None = None) -> tuple:
     """Everything an operator might change: objects, meshes, modes, selection, options, files."""
     objects = []
     for ob in sorted(bpy.data.objects, key=lambda o: o.name):
+        # ob.pmwm_lod first: Blender 4.2 creates an object's property group when it is first read
+        # (then ob.keys() lists it), 4.3 and later keep it out of ob.keys()
+        lod = _props(ob.pmwm_lod)
         entry = [ob.name, ob.type, ob.mode, ob.select_get(), tuple(map(tuple, ob.matrix_world)),
-                 tuple(g.name for g in ob.vertex_groups), tuple(ob.keys()), _props(ob.pmwm_lod)]
+                 tuple(g.name for g in ob.vertex_groups), tuple(ob.keys()), lod]
         if ob.type == "MESH":
             loops, sizes = polygons(ob)
             digest = hashlib.sha256(positions(ob).tobytes() + loops.tobytes() + sizes.tobytes()).hexdigest()

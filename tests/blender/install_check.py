@@ -27,7 +27,11 @@ def _common(bpy, addon_utils) -> dict:
         "addon_file": getattr(module, "__file__", None),
         "warnings": warnings,
         "has_operators": all(hasattr(bpy.types, c) for c in
-                             ("PMWM_OT_watermark", "PMWM_OT_export_pm", "PMWM_OT_import_pm", "PMWM_OT_verify")),
+                             ("PMWM_OT_watermark", "PMWM_OT_export_pm", "PMWM_OT_import_pm", "PMWM_OT_verify",
+                              "PMWM_OT_save_report")),
+        # the add-on's preferences (the key folder) under the extension's own module name
+        "key_folder_pref": hasattr(getattr(bpy.context.preferences.addons.get(MODULE), "preferences", None),
+                                   "key_folder"),
     }
 
 

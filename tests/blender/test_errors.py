@@ -5,6 +5,8 @@ from __future__ import annotations
 import bpy
 import pytest
 
+KEY_PREFS = "blender_pmwm"  # the add-on's preferences, registered by the key_prefs fixture
+
 
 def _camera():
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
@@ -34,6 +36,10 @@ def _setup(case, bl, tmp_path):
     elif case == "pm_level":
         bpy.ops.pmwm.watermark(payload="Hi", key_path=str(key), seed=1)
         bpy.ops.pmwm.export_pm(filepath=str(pm))
+    elif case == "key_folder_is_a_file":  # unsaved .blend, default key path, the folder is a file
+        folder = tmp_path / "keys"
+        folder.write_text("not a folder\n")
+        bpy.context.preferences.addons[KEY_PREFS].preferences.key_folder = str(folder)
     elif case == "payload_too_big":
         return {"payload": "x" * 2000}
     return {}
@@ -47,7 +53,7 @@ CASES = {
         ("edit_mode", {}, "Object Mode"),
         ("empty_mesh", {}, "no faces"),
         ("existing_key", {}, "exists"),
-        ("no_key_path", {"key_path": ""}, "no key file path"),
+        ("key_folder_is_a_file", {"key_path": ""}, "is a file"),
         ("payload_too_big", {}, "can carry"),
         ("missing_folder", {"key_path": "MISSING_DIR"}, "folder does not exist"),
     ],
@@ -91,7 +97,7 @@ def _kwargs(op, tmp_path, extra):
 @pytest.mark.parametrize("op,case,extra,message",
                          [(op, *c) for op, cases in CASES.items() for c in cases],
                          ids=[f"{op}-{c[0]}" for op, cases in CASES.items() for c in cases])
-def test_error_reports_and_leaves_scene_unchanged(scene, bl, tmp_path, op, case, extra, message):
+def test_error_reports_and_leaves_scene_unchanged(scene, bl, tmp_path, key_prefs, op, case, extra, message):
     kwargs = {**_kwargs(op, tmp_path, extra), **_setup(case, bl, tmp_path)}
     for name, value in kwargs.items():
         if value == "MISSING_DIR":
@@ -101,7 +107,9 @@ def test_error_reports_and_leaves_scene_unchanged(scene, bl, tmp_path, op, case,
     before = bl.snapshot(tmp_path)
     with pytest.raises(RuntimeError, match=message) as err:
         getattr(bpy.ops.pmwm, op)(**kwargs)
-    assert str(err.value).startswith("Error:")
+    # the operator's ERROR report, or its poll message (the reason a greyed-out button gives)
+    text = str(err.value).strip()
+    assert text.startswith(("Error:", f"Operator bpy.ops.pmwm.{op}.poll()")) and "\n" not in text, text
     assert bl.snapshot(tmp_path) == before
 
 

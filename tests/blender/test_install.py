@@ -85,7 +85,7 @@ def test_install_into_isolated_user_resources(built_zip, tmp_path):
     resources = tmp_path / "blender_user"
     resources.mkdir()
     installed = _run("install", built_zip, resources)
-    assert installed["enabled"] and installed["has_operators"]
+    assert installed["enabled"] and installed["has_operators"] and installed["key_folder_pref"]
     assert installed["addon_file"].startswith(str(resources))
     assert installed["warnings"] == {}  # Blender's extension policy check
 
@@ -94,7 +94,7 @@ def test_install_into_isolated_user_resources(built_zip, tmp_path):
     work.mkdir()
     used = _run("use", work, resources)
     site = resources / "extensions" / ".local"
-    assert used["enabled"] and used["warnings"] == {}
+    assert used["enabled"] and used["warnings"] == {} and used["key_folder_pref"]
     assert used["pmwm_file"].startswith(str(site)), used["pmwm_file"]
     assert used["trimesh_file"].startswith(str(site)), used["trimesh_file"]
     assert not used["numpy_file"].startswith(str(resources))  # numpy is Blender's own

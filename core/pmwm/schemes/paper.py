@@ -192,6 +192,8 @@ def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Ver
     idx, mode, how = locate_carriers(V, F, key)
     verdict = verdict_from_scores(carrier_scores(V, F, idx), key, mode, p_threshold)
     verdict.extra = {"carriers": how}
+    found = np.flatnonzero(idx >= 0)
+    verdict.places, verdict.place_bits = V[idx[found]].copy(), found
     return verdict
 
 

@@ -157,6 +157,13 @@ def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int)
 
 def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict]:
     """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details."""
+    scores, mode, extra, _ = _read(vertices, faces, key)
+    return scores, mode, extra
+
+
+def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tuple[np.ndarray, np.ndarray]]:
+    """read_scores, and where the mark was read: (places (k, 3) of the sites read, in the suspect's
+    coordinates; the bit of each)."""
     s = key_data(key)
     V, F = check_mesh(vertices, faces)
     aligned = _in_key_frame(V, s, key)
@@ -194,14 +201,27 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, di
     extra.update({"heights": ("by vertex index" if by_index else "by position")
                   + (", site vertices first" if aligned else ""),
                   "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
-    return bit_scores(soft, var, s, key.n_bits), mode, extra
+    read = np.flatnonzero(np.isfinite(soft))
+    places = _to_suspect(V, X, s.origin[read])
+    return bit_scores(soft, var, s, key.n_bits), mode, extra, (places, s.bit[read].astype(np.int64))
+
+
+def _to_suspect(V: np.ndarray, X: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Points P of the key's frame carried to the suspect's coordinates: X is V moved by a
+    similarity (or V itself), so the fit of X to V over its vertices is that similarity's inverse."""
+    if X is V or len(P) == 0:
+        return P.copy()
+    sel = np.unique(np.linspace(0, len(V) - 1, min(len(V), 4096)).astype(np.int64))
+    R, k, t = similarity_fit(X[sel], V[sel])
+    return k * P @ R.T + t
 
 
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
     """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
-    scores, mode, extra = read_scores(vertices, faces, key)
+    scores, mode, extra, (places, place_bits) = _read(vertices, faces, key)
     verdict = verdict_from_scores(scores, key, mode, p_threshold)
     verdict.extra = extra
+    verdict.places, verdict.place_bits = places, place_bits
     return verdict
 
 
