@@ -1,5 +1,5 @@
 """The verification report (pmwm.verify_report, `pmwm verify --report`): its contents, and how a real
-browser (Debian's headless chromium, installed by tests/run-all.sh) shows it.
+browser (Debian's headless chromium, installed by tests/run_all.py) shows it.
 
 The browser check: chromium parses and lays out the file with its console logged (a page with a
 deliberate console.error proves the log catches errors), then takes a screenshot. No OCR is available,
@@ -168,7 +168,7 @@ def test_cli_verify_writes_the_report_and_keeps_existing_files(marked, tmp_path)
 
 def _chromium() -> str:
     exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    assert exe, "chromium is not installed: tests/run-all.sh installs it (apt-get install chromium)"
+    assert exe, "chromium is not installed: tests/run_all.py installs it (apt-get install chromium)"
     return exe
 
 

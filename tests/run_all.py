@@ -1,0 +1,82 @@
+"""The whole test suite on a fresh machine, from a clone alone (README "On a fresh machine"; .ci/run runs
+it through the README's test command, ``python3.11 tests/run_all.py``):
+
+1. Debian's chromium, for the verification report's browser test (installed with apt-get when missing
+   and run as root; otherwise it asks you to install it, and that test fails rather than skip);
+2. .venv (Python 3.11, bpy 4.2.0 = Blender 4.2 LTS): every test;
+3. .venv313 (Python 3.13, bpy 5.2.3 = Blender 5.2 LTS): the add-on tests (tests/blender) again.
+
+Python 3.13 is found under pyenv (``$(pyenv root)/versions/3.13*/bin/python3.13``, where it is often
+installed without being on PATH), else as ``python3.13`` on PATH. Exit code: non-zero when either run
+failed. Extra arguments are handed to the first pytest run (e.g. ``-x``).
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run(*cmd: str, check: bool = True) -> int:
+    print("+", " ".join(cmd), flush=True)
+    code = subprocess.run(cmd, cwd=ROOT, stdin=subprocess.DEVNULL).returncode
+    if check and code:
+        sys.exit(code)
+    return code
+
+
+def ensure_chromium() -> None:
+    if shutil.which("chromium"):
+        return
+    if os.geteuid() == 0 and shutil.which("apt-get"):
+        print("+ apt-get install chromium (for the report's browser test)", flush=True)
+        env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+        for cmd in (["apt-get", "update", "-q"],
+                    # fonts-dejavu-core: the report's font, named in case recommended packages are turned off
+                    ["apt-get", "install", "-y", "-q", "chromium", "fonts-dejavu-core"]):
+            if subprocess.run(cmd, env=env, stdin=subprocess.DEVNULL).returncode:
+                sys.exit(f"tests/run_all.py: {' '.join(cmd)} failed")
+        return
+    sys.exit("tests/run_all.py: chromium is missing; install it first (Debian: sudo apt-get install chromium)")
+
+
+def python313() -> str:
+    try:
+        root = subprocess.run(["pyenv", "root"], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        root = ""
+    root = root or os.environ.get("PYENV_ROOT", str(Path.home() / ".pyenv"))
+    found = sorted(p for p in glob.glob(f"{root}/versions/3.13*/bin/python3.13") if os.access(p, os.X_OK))
+    if found:
+        return found[-1]
+    on_path = shutil.which("python3.13")
+    if on_path:
+        return on_path
+    sys.exit("tests/run_all.py: Python 3.13 not found (pyenv install 3.13, or a python3.13 on PATH): "
+             "needed for Blender 5.2")
+
+
+def main(argv: list[str]) -> int:
+    ensure_chromium()
+    py313 = python313()
+    print("+ Python 3.11, Blender 4.2 LTS: the whole suite", flush=True)
+    run(sys.executable, "-m", "venv", ".venv")
+    run(".venv/bin/pip", "install", "-q", "-e", ".[test,bench,blender]")
+    status = run(".venv/bin/python", "-m", "pytest", "-q", *argv, check=False)
+    print(f"+ Python 3.13 ({py313}), Blender 5.2 LTS: the add-on tests", flush=True)
+    run(py313, "-m", "venv", ".venv313")
+    run(".venv313/bin/pip", "install", "-q", "-e", ".[test,blender]")
+    status = run(".venv313/bin/python", "-m", "pytest", "-q", "tests/blender", check=False) or status
+    return status
+
+
+if __name__ == "__main__":
+    if sys.version_info[:2] != (3, 11):
+        sys.exit(f"tests/run_all.py: run it with Python 3.11 (python3.11 tests/run_all.py); this is {sys.version.split()[0]}")
+    sys.exit(main(sys.argv[1:]))
