@@ -1,8 +1,9 @@
 """The whole test suite on a fresh machine, from a clone alone (README "On a fresh machine"; .ci/run runs
 it through the README's test command, ``python3.11 tests/run_all.py``):
 
-1. Debian's chromium, for the verification report's browser test (installed with apt-get when missing
-   and run as root; otherwise it asks you to install it, and that test fails rather than skip);
+1. Debian's chromium and tesseract, for the verification report's browser test (installed with apt-get
+   when missing and run as root; otherwise it asks you to install them, and that test fails rather than
+   skip);
 2. .venv (Python 3.11, bpy 4.2.0 = Blender 4.2 LTS): every test;
 3. .venv313 (Python 3.13, bpy 5.2.3 = Blender 5.2 LTS): the add-on tests (tests/blender) again.
 
@@ -31,19 +32,24 @@ def run(*cmd: str, check: bool = True) -> int:
     return code
 
 
-def ensure_chromium() -> None:
-    if shutil.which("chromium"):
+#: command -> the Debian packages that bring it (fonts-dejavu-core: the report's font, named in case
+#: recommended packages are turned off; tesseract reads the verdict off the browser's screenshot)
+TOOLS = {"chromium": ["chromium", "fonts-dejavu-core"], "tesseract": ["tesseract-ocr", "tesseract-ocr-eng"]}
+
+
+def ensure_tools() -> None:
+    missing = [pkg for cmd, pkgs in TOOLS.items() if not shutil.which(cmd) for pkg in pkgs]
+    if not missing:
         return
     if os.geteuid() == 0 and shutil.which("apt-get"):
-        print("+ apt-get install chromium (for the report's browser test)", flush=True)
+        print(f"+ apt-get install {' '.join(missing)} (for the report's browser test)", flush=True)
         env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-        for cmd in (["apt-get", "update", "-q"],
-                    # fonts-dejavu-core: the report's font, named in case recommended packages are turned off
-                    ["apt-get", "install", "-y", "-q", "chromium", "fonts-dejavu-core"]):
+        for cmd in (["apt-get", "update", "-q"], ["apt-get", "install", "-y", "-q", *missing]):
             if subprocess.run(cmd, env=env, stdin=subprocess.DEVNULL).returncode:
                 sys.exit(f"tests/run_all.py: {' '.join(cmd)} failed")
         return
-    sys.exit("tests/run_all.py: chromium is missing; install it first (Debian: sudo apt-get install chromium)")
+    sys.exit(f"tests/run_all.py: the report's browser test needs {' '.join(missing)}; install them first "
+             f"(Debian: sudo apt-get install {' '.join(missing)})")
 
 
 def python313() -> str:
@@ -63,7 +69,7 @@ def python313() -> str:
 
 
 def main(argv: list[str]) -> int:
-    ensure_chromium()
+    ensure_tools()
     py313 = python313()
     print("+ Python 3.11, Blender 4.2 LTS: the whole suite", flush=True)
     run(sys.executable, "-m", "venv", ".venv")

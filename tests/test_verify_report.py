@@ -2,11 +2,11 @@
 browser (Debian's headless chromium, installed by tests/run_all.py) shows it.
 
 The browser check: chromium parses and lays out the file with its console logged (a page with a
-deliberate console.error proves the log catches errors), then takes a screenshot. No OCR is available,
-so the screenshot is checked for what can be measured honestly: the verdict box in its own colour
-(green for MARKED, red for NOT MARKED, and not the other), a dark text colour inside that box, the
-three pictures (pixels of the highlight colour), and a page that is not blank. The verdict *text* is
-checked in the DOM chromium built (--dump-dom).
+deliberate console.error proves the log catches errors), then takes a screenshot. The screenshot is
+checked for the verdict box in its own colour (green for MARKED, red for NOT MARKED, and not the other)
+near the top, the verdict read off that box by OCR (Debian's tesseract), the three pictures (pixels of
+the highlight colour), and a page that is not blank. The verdict text is also checked in the DOM
+chromium built (--dump-dom).
 """
 
 from __future__ import annotations
@@ -196,6 +196,19 @@ def _screenshot(page: Path, tmp_path: Path) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(shot.read_bytes())).convert("RGB"), dtype=np.int64)
 
 
+def _ocr(img: np.ndarray, tmp_path: Path) -> str:
+    """The text tesseract reads in an image (one line), upper case, without box-edge marks."""
+    from PIL import Image
+
+    exe = shutil.which("tesseract")
+    assert exe, "tesseract is not installed: tests/run_all.py installs it (apt-get install tesseract-ocr)"
+    path = tmp_path / f"ocr-{len(list(tmp_path.iterdir()))}.png"
+    Image.fromarray(img.astype(np.uint8)).save(path)
+    proc = subprocess.run([exe, str(path), "stdout", "--psm", "7"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    return " ".join(re.sub(r"[^A-Z ]", " ", proc.stdout.upper()).split())
+
+
 def _colour_mask(img: np.ndarray, hex_colour: str, tol: int = 6) -> np.ndarray:
     rgb = np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)])
     return np.all(np.abs(img - rgb) <= tol, axis=2)
@@ -233,5 +246,7 @@ def test_chromium_renders_the_report_with_its_verdict(marked, tmp_path, suspect,
     x0, x1 = cols.min(), cols.max()
     assert y1 < 0.3 * img.shape[0] and x1 - x0 > 100  # near the top: the first thing a reader sees
     assert _colour_mask(img[y0:y1, x0:x1], text, tol=40).sum() > 100  # the verdict's letters in the box
+    # and the letters read as the verdict: OCR (Debian's tesseract) of the box on the screenshot
+    assert _ocr(img[y0:y1 + 1, x0:x1 + 1], tmp_path) == verdict
     assert _colour_mask(img, verify_report.MATCH if verdict == "MARKED" else verify_report.MISMATCH,
                         tol=3).sum() > 200  # the chart's bars and the pictures' discs

@@ -48,13 +48,6 @@ def scheme_of(name: str) -> str:
     return key
 
 
-def bits_string(bits: Any) -> str:
-    """A payload as the '0'/'1' string ``pmwm.EmbedOptions(bits=...)`` takes; ``bits``: (n,) of 0/1."""
-    if isinstance(bits, str):
-        return bits
-    return "".join("1" if int(b) else "0" for b in np.asarray(bits).ravel())
-
-
 @dataclass(frozen=True)
 class SchemeMethod:
     """One watermarking method of pmwm (``scheme``) at ``strength`` (None: the scheme's default).
@@ -87,7 +80,7 @@ class SchemeMethod:
     def options(self, bits: Any, seed: Optional[int]) -> pmwm.EmbedOptions:
         """The ``pmwm.EmbedOptions`` of one embedding."""
         strength = None if self.strength is None else float(self.strength)
-        return pmwm.EmbedOptions(bits=bits_string(bits), seed=seed, strength=strength, scheme=self.scheme)
+        return pmwm.EmbedOptions(bits=np.asarray(bits).ravel(), seed=seed, strength=strength, scheme=self.scheme)
 
     def embed(self, vertices: np.ndarray, faces: np.ndarray, bits: Any, seed: Optional[int] = None
               ) -> tuple[np.ndarray, Any]:
@@ -106,5 +99,5 @@ def default_methods(strength: Optional[float] = None) -> list[SchemeMethod]:
     return [SchemeMethod("robust", strength), SchemeMethod("paper"), SchemeMethod("cho1"), SchemeMethod("cho2")]
 
 
-__all__ = ["ALL_SCHEMES", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod", "bits_string",
+__all__ = ["ALL_SCHEMES", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod",
            "default_methods", "scheme_of"]

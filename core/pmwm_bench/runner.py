@@ -35,6 +35,7 @@ import numpy as np
 import pmwm
 from pmwm import attacks as A
 from pmwm import metrics as M
+from pmwm.validate import parse_bits
 
 from .markdown import render_markdown
 from .methods import SchemeMethod, default_methods
@@ -44,13 +45,6 @@ from .records import BenchResults, Distortion, Trial
 from .report import commit, raw_folder, write_section
 
 Progress = Optional[Callable[[str], None]]
-
-
-def bits_of(x: Any) -> np.ndarray:
-    """(n,) int64 bits of a '0'/'1' string (any other character -> -1, never a match) or a 0/1 array."""
-    if isinstance(x, str):
-        return np.array([1 if ch == "1" else 0 if ch == "0" else -1 for ch in x], dtype=np.int64)
-    return np.asarray(x, dtype=np.int64).ravel()
 
 
 def _norms(v: np.ndarray) -> np.ndarray:
@@ -82,7 +76,7 @@ def read_attacked(method: SchemeMethod, va: np.ndarray, fa: np.ndarray, key: Any
     """(bits read (n_bits,), "") from an attacked copy, or (None, the reason) when the method cannot
     read it at all (a ``pmwm.PmwmError``, or a payload of another length)."""
     try:
-        got = bits_of(method.extract(va, fa, key))
+        got = parse_bits(method.extract(va, fa, key), erasures=True)  # an erasure (NaN) never matches
         if len(got) != n_bits:
             raise pmwm.PmwmError(f"extracted {len(got)} bits, expected {n_bits}")
     except pmwm.PmwmError as exc:
@@ -218,4 +212,4 @@ def run_bench(
     return res
 
 
-__all__ = ["bits_of", "measure_distortion", "read_attacked", "run_attacks", "run_bench"]
+__all__ = ["measure_distortion", "read_attacked", "run_attacks", "run_bench"]

@@ -149,14 +149,14 @@ def test_default_key_path_unsaved_blend_uses_the_key_folder(scene, bl, key_prefs
     folder = tmp_path / "key-folder"
     assert not bpy.data.filepath and not folder.exists()
     assert scene.pmwm.key_path == ""
-    assert bpy.ops.pmwm.watermark(payload="1st") == {"FINISHED"}  # no key path set anywhere
+    assert bpy.ops.pmwm.watermark(payload="1st", seed=4) == {"FINISHED"}  # no key path set anywhere
     key = folder / "Suzanne.pmwm-key.json"
     assert key.is_file()  # the folder was created for it
     assert bpy.ops.pmwm.verify() == {"FINISHED"}
     assert scene.pmwm.verdict_marked and scene.pmwm.verdict_payload == "1st"
     # a second click does not lose the first key
     with pytest.raises(RuntimeError, match="key file exists"):
-        bpy.ops.pmwm.watermark(payload="Again")
+        bpy.ops.pmwm.watermark(payload="Again", seed=4)
     assert ob.name == "Suzanne"
 
 
@@ -164,7 +164,7 @@ def test_default_key_folder_without_preferences_is_in_home(scene, bl, addon, tmp
     monkeypatch.setenv("HOME", str(tmp_path))
     bl.suzanne(levels=1)
     assert addon.prefs.key_folder(bpy.context) == str(tmp_path / "pmwm-keys")
-    assert bpy.ops.pmwm.watermark(payload="Home") == {"FINISHED"}
+    assert bpy.ops.pmwm.watermark(payload="Home", seed=4) == {"FINISHED"}
     assert (tmp_path / "pmwm-keys" / "Suzanne.pmwm-key.json").is_file()
 
 
@@ -174,7 +174,7 @@ def test_default_key_path_saved_blend_is_beside_it(scene, bl, key_prefs, tmp_pat
     blend = tmp_path / "project" / "scene.blend"
     blend.parent.mkdir()
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
-    assert bpy.ops.pmwm.watermark(payload="Beside") == {"FINISHED"}
+    assert bpy.ops.pmwm.watermark(payload="Beside", seed=4) == {"FINISHED"}
     key = blend.parent / "Head_v2.pmwm-key.json"
     assert key.is_file() and not (tmp_path / "key-folder").exists()
     assert bpy.ops.pmwm.verify() == {"FINISHED"} and scene.pmwm.verdict_payload == "Beside"
