@@ -60,6 +60,27 @@ def bound_cell(res: BenchResults, model: str, method: str, amp_sigma: Callable[[
     return f"{np.mean(vals):.2f}"
 
 
+def distortion_table(res: BenchResults, protocol: str, models: Sequence[str], methods: Sequence[str],
+                     extra: dict[str, Callable[[list], str]]) -> list[str]:
+    """One row per model and method with the embedding distortion of ``protocol``'s marked meshes (mean
+    ± std over the keys): MRMS, Hausdorff, vertex RMSE, VSNR, then the ``extra`` columns (header ->
+    cell from that row's distortion records)."""
+    base = {
+        "MRMS (% diag)": lambda ds: fmt(*mean_std([d.mrms_percent for d in ds]), 4),
+        "Hausdorff (% diag)": lambda ds: fmt(*mean_std([d.hausdorff_percent for d in ds]), 3),
+        "vertex RMSE (% diag)": lambda ds: fmt(*mean_std([d.rmse_percent for d in ds]), 4),
+        "VSNR (dB)": lambda ds: fmt(*mean_std([d.vsnr for d in ds]), 1),
+    }
+    columns = {**base, **extra}
+    rows = []
+    for model in models:
+        for method in methods:
+            ds = select(res.distortions, protocol=protocol, model=model, method=method)
+            if ds:
+                rows.append([model, method, *(cell(ds) for cell in columns.values())])
+    return table(["Model", "Method", *columns], rows)
+
+
 def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
     """The robustness section of a ``run_bench`` run (``p_set`` / ``b_set``: the settings it ran)."""
     st = res.settings
@@ -124,20 +145,9 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         lines += table(hdr, rows)
 
     lines += ["", "### Distortion of the 50-bit marked meshes", ""]
-    rows = []
-    for model in present:
-        for method in methods:
-            ds = select(res.distortions, protocol="paper", model=model, method=method)
-            if not ds:
-                continue
-            rows.append([model, method, fmt(*mean_std([d.mrms_percent for d in ds]), 4),
-                         fmt(*mean_std([d.hausdorff_percent for d in ds]), 3),
-                         fmt(*mean_std([d.rmse_percent for d in ds]), 4),
-                         fmt(*mean_std([d.vsnr for d in ds]), 1),
-                         f"{np.mean([d.energy_per_bit for d in ds]):.3g}",
-                         f"{np.mean([d.embed_seconds for d in ds]):.2f}"])
-    lines += table(["Model", "Method", "MRMS (% diag)", "Hausdorff (% diag)", "vertex RMSE (% diag)",
-                     "VSNR (dB)", "E/N", "embed (s)"], rows)
+    lines += distortion_table(res, "paper", present, methods, {
+        "E/N": lambda ds: f"{np.mean([d.energy_per_bit for d in ds]):.3g}",
+        "embed (s)": lambda ds: f"{np.mean([d.embed_seconds for d in ds]):.2f}"})
     lines += ["", f"MRMS / Hausdorff from {st['surface_samples']} area-uniform samples per surface, both directions."]
 
     titles = {"noise": "Table 2: additive uniform noise (correlation)",
@@ -180,18 +190,8 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
               "[0.1, 10] (log-uniform); reordering of vertices, faces and face corners; cropping by a random "
               "plane; simplification by fast-simplification (quadric); one subdivision step. MSDM is not "
               "implemented.", "", "### Distortion of the 64-bit marked meshes", ""]
-    rows = []
-    for model in present:
-        for method in methods:
-            ds = select(res.distortions, protocol="benchmark", model=model, method=method)
-            if not ds:
-                continue
-            rows.append([model, method, fmt(*mean_std([d.mrms_percent for d in ds]), 4),
-                         fmt(*mean_std([d.hausdorff_percent for d in ds]), 3),
-                         fmt(*mean_std([d.rmse_percent for d in ds]), 4),
-                         fmt(*mean_std([d.vsnr for d in ds]), 1), fmt(*mean_std([d.psnr for d in ds]), 1)])
-    lines += table(["Model", "Method", "MRMS (% diag)", "Hausdorff (% diag)", "vertex RMSE (% diag)",
-                     "VSNR (dB)", "PSNR (dB)"], rows)
+    lines += distortion_table(res, "benchmark", present, methods, {
+        "PSNR (dB)": lambda ds: fmt(*mean_std([d.psnr for d in ds]), 1)})
     lines += ["", f"MRMS / Hausdorff from {st['surface_samples']} area-uniform samples per surface, both directions. "
               "Published anchor: Cho et al. on the benchmark's Venus at MRMS 0.008 % (perceptual protocol)."]
     for model in present:

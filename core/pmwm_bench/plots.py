@@ -30,6 +30,16 @@ def pyplot() -> Optional[Any]:
     return plt
 
 
+def _finish(plt: Any, fig: Any, axes: Any, title: str, title_kw: dict, path: Path) -> Path:
+    """Legend on the first panel, the title, and the figure written to ``path`` (PNG, 110 dpi) and closed."""
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(title, **title_kw)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def write_plots(res: BenchResults, p_set: dict, b_set: dict, folder: Path, stem: str) -> list[Path]:
     """One PNG per model and protocol when matplotlib is importable; [] otherwise."""
     plt = pyplot()
@@ -69,13 +79,8 @@ def write_plots(res: BenchResults, p_set: dict, b_set: dict, folder: Path, stem:
                 ax.set_title(group)
                 ax.set_ylabel("correlation" if what == "corr" else "BER")
                 ax.grid(alpha=0.3)
-            axes[0][0].legend(fontsize=8)
-            fig.suptitle(f"{model}: {protocol} protocol")
-            fig.tight_layout()
-            path = folder / f"{stem}_{model}_{protocol}.png"
-            fig.savefig(path, dpi=110)
-            plt.close(fig)
-            written.append(path)
+            written.append(_finish(plt, fig, axes, f"{model}: {protocol} protocol", {},
+                                   folder / f"{stem}_{model}_{protocol}.png"))
     return written
 
 
@@ -124,12 +129,7 @@ def write_sweep_plots(res: "SweepResults", folder: Path) -> list[Path]:
             ax.set_ylim(-0.02, 0.6)
             ax.set_title(model)
             ax.grid(alpha=0.3, which="both")
-        axes[0][0].legend(fontsize=8)
-        fig.suptitle(f"{st['attack_settings'][attack]['label']}: BER against embedding distortion "
-                     f"({st['keys']} key{'s' if st['keys'] != 1 else ''})", fontsize=10)
-        fig.tight_layout()
-        path = folder / f"ber_vs_mrms_{attack}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        written.append(path)
+        title = (f"{st['attack_settings'][attack]['label']}: BER against embedding distortion "
+                 f"({st['keys']} key{'s' if st['keys'] != 1 else ''})")
+        written.append(_finish(plt, fig, axes, title, {"fontsize": 10}, folder / f"ber_vs_mrms_{attack}.png"))
     return written
