@@ -22,7 +22,6 @@ the data an exporter writes when both are neutral.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import traceback
 from contextlib import contextmanager
@@ -88,6 +87,29 @@ def _poll_mesh(cls, context) -> bool:
     return True
 
 
+NOT_WATERMARKED = "'{}' was not watermarked in this session: watermark this object first"
+NOT_VERIFIED = "'{}' was not verified in this session: verify this object first"
+
+
+def _poll_remembered(cls, context, lookup, message: str) -> bool:
+    """Poll of an operator that needs what this session remembers of the active mesh (``lookup``);
+    a greyed-out button says ``message`` (formatted with the object's name) when there is none."""
+    if not _poll_mesh(cls, context):
+        return False
+    if lookup(context.active_object) is None:
+        cls.poll_message_set(message.format(context.active_object.name))
+        return False
+    return True
+
+
+def _remembered(ob, lookup, message: str):
+    """What this session remembers of ``ob`` (``lookup``), or _Failed with ``message``."""
+    found = lookup(ob)
+    if found is None:
+        raise _Failed(message.format(ob.name))
+    return found
+
+
 def _read_mesh(ob):
     """(vertices, triangles) of the object's base mesh; _Failed when it has no faces."""
     V = meshdata.read_positions(ob.data)
@@ -109,11 +131,6 @@ def _key_path(context, ob, raw: str) -> tuple[str, bool]:
         return os.path.abspath(bpy.path.abspath(raw)), False
     path = prefs.default_key_path(context, ob)
     return os.path.abspath(bpy.path.abspath(path)), not path.startswith("//")
-
-
-def _sha256(path: str) -> str:
-    with open(path, "rb") as fh:
-        return hashlib.sha256(fh.read()).hexdigest()
 
 
 # ----------------------------------------------------------------------------- tasks
@@ -221,8 +238,10 @@ class VerifyTask(_Task):
         if not os.path.isfile(self.key_path):
             raise _Failed(f"key file not found: {self.key_path}: set Key File to the key written when "
                           "this object was watermarked")
+        from pmwm.verify_report import file_sha256
+
         self.key = pmwm.read_key(self.key_path)
-        self.key_sha256 = _sha256(self.key_path)
+        self.key_sha256 = file_sha256(self.key_path)
         self._remember_mesh(ob)
 
     def compute(self, progress):
@@ -451,22 +470,14 @@ class PMWM_OT_export_pm(_PmwmOperator, Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context):
-        if not _poll_mesh(cls, context):
-            return False
-        if session.lookup(context.active_object) is None:
-            cls.poll_message_set(f"'{context.active_object.name}' was not watermarked in this session: "
-                                 "watermark this object first")
-            return False
-        return True
+        return _poll_remembered(cls, context, session.lookup, NOT_WATERMARKED)
 
     def run(self, context):
         import pmwm
 
         ob = _active_mesh(context)
-        marked = session.lookup(ob)
-        if marked is None:
-            raise _Failed(f"'{ob.name}' was not watermarked in this session: watermark this object first")
-        if not session.is_current(marked, meshdata.read_positions32(ob.data)):
+        marked = _remembered(ob, session.lookup, NOT_WATERMARKED)
+        if not session.same_positions(marked.positions, meshdata.read_positions32(ob.data)):
             raise _Failed(f"'{ob.name}' changed since it was watermarked (edit or undo): "
                           "watermark this object first")
         path = _file_path(self.filepath, "progressive mesh")
@@ -533,13 +544,7 @@ per-bit chart, pictures)"""
 
     @classmethod
     def poll(cls, context):
-        if not _poll_mesh(cls, context):
-            return False
-        if session.lookup_verified(context.active_object) is None:
-            cls.poll_message_set(f"'{context.active_object.name}' was not verified in this session: "
-                                 "verify this object first")
-            return False
-        return True
+        return _poll_remembered(cls, context, session.lookup_verified, NOT_VERIFIED)
 
     def invoke(self, context, event):
         ob = context.active_object
@@ -550,16 +555,14 @@ per-bit chart, pictures)"""
         return {"RUNNING_MODAL"}
 
     def run(self, context):
-        from pmwm.verify_report import write_report
+        from pmwm.verify_report import file_sha256, write_report
 
         ob = _active_mesh(context)
-        rec = session.lookup_verified(ob)
-        if rec is None:
-            raise _Failed(f"'{ob.name}' was not verified in this session: verify this object first")
+        rec = _remembered(ob, session.lookup_verified, NOT_VERIFIED)
         if not (session.same_positions(rec.positions, meshdata.read_positions32(ob.data))
                 and np.array_equal(meshdata.read_triangles(ob.data), rec.faces)):
             raise _Failed(f"'{ob.name}' changed since it was verified: verify it again")
-        if not os.path.isfile(rec.key_path) or _sha256(rec.key_path) != rec.key_sha256:
+        if not os.path.isfile(rec.key_path) or file_sha256(rec.key_path) != rec.key_sha256:
             raise _Failed(f"the key file {rec.key_path} changed or went away since the verification: verify again")
         path = _file_path(self.filepath, "report")
         if not path.lower().endswith((".html", ".htm")):

@@ -80,11 +80,6 @@ def same_positions(stored: np.ndarray, positions32: np.ndarray) -> bool:
     return stored.shape == positions32.shape and np.array_equal(stored, positions32)
 
 
-def is_current(marked: Marked, positions32: np.ndarray) -> bool:
-    """True when the mesh still holds exactly the positions the watermark wrote."""
-    return same_positions(marked.positions, positions32)
-
-
 def load_pm(path: str):
     """Read a .pmwm file through a cache keyed by path and modification time."""
     import pmwm

@@ -3,6 +3,8 @@ bunny shipped with the package, and meshes generated in code, so the suite needs
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -42,3 +44,27 @@ def quad_torus_obj(nu: int = 40, nv: int = 24, R: float = 1.0, r: float = 0.35) 
 @pytest.fixture(scope="session")
 def bunny():
     return meshes.bunny()
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="session")
+def build_addon():
+    """The repository's build_addon.py, imported as a module (it is a script, not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("build_addon", ROOT / "build_addon.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="session")
+def extension_zip(build_addon, tmp_path_factory) -> Path:
+    """The Blender extension zip built by build_addon.py from this checkout (pmwm wheel + trimesh), once
+    per test session; not validated here (tests/blender/test_install.py runs Blender's validator on it)."""
+    import importlib.metadata
+
+    out = tmp_path_factory.mktemp("dist")
+    return build_addon.build(out, importlib.metadata.version("trimesh"), check=False)

@@ -433,6 +433,8 @@ def test_key_json_round_trip_is_exact(cow):
         a, b = getattr(cow.key, f.name), getattr(back, f.name)
         if f.name == "data":  # the scheme's typed data: equal when their stored forms are
             assert json.dumps(a.to_extra()) == json.dumps(b.to_extra())
+        elif f.name == "extra":  # as read from the file: the stored form of that data
+            assert b == json.loads(json.dumps(cow.key.data.to_extra()))
         elif isinstance(a, np.ndarray):
             assert a.shape == b.shape and np.array_equal(a, b), f.name
         else:

@@ -344,6 +344,6 @@ def test_first_format_and_garbled_keys_are_refused_when_the_key_is_read(marked, 
         path.write_text(json.dumps({**good, "extra": {**good["extra"], **change}}))
         with pytest.raises(KeyFileError, match=words):
             pmwm.read_key(path)
-    old = dataclasses.replace(marked.key, extra={**marked.key.extra, "robust_version": 1}, data=None)
+    old = dataclasses.replace(marked.key, extra={**marked.key.data.to_extra(), "robust_version": 1}, data=None)
     with pytest.raises(KeyFileError, match="re-embed"):  # a key built in memory is read when first used
         robust_verify(marked.vertices, marked.faces, old)

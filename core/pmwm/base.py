@@ -190,12 +190,11 @@ def start_embed(vertices, faces, options: Optional[EmbedOptions], progress: Prog
 
 
 def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, pm: ProgressiveMesh,
-                 key_carriers: np.ndarray, carriers: np.ndarray, extra: Optional[dict] = None,
-                 data: object = None) -> EmbedResult:
+                 key_carriers: np.ndarray, carriers: np.ndarray, data: object = None) -> EmbedResult:
     """The key and the result, the last step of every embedder. marked : (n, 3) float64 the marked
     mesh; key_carriers : (k,) int64 the vertices the key records (index, progressive-mesh index and
     marked place; k = 0 or one per bit); carriers : the vertices reported as carrying the mark;
-    extra, data: the scheme's key data as stored and as read."""
+    data: the scheme's typed key data (written to the key file's ``extra`` by its ``to_extra``)."""
     V, F = job.vertices, job.faces
     pm_of = np.empty(len(V), np.int64)
     pm_of[pm.vertex_order] = np.arange(len(V))
@@ -204,7 +203,7 @@ def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency,
         carrier_index=key_carriers, carrier_pm_index=pm_of[key_carriers],
         carrier_position=marked[key_carriers].copy(), n_vertices=len(V), n_faces=len(F),
         mean_edge=mean_edge_length(marked, adj), bbox_diagonal=float(np.linalg.norm(V.max(0) - V.min(0))),
-        scheme=scheme, extra=extra if extra is not None else {}, data=data,
+        scheme=scheme, data=data,
         faces_fingerprint=face_fingerprint(F), pm_faces_fingerprint=face_fingerprint(pm_of[F]),
     )
     job.report(1.0, "done")

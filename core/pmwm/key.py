@@ -45,7 +45,7 @@ class WatermarkKey:
     mean_edge: float  # mean edge length of the marked mesh (position tolerance scale)
     bbox_diagonal: float
     scheme: str = "paper"
-    extra: dict = field(default_factory=dict)  # the scheme's data as stored in JSON (its writer's output)
+    extra: dict = field(default_factory=dict)  # the scheme's data as read from JSON (written from ``data``)
     faces_fingerprint: str = ""  # face_fingerprint of the marked mesh's faces ("" in older keys)
     pm_faces_fingerprint: str = ""  # the same in the progressive mesh's vertex order
     data: object = field(default=None, repr=False, compare=False)  # the scheme's typed data
@@ -79,7 +79,7 @@ class WatermarkKey:
                 [int(i), int(j), *map(float, p)]
                 for i, j, p in zip(self.carrier_index, self.carrier_pm_index, self.carrier_position)
             ],
-            "extra": self.extra,
+            "extra": self.data.to_extra() if hasattr(self.data, "to_extra") else self.extra,
         }
         return json.dumps(doc, indent=1) + "\n"
 

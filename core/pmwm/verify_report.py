@@ -125,6 +125,33 @@ def _rasterise(P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int) -> tu
     return img.reshape(size, size), depth.reshape(size, size)
 
 
+def _draw_places(rgb: np.ndarray, depth: np.ndarray, Q: np.ndarray, colors: np.ndarray, radius: float,
+                 tol: float) -> int:
+    """Draw the places Q (k, 3) in pixel space (x, y, depth) that the surface does not hide (within
+    ``tol`` of the nearest surface in a 7 x 7 pixel window) onto ``rgb`` (h, w, 3) as discs of
+    ``radius`` in ``colors`` (k, 3), each with a dark rim; returns how many were drawn."""
+    h, w = depth.shape
+    xi, yi = np.floor(Q[:, 0]).astype(np.int64), np.floor(Q[:, 1]).astype(np.int64)
+    ok = (xi >= 0) & (xi < w) & (yi >= 0) & (yi < h)
+    near = np.full(len(Q), -np.inf)
+    for dy in range(-3, 4):  # 49 vectorised window reads, not a loop over places
+        for dx in range(-3, 4):
+            y, x = np.clip(yi + dy, 0, h - 1), np.clip(xi + dx, 0, w - 1)
+            near = np.maximum(near, np.where(ok, depth[y, x], -np.inf))
+    show = np.flatnonzero(ok & (Q[:, 2] >= near - tol))
+    reach = int(np.ceil(radius + 2))
+    oy, ox = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+    for r, paint in ((radius + 2, None), (radius, colors)):  # dark rims first, then the discs
+        # every (place, stencil pixel) within r of the place's exact position
+        dy = (yi[show, None] + oy.ravel()[None, :])
+        dx = (xi[show, None] + ox.ravel()[None, :])
+        inside = ((dx - Q[show, 0, None]) ** 2 + (dy - Q[show, 1, None]) ** 2 <= r * r) \
+            & (dx >= 0) & (dx < w) & (dy >= 0) & (dy < h)
+        rows = np.broadcast_to(np.arange(len(show))[:, None], inside.shape)[inside]
+        rgb[dy[inside], dx[inside]] = (20, 20, 20) if paint is None else paint[show][rows]
+    return len(show)
+
+
 def render_views(vertices, faces, places=None, place_colors=None, size: int = VIEW_SIZE
                  ) -> list[tuple[str, np.ndarray, int]]:
     """Pictures of a mesh from three views, (name, (size, size, 3) uint8 RGB, places shown): grey
@@ -153,21 +180,7 @@ def render_views(vertices, faces, places=None, place_colors=None, size: int = VI
         rgb = np.where(np.isnan(img)[..., None], 255.0, np.nan_to_num(img)[..., None] * np.array([205, 210, 220]))
         shown = 0
         if len(places):
-            Q = to_pixels(places)
-            yy, xx = np.mgrid[0:big, 0:big]
-            radius = max(4.0, big / 110)
-            tol = 0.03 * big
-            for (x, y, z), col in zip(Q, colors):
-                xi, yi = int(np.floor(x)), int(np.floor(y))
-                if not (0 <= xi < big and 0 <= yi < big):
-                    continue
-                y0, y1, x0, x1 = max(0, yi - 3), min(big, yi + 4), max(0, xi - 3), min(big, xi + 4)
-                if z < np.max(depth[y0:y1, x0:x1]) - tol:
-                    continue  # behind the surface in this view
-                d2 = (xx - x) ** 2 + (yy - y) ** 2
-                rgb[d2 <= (radius + 2) ** 2] = (20, 20, 20)
-                rgb[d2 <= radius ** 2] = col
-                shown += 1
+            shown = _draw_places(rgb, depth, to_pixels(places), colors, radius=max(4.0, big / 110), tol=0.03 * big)
         small = rgb.reshape(size, 2, size, 2, 3).mean(axis=(1, 3))
         out.append((name, np.clip(np.round(small), 0, 255).astype(np.uint8), shown))
     return out

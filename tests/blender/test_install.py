@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import ast
-import importlib.util
 import json
 import os
 import subprocess
@@ -18,21 +17,10 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 
 
-def _build_addon_module():
-    spec = importlib.util.spec_from_file_location("build_addon", ROOT / "build_addon.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope="module")
-def built_zip(tmp_path_factory):
+def built_zip(extension_zip):
     """dist/pmwm-<version>.zip built by build_addon.py (pip wheel of this checkout + trimesh)."""
-    import importlib.metadata
-
-    build_addon = _build_addon_module()
-    out = tmp_path_factory.mktemp("dist")
-    return build_addon.build(out, importlib.metadata.version("trimesh"), check=False)
+    return extension_zip
 
 
 def test_zip_holds_manifest_addon_and_pure_python_wheels(built_zip):
@@ -53,8 +41,8 @@ def test_zip_holds_manifest_addon_and_pure_python_wheels(built_zip):
     assert manifest["license"] == ["SPDX:GPL-3.0-or-later"] and "files" in manifest["permissions"]
 
 
-def test_blenders_validator_accepts_the_zip(built_zip):
-    tool = _build_addon_module().find_blender_ext()
+def test_blenders_validator_accepts_the_zip(built_zip, build_addon):
+    tool = build_addon.find_blender_ext()
     assert tool is not None and tool.is_file()
     proc = subprocess.run([sys.executable, str(tool), "validate", str(built_zip)],
                           capture_output=True, text=True, timeout=120)

@@ -191,7 +191,7 @@ def _embed(method: str, name: str):
                                        progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
         data = ChoKeyData(method, job.strength, bins.rho_min, bins.rho_max, STRENGTH_STEP)
         none = np.zeros(0, np.int64)
-        return finish_embed(job, name, marked, adj, pm, none, none, extra=data.to_extra(), data=data)
+        return finish_embed(job, name, marked, adj, pm, none, none, data=data)
 
     return embed
 

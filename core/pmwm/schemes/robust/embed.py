@@ -165,7 +165,6 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     data = dataclasses.replace(
         site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
         frame=surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)))
-    stored = data.to_extra()
     # read back from its stored form, so that this key reads exactly as the key file will
-    return finish_embed(job, NAME, marked, adj, pm, sites[first_site], sites, extra=stored,
-                        data=RobustKeyData.from_extra(stored, nb, len(V)))
+    return finish_embed(job, NAME, marked, adj, pm, sites[first_site], sites,
+                        data=RobustKeyData.from_extra(data.to_extra(), nb, len(V)))

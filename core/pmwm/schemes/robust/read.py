@@ -4,6 +4,8 @@ and the per-bit scores. Shapes: S sites, K samples per site."""
 
 from __future__ import annotations
 
+from typing import Callable, Optional
+
 import numpy as np
 
 from ...base import Verdict, verdict_from_scores
@@ -167,24 +169,28 @@ def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tu
     s = key_data(key)
     V, F = check_mesh(vertices, faces)
     aligned = _in_key_frame(V, s, key)
+    X, back = V, _identity  # X: the suspect in the key's frame; back: key's frame -> suspect
     if aligned:
-        X, extra = V, {"registration": "none (already in the key's frame)"}
+        extra = {"registration": "none (already in the key's frame)"}
         mode = "aligned"
         by_index = _same_vertices(X, s, key)
     else:
         mode = "registered"
         # the marked vertices in their order (noise, smoothing, quantization, any pose): the
         # similarity fit of the sample vertices is the registration, no ICP needed
-        X = _refine_by_index(V, s) if len(V) == key.n_vertices else V
+        if len(V) == key.n_vertices:
+            X, back = _refined(V, s, back)
         by_index = _same_vertices(X, s, key)
         if by_index:
             extra = {"registration": "by vertex index"}
         else:
             X, info = register(V, F, s.frame)
+            R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
+            back = lambda P: (P - t) @ R / k  # noqa: E731
             extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
             by_index = _same_vertices(X, s, key)
             if by_index:
-                X = _refine_by_index(X, s)
+                X, back = _refined(X, s, back)
     soft, var = np.full(len(s.bit), np.nan), np.full(len(s.bit), VAR_FLOOR)
     full = (s.index_ok if by_index else s.usable).copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
@@ -202,18 +208,11 @@ def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tu
                   + (", site vertices first" if aligned else ""),
                   "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
     read = np.flatnonzero(np.isfinite(soft))
-    places = _to_suspect(V, X, s.origin[read])
-    return bit_scores(soft, var, s, key.n_bits), mode, extra, (places, s.bit[read].astype(np.int64))
+    return bit_scores(soft, var, s, key.n_bits), mode, extra, (back(s.origin[read]), s.bit[read].astype(np.int64))
 
 
-def _to_suspect(V: np.ndarray, X: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Points P of the key's frame carried to the suspect's coordinates: X is V moved by a
-    similarity (or V itself), so the fit of X to V over its vertices is that similarity's inverse."""
-    if X is V or len(P) == 0:
-        return P.copy()
-    sel = np.unique(np.linspace(0, len(V) - 1, min(len(V), 4096)).astype(np.int64))
-    R, k, t = similarity_fit(X[sel], V[sel])
-    return k * P @ R.T + t
+def _identity(P: np.ndarray) -> np.ndarray:
+    return P.copy()
 
 
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
@@ -243,18 +242,33 @@ def _sample_places(s: RobustKeyData) -> np.ndarray:
     return P + sm.u[..., None] * t1 + sm.v[..., None] * t2 + sm.h[..., None] * N
 
 
-def _refine_by_index(X: np.ndarray, s: RobustKeyData) -> np.ndarray:
-    """X mapped by the similarity that best fits its sample vertices to their stored places: with
-    thousands of known pairs this is far tighter than surface ICP, whose error at high noise
-    otherwise tilts every site (the bumps are sign-balanced, so they do not pull the fit). The
-    noiseless stored places are fitted to the suspect, not the other way: noise in the points fitted
-    from shrinks the least-squares scale (regression dilution; 1 % at noise 0.05 of the size, which
-    moves far sites by bump heights)."""
+def _index_fit(X: np.ndarray, s: RobustKeyData) -> Optional[tuple[np.ndarray, float, np.ndarray]]:
+    """The similarity (R, k, t) that best fits the stored places of the sample vertices to X's
+    (X[vertex] ~ k place R^T + t), or None when those vertices collapsed to a point. With thousands of
+    known pairs this is far tighter than surface ICP, whose error at high noise otherwise tilts every
+    site (the bumps are sign-balanced, so they do not pull the fit). The noiseless stored places are
+    fitted to the suspect, not the other way: noise in the points fitted from shrinks the
+    least-squares scale (regression dilution; 1 % at noise 0.05 of the size, which moves far sites by
+    bump heights)."""
     sm = s.samples
     R, k, t = similarity_fit(_sample_places(s)[sm.mask], X[sm.vertex[sm.mask]])
-    if not (np.isfinite(k) and k > 1e-12):  # the sample vertices collapsed to a point: nothing to fit
-        return X
-    return (X - t) @ R / k
+    return (R, k, t) if np.isfinite(k) and k > 1e-12 else None
+
+
+def _refined(X: np.ndarray, s: RobustKeyData, back: Callable[[np.ndarray], np.ndarray]
+             ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+    """X (n, 3) mapped into the key's frame by ``_index_fit``, and ``back`` (key's frame -> the
+    suspect, through X) extended by that fit."""
+    fit = _index_fit(X, s)
+    if fit is None:
+        return X, back
+    R, k, t = fit
+    return (X - t) @ R / k, lambda P: back(k * P @ R.T + t)
+
+
+def _refine_by_index(X: np.ndarray, s: RobustKeyData) -> np.ndarray:
+    """X (n, 3) in the key's frame by the similarity fit of its sample vertices (``_index_fit``)."""
+    return _refined(X, s, _identity)[0]
 
 
 def _in_key_frame(V: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> bool:
