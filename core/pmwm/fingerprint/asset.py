@@ -8,9 +8,9 @@ none (and stale temporary files of an earlier kill are removed on the next run).
 
 from __future__ import annotations
 
-import glob
 import hashlib
 import os
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional
@@ -43,13 +43,15 @@ def file_sha256(path) -> Optional[str]:
     return h.hexdigest()
 
 
-def clean_temporaries(folder, names) -> None:
-    """Remove temporary files an interrupted run left beside ``names`` in ``folder``."""
-    for name in names:
-        stem, ext = os.path.splitext(name)
-        for tmp in glob.glob(os.path.join(glob.escape(os.fspath(folder)), f".{glob.escape(stem)}.tmp-*{ext}")):
+_TEMPORARY = re.compile(r"\..+\.tmp-[^.]+\.(ply|pmwm|json)")  # pmwm.atomic's temporary names
+
+
+def clean_temporaries(folder) -> None:
+    """Remove the temporary files an interrupted (killed) run left in ``folder``."""
+    for name in os.listdir(folder):
+        if _TEMPORARY.fullmatch(name):
             try:
-                os.unlink(tmp)
+                os.unlink(os.path.join(folder, name))
             except OSError:
                 pass
 
@@ -139,7 +141,7 @@ def fingerprint_asset(asset_path, key_path, recipients, out_dir, pm: bool = Fals
     reg = open_registry(out_dir, fk)
     t1 = time.perf_counter()
     todo = pending(reg, out_dir, recipients, pm)
-    clean_temporaries(out_dir, [n for rid in todo for n in _expected(rid, pm)])
+    clean_temporaries(out_dir)
     path = os.path.join(out_dir, REGISTRY_NAME)
     last = time.perf_counter()
     for i, rid in enumerate(todo):

@@ -117,7 +117,7 @@ class Registry:
     key_id: str
     asset_sha256: str
     n_sites: int
-    entries: dict = field(default_factory=dict)  # recipient id -> RegistryEntry, in order of registration
+    entries: dict = field(default_factory=dict)  # recipient id -> RegistryEntry (written sorted by id)
 
     @classmethod
     def for_key(cls, fk: FingerprintKey) -> "Registry":
@@ -142,7 +142,8 @@ class Registry:
     def to_json(self) -> str:
         doc = {"format": REGISTRY_FORMAT, "version": VERSION, "key_id": self.key_id,
                "asset_sha256": self.asset_sha256, "n_sites": self.n_sites,
-               "recipients": [{"id": r, "codeword": e.codeword, "files": e.files} for r, e in self.entries.items()]}
+               "recipients": [{"id": r, "codeword": self.entries[r].codeword, "files": dict(sorted(self.entries[r].files.items()))}
+                              for r in sorted(self.entries)]}  # sorted: the same file whatever order copies came in
         return json.dumps(doc, indent=0) + "\n"
 
     @classmethod
