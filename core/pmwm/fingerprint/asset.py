@@ -151,9 +151,7 @@ def fingerprint_asset(asset_path, key_path, recipients, out_dir, pm: bool = Fals
             last = time.perf_counter()
         if progress:
             progress(i + 1, len(todo))
-    for rid in recipients:  # registered even when skipped (a recipient listed again keeps its entry)
-        if rid not in reg.entries:
-            register(reg, an, rid, {})
     write_registry(path, reg)
-    return FingerprintRun(todo, [r for r in recipients if r not in set(todo)], reg, path, t1 - t0,
+    again = set(todo)
+    return FingerprintRun(todo, [r for r in recipients if r not in again], reg, path, t1 - t0,
                           time.perf_counter() - t1)
