@@ -189,6 +189,9 @@ def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identi
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    res = run_catalogue(assets[:2], ids, tmp_path / "b", pm=True, options=opts, n_workers=1)
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=":0") as cluster:  # --scheduler ADDRESS
+        res = run_catalogue(assets[:2], ids, tmp_path / "b", pm=True, options=opts, scheduler=cluster.scheduler_address)
     assert not res.failed and res.written + res.skipped == 10
     assert _tree(tmp_path / "b") == {k: v for k, v in full.items() if not k.startswith("broken")}
