@@ -291,6 +291,8 @@ def cmd_fingerprint(a) -> int:
         raise UsageError(f"--out {a.out} exists and is not a folder")
     recipients = read_recipients(a.recipients)
     new_key = not os.path.exists(a.key)
+    if not new_key and a.seed is not None:
+        print(f"warning: {a.key} exists: its secret and options are used, --seed is ignored", file=sys.stderr)
     run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
                             progress=_count_progress(a.quiet, "copies"))
     if not a.quiet:
