@@ -33,7 +33,7 @@ from .codes import pack_codeword
 from .copies import AssetAnalysis, FingerprintOptions
 from .registry import RegistryEntry, write_registry
 
-__all__ = ["CatalogueResult", "run_catalogue", "asset_names"]
+__all__ = ["CatalogueResult", "run_catalogue", "asset_names", "connect"]
 
 REGISTRY_EVERY = 2.0  # seconds between registry writes of an asset while its copies arrive
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -91,7 +91,9 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}".splitlines()[0]
 
 
-def _client(n_workers: Optional[int], scheduler: Optional[str]):
+def connect(n_workers: Optional[int] = None, scheduler: Optional[str] = None):
+    """(Client, LocalCluster or None): a client of the scheduler at ``scheduler``, or of a new
+    LocalCluster of ``n_workers`` single-threaded worker processes (default: the cores)."""
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
@@ -140,7 +142,7 @@ def run_catalogue(assets, recipients: list, out, *, pm: bool = False, options: O
     os.makedirs(out, exist_ok=True)
     res = CatalogueResult()
     total, done = len(assets) * len(recipients), 0
-    client, cluster = _client(n_workers, scheduler)
+    client, cluster = connect(n_workers, scheduler)
     regs, last, left, tags = {}, {}, {}, {}
     restore = _terminate_as_interrupt()
     try:
