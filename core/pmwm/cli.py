@@ -356,9 +356,9 @@ def _add_fingerprint_commands(sub) -> None:
     def options(c) -> None:
         c.add_argument("--pm", action="store_true", help="also write each copy's progressive mesh (.pmwm)")
         c.add_argument("--seed", type=int, help="seed of a new key's secret (default: fresh)")
-        c.add_argument("--strength", type=float, default=2.0, help="as embed's (default 2)")
-        c.add_argument("--sites", type=int, default=384, help="sites carrying the codeword (default 384)")
-        c.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
+        c.add_argument("--strength", type=float, default=2.0, help="a new key's: as embed's (default 2)")
+        c.add_argument("--sites", type=int, default=384, help="a new key's: sites carrying the codeword (default 384)")
+        c.add_argument("--base-ratio", type=float, default=0.03, help="a new key's: base mesh vertices / input vertices")
         c.add_argument("-q", "--quiet", action="store_true")
 
     f = sub.add_parser("fingerprint", help="one marked copy per recipient, and a registry to trace leaks")
