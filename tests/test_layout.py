@@ -81,11 +81,12 @@ def test_no_import_cycle_inside_pmwm():
 
 def test_shared_layers_import_no_scheme_and_no_entry_point():
     g = graph()
-    below = [m for m in g if not m.startswith(("pmwm.schemes", "pmwm.api", "pmwm.cli", "pmwm.__main__"))
+    below = [m for m in g if not m.startswith(("pmwm.schemes", "pmwm.api", "pmwm.cli", "pmwm.__main__",
+                                               "pmwm.fingerprint"))  # fingerprinting sits on the robust scheme
              and m != "pmwm"]
     assert "pmwm.base" in below and "pmwm.key" in below
     for m in below:
-        bad = {n for n in g[m] if n.startswith(("pmwm.schemes", "pmwm.api", "pmwm.cli"))}
+        bad = {n for n in g[m] if n.startswith(("pmwm.schemes", "pmwm.api", "pmwm.cli", "pmwm.fingerprint"))}
         assert not bad, f"{m} imports {bad}"
     for m in g:  # a scheme never imports another scheme
         if m.startswith("pmwm.schemes."):
@@ -103,3 +104,19 @@ def test_atomic_writing_and_keys_do_not_pull_in_trimesh():
     g = graph()
     for m in ("pmwm.atomic", "pmwm.key", "pmwm.pmfile"):
         assert "trimesh" not in g[m] and "pmwm.meshio" not in g[m], m
+
+
+def test_dask_is_imported_by_the_catalogue_only():
+    """The Blender extension bundles pmwm without dask: importing pmwm, its command line and
+    pmwm.fingerprint (all but its catalogue module) must not import dask or distributed."""
+    import os
+    import subprocess
+    import sys
+
+    for m, deps in graph().items():
+        if m != "pmwm.fingerprint.catalogue":
+            assert not {d for d in deps if d.split(".")[0] in ("dask", "distributed")}, m
+    code = ("import sys, pmwm, pmwm.cli, pmwm.fingerprint, pmwm.fingerprint.trace, pmwm.fingerprint.asset; "
+            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True, env={**os.environ, "PYTHONPATH": str(PKG.parent)})

@@ -1,4 +1,5 @@
-"""The ``pmwm`` command line: embed, verify, decode, info, attack, demo, bench.
+"""The ``pmwm`` command line: embed, verify, decode, info, attack, demo, bench; fingerprint, trace,
+catalogue.
 
 Exit codes follow grep: 0 success (verify: marked), 1 verify: not marked, 2 error.
 Errors are one line on stderr, never a traceback; nothing existing is overwritten
@@ -16,6 +17,7 @@ import time
 from importlib import resources
 from typing import Optional, Sequence
 
+import numpy as np
 
 from . import __version__
 from .api import embed, read_key, verify
@@ -257,6 +259,135 @@ def cmd_bench(argv: Sequence[str]) -> int:
     return command(list(argv))
 
 
+
+# --------------------------------------------------------------------------- fingerprinting
+
+
+def _count_progress(quiet: bool, what: str):
+    """A progress(done, total) callback drawing a bar on a terminal (None otherwise)."""
+    if quiet or not sys.stderr.isatty():
+        return None
+
+    def show(done: int, total: int) -> None:
+        n = 30 * done // max(total, 1)
+        print(f"\r[{'#' * n}{'.' * (30 - n)}] {done}/{total} {what}", end="", file=sys.stderr, flush=True)
+        if done >= total:
+            print(file=sys.stderr)
+
+    return show
+
+
+def _fingerprint_options(a):
+    from .fingerprint import FingerprintOptions
+
+    return FingerprintOptions(strength=a.strength, n_sites=a.sites, base_ratio=a.base_ratio, seed=a.seed)
+
+
+def cmd_fingerprint(a) -> int:
+    from .fingerprint import fingerprint_asset, read_recipients
+
+    _check_outputs([a.key if not os.path.exists(a.key) else None], [a.asset], False)
+    if os.path.exists(a.out) and not os.path.isdir(a.out):
+        raise UsageError(f"--out {a.out} exists and is not a folder")
+    recipients = read_recipients(a.recipients)
+    new_key = not os.path.exists(a.key)
+    if not new_key and a.seed is not None:
+        print(f"warning: {a.key} exists: its secret and options are used, --seed is ignored", file=sys.stderr)
+    run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
+                            progress=_count_progress(a.quiet, "copies"))
+    if not a.quiet:
+        per = run.copies_seconds / max(len(run.written), 1)
+        print(f"fingerprinted {a.asset} for {len(recipients)} recipients: {len(run.written)} copies written "
+              f"({per * 1000:.0f} ms each after a {run.analysis_seconds:.2f} s analysis), {len(run.skipped)} "
+              f"already delivered intact -> {a.out}")
+        print(f"registry -> {run.registry_path}")
+        print(f"key -> {a.key} ({'new' if new_key else 'reused'}; keep it secret, with the registry)")
+    return EXIT_OK
+
+
+def cmd_trace(a) -> int:
+    from .fingerprint import read_fingerprint_key, read_registry, trace
+
+    fk = read_fingerprint_key(a.key)
+    reg = read_registry(a.registry)
+    reg.check(fk, a.registry)
+    if a.suspect.lower().endswith(".pmwm"):
+        V, F = read_pm(a.suspect).decode()
+    else:
+        src = read_mesh(a.suspect)
+        V, F = src.vertices, src.faces
+    r = trace(V, F, fk, reg, p_threshold=a.p_threshold)
+    if a.json:
+        print(json.dumps(r.to_dict()))
+    elif r.accused:
+        for acc in r.accused:
+            print(f"TRACED to {acc.recipient}: score {acc.score:.1f}, p = {acc.p_value:.3g} corrected for "
+                  f"{r.n_recipients} recipients (threshold {r.p_threshold:g})")
+        print(f"{r.sites_read}/{r.sites_total} sites read ({r.mode})")
+    else:
+        best = int(np.argmax(r.scores)) if r.n_recipients else -1
+        tail = f"; best {r.recipients[best]}, p = {r.p_values[best]:.3g}" if best >= 0 else ""
+        print(f"no recipient: none of {r.n_recipients} recipients is significant at p < {r.p_threshold:g}{tail} "
+              f"({r.sites_read}/{r.sites_total} sites read, {r.mode})")
+    return EXIT_OK if r.accused else EXIT_NOT_MARKED
+
+
+def cmd_catalogue(a) -> int:
+    from .fingerprint import read_recipients
+
+    try:
+        from .fingerprint.catalogue import run_catalogue
+    except ImportError as exc:
+        raise UsageError(f"pmwm catalogue needs dask.distributed ({exc}); pip install 'pmwm[catalogue]'") from None
+    if os.path.exists(a.out) and not os.path.isdir(a.out):
+        raise UsageError(f"--out {a.out} exists and is not a folder")
+    recipients = read_recipients(a.recipients)
+    res = run_catalogue(a.assets, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
+                        n_workers=a.workers, scheduler=a.scheduler, progress=_count_progress(a.quiet, "copies"))
+    if not a.quiet:
+        print(f"catalogue: {len(a.assets)} assets x {len(recipients)} recipients: {res.written} copies written, "
+              f"{res.skipped} already delivered intact, in {res.seconds:.1f} s -> {a.out}")
+    for name, err in res.failed.items():
+        print(f"pmwm: error: {name}: {err}", file=sys.stderr)
+    return EXIT_ERROR if res.failed else EXIT_OK
+
+
+def _add_fingerprint_commands(sub) -> None:
+    def options(c) -> None:
+        c.add_argument("--pm", action="store_true", help="also write each copy's progressive mesh (.pmwm)")
+        c.add_argument("--seed", type=int, help="seed of a new key's secret (default: fresh)")
+        c.add_argument("--strength", type=float, default=2.0, help="a new key's: as embed's (default 2)")
+        c.add_argument("--sites", type=int, default=384, help="a new key's: sites carrying the codeword (default 384)")
+        c.add_argument("--base-ratio", type=float, default=0.03, help="a new key's: base mesh vertices / input vertices")
+        c.add_argument("-q", "--quiet", action="store_true")
+
+    f = sub.add_parser("fingerprint", help="one marked copy per recipient, and a registry to trace leaks")
+    f.add_argument("asset")
+    f.add_argument("--key", required=True, help="the asset's fingerprinting key (written by the first run, "
+                                                "reused and checked on later runs; keep it secret)")
+    f.add_argument("--recipients", required=True, help="CSV of recipient ids (column 'id', or the first)")
+    f.add_argument("--out", required=True, help="folder of the copies and registry.json (a rerun skips "
+                                                "copies already written intact)")
+    options(f)
+    f.set_defaults(func=cmd_fingerprint)
+
+    t = sub.add_parser("trace", help="name the recipient(s) whose copy a suspect mesh is")
+    t.add_argument("suspect")
+    t.add_argument("--key", required=True, help="the asset's fingerprinting key")
+    t.add_argument("--registry", required=True, help="the registry.json written with the copies")
+    t.add_argument("--p-threshold", type=float, default=1e-6, help="corrected p-value to name a recipient")
+    t.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    t.set_defaults(func=cmd_trace)
+
+    c = sub.add_parser("catalogue", help="fingerprint many assets for many recipients on Dask")
+    c.add_argument("assets", nargs="+", help="mesh files (each: OUT/<name>/ copies and registry, OUT/<name>.key.json)")
+    c.add_argument("--recipients", required=True, help="CSV of recipient ids (column 'id', or the first)")
+    c.add_argument("--out", required=True)
+    c.add_argument("--workers", type=int, default=None, help="LocalCluster workers (default: the cores)")
+    c.add_argument("--scheduler", help="address of an existing Dask scheduler (default: a LocalCluster)")
+    options(c)
+    c.set_defaults(func=cmd_catalogue)
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -343,6 +474,8 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--seed", type=int, default=2026)
     dm.add_argument("--force", action="store_true")
     dm.set_defaults(func=cmd_demo)
+
+    _add_fingerprint_commands(sub)
 
     b = sub.add_parser("bench", add_help=False,
                        help="run the robustness benchmark (both protocols, pmwm vs Cho); "

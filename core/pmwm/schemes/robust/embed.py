@@ -1,20 +1,26 @@
 """Embedding the robust mark (see ``pmwm.schemes.robust``): sites, their samples, the keyed bit
-layout, the bumps and swirls, the readability checks, the protected vertices and the key data."""
+layout, the bumps and swirls, the readability checks, the protected vertices and the key data.
+
+Two steps: ``analyse`` (everything that depends on the mesh and the key's secret only: sites, their
+frames and samples, the bump and swirl fields, the keyed bit layout, the protected rings) and
+``SiteAnalysis.mark`` (a cheap step: the marked mesh for given per-site signs, a weighted sum over
+the samples). ``embed`` runs both; ``pmwm.fingerprint`` runs the analysis once and marks one copy
+per recipient."""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
-from ...adjacency import build_adjacency
-from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, start_embed
+from ...adjacency import Adjacency, build_adjacency
+from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, no_progress, start_embed
 from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
 from ...features import mean_edge_length, vertex_normals
 from ...key import derive_seed, keyed_bits
-from ...progressive import build_progressive_mesh
+from ...progressive import ProgressiveMesh, build_progressive_mesh
 from ...register import surface_frame
 from ...spatial import min_spacing, pairs_within
 from .fields import OUTER, index_templates, profile, swirl, tangent_frames
@@ -32,14 +38,98 @@ RING_DISTANCE = 1.3  # their distance / r
 REF_POINTS = 3000  # registration samples stored in the key
 
 
-def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
-          sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
-    """Watermark a mesh with the robust scheme (``pmwm.schemes.robust``); same options and result as
-    ``pmwm.embed``. vertices : (n, 3) float64, faces : (m, 3) int64."""
-    job = start_embed(vertices, faces, options, progress, NAME, DEFAULT_STRENGTH)
-    V, F, secret, bits, report, strength = job.vertices, job.faces, job.secret, job.bits, job.report, job.strength
+@dataclasses.dataclass
+class SiteAnalysis:
+    """What marking needs, computed once per mesh and secret (S sites, K samples in all).
+
+    vertices (n, 3) float64, faces (m, 3) int64, adj their adjacency; sites (S,) int64 site vertices;
+    site: the key data with every reading flag False (origin, normal, radius, amplitudes, samples,
+    and the keyed bit ``bit`` (S,) and ``chip`` (S,) of each site for ``n_bits`` bits); sample_site,
+    sample_vertex (K,) int64; bump_field, swirl_field (K, 3) float64 the displacement of each
+    sample's vertex by its site's bump and swirl for a sign of +1; ring (S, RING) int64 the protected
+    annulus vertices (-1: none found)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    adj: Adjacency
+    sites: np.ndarray
+    site: RobustKeyData
+    n_bits: int
+    sample_site: np.ndarray
+    sample_vertex: np.ndarray
+    bump_field: np.ndarray
+    swirl_field: np.ndarray
+    ring: np.ndarray
+
+    @property
+    def n_sites(self) -> int:
+        return len(self.sites)
+
+    def displacement(self, bump_sign: np.ndarray, swirl_sign: np.ndarray) -> np.ndarray:
+        """The marking displacement (n, 3) float64 for per-site signs bump_sign, swirl_sign (S,)
+        (+-1, or 0 for no bump / no swirl; any real factor scales that site's field)."""
+        si, n = self.sample_site, len(self.vertices)
+        W = bump_sign[si][:, None] * self.bump_field + swirl_sign[si][:, None] * self.swirl_field
+        return np.stack([np.bincount(self.sample_vertex, weights=W[:, a], minlength=n) for a in range(3)], 1)
+
+    def mark(self, bump_sign: np.ndarray, swirl_sign: np.ndarray) -> np.ndarray:
+        """The marked mesh (n, 3) float64 (float32-exact) for per-site signs (S,)."""
+        return (self.vertices + self.displacement(bump_sign, swirl_sign)).astype(np.float32).astype(np.float64)
+
+    def readable(self, marked: np.ndarray, sign: np.ndarray) -> list[np.ndarray]:
+        """Each site's own readings of ``marked`` (S,) bool each: [usable (by all samples, ring
+        found), centre_ok (at the site vertex), index_ok (by index), swirl_ok (the swirl)]: clearly
+        its ``sign``, or not. On small meshes a neighbour's bump may reach a site's samples and spoil
+        one reading or both."""
+        F, site = self.faces, self.site
+        ring_found = (self.ring >= 0).all(axis=1)
+        at_vertices = site_soft(marked, F, site, by_index=True)[0]
+        usable, centre_ok = [ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
+                             for soft in (at_vertices, centre_soft(marked, site, True))]
+        # copies with the marked vertex order are read at every site that reads cleanly by index,
+        # also where no protected ring was found (that ring only matters to coarser levels)
+        index_ok = np.isfinite(at_vertices) & (np.abs(at_vertices - sign) < 0.5)
+        # and by its swirl (read by vertex index): a neighbour's bump may tilt it on a small mesh
+        swirl_ok = np.abs(swirl_soft(marked, site)[0] - sign) < 0.5
+        return [usable, centre_ok, index_ok, swirl_ok]
+
+    def mark_readable(self, sign: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
+        """Mark with ``sign`` (S,) +-1, leaving out the bumps no reading uses and the swirls that do
+        not read (their distortion would buy nothing): (marked (n, 3), [usable, centre_ok,
+        index_ok, swirl_ok] as ``readable``, dead (S,) bool no bump, no_swirl (S,) bool)."""
+        marked = self.mark(sign, sign)
+        usable, centre_ok, index_ok, swirl_ok = self.readable(marked, sign)
+        dead, no_swirl = ~(usable | centre_ok | index_ok), ~swirl_ok
+        if dead.any() or no_swirl.any():
+            marked = self.mark(np.where(dead, 0.0, sign), np.where(dead | no_swirl, 0.0, sign))
+            usable, centre_ok, index_ok, swirl_ok = (f & ~dead for f in self.readable(marked, sign))
+            swirl_ok &= ~no_swirl
+        return marked, [usable, centre_ok, index_ok, swirl_ok], dead, no_swirl
+
+    def protected(self, keep: np.ndarray) -> np.ndarray:
+        """(n,) bool: the vertices the progressive mesh keeps to the end, the site vertex and its ring
+        for the sites ``keep`` (S,) bool."""
+        protected = np.zeros(len(self.vertices), bool)
+        protected[self.sites[keep]] = True
+        protected[self.ring[keep].ravel()] = True
+        return protected
+
+    def progressive_mesh(self, marked: np.ndarray, keep: np.ndarray, base_ratio: float,
+                         progress: Callable[[float, str], None] = no_progress) -> ProgressiveMesh:
+        """The progressive mesh of ``marked`` (n, 3) with the sites ``keep`` protected."""
+        base = max(int(round(base_ratio * len(self.vertices))), 4)
+        pm, _ = build_progressive_mesh(marked, self.faces, base_vertices=base, protected=self.protected(keep),
+                                       progress=progress, adjacency=self.adj)
+        return pm
+
+
+def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
+            sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES,
+            report: Callable[[float, str], None] = no_progress) -> SiteAnalysis:
+    """The robust scheme's analysis of a mesh V (n, 3) float64, F (m, 3) int64 for the key's
+    ``secret``: ``n_bits`` bits, ``sites_per_bit`` sites each (fewer on small meshes, down to 2)."""
     per_bit = max(2, 2 * (int(sites_per_bit) // 2))
-    nb = len(bits)
+    nb = n_bits
     report(0.0, "analysing the mesh")
     adj = build_adjacency(F, len(V))
     eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"))
@@ -83,8 +173,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     counts = np.bincount(si, minlength=len(P))
     samples = Samples(counts, u, v, h_ref, vi, normal_tt)
 
-    # keyed bit assignment (even readable energy per bit), chips and signs
-    w = bits ^ keyed_bits(secret, "scramble", nb)
+    # keyed bit assignment (even readable energy per bit) and chips
     tp, tg = index_templates(samples, r, At / A)
     energy = A * A * (tp * tp).sum(axis=1) + At * At * (tg * tg).sum(axis=(1, 2))
     bit_of = assign_bits(P, nb, per_bit, derive_seed(secret, "robust-assign"), energy)
@@ -93,19 +182,11 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     rank = np.arange(len(P)) - np.searchsorted(bit_of[order], bit_of[order])
     chip = np.empty(len(P))
     chip[order] = np.where(rank % 2 == 0, 1.0, -1.0)  # balanced: a global bias cancels in a bit
-    sign = chip * np.where(w[bit_of] == 1, 1.0, -1.0)
 
     # the bumps, and the swirls in each vertex's own tangent plane (they move vertices, not the surface)
     gu, gv = swirl(u, v, r)
     e = gu[:, None] * t1[si] + gv[:, None] * t2[si]
     e -= np.einsum("ij,ij->i", e, vn[vi])[:, None] * vn[vi]
-
-    def mark(bump_sign: np.ndarray, swirl_sign: np.ndarray) -> np.ndarray:
-        D = np.zeros_like(V)
-        np.add.at(D, vi, (bump_sign[si] * A * prof)[:, None] * N[si] + (swirl_sign[si] * At)[:, None] * e)
-        return (V + D).astype(np.float32).astype(np.float64)
-
-    marked = mark(sign, sign)
 
     # protected annulus vertices: nearest to RING_DISTANCE * r at keyed angles, facing the site
     phi = np.arctan2(v, u)
@@ -125,46 +206,33 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     none = np.zeros(len(P), bool)
     site = RobustKeyData(bit=bit_of, chip=chip, usable=none, centre_ok=none, swirl_ok=none, index_ok=none,
                          origin=P, normal=N, radius=r, amplitude=A, swirl=At, samples=samples, frame=None)
-    # each site's own readings of the marked mesh, by all samples (attacked copies) and by its
-    # vertex alone (the marked mesh and its levels of detail): clearly its sign, or left out. On
-    # small meshes a neighbour's bump may reach a site's samples and spoil one reading or both.
-    ring_found = (ring >= 0).all(axis=1)
+    return SiteAnalysis(vertices=V, faces=F, adj=adj, sites=sites, site=site, n_bits=nb, sample_site=si,
+                        sample_vertex=vi, bump_field=(A * prof)[:, None] * N[si], swirl_field=At * e, ring=ring)
 
-    def readable(marked: np.ndarray) -> list[np.ndarray]:
-        at_vertices = site_soft(marked, F, site, by_index=True)[0]
-        usable, centre_ok = [ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
-                             for soft in (at_vertices, centre_soft(marked, site, True))]
-        # copies with the marked vertex order are read at every site that reads cleanly by index,
-        # also where no protected ring was found (that ring only matters to coarser levels)
-        index_ok = np.isfinite(at_vertices) & (np.abs(at_vertices - sign) < 0.5)
-        # and by its swirl (read by vertex index): a neighbour's bump may tilt it on a small mesh
-        swirl_ok = np.abs(swirl_soft(marked, site)[0] - sign) < 0.5
-        return [usable, centre_ok, index_ok, swirl_ok]
 
-    usable, centre_ok, index_ok, swirl_ok = readable(marked)
-    # a bump or swirl no reading uses is not embedded: its distortion would buy nothing
-    dead, no_swirl = ~(usable | centre_ok | index_ok), ~swirl_ok
-    if dead.any() or no_swirl.any():
-        marked = mark(np.where(dead, 0.0, sign), np.where(dead | no_swirl, 0.0, sign))
-        usable, centre_ok, index_ok, swirl_ok = (f & ~dead for f in readable(marked))
-        swirl_ok &= ~no_swirl
+def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
+          sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
+    """Watermark a mesh with the robust scheme (``pmwm.schemes.robust``); same options and result as
+    ``pmwm.embed``. vertices : (n, 3) float64, faces : (m, 3) int64."""
+    job = start_embed(vertices, faces, options, progress, NAME, DEFAULT_STRENGTH)
+    V, F, secret, bits, report = job.vertices, job.faces, job.secret, job.bits, job.report
+    nb = len(bits)
+    an = analyse(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report)
+    site, sites = an.site, an.sites
+    w = bits ^ keyed_bits(secret, "scramble", nb)
+    sign = site.chip * np.where(w[site.bit] == 1, 1.0, -1.0)
+    marked, (usable, centre_ok, index_ok, swirl_ok), _, _ = an.mark_readable(sign)
     report(0.2, "sites marked")
-
-    protected = np.zeros(len(V), bool)
-    keep = usable | centre_ok
-    protected[sites[keep]] = True
-    protected[ring[keep].ravel()] = True
-    base = max(int(round(job.options.base_ratio * len(V))), 4)
 
     def pm_progress(f: float, msg: str) -> None:
         report(0.25 + 0.7 * f, msg)
 
-    pm, _ = build_progressive_mesh(marked, F, base_vertices=base, protected=protected,
-                                   progress=pm_progress, adjacency=adj)
-    first_site = np.array([np.flatnonzero(bit_of == b)[0] for b in range(nb)])
+    pm = an.progressive_mesh(marked, usable | centre_ok, job.options.base_ratio, pm_progress)
+    first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
     data = dataclasses.replace(
         site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
         frame=surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)))
     # read back from its stored form, so that this key reads exactly as the key file will
-    return finish_embed(job, NAME, marked, adj, pm, sites[first_site], sites,
+    return finish_embed(job, NAME, marked, an.adj, pm, sites[first_site], sites,
                         data=RobustKeyData.from_extra(data.to_extra(), nb, len(V)))
+

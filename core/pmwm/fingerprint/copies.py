@@ -1,0 +1,178 @@
+"""One analysis of an asset, then one cheap marked copy per recipient.
+
+``analyse_asset`` runs the robust scheme's analysis once (``pmwm.schemes.robust.embed.analyse``:
+sites, frames, samples, bump and swirl fields, protected rings), decides once which sites carry a
+bump and a swirl (on a keyed reference copy, so that the decision does not depend on any recipient),
+builds the progressive mesh once (on the unmarked asset, the sites protected: connectivity and
+records are the same for every copy) and the tracing key. ``AssetAnalysis.copy`` then marks a
+recipient's copy: D = sum over samples of sign[site] * field (a bincount), float32 positions, the
+progressive mesh with the copy's positions, and the bytes of its files (binary PLY and .pmwm).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from ..atomic import atomic_output
+from ..base import Progress, no_progress
+from ..errors import PayloadError
+from ..features import mean_edge_length
+from ..key import WatermarkKey, derive_seed, face_fingerprint, make_secret
+from ..pmfile import to_bytes
+from ..progressive import ProgressiveMesh
+from ..register import surface_frame
+from ..schemes.robust.embed import DEFAULT_STRENGTH, REF_POINTS, SITES_PER_BIT, SiteAnalysis, analyse
+from ..schemes.robust.keydata import RobustKeyData
+from ..schemes.robust.read import NAME
+from ..validate import MAX_COORDINATE, check_mesh
+from .codes import codeword
+
+__all__ = ["FingerprintOptions", "AssetAnalysis", "CopyFiles", "analyse_asset", "asset_sha256"]
+
+
+@dataclass
+class FingerprintOptions:
+    """Options of a fingerprinted asset. strength: as ``pmwm.EmbedOptions`` (bump and swirl
+    amplitudes, robust default 2); n_sites: sites carrying the codeword (fewer on small meshes);
+    base_ratio: base mesh vertices / vertices of the progressive mesh; seed: of the key's secret
+    (None: fresh)."""
+
+    strength: float = DEFAULT_STRENGTH
+    n_sites: int = 64 * SITES_PER_BIT
+    base_ratio: float = 0.03
+    seed: Optional[int] = None
+
+    def to_dict(self) -> dict:
+        return {"strength": self.strength, "n_sites": self.n_sites, "base_ratio": self.base_ratio}
+
+
+def asset_sha256(vertices: np.ndarray, faces: np.ndarray) -> str:
+    """SHA-256 (hex) of an asset's canonical arrays: float64 vertices (n, 3) then int64 faces (m, 3)."""
+    h = hashlib.sha256(np.ascontiguousarray(vertices, "<f8").tobytes())
+    h.update(np.ascontiguousarray(faces, "<i8").tobytes())
+    return h.hexdigest()
+
+
+@dataclass
+class CopyFiles:
+    """One recipient's copy: marked vertices (n, 3) float64 (float32-exact, the asset's order), and
+    the bytes of each file by suffix (".ply", and ".pmwm" when asked)."""
+
+    vertices: np.ndarray
+    files: dict
+
+
+@dataclass
+class AssetAnalysis:
+    """An asset analysed for fingerprinting (see the module docstring). sites : the robust
+    analysis; key: the tracing key (a robust key with one "bit" per site, chip +1); bump, swirl (S,)
+    float64: 1 where a copy carries the site's bump / swirl, 0 where no reading would see it; pm: the
+    progressive mesh every copy shares (its positions those of the unmarked asset)."""
+
+    sites: SiteAnalysis
+    key: WatermarkKey
+    options: FingerprintOptions
+    bump: np.ndarray
+    swirl: np.ndarray
+    pm: ProgressiveMesh
+    asset_sha256: str
+    _ply_head: bytes = dataclasses.field(repr=False, default=b"")
+    _ply_faces: bytes = dataclasses.field(repr=False, default=b"")
+
+    @property
+    def n_sites(self) -> int:
+        return self.sites.n_sites
+
+    def codeword(self, recipient: str) -> np.ndarray:
+        """The recipient's codeword (S,) int8 +-1 (``pmwm.fingerprint.codes.codeword``)."""
+        return codeword(self.key.secret, recipient, self.n_sites)
+
+    def marked(self, c: np.ndarray) -> np.ndarray:
+        """The copy marked with codeword c (S,) (+-1, or any real weights): (n, 3) float64."""
+        c = np.asarray(c, np.float64)
+        return self.sites.mark(c * self.bump, c * self.swirl)
+
+    def copy_pm(self, marked: np.ndarray) -> ProgressiveMesh:
+        """The copy's progressive mesh: the shared connectivity and records, the copy's positions
+        (decodes exactly to ``marked`` in the progressive mesh's vertex order)."""
+        order, nb = self.pm.vertex_order, self.pm.n_base_vertices
+        return dataclasses.replace(self.pm, base_vertices=marked[order[:nb]], pos=marked[order[nb:]],
+                                   float32=True)
+
+    def copy(self, c: np.ndarray, pm: bool = False) -> CopyFiles:
+        """The copy for codeword c (S,): its vertices and file bytes (binary PLY; .pmwm if ``pm``)."""
+        X = self.marked(c)
+        files = {".ply": self._ply_head + X.astype("<f4").tobytes() + self._ply_faces}
+        if pm:
+            files[".pmwm"] = to_bytes(self.copy_pm(X))
+        return CopyFiles(X, files)
+
+    def write_copy(self, folder, recipient: str, pm: bool = False) -> dict:
+        """Write the recipient's copy to ``folder``/<recipient>.ply (and .pmwm), each atomically
+        (replacing what is there); {file name: SHA-256} of what was written."""
+        out = {}
+        for suffix, data in self.copy(self.codeword(recipient), pm).files.items():
+            name = recipient + suffix
+            with atomic_output(os.path.join(os.fspath(folder), name), force=True) as tmp:
+                with open(tmp, "wb") as fh:
+                    fh.write(data)
+            out[name] = hashlib.sha256(data).hexdigest()
+        return out
+
+
+def _ply_parts(n: int, faces: np.ndarray) -> tuple[bytes, bytes]:
+    """A binary little-endian PLY's header for n float32 vertices and its face block."""
+    head = ("ply\nformat binary_little_endian 1.0\ncomment pmwm fingerprinted copy\n"
+            f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+            f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n").encode("ascii")
+    rec = np.empty(len(faces), np.dtype([("k", "u1"), ("v", "<i4", (3,))]))
+    rec["k"], rec["v"] = 3, faces
+    return head, rec.tobytes()
+
+
+def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None, secret: Optional[str] = None,
+                  progress: Progress = None) -> AssetAnalysis:
+    """Analyse an asset, vertices (n, 3) float64, faces (m, 3) int64, for fingerprinting with the
+    key's ``secret`` (None: drawn from ``options.seed``, or fresh)."""
+    opts = options or FingerprintOptions()
+    report = progress or no_progress
+    if not (np.isfinite(opts.strength) and opts.strength > 0):
+        raise PayloadError(f"strength must be a positive number, got {opts.strength}")
+    if not (0 < opts.base_ratio <= 1):
+        raise PayloadError(f"base ratio must be in (0, 1], got {opts.base_ratio}")
+    if int(opts.n_sites) < 2 * SITES_PER_BIT:
+        raise PayloadError(f"a fingerprint needs at least {2 * SITES_PER_BIT} sites, got {opts.n_sites}")
+    V, F = check_mesh(vertices, faces, max_coordinate=MAX_COORDINATE)
+    secret = secret if secret is not None else make_secret(opts.seed)
+    an = analyse(V, F, secret, float(opts.strength), max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
+                 report=lambda f, m: report(0.5 * f, m))
+    S = an.n_sites
+    # which sites read: decided on a keyed reference copy, the same for every recipient
+    ref = codeword(secret, "\0reference", S).astype(np.float64)
+    _, (usable, centre_ok, index_ok, swirl_ok), dead, no_swirl = an.mark_readable(ref)
+    report(0.6, "building the progressive mesh")
+    pm = an.progressive_mesh(V, usable | centre_ok, opts.base_ratio, lambda f, m: report(0.6 + 0.35 * f, m))
+    frame = surface_frame(V, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
+    data = dataclasses.replace(an.site, bit=np.arange(S), chip=np.ones(S), usable=usable, centre_ok=centre_ok,
+                               swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)
+    pm_of = np.empty(len(V), np.int64)
+    pm_of[pm.vertex_order] = np.arange(len(V))
+    empty = np.zeros(0, np.int64)
+    key = WatermarkKey(
+        secret=secret, bits=np.zeros(S, np.uint8), payload_kind="bits", strength=float(opts.strength),
+        carrier_index=empty, carrier_pm_index=empty, carrier_position=np.zeros((0, 3)),
+        n_vertices=len(V), n_faces=len(F), mean_edge=mean_edge_length(V, an.adj),
+        bbox_diagonal=float(np.linalg.norm(V.max(0) - V.min(0))), scheme=NAME,
+        data=RobustKeyData.from_extra(data.to_extra(), S, len(V)),  # as the key file will read
+        faces_fingerprint=face_fingerprint(F), pm_faces_fingerprint=face_fingerprint(pm_of[F]))
+    head, body = _ply_parts(len(V), F)
+    report(1.0, "analysed")
+    return AssetAnalysis(sites=an, key=key, options=opts, bump=np.where(dead, 0.0, 1.0),
+                         swirl=np.where(dead | no_swirl, 0.0, 1.0), pm=pm, asset_sha256=asset_sha256(V, F),
+                         _ply_head=head, _ply_faces=body)
