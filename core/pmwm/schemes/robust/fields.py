@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...spatial import pairs_within
+from ...spatial import PointIndex
 
 SWIRL_PEAK = 0.2862  # max of (rho / r) (1 - (rho / r)^2)^2: the swirl field peaks at 1
 OUTER = 1.6  # samples reach OUTER * r from the site (the annulus beyond r is not moved)
@@ -69,9 +69,9 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     cen = tri.mean(axis=1)
     rad = np.sqrt(((tri - cen[:, None, :]) ** 2).sum(axis=2).max(axis=1))
     # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
-    si, fi, d = pairs_within(origin, cen, reach + rad.max())
-    keep = d < reach + rad[fi]
-    si, fi = si[keep], fi[keep]
+    fi, si, _ = PointIndex(origin).within(cen, reach + rad)
+    order = np.lexsort((fi, si))
+    si, fi = si[order], fi[order]
     if len(si) == 0:
         return out
     rel = tri[fi] - origin[si][:, None, :]  # (p, 3, 3)
@@ -81,9 +81,15 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     det = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
     ok = np.abs(det) > 1e-30
     si, x, y, z, det = si[ok], x[ok], y[ok], z[ok], det[ok]
-    P = len(si)
-    pk = np.repeat(np.arange(P), K)
-    kk = np.tile(np.arange(K), P)
+    # (pair, sample) candidates: a line crossing a face passes within the face's radius of its
+    # centre (in the site's tangent plane); one radius query over every site's samples, the site
+    # number as a third coordinate ``gap`` apart so that no pair meets another site's samples
+    gap = 4.0 * (reach + rad.max()) + 1e-300
+    lift = lambda a, b, site: np.stack([a, b, site * gap], axis=-1)  # noqa: E731
+    samples = lift(uv[..., 0], uv[..., 1], np.arange(S)[:, None] * np.ones((1, K))).reshape(-1, 3)
+    centres = lift(x.mean(axis=1), y.mean(axis=1), si.astype(np.float64))
+    pk, sk, _ = PointIndex(samples).within(centres, rad[fi[ok]] * (1.0 + 1e-6) + 1e-12 * reach)
+    kk = sk % K
     qu, qv = uv[si[pk], kk, 0], uv[si[pk], kk, 1]
     dx, dy = qu - x[pk, 0], qv - y[pk, 0]
     l1 = (dx * (y[pk, 2] - y[pk, 0]) - dy * (x[pk, 2] - x[pk, 0])) / det[pk]
