@@ -12,7 +12,7 @@ from ...base import Verdict, verdict_from_scores
 from ...errors import KeyFileError
 from ...key import WatermarkKey
 from ...register import register, similarity_fit
-from ...spatial import PointIndex, nearest
+from ...spatial import nearest
 from ...validate import check_mesh
 from .fields import OUTER, heights, index_templates, profile
 from .keydata import RobustKeyData
@@ -22,7 +22,6 @@ TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of th
 VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
-PAIR_BUDGET = 1 << 17  # (site, face) pairs read at once by position
 INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
 
 
@@ -48,28 +47,7 @@ def _sample_heights(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bo
     shift = s.amplitude * profile(sm.u, sm.v, s.radius)
     expect = np.stack([sm.h + shift, sm.h - shift], axis=2)  # the two possible marked heights
     reach = (OUTER + 0.3) * s.radius
-    H = np.full(sm.mask.shape, np.nan)
-    F = np.asarray(F, np.int64).reshape(-1, 3)
-    if len(F) == 0:
-        return H
-    # every (site, face) pair ``heights`` will look at (the face's bounding sphere meets the ball of
-    # radius ``reach`` about the site), once for all sites; then chunks of whole sites holding at most
-    # PAIR_BUDGET pairs (memory), each given the faces it reaches alone
-    tri = X[F]
-    cen = tri.mean(axis=1)
-    rad = np.sqrt(((tri - cen[:, None, :]) ** 2).sum(axis=2).max(axis=1))
-    fi, si, _ = PointIndex(P).within(cen, reach + rad)
-    order = np.argsort(si, kind="stable")
-    fi = fi[order]
-    ptr = np.searchsorted(si[order], np.arange(len(P) + 1))
-    a = 0
-    while a < len(P):
-        b = max(a + 1, int(np.searchsorted(ptr, ptr[a] + PAIR_BUDGET, side="right")) - 1)
-        c = slice(a, b)
-        H[c] = heights(X, F[np.unique(fi[ptr[a]:ptr[b]])], P[c], N[c], t1[c], t2[c], uv[c], reach,
-                       expect=expect[c])
-        a = b
-    return H
+    return heights(X, F, P, N, t1, t2, uv, reach, expect=expect)
 
 
 def _centre_heights(X: np.ndarray, P: np.ndarray, N: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
