@@ -13,6 +13,8 @@ far-off coordinates keep their digits.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -20,7 +22,8 @@ __all__ = ["PointIndex", "nearest", "pairs_within", "min_spacing"]
 
 
 def _tree(P: np.ndarray) -> cKDTree:
-    return cKDTree(P, balanced_tree=False, compact_nodes=False)
+    # leaves of 32 points: 5-10 % faster than 16 for the registration's queries, as fast elsewhere
+    return cKDTree(P, leafsize=32, balanced_tree=False, compact_nodes=False)
 
 
 class PointIndex:
@@ -59,10 +62,8 @@ class PointIndex:
         # queries grouped by radius, each group searched at its largest radius in one call (no Python
         # loop over queries; a few large radii do not widen the search of all the others), then
         # each query's own radius (strictly closer)
-        group = np.ceil(np.log2(np.maximum(rad, 1e-300) / rad.max())).clip(-64, 0)
         found = []
-        for g in np.unique(group[rad > 0]):
-            q = np.flatnonzero((group == g) & (rad > 0))
+        for q in _radius_groups(rad):
             pairs = _tree(Q[q]).sparse_distance_matrix(self._tree, float(rad[q].max()), output_type="ndarray")
             found.append((q[pairs["i"]], pairs["j"].astype(np.int64), pairs["v"]))
         i, j, d = (np.concatenate(x) for x in zip(*found))
@@ -87,8 +88,31 @@ def pairs_within(P: np.ndarray, Q: np.ndarray, radius) -> tuple[np.ndarray, np.n
 
     P : (n, 3), Q : (m, 3) float64; radius : scalar or (n,) per point of P.
     Returns (i, j, distance): (k,) int64, (k,) int64, (k,) float64, ordered by i then j.
+    The tree is built over the smaller set (over P in groups of radii within a factor of 2).
     """
-    return PointIndex(Q).within(P, radius)
+    P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+    Q = np.asarray(Q, dtype=np.float64).reshape(-1, 3)
+    if len(P) <= len(Q) or not len(Q):
+        return PointIndex(Q).within(P, radius)
+    rad = np.broadcast_to(np.asarray(radius, np.float64), (len(P),))
+    found = [(np.empty(0, np.int64), np.empty(0, np.int64))]
+    for p in _radius_groups(rad):
+        hits = _tree(P[p]).query_ball_point(Q, float(rad[p].max()), workers=1)
+        counts = np.fromiter(map(len, hits), np.int64, count=len(hits))
+        found.append((p[np.fromiter(itertools.chain.from_iterable(hits), np.int64, count=int(counts.sum()))],
+                      np.repeat(np.arange(len(Q), dtype=np.int64), counts)))
+    i, j = (np.concatenate(x) for x in zip(*found))
+    d = np.sqrt(((P[i] - Q[j]) ** 2).sum(axis=1))
+    keep = d < rad[i]
+    order = np.lexsort((j[keep], i[keep]))
+    return i[keep][order], j[keep][order], d[keep][order]
+
+
+def _radius_groups(rad: np.ndarray) -> list[np.ndarray]:
+    """Indices of the positive radii in groups within a factor of 2 of each other (each group is
+    searched at its largest radius, so that a few large radii do not widen every search)."""
+    group = np.ceil(np.log2(np.maximum(rad, 1e-300) / max(float(rad.max()), 1e-300))).clip(-64, 0)
+    return [np.flatnonzero((group == g) & (rad > 0)) for g in np.unique(group[rad > 0])]
 
 
 def min_spacing(P: np.ndarray) -> float:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...spatial import PointIndex
+from ...spatial import pairs_within
 
 SWIRL_PEAK = 0.2862  # max of (rho / r) (1 - (rho / r)^2)^2: the swirl field peaks at 1
 OUTER = 1.6  # samples reach OUTER * r from the site (the annulus beyond r is not moved)
@@ -66,10 +66,11 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     if len(F) == 0 or S == 0:
         return out
     tri = V[F]
-    cen = tri.mean(axis=1)
-    rad = np.sqrt(((tri - cen[:, None, :]) ** 2).sum(axis=2).max(axis=1))
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    cen = (a + b + c) / 3.0  # (reductions over axes of 3 are slow in numpy: corner by corner)
+    rad = np.sqrt(np.maximum(np.maximum(_sq(a - cen), _sq(b - cen)), _sq(c - cen)))
     # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
-    fi, si, _ = PointIndex(origin).within(cen, reach + rad)
+    fi, si, _ = pairs_within(cen, origin, reach + rad)
     order = np.lexsort((fi, si))
     si, fi = si[order], fi[order]
     # the samples in order of (site, u): the samples inside a face projected into its site's frame
@@ -99,6 +100,11 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
 PAIR_CHUNK = 1 << 16  # (site, face) pairs projected at once: bounds the memory of ``heights``
 
 
+def _sq(d: np.ndarray) -> np.ndarray:
+    """Squared length of each row of d (n, 3)."""
+    return np.einsum("ij,ij->i", d, d)
+
+
 def _chunks(n: int, size: int) -> list[slice]:
     return [slice(a, a + size) for a in range(0, n, size)]
 
@@ -116,7 +122,8 @@ def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float
     si, x, y, z, det = si[ok], x[ok], y[ok], z[ok], det[ok]
     # candidates: the samples whose u is within the face's u range (widened far beyond the
     # tolerance below, so that no crossing is missed)
-    lo_u, hi_u = x.min(axis=1), x.max(axis=1)
+    lo_u = np.minimum(np.minimum(x[:, 0], x[:, 1]), x[:, 2])
+    hi_u = np.maximum(np.maximum(x[:, 0], x[:, 1]), x[:, 2])
     margin = 1e-6 * (hi_u - lo_u) + 1e-9 * reach
     lo = np.searchsorted(key, si * band + lo_u - margin, "left")
     n = np.searchsorted(key, si * band + hi_u + margin, "right") - lo
