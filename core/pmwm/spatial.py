@@ -18,7 +18,8 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["PointIndex", "nearest", "pairs_within", "min_spacing"]
+__all__ = ["PointIndex", "nearest", "pairs_within", "min_spacing", "surface_distances",
+           "closest_point_on_triangles"]
 
 
 def _tree(P: np.ndarray) -> cKDTree:
@@ -122,3 +123,83 @@ def min_spacing(P: np.ndarray) -> float:
         return float("inf")
     d, _ = _tree(P).query(P, k=2, workers=1)
     return float(d[:, 1].min())
+
+
+def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Closest point of triangle (a[i], b[i], c[i]) to p[i], vectorised (Ericson 5.1.5)."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1 = np.einsum("ij,ij->i", ab, ap)
+    d2 = np.einsum("ij,ij->i", ac, ap)
+    bp = p - b
+    d3 = np.einsum("ij,ij->i", ab, bp)
+    d4 = np.einsum("ij,ij->i", ac, bp)
+    cp = p - c
+    d5 = np.einsum("ij,ij->i", ab, cp)
+    d6 = np.einsum("ij,ij->i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v_in = np.where(denom != 0, vb / denom, 0.0)
+        w_in = np.where(denom != 0, vc / denom, 0.0)
+        out = a + v_in[:, None] * ab + w_in[:, None] * ac  # face region
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        t_ac = d2 / (d2 - d6)
+        t_ab = d1 / (d1 - d3)
+    # apply the regions from the last test to the first, so the first matching test wins
+    conds = [
+        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), lambda: b + t_bc[:, None] * (c - b)),
+        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), lambda: a + t_ac[:, None] * ac),
+        ((d6 >= 0) & (d5 <= d6), lambda: c),
+        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), lambda: a + t_ab[:, None] * ab),
+        ((d3 >= 0) & (d4 <= d3), lambda: b),
+        ((d1 <= 0) & (d2 <= 0), lambda: a),
+    ]
+    for cond, value in conds:
+        if cond.any():
+            out = np.where(cond[:, None], value(), out)
+    return out
+
+
+def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) -> np.ndarray:
+    """Exact distance from each point (m, 3) to the surface of the triangles tri (t, 3, 3): (m,).
+
+    A triangle whose centre is farther than (a point's distance to some triangle + the triangle's
+    radius about its centre) cannot be the nearest: an upper bound from the triangles of the 4
+    nearest centres, then every triangle within reach (KD-trees over the centres, in groups of radii
+    within a factor of 2) gets the exact closest-point test.
+    """
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    cen = (a + b + c) / 3.0
+    rad = np.sqrt(np.maximum(np.maximum(_sq(a - cen), _sq(b - cen)), _sq(c - cen)))
+    everything = _tree(cen)
+    groups = [(g, _tree(cen[g]), float(rad[g].max())) for g in _radius_groups(np.maximum(rad, 1e-300))]
+    k = min(4, len(tri))
+    out = np.empty(len(points))
+    for s in range(0, len(points), chunk):
+        p = points[s:s + chunk]
+        _, near = everything.query(p, k=k, workers=1)
+        near = near.reshape(len(p), k)
+        q = np.repeat(np.arange(len(p)), k)
+        f = near.ravel()
+        upper = np.full(len(p), np.inf)
+        np.minimum.at(upper, q, np.linalg.norm(closest_point_on_triangles(p[q], a[f], b[f], c[f]) - p[q], axis=1))
+        qs, fs = [], []
+        for g, tree, r in groups:
+            hits = tree.query_ball_point(p, upper + r, workers=1)
+            n = np.fromiter(map(len, hits), np.int64, count=len(hits))
+            qs.append(np.repeat(np.arange(len(p)), n))
+            fs.append(g[np.fromiter(itertools.chain.from_iterable(hits), np.int64, count=int(n.sum()))])
+        q, f = np.concatenate(qs), np.concatenate(fs)
+        keep = np.sqrt(_sq(p[q] - cen[f])) <= (upper[q] + rad[f]) * (1 + 1e-9) + 1e-300
+        q, f = q[keep], f[keep]
+        best = upper.copy()
+        np.minimum.at(best, q, np.linalg.norm(closest_point_on_triangles(p[q], a[f], b[f], c[f]) - p[q], axis=1))
+        out[s:s + chunk] = best
+    return out
+
+
+def _sq(d: np.ndarray) -> np.ndarray:
+    """Squared length of each row of d (n, 3)."""
+    return np.einsum("ij,ij->i", d, d)
