@@ -211,6 +211,17 @@ def test_unmarked_mesh_and_wrong_keys_are_not_marked(bunny, marked):
     assert np.median(p_values) > 0.05
 
 
+def test_other_shapes_read_with_the_key_are_not_marked(marked):
+    """Other shapes, whole or cut in half, in any pose: no start of the registration fits the key's
+    surface (every start is tried), and nothing reads as the mark."""
+    for i, (V, F) in enumerate((meshes.blob(), meshes.cad_part(), meshes.pinched_torus())):
+        for cut in (False, True):
+            X, FF = attacks.crop_plane(V, F, 0.5, seed=i) if cut else (V, F)
+            X, FF = attacks.similarity(X, FF, seed=i)
+            v = robust_verify(X, FF, marked.key)
+            assert not v.marked and v.mode == "registered", (i, cut, v.p_value)
+
+
 def test_distortion_not_above_the_paper_scheme(bunny, marked):
     V, F = bunny
     paper = pmwm.embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, strength=2.0))
