@@ -1,4 +1,4 @@
-"""Nearest-point and radius queries between point sets: the one place spatial search is done.
+"""Nearest-point, radius and point-to-surface queries: the one place spatial search is done.
 
 Every scheme, the registration and the metrics ask their spatial questions here. The engine is
 scipy's KD-tree (``scipy.spatial.cKDTree``), built unbalanced and without compacting nodes (faster to
@@ -8,7 +8,9 @@ far-off coordinates keep their digits.
 
 ``PointIndex`` is the reusable form: a tree built ONCE over a reference set and queried many times
 (the registration queries the key's samples some hundred times per suspect). ``nearest``,
-``pairs_within`` and ``min_spacing`` are the one-shot functions.
+``pairs_within``, ``min_spacing`` and ``surface_distances`` (exact point-to-triangle-surface
+distances, for the metrics) are the one-shot functions. Each answers exactly what a brute-force scan
+answers (tests/test_spatial.py).
 """
 
 from __future__ import annotations
