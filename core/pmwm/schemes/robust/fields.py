@@ -124,7 +124,7 @@ def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float
     # tolerance below, so that no crossing is missed)
     lo_u = np.minimum(np.minimum(x[:, 0], x[:, 1]), x[:, 2])
     hi_u = np.maximum(np.maximum(x[:, 0], x[:, 1]), x[:, 2])
-    margin = 1e-6 * (hi_u - lo_u) + 1e-9 * reach
+    margin = 1e-6 * (hi_u - lo_u) + 1e-9 * reach + 1e-14 * (si + 1) * band  # (+ the keys' rounding)
     lo = np.searchsorted(key, si * band + lo_u - margin, "left")
     n = np.searchsorted(key, si * band + hi_u + margin, "right") - lo
     pk = np.repeat(np.arange(len(si)), n)
