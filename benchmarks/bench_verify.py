@@ -57,7 +57,8 @@ def build_cases(path: Path) -> None:
         cases[m] = {
             "marked": (MV, MF, res.key),
             "re-ordered": (*attacks.reorder(MV, MF, seed=1), res.key),
-            "cut in half, posed": (*attacks.similarity(*attacks.crop_plane(MV, MF, 0.5, seed=2), seed=2), res.key),
+            "cut in half, posed": (*attacks.similarity(*attacks.crop_plane(MV, MF, 0.5, seed=2), seed=2),
+                                   res.key),
             "simplified 50 %": (*attacks.simplify(MV, MF, ratio=0.5), res.key),
             "unmarked, other secret": (V, F, other),
             "paper: re-ordered": (*attacks.reorder(paper.vertices, paper.faces, seed=1), paper.key),
@@ -88,9 +89,10 @@ def child(cases_path: str, out_path: str, repeat: int) -> None:
             v = pmwm.verify(V, F, key)
             times.append(time.perf_counter() - t)
             cpu.append(time.process_time() - c)
-        out.append(dict(model=m, case=case, times=times, cpu=cpu, marked=bool(v.marked), bit_errors=int(v.bit_errors),
-                        p_value=float(v.p_value), mode=v.mode, n_vertices=int(len(V)),
-                        registration=str(v.extra.get("registration", "")) if isinstance(v.extra, dict) else "",
+        extra = v.extra if isinstance(v.extra, dict) else {}
+        out.append(dict(model=m, case=case, times=times, cpu=cpu, marked=bool(v.marked),
+                        bit_errors=int(v.bit_errors), p_value=float(v.p_value), mode=v.mode,
+                        n_vertices=int(len(V)), registration=str(extra.get("registration", "")),
                         pmwm=str(Path(pmwm.__file__).parent), numpy=np.__version__))
     with open(out_path, "w") as f:
         json.dump(out, f)
@@ -108,7 +110,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3, help="calls per case per round (default 3)")
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds new/old (default 2)")
-    ap.add_argument("--baseline", default=BASELINE, help=f"commit to compare with (default {BASELINE}); '' for none")
+    ap.add_argument("--baseline", default=BASELINE,
+                    help=f"commit to compare with (default {BASELINE}); '' for none")
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -158,7 +161,8 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
         "waiting for a core; the CPU time is what the call costs on an idle machine (one thread).",
         "",
         "| mesh | case | suspect vertices | verdict | bit errors | read | "
-        + ("baseline wall / CPU | " if old else "") + "now wall / CPU | " + ("speed-up (CPU) |" if old else ""),
+        + ("baseline wall / CPU | " if old else "") + "now wall / CPU | "
+        + ("speed-up (CPU) |" if old else ""),
         "|---|---|---|---|---|---|---|" + ("---|---|" if old else ""),
     ]
     changed = []

@@ -368,7 +368,7 @@ def test_heights_by_position_are_the_crossings_of_every_face():
     g = np.stack(np.meshgrid(np.linspace(-1, 1, 30), np.linspace(-1, 1, 30)), -1).reshape(-1, 2)
     V = np.c_[g, 0.05 * np.sin(5 * g[:, 0]) * np.cos(3 * g[:, 1])]
     i = np.arange(29)[:, None] * 30 + np.arange(29)[None, :]
-    F = np.concatenate([np.stack([i, i + 1, i + 30], -1).reshape(-1, 3), np.stack([i + 1, i + 31, i + 30], -1).reshape(-1, 3)])
+    F = np.concatenate([np.stack([i, i + 1, i + 30], -1), np.stack([i + 1, i + 31, i + 30], -1)]).reshape(-1, 3)
     F[::7] = F[::7, ::-1]  # flipped faces
     fold = V[F[:300]] * [1, 1, -1] + [0, 0, 0.02]  # a second layer under part of the sheet
     big = np.array([[[-5.0, -5, -0.3], [5, -5, -0.3], [0, 5, -0.3]]])

@@ -102,9 +102,11 @@ def test_surface_distances_are_the_brute_force_minimum_over_every_triangle():
     """Triangles of very different sizes (one large, many small), points on, near and far from them."""
     rng = np.random.default_rng(8)
     small = rng.normal(size=(200, 1, 3)) + 0.05 * rng.normal(size=(200, 3, 3))
-    tri = np.concatenate([small, [[[-5.0, -5, 0], [5, -5, 0], [0, 5, 0]]], np.zeros((1, 3, 3))])  # + a point-like one
+    big = [[[-5.0, -5, 0], [5, -5, 0], [0, 5, 0]]]
+    tri = np.concatenate([small, big, np.zeros((1, 3, 3))])  # + a point-like one
     P = np.concatenate([tri[:50].mean(axis=1), rng.normal(size=(300, 3)), 20 * rng.normal(size=(20, 3))])
     got = spatial.surface_distances(P, tri, chunk=64)
     q, f = np.repeat(np.arange(len(P)), len(tri)), np.tile(np.arange(len(tri)), len(P))
-    d = np.linalg.norm(spatial.closest_point_on_triangles(P[q], tri[f, 0], tri[f, 1], tri[f, 2]) - P[q], axis=1)
+    cp = spatial.closest_point_on_triangles(P[q], tri[f, 0], tri[f, 1], tri[f, 2])
+    d = np.linalg.norm(cp - P[q], axis=1)
     np.testing.assert_array_equal(got, d.reshape(len(P), len(tri)).min(axis=1))

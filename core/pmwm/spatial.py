@@ -186,7 +186,7 @@ def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) ->
         q = np.repeat(np.arange(len(p)), k)
         f = near.ravel()
         upper = np.full(len(p), np.inf)
-        np.minimum.at(upper, q, np.linalg.norm(closest_point_on_triangles(p[q], a[f], b[f], c[f]) - p[q], axis=1))
+        np.minimum.at(upper, q, _to_triangles(p[q], a[f], b[f], c[f]))
         qs, fs = [], []
         for g, tree, r in groups:
             hits = tree.query_ball_point(p, upper + r, workers=1)
@@ -197,9 +197,14 @@ def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) ->
         keep = np.sqrt(_sq(p[q] - cen[f])) <= (upper[q] + rad[f]) * (1 + 1e-9) + 1e-300
         q, f = q[keep], f[keep]
         best = upper.copy()
-        np.minimum.at(best, q, np.linalg.norm(closest_point_on_triangles(p[q], a[f], b[f], c[f]) - p[q], axis=1))
+        np.minimum.at(best, q, _to_triangles(p[q], a[f], b[f], c[f]))
         out[s:s + chunk] = best
     return out
+
+
+def _to_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Distance from p[i] to triangle (a[i], b[i], c[i]), (k,)."""
+    return np.linalg.norm(closest_point_on_triangles(p, a, b, c) - p, axis=1)
 
 
 def _sq(d: np.ndarray) -> np.ndarray:
