@@ -211,6 +211,17 @@ def test_unmarked_mesh_and_wrong_keys_are_not_marked(bunny, marked):
     assert np.median(p_values) > 0.05
 
 
+def test_other_shapes_read_with_the_key_are_not_marked(marked):
+    """Other shapes, whole or cut in half, in any pose: no start of the registration fits the key's
+    surface (every start is tried), and nothing reads as the mark."""
+    for i, (V, F) in enumerate((meshes.blob(), meshes.cad_part(), meshes.pinched_torus())):
+        for cut in (False, True):
+            X, FF = attacks.crop_plane(V, F, 0.5, seed=i) if cut else (V, F)
+            X, FF = attacks.similarity(X, FF, seed=i)
+            v = robust_verify(X, FF, marked.key)
+            assert not v.marked and v.mode == "registered", (i, cut, v.p_value)
+
+
 def test_distortion_not_above_the_paper_scheme(bunny, marked):
     V, F = bunny
     paper = pmwm.embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, strength=2.0))
@@ -347,3 +358,50 @@ def test_first_format_and_garbled_keys_are_refused_when_the_key_is_read(marked, 
     old = dataclasses.replace(marked.key, extra={**marked.key.data.to_extra(), "robust_version": 1}, data=None)
     with pytest.raises(KeyFileError, match="re-embed"):  # a key built in memory is read when first used
         robust_verify(marked.vertices, marked.faces, old)
+
+def test_heights_by_position_are_the_crossings_of_every_face():
+    """``fields.heights`` (candidate faces from the samples sorted by position) against a scan of
+    every (site, face, sample) triple, on a bumpy sheet with a fold, one huge face and flipped faces."""
+    from pmwm.schemes.robust import fields
+
+    rng = np.random.default_rng(3)
+    g = np.stack(np.meshgrid(np.linspace(-1, 1, 30), np.linspace(-1, 1, 30)), -1).reshape(-1, 2)
+    V = np.c_[g, 0.05 * np.sin(5 * g[:, 0]) * np.cos(3 * g[:, 1])]
+    i = np.arange(29)[:, None] * 30 + np.arange(29)[None, :]
+    F = np.concatenate([np.stack([i, i + 1, i + 30], -1), np.stack([i + 1, i + 31, i + 30], -1)]).reshape(-1, 3)
+    F[::7] = F[::7, ::-1]  # flipped faces
+    fold = V[F[:300]] * [1, 1, -1] + [0, 0, 0.02]  # a second layer under part of the sheet
+    big = np.array([[[-5.0, -5, -0.3], [5, -5, -0.3], [0, 5, -0.3]]])
+    tri = np.concatenate([V[F], fold, big])
+    V, F = tri.reshape(-1, 3), np.arange(len(tri) * 3).reshape(-1, 3)
+    S, K, reach = 12, 20, 0.25
+    origin = np.c_[rng.uniform(-0.8, 0.8, (S, 2)), np.zeros(S)]
+    normal = rng.normal([0, 0, 1], 0.2, (S, 3))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    t1, t2 = fields.tangent_frames(normal)
+    uv = rng.uniform(-0.15, 0.15, (S, K, 2))
+    uv[:, -3:] = 1e30  # padding
+    expect = rng.normal(0, 0.03, (S, K, 2))
+    got = fields.heights(V, F, origin, normal, t1, t2, uv, reach, expect)
+
+    want = np.full((S, K), np.nan)
+    for s in range(S):
+        rel = tri - origin[s]
+        cen, rad = rel.mean(axis=1), np.linalg.norm(rel - rel.mean(axis=1)[:, None], axis=2).max(axis=1)
+        near = np.linalg.norm(cen, axis=1) < reach + rad
+        x, y, z = (rel[near] @ t1[s]), (rel[near] @ t2[s]), (rel[near] @ normal[s])
+        det = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+        for k in range(K):
+            dx, dy = uv[s, k, 0] - x[:, 0], uv[s, k, 1] - y[:, 0]
+            with np.errstate(all="ignore"):
+                l1 = (dx * (y[:, 2] - y[:, 0]) - dy * (x[:, 2] - x[:, 0])) / det
+                l2 = ((x[:, 1] - x[:, 0]) * dy - (y[:, 1] - y[:, 0]) * dx) / det
+            l0 = 1 - l1 - l2
+            hit = (np.abs(det) > 1e-30) & (l0 >= -1e-7) & (l1 >= -1e-7) & (l2 >= -1e-7)
+            if hit.any():
+                h = (l0 * z[:, 0] + l1 * z[:, 1] + l2 * z[:, 2])[hit]
+                miss = np.minimum(np.abs(h - expect[s, k, 0]), np.abs(h - expect[s, k, 1]))
+                want[s, k] = h[np.lexsort(((det < 0)[hit], miss))[0]]
+    assert np.isfinite(want).sum() > S * (K - 3) * 0.9
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)  # (the same faces; rounding of the projection)

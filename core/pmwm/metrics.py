@@ -9,11 +9,9 @@ The limit:   ``matched_filter_bound`` (best correlation any detector can reach f
 Bit sequences may be strings of '0'/'1' or sequences of 0/1; any other symbol (e.g. '?' or -1) is an
 erasure: it counts as an error in the BER and as the neutral value 1/2 in the correlation.
 
-Point-to-surface distances are computed with numpy only (no rtree/scipy, which Blender lacks): a
-uniform grid over the triangles' bounding boxes, coarsened level by level into a hierarchy, is
-traversed for all query points at once with lower bounds (point-to-box) and upper bounds (distance to
-a surface point in the box); the surviving triangles get an exact closest-point test (Ericson,
-Real-Time Collision Detection, 5.1.5).
+Point-to-surface distances are exact, searched by ``pmwm.spatial.surface_distances`` (KD-trees over
+the triangles' centres bound the candidates; each gets an exact closest-point test, Ericson,
+Real-Time Collision Detection, 5.1.5: ``closest_point_on_triangles``, kept here under its old name).
 """
 
 from __future__ import annotations
@@ -22,8 +20,10 @@ import math
 
 import numpy as np
 
+from . import spatial
 from .errors import MeshError, PayloadError
 from .sampling import sample_surface
+from .spatial import closest_point_on_triangles
 from .validate import parse_bits
 
 # ----------------------------------------------------------------------------------------------
@@ -160,156 +160,13 @@ def energy_per_bit(orig, marked, n_bits: int) -> float:
 # surface distance
 
 
-def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Closest point of triangle (a[i], b[i], c[i]) to p[i], vectorised (Ericson 5.1.5)."""
-    ab, ac, ap = b - a, c - a, p - a
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    bp = p - b
-    d3 = np.einsum("ij,ij->i", ab, bp)
-    d4 = np.einsum("ij,ij->i", ac, bp)
-    cp = p - c
-    d5 = np.einsum("ij,ij->i", ab, cp)
-    d6 = np.einsum("ij,ij->i", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        denom = va + vb + vc
-        v_in = np.where(denom != 0, vb / denom, 0.0)
-        w_in = np.where(denom != 0, vc / denom, 0.0)
-        out = a + v_in[:, None] * ab + w_in[:, None] * ac  # face region
-        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        t_ac = d2 / (d2 - d6)
-        t_ab = d1 / (d1 - d3)
-    # apply the regions from the last test to the first, so the first matching test wins
-    conds = [
-        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), lambda: b + t_bc[:, None] * (c - b)),
-        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), lambda: a + t_ac[:, None] * ac),
-        ((d6 >= 0) & (d5 <= d6), lambda: c),
-        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), lambda: a + t_ab[:, None] * ab),
-        ((d3 >= 0) & (d4 <= d3), lambda: b),
-        ((d1 <= 0) & (d2 <= 0), lambda: a),
-    ]
-    for cond, value in conds:
-        if cond.any():
-            out = np.where(cond[:, None], value(), out)
-    return out
-
-
-def _segment_starts(sorted_ids: np.ndarray) -> np.ndarray:
-    return np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]])
-
-
-class _TriangleGrid:
-    """Hierarchy of uniform grids over a triangle mesh, for exact point-to-surface distances."""
-
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        v = np.asarray(vertices, dtype=np.float64)
-        f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-        if len(f) == 0:
-            raise MeshError("the mesh has no faces; surface metrics need triangles")
-        self.a, self.b, self.c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-        tlo = np.minimum(np.minimum(self.a, self.b), self.c)
-        thi = np.maximum(np.maximum(self.a, self.b), self.c)
-        self.tlo, self.thi = tlo, thi
-        self.origin = tlo.min(axis=0)
-        extent = float((thi.max(axis=0) - self.origin).max())
-        h = 2.0 * float(np.median((thi - tlo).max(axis=1)))
-        h = max(h, extent / 2**18, 1e-300)
-        self.h = h
-        clo = np.floor((tlo - self.origin) / h).astype(np.int64)
-        chi = np.floor((thi - self.origin) / h).astype(np.int64)
-        span = chi - clo + 1
-        per_tri = span.prod(axis=1)
-        tri = np.repeat(np.arange(len(f)), per_tri)
-        local = np.arange(len(tri)) - np.repeat(np.cumsum(per_tri) - per_tri, per_tri)
-        sy, sz = span[tri, 1], span[tri, 2]
-        coords = clo[tri] + np.stack([local // (sy * sz), (local // sz) % sy, local % sz], axis=1)
-        keys = self._key(coords)
-        order = np.argsort(keys, kind="stable")
-        skeys = keys[order]
-        starts = _segment_starts(skeys)
-        self.cell_tris = tri[order]
-        self.cell_ptr = np.r_[starts, len(skeys)]
-        level_coords = coords[order[starts]]
-        rep_tri = self.cell_tris[starts]
-        rep = (self.a[rep_tri] + self.b[rep_tri] + self.c[rep_tri]) / 3.0
-        # levels[0] is the finest; each entry: (coords, rep points, children ptr, children idx)
-        self.levels = [(level_coords, rep, None, None)]
-        while len(level_coords) > 8:
-            parent_coords = level_coords >> 1
-            pkeys = self._key(parent_coords)
-            porder = np.argsort(pkeys, kind="stable")
-            pstarts = _segment_starts(pkeys[porder])
-            child_ptr = np.r_[pstarts, len(porder)]
-            coarse = parent_coords[porder[pstarts]]
-            self.levels.append((coarse, self.levels[-1][1][porder[pstarts]], child_ptr, porder))
-            level_coords = coarse
-
-    @staticmethod
-    def _key(coords: np.ndarray) -> np.ndarray:
-        return (coords[:, 0] << 42) | (coords[:, 1] << 21) | coords[:, 2]
-
-    def _box_lb(self, q: np.ndarray, coords: np.ndarray, level: int) -> np.ndarray:
-        size = self.h * (1 << level)
-        lo = self.origin + coords * size
-        d = np.maximum(np.maximum(lo - q, 0.0), q - (lo + size))
-        return np.sqrt(np.einsum("ij,ij->i", d, d))
-
-    def distance(self, points: np.ndarray, chunk: int = 2048) -> np.ndarray:
-        """Exact unsigned distance from each point to the surface."""
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        out = np.empty(len(points))
-        for s in range(0, len(points), chunk):
-            out[s : s + chunk] = self._distance_chunk(points[s : s + chunk])
-        return out
-
-    def _distance_chunk(self, pts: np.ndarray) -> np.ndarray:
-        nq = len(pts)
-        top = len(self.levels) - 1
-        ncell = len(self.levels[top][0])
-        qi = np.repeat(np.arange(nq), ncell)
-        ci = np.tile(np.arange(ncell), nq)
-        upper = np.full(nq, np.inf)
-        for level in range(top, -1, -1):
-            coords, rep, _, _ = self.levels[level]
-            q = pts[qi]
-            ub = np.linalg.norm(rep[ci] - q, axis=1)
-            starts = _segment_starts(qi)
-            upper[qi[starts]] = np.minimum(upper[qi[starts]], np.minimum.reduceat(ub, starts))
-            lb = self._box_lb(q, coords[ci], level)
-            keep = lb <= upper[qi] * (1 + 1e-9) + 1e-300
-            qi, ci = qi[keep], ci[keep]
-            if level > 0:
-                _, _, cptr, cidx = self.levels[level]
-                counts = cptr[ci + 1] - cptr[ci]
-                qi = np.repeat(qi, counts)
-                offs = np.repeat(cptr[ci] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-                ci = cidx[offs]
-        # cells -> triangles
-        counts = self.cell_ptr[ci + 1] - self.cell_ptr[ci]
-        qi = np.repeat(qi, counts)
-        offs = np.repeat(self.cell_ptr[ci] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-        ti = self.cell_tris[offs]
-        q = pts[qi]
-        d = np.maximum(np.maximum(self.tlo[ti] - q, 0.0), q - self.thi[ti])
-        keep = np.sqrt(np.einsum("ij,ij->i", d, d)) <= upper[qi] * (1 + 1e-9) + 1e-300
-        qi, ti = qi[keep], ti[keep]
-        best = np.full(nq, np.inf)
-        step = 1 << 20
-        for s in range(0, len(qi), step):
-            qs, ts = qi[s : s + step], ti[s : s + step]
-            cp = closest_point_on_triangles(pts[qs], self.a[ts], self.b[ts], self.c[ts])
-            dist = np.linalg.norm(cp - pts[qs], axis=1)
-            starts = _segment_starts(qs)
-            best[qs[starts]] = np.minimum(best[qs[starts]], np.minimum.reduceat(dist, starts))
-        return best
-
-
 def point_surface_distance(points, vertices, faces) -> np.ndarray:
-    """Exact distance from each point to the triangle surface (vertices, faces)."""
-    return _TriangleGrid(vertices, faces).distance(points)
+    """Exact distance from each point (m, 3) to the triangle surface (vertices, faces): (m,)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        raise MeshError("the mesh has no faces; surface metrics need triangles")
+    return spatial.surface_distances(np.asarray(points, dtype=np.float64).reshape(-1, 3), v[f])
 
 
 def surface_distance(

@@ -24,7 +24,9 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
    give ``CUT_CANDIDATES`` x 4 more starts, screened by ICP on a third of the samples. The best
    ``CUT_FINALISTS`` and the best plain start are refined in full, and the smallest residual wins.
 
-Nearest neighbours are chunked brute force over a few thousand points (numpy only, no scipy).
+Nearest neighbours come from one KD-tree over the key's samples (``pmwm.spatial.PointIndex``), built
+once per registration; the starts of each step are refined together, one tree query per ICP iteration
+for all of them.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sampling import sample_surface
-from .spatial import nearest
+from .spatial import PointIndex, nearest
 
 
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
@@ -118,30 +120,28 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
         return 0.3 * k_pca < k < 3.0 * k_pca
 
     floor = frame.floor
+    index = PointIndex(ref_P)  # one tree over the key's samples for every ICP iteration of every start
     best = None
-    for name, R, k, t in inits:
-        R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, COARSE_ITERATIONS)
-        if not plausible(k):
-            continue
-        if best is None or res < best[4]:
-            best = (name, R, k, t, res)
-        if name == "identity" and res < 1.5 * floor:  # already aligned: at the sampling noise
-            break
+    for group in (inits[:1], inits[1:]):  # the identity first: it may make the PCA starts needless
+        fits = _icp(S, index, ref_N, [x[1:] for x in group], ref_s, COARSE_ITERATIONS)
+        for (name, *_), (R, k, t, res) in zip(group, fits):
+            if plausible(k) and (best is None or res < best[4]):
+                best = (name, R, k, t, res)
+        if best is not None and best[0] == "identity" and best[4] < 1.5 * floor:
+            break  # already aligned: at the sampling noise
     if best is None:
         best = inits[1] + (np.inf,)
     finalists = [best]
     if not best[4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
         sub = slice(None, None, 3)
-        screened = []
-        for name, R, k, t in _cut_starts(ref_P, S, c, A, s):
-            R, k, t, res = _icp(S[sub], ref_P[sub], ref_N[sub], R, k, t, ref_s, COARSE_ITERATIONS)
-            if plausible(k):
-                screened.append((name, R, k, t, res))
+        cuts = _cut_starts(ref_P, S, c, A, s)
+        fits = _icp(S[sub], PointIndex(ref_P[sub]), ref_N[sub], [x[1:] for x in cuts], ref_s,
+                    COARSE_ITERATIONS)  # every cut start at once: one tree query per iteration
+        screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
-    refined = []
-    for name, R, k, t, _ in finalists:
-        R, k, t, res = _icp(S, ref_P, ref_N, R, k, t, ref_s, ICP_ITERATIONS)
-        refined.append((not plausible(k), res, len(refined), name, R, k, t))  # plausible fits first
+    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS)
+    refined = [(not plausible(k), res, i, finalists[i][0], R, k, t)  # plausible fits first
+               for i, (R, k, t, res) in enumerate(fits)]
     _, res, _, name, R, k, t = min(refined)
     return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
 
@@ -181,7 +181,8 @@ def _log_spread(P: np.ndarray, masks: np.ndarray) -> np.ndarray:
     W = masks.astype(np.float64)
     n = W.sum(axis=1)[:, None]
     mu = W @ P / n
-    C = np.einsum("cn,ni,nj->cij", W, P - P.mean(axis=0), P - P.mean(axis=0)) / n[..., None]
+    Pc = P - P.mean(axis=0)
+    C = (W @ (Pc[:, :, None] * Pc[:, None, :]).reshape(len(P), 9)).reshape(-1, 3, 3) / n[..., None]
     m = mu - P.mean(axis=0)
     w = np.linalg.eigvalsh(C - m[:, :, None] * m[:, None, :])[:, ::-1]
     return np.log(np.maximum(w[:, :2], 1e-300) / np.maximum(w[:, 1:], 1e-300))
@@ -212,35 +213,75 @@ def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return c, A, float(np.sqrt(max(w.sum(), 1e-300)))
 
 
-def _icp(S, ref_P, ref_N, R, k, t, ref_s, iterations):
-    """Trimmed point-to-plane similarity ICP from (R, k, t); returns (R, k, t, residual)."""
-    res = np.inf
+def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_s: float,
+         iterations: int) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
+    """Trimmed point-to-plane similarity ICP of the sources S (m, 3) onto the reference points of
+    ``index`` (n, 3) with normals ref_N (n, 3), from every start (R (3, 3), k, t (3,)) at once (each
+    stops when its own step is negligible, as it would alone). Returns (R, k, t, residual) per
+    start; the residual is the trimmed RMS point-to-point distance / ref_s.
+
+    Only the ``TRIM`` share of closest pairs is used, so after the first iteration each start's
+    search is bounded by its last trim distance plus the farthest any source point just moved: its
+    closest pairs are still inside that bound, so they are exactly those of an unbounded search."""
+    ref_P = index.points
+    R = np.array([x[0] for x in starts], np.float64).reshape(-1, 3, 3)
+    k = np.array([x[1] for x in starts], np.float64)
+    t = np.array([x[2] for x in starts], np.float64).reshape(-1, 3)
+    n_keep = min(max(int(TRIM * len(S)), 7), len(S))
+    X_last = np.zeros((len(k), len(S), 3))  # each start's points at its last search
+    trim = np.full(len(k), np.inf)  # and the distance of its farthest kept pair then (inf: no bound)
+
+    def search(ids: np.ndarray):
+        """The starts ``ids``' points at their current pose (b, m, 3), their closest reference points
+        and squared distances (b, m), and the indices of the kept pairs (b, n_keep), closest first."""
+        X = (k[ids, None, None] * S) @ R[ids].transpose(0, 2, 1) + t[ids, None, :]
+        bound = trim[ids] + np.linalg.norm(X - X_last[ids], axis=2).max(axis=1)
+        j, d2 = _closest(index, X, bound, n_keep)
+        keep = np.argsort(d2, axis=1)[:, :n_keep]
+        X_last[ids], trim[ids] = X, np.sqrt(np.take_along_axis(d2, keep[:, -1:], axis=1)[:, 0])
+        return X, j, d2, keep
+
+    active = np.arange(len(k))
     for _ in range(iterations):
-        X = k * S @ R.T + t
-        j, d2 = nearest(ref_P, X)
-        keep = np.argsort(d2)[: max(int(TRIM * len(X)), 7)]
-        x, q, n = X[keep], ref_P[j[keep]], ref_N[j[keep]]
-        xc = x - x.mean(axis=0)  # linearise about the sources' centroid: better conditioned
-        r = np.einsum("ij,ij->i", q - x, n)
-        J = np.concatenate([np.einsum("ij,ij->i", xc, n)[:, None], np.cross(xc, n), n], axis=1)
-        sol, *_ = np.linalg.lstsq(J, r, rcond=None)
-        ds, w, dt = sol[0], sol[1:4], sol[4:7]
-        angle = float(np.linalg.norm(w))
-        dR = _rodrigues(w / angle, angle) if angle > 1e-15 else np.eye(3)
-        m = x.mean(axis=0)
+        if len(active) == 0:
+            break
+        X, j, _, keep = search(active)
+        x = np.take_along_axis(X, keep[..., None], axis=1)
+        jj = np.take_along_axis(j, keep, axis=1)
+        q, n = ref_P[jj], ref_N[jj]
+        m = x.mean(axis=1)
+        xc = x - m[:, None, :]  # linearise about the sources' centroid: better conditioned
+        r = np.einsum("bij,bij->bi", q - x, n)
+        J = np.concatenate([np.einsum("bij,bij->bi", xc, n)[..., None], np.cross(xc, n), n], axis=2)
+        sol = np.stack([np.linalg.lstsq(J[b], r[b], rcond=None)[0] for b in range(len(active))])
+        ds, w, dt = sol[:, 0], sol[:, 1:4], sol[:, 4:7]
+        angle = np.linalg.norm(w, axis=1)
+        dR = _rotations(w, angle)
         # x -> (1 + ds) dR (x - m) + m + dt, applied to the current transform
         f = 1.0 + ds
-        R = dR @ R
-        k = k * f
-        t = f * dR @ (t - m) + m + dt
-        res = float(np.sqrt(np.mean(r**2))) / ref_s
-        if abs(ds) < 1e-7 and angle < 1e-7 and np.linalg.norm(dt) < 1e-7 * ref_s:
-            break
-    X = k * S @ R.T + t
-    j, d2 = nearest(ref_P, X)
-    keep = np.argsort(d2)[: max(int(TRIM * len(X)), 7)]
-    res = float(np.sqrt(np.mean(d2[keep]))) / ref_s  # trimmed point-to-point: no sliding
-    return R, k, t, res
+        t[active] = f[:, None] * np.einsum("bij,bj->bi", dR, t[active] - m) + m + dt
+        R[active] = dR @ R[active]
+        k[active] = k[active] * f
+        moving = (np.abs(ds) >= 1e-7) | (angle >= 1e-7) | (np.linalg.norm(dt, axis=1) >= 1e-7 * ref_s)
+        active = active[moving]
+    _, _, d2, keep = search(np.arange(len(k)))
+    res = np.sqrt(np.mean(np.take_along_axis(d2, keep, axis=1), axis=1)) / ref_s  # point-to-point: no sliding
+    return [(R[b], float(k[b]), t[b], float(res[b])) for b in range(len(k))]
+
+
+def _closest(index: PointIndex, X: np.ndarray, bound: np.ndarray, n_keep: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest reference point (b, m) and squared distance (b, m) of each start's points X (b, m, 3),
+    searched within the start's ``bound`` (b,) (beyond it: -1, inf); a start with fewer than
+    ``n_keep`` points inside is searched again without a bound."""
+    if not np.all(np.isfinite(bound)):
+        return index.nearest(X)
+    j, d2 = np.empty(X.shape[:2], np.int64), np.empty(X.shape[:2])
+    for b in range(len(X)):
+        j[b], d2[b] = index.nearest(X[b], bound[b] * (1.0 + 1e-9) + 1e-300)
+        if np.count_nonzero(d2[b] < np.inf) < n_keep:
+            j[b], d2[b] = index.nearest(X[b])
+    return j, d2
 
 
 def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
@@ -255,6 +296,13 @@ def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float,
     return R, k, md - k * R @ ms
 
 
-def _rodrigues(axis: np.ndarray, angle: float) -> np.ndarray:
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+def _rotations(w: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices (b, 3, 3) by the angles ``angle`` (b,) about the axes w / angle (w (b, 3));
+    the identity where the angle is below 1e-15 (Rodrigues' formula)."""
+    small = angle <= 1e-15
+    a = np.where(small, 1.0, angle)
+    u = np.where(small[:, None], 0.0, w / a[:, None])
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -u[:, 2], u[:, 1], -u[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = u[:, 2], -u[:, 1], u[:, 0]
+    return np.eye(3) + np.sin(a)[:, None, None] * K + (1.0 - np.cos(a))[:, None, None] * K @ K

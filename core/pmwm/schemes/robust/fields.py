@@ -58,32 +58,77 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     Sample k of site s is the line origin[s] + u t1[s] + v t2[s] + h normal[s]; every triangle
     within ``reach`` of the site is projected into the site frame, and of the crossings the one
     nearest to either expected height ``expect`` (S, K, 2) is kept (either face orientation, so
-    flipped copies still read).
+    flipped copies still read). Padding samples have u, v far outside any face.
     """
     S, K = uv.shape[:2]
     out = np.full((S, K), np.nan)
-    F = np.asarray(F, np.int64)
+    F = np.asarray(F, np.int64).reshape(-1, 3)
     if len(F) == 0 or S == 0:
         return out
     tri = V[F]
-    cen = tri.mean(axis=1)
-    rad = np.sqrt(((tri - cen[:, None, :]) ** 2).sum(axis=2).max(axis=1))
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    cen = (a + b + c) / 3.0  # (reductions over axes of 3 are slow in numpy: corner by corner)
+    rad = np.sqrt(np.maximum(np.maximum(_sq(a - cen), _sq(b - cen)), _sq(c - cen)))
     # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
-    si, fi, d = pairs_within(origin, cen, reach + rad.max())
-    keep = d < reach + rad[fi]
-    si, fi = si[keep], fi[keep]
-    if len(si) == 0:
+    fi, si, _ = pairs_within(cen, origin, reach + rad)
+    order = np.lexsort((fi, si))
+    si, fi = si[order], fi[order]
+    # the samples in order of (site, u): the samples inside a face projected into its site's frame
+    # are in the run of that order between the face's smallest and largest u (sites ``band`` apart)
+    band = 3.0 * (reach + 2.0 * float(rad.max()))
+    key = (np.arange(S)[:, None] * band + uv[..., 0]).ravel()
+    by_u = np.argsort(key, kind="stable")
+    key = key[by_u]
+    found = [_crossings(tri[fi[c]] - origin[si[c]][:, None, :], si[c], t1, t2, normal, uv, key, by_u,
+                        band, reach) for c in _chunks(len(si), PAIR_CHUNK)]
+    if not found:
         return out
-    rel = tri[fi] - origin[si][:, None, :]  # (p, 3, 3)
+    slot, h, back = (np.concatenate(x) for x in zip(*found))
+    if len(slot) == 0:
+        return out
+    # a line may cross the surface more than once (folds, thin parts, coarse levels of detail):
+    # take the crossing nearest an expected height, a front-facing one (face normal along the
+    # site normal) before a back-facing one at the same distance (copies whose faces were flipped)
+    e = expect.reshape(S * K, 2)[slot]
+    order = np.lexsort((back, np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1])), slot))
+    slot, h = slot[order], h[order]
+    first = np.r_[True, slot[1:] != slot[:-1]]
+    out.ravel()[slot[first]] = h[first]
+    return out
+
+
+PAIR_CHUNK = 1 << 16  # (site, face) pairs projected at once: bounds the memory of ``heights``
+
+
+def _sq(d: np.ndarray) -> np.ndarray:
+    """Squared length of each row of d (n, 3)."""
+    return np.einsum("ij,ij->i", d, d)
+
+
+def _chunks(n: int, size: int) -> list[slice]:
+    return [slice(a, a + size) for a in range(0, n, size)]
+
+
+def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float):
+    """Where the sample lines of pairs' sites cross the pairs' faces: (slot = site * K + sample,
+    height, back-facing), in the order of the pairs. rel (p, 3, 3): the faces' corners about their
+    site; si (p,): the site; key, by_u: the samples sorted by site, then u (``heights``)."""
+    K = uv.shape[1]
     x = np.einsum("pvj,pj->pv", rel, t1[si])
     y = np.einsum("pvj,pj->pv", rel, t2[si])
     z = np.einsum("pvj,pj->pv", rel, normal[si])
     det = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
     ok = np.abs(det) > 1e-30
     si, x, y, z, det = si[ok], x[ok], y[ok], z[ok], det[ok]
-    P = len(si)
-    pk = np.repeat(np.arange(P), K)
-    kk = np.tile(np.arange(K), P)
+    # candidates: the samples whose u is within the face's u range (widened far beyond the
+    # tolerance below, so that no crossing is missed)
+    lo_u = np.minimum(np.minimum(x[:, 0], x[:, 1]), x[:, 2])
+    hi_u = np.maximum(np.maximum(x[:, 0], x[:, 1]), x[:, 2])
+    margin = 1e-6 * (hi_u - lo_u) + 1e-9 * reach + 1e-14 * (si + 1) * band  # (+ the keys' rounding)
+    lo = np.searchsorted(key, si * band + lo_u - margin, "left")
+    n = np.searchsorted(key, si * band + hi_u + margin, "right") - lo
+    pk = np.repeat(np.arange(len(si)), n)
+    kk = by_u[np.arange(len(pk)) - np.repeat(np.cumsum(n) - n - lo, n)] % K
     qu, qv = uv[si[pk], kk, 0], uv[si[pk], kk, 1]
     dx, dy = qu - x[pk, 0], qv - y[pk, 0]
     l1 = (dx * (y[pk, 2] - y[pk, 0]) - dy * (x[pk, 2] - x[pk, 0])) / det[pk]
@@ -93,16 +138,4 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)
     pk, kk = pk[inside], kk[inside]
     h = l0[inside] * z[pk, 0] + l1[inside] * z[pk, 1] + l2[inside] * z[pk, 2]
-    slot = si[pk] * K + kk
-    if len(slot) == 0:
-        return out
-    # a line may cross the surface more than once (folds, thin parts, coarse levels of detail):
-    # take the crossing nearest an expected height, a front-facing one (face normal along the
-    # site normal) before a back-facing one at the same distance (copies whose faces were flipped)
-    back = det[pk] < 0
-    e = expect.reshape(S * K, 2)[slot]
-    order = np.lexsort((back, np.minimum(np.abs(h - e[:, 0]), np.abs(h - e[:, 1])), slot))
-    slot, h = slot[order], h[order]
-    first = np.r_[True, slot[1:] != slot[:-1]]
-    out.ravel()[slot[first]] = h[first]
-    return out
+    return si[pk] * K + kk, h, det[pk] < 0

@@ -47,12 +47,7 @@ def _sample_heights(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bo
     shift = s.amplitude * profile(sm.u, sm.v, s.radius)
     expect = np.stack([sm.h + shift, sm.h - shift], axis=2)  # the two possible marked heights
     reach = (OUTER + 0.3) * s.radius
-    H = np.full(sm.mask.shape, np.nan)
-    step = max(1, 4096 // max(sm.mask.shape[1], 1))  # bounds the (site, face, sample) table
-    for a in range(0, len(P), step):
-        b = slice(a, a + step)
-        H[b] = heights(X, F, P[b], N[b], t1[b], t2[b], uv[b], reach, expect=expect[b])
-    return H
+    return heights(X, F, P, N, t1, t2, uv, reach, expect=expect)
 
 
 def _centre_heights(X: np.ndarray, P: np.ndarray, N: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:

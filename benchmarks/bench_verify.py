@@ -1,0 +1,202 @@
+"""Speed of ``pmwm.verify`` (the call, not reading the files) on the cases of issue 13, against an
+older commit run side by side.
+
+Run: python benchmarks/bench_verify.py [--repeat 3] [--rounds 2] [--baseline REV]
+(meshes from $PMWM_TEST_DATA or ../shared/data beside the checkout). Writes the "verify-speed"
+section of BENCHMARKS.md.
+
+Cases, on the bunny and igea, marked by the robust scheme (payload "bench", seed 1): the marked
+mesh; a re-ordered copy; a copy cut in half by a plane, then rotated, scaled and moved; a copy
+simplified by 50 %; the unmarked mesh read with a key made for the other mesh (registration finds
+no fit: every start is tried), and with a key for this mesh made with another secret. Then the
+paper scheme on a re-ordered copy (carriers found by position) and Cho et al. I (no spatial search).
+
+Every case is timed by two child processes, one importing this checkout's ``core``, one importing
+``core`` of ``--baseline`` (extracted with ``git archive``); the two alternate for ``--rounds``
+rounds of ``--repeat`` calls each, and the table gives the median of all calls. The verdicts of
+both are compared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pickle
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import ROOT, command, commit, load, machine, write_section  # noqa: E402
+
+MODELS = ("bunny", "igea")  # names in the catalogue, pmwm_bench.models
+BASELINE = "88eb246"  # the last commit with brute-force spatial search
+CASES = ("marked", "re-ordered", "cut in half, posed", "simplified 50 %", "unmarked, other mesh's key",
+         "unmarked, other secret", "paper: re-ordered", "cho1: marked")
+TARGET = 0.5  # seconds, issue 13
+
+
+def build_cases(path: Path) -> None:
+    """Embed and attack every model once (this checkout's code) and pickle the suspects and keys."""
+    import pmwm
+    from pmwm import attacks
+
+    meshes = {m: load(m) for m in MODELS}
+    keys, cases = {}, {}
+    for m, (V, F) in meshes.items():
+        res = pmwm.embed(V, F, pmwm.EmbedOptions(payload="bench", seed=1))
+        keys[m] = res.key
+        MV, MF = res.vertices, res.faces
+        other = pmwm.embed(V, F, pmwm.EmbedOptions(payload="bench", seed=2)).key
+        paper = pmwm.embed(V, F, pmwm.EmbedOptions(payload="bench", seed=1, scheme="paper"))
+        cho = pmwm.embed(V, F, pmwm.EmbedOptions(payload="bench", seed=1, scheme="cho1"))
+        cases[m] = {
+            "marked": (MV, MF, res.key),
+            "re-ordered": (*attacks.reorder(MV, MF, seed=1), res.key),
+            "cut in half, posed": (*attacks.similarity(*attacks.crop_plane(MV, MF, 0.5, seed=2), seed=2),
+                                   res.key),
+            "simplified 50 %": (*attacks.simplify(MV, MF, ratio=0.5), res.key),
+            "unmarked, other secret": (V, F, other),
+            "paper: re-ordered": (*attacks.reorder(paper.vertices, paper.faces, seed=1), paper.key),
+            "cho1: marked": (cho.vertices, cho.faces, cho.key),
+        }
+    for m in MODELS:
+        other_mesh = [o for o in MODELS if o != m][0]
+        cases[m]["unmarked, other mesh's key"] = (*meshes[m], keys[other_mesh])
+    rows = [(m, c, *cases[m][c][:2], cases[m][c][2].to_json()) for m in MODELS for c in CASES]
+    with open(path, "wb") as f:
+        pickle.dump(rows, f)
+
+
+def child(cases_path: str, out_path: str, repeat: int) -> None:
+    """Time every case ``repeat`` times with the ``pmwm`` on sys.path; write JSON."""
+    import numpy as np
+
+    import pmwm
+
+    with open(cases_path, "rb") as f:
+        rows = pickle.load(f)
+    out = []
+    for m, case, V, F, key_json in rows:
+        key = pmwm.WatermarkKey.from_json(key_json)
+        times, cpu = [], []
+        for _ in range(repeat):
+            t, c = time.perf_counter(), time.process_time()
+            v = pmwm.verify(V, F, key)
+            times.append(time.perf_counter() - t)
+            cpu.append(time.process_time() - c)
+        extra = v.extra if isinstance(v.extra, dict) else {}
+        out.append(dict(model=m, case=case, times=times, cpu=cpu, marked=bool(v.marked),
+                        bit_errors=int(v.bit_errors), p_value=float(v.p_value), mode=v.mode,
+                        n_vertices=int(len(V)), registration=str(extra.get("registration", "")),
+                        pmwm=str(Path(pmwm.__file__).parent), numpy=np.__version__))
+    with open(out_path, "w") as f:
+        json.dump(out, f)
+
+
+def run_child(core: Path, cases_path: Path, out_path: Path, repeat: int) -> list[dict]:
+    env = dict(os.environ, PYTHONPATH=str(core), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    subprocess.run([sys.executable, __file__, "--child", str(cases_path), str(out_path), str(repeat)],
+                   check=True, env=env, cwd=str(ROOT))
+    with open(out_path) as f:
+        return json.load(f)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeat", type=int, default=3, help="calls per case per round (default 3)")
+    ap.add_argument("--rounds", type=int, default=2, help="alternating rounds new/old (default 2)")
+    ap.add_argument("--baseline", default=BASELINE,
+                    help=f"commit to compare with (default {BASELINE}); '' for none")
+    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child:
+        child(a.child[0], a.child[1], int(a.child[2]))
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        build_cases(tmp / "cases.pkl")
+        cores = {"new": ROOT / "core"}
+        if a.baseline:
+            archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.baseline, "core"], check=True,
+                                     capture_output=True).stdout
+            subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive, check=True)
+            (tmp / "old").mkdir()
+            (tmp / "core").rename(tmp / "old" / "core")
+            cores["old"] = tmp / "old" / "core"
+        runs: dict[str, list[list[dict]]] = {k: [] for k in cores}
+        for r in range(a.rounds):
+            for label, core in cores.items():
+                runs[label].append(run_child(core, tmp / "cases.pkl", tmp / f"{label}{r}.json", a.repeat))
+                print(f"round {r + 1}: {label} done", flush=True)
+    report(runs, a)
+
+
+def report(runs: dict[str, list[list[dict]]], a) -> None:
+    def merged(label):
+        rows = {}
+        for run in runs[label]:
+            for x in run:
+                row = rows.setdefault((x["model"], x["case"]), dict(x, times=[], cpu=[]))
+                row["times"] += x["times"]
+                row["cpu"] += x["cpu"]
+        return rows
+
+    new = merged("new")
+    old = merged("old") if "old" in runs else {}
+    n_calls = a.repeat * a.rounds
+    lines = [
+        "## Verify speed (issue 13): spatial search by KD-tree",
+        "",
+        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
+        f"`pmwm.verify` alone (the meshes and keys already in memory), median of {n_calls} calls in "
+        f"{a.rounds} rounds that alternate with the baseline"
+        + (f" (commit {a.baseline}: brute-force nearest-point and radius queries, one start at a time)"
+           if old else "") + "; one thread (OMP_NUM_THREADS=1). Wall-clock time and CPU time of the "
+        "process: the machine is shared (2 cores, other jobs running), so the wall-clock figures include "
+        "waiting for a core; the CPU time is what the call costs on an idle machine (one thread).",
+        "",
+        "| mesh | case | suspect vertices | verdict | bit errors | read | "
+        + ("baseline wall / CPU | " if old else "") + "now wall / CPU | "
+        + ("speed-up (CPU) |" if old else ""),
+        "|---|---|---|---|---|---|---|" + ("---|---|" if old else ""),
+    ]
+    changed = []
+    for (m, case), x in new.items():
+        t, c = statistics.median(x["times"]), statistics.median(x["cpu"])
+        how = x["mode"] + (f", {x['registration']}" if x["registration"] else "")
+        row = (f"| {m} | {case} | {x['n_vertices']:,} | {'marked' if x['marked'] else 'not marked'} | "
+               f"{x['bit_errors']} | {how} | ")
+        if old:
+            o = old[(m, case)]
+            to, co = statistics.median(o["times"]), statistics.median(o["cpu"])
+            row += f"{to:.3f} / {co:.3f} s | {t:.3f} / {c:.3f} s | {co / c:.1f}x |"
+            if (o["marked"], o["bit_errors"], o["mode"]) != (x["marked"], x["bit_errors"], x["mode"]):
+                changed.append(f"{m} / {case}: baseline {o['marked']}, {o['bit_errors']} errors, {o['mode']}")
+        else:
+            row += f"{t:.3f} / {c:.3f} s |"
+        lines.append(row)
+    robust = [x for (m, c), x in new.items() if not c.startswith(("paper", "cho"))]
+    def over(key):
+        return [f"{x['model']} / {x['case']} ({statistics.median(x[key]):.2f} s)" for x in robust
+                if statistics.median(x[key]) >= TARGET]
+
+    lines += [
+        "",
+        f"Target of issue 13, every robust case under {TARGET} s: in CPU time "
+        + ("met" if not over("cpu") else "not met for " + "; ".join(over("cpu")))
+        + "; in wall-clock time on the loaded machine "
+        + ("met." if not over("times") else "not met for " + "; ".join(over("times")) + "."),
+        "Verdicts and bit errors "
+        + ("identical to the baseline's in every case." if old and not changed else
+           ("changed: " + "; ".join(changed) + ".") if changed else "(no baseline run)."),
+    ]
+    write_section("verify-speed", "\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
