@@ -32,6 +32,8 @@ Progress = Optional[Callable[[float, str], None]]
 MAX_FAN = 64  # faces around v at a split: the mask is 64 bits
 FLAG_SINGLE = 1  # the split adds one face (boundary collapse)
 FLAG_SECOND = 2  # ... and that face is the one holding the half-edge v -> u
+_NEXT = np.array([1, 2, 0])  # the next corner of a face
+_PREV = np.array([2, 0, 1])
 
 
 @dataclass
@@ -83,82 +85,104 @@ class ProgressiveMesh:
 
 
 def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Apply the first k records to the base mesh; vectorised per level."""
+    """Apply the first k records to the base mesh; vectorised per level.
+
+    Each level finds its records' faces with one gather over the faces so far (a slot table
+    indexed by vertex) and works in 32-bit indices when they fit. Keeping per-vertex corner
+    lists instead (touching only the faces around the records) measured slower in numpy:
+    the scan is a quarter of the time, the per-face work the rest.
+    """
     nb = pm.n_base_vertices
     n_new_faces = 2 - (pm.flags[:k] & FLAG_SINGLE).astype(np.int64)
     nf_total = len(pm.base_faces) + int(n_new_faces.sum())
+    it = np.int32 if max(nb + k, 3 * nf_total) < 2**31 - 1 else np.int64
     V = np.empty((nb + k, 3), dtype=np.float64)
     V[:nb] = pm.base_vertices
     V[nb:] = pm.pos[:k]
-    F = np.empty((nf_total, 3), dtype=np.int64)
+    F = np.empty((nf_total, 3), dtype=it)
     nf = len(pm.base_faces)
     F[:nf] = pm.base_faces
     bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k])
-    slot = np.full(nb + k, -1, dtype=np.int64)  # scratch tables, reset after each level
-    tag = np.full(nb + k, -1, dtype=np.int64)
+    slot16 = np.full(nb + k, 65535, dtype=np.uint16)  # scratch tables, reset after each level
+    slot = np.full(nb + k, -1, dtype=it)
+    tag = np.full(nb + k, -1, dtype=it)
+    v_all = pm.v[:k].astype(it)
     for a, b in zip(bounds[:-1], bounds[1:]):
-        nf = _split_chunk(pm, F, nf, nb + a, a, b, slot, tag)
-    return V, F
+        nf = _split_chunk(pm, v_all, F, nf, nb + a, a, b, slot16, slot, tag)
+    return V, F.astype(np.int64)
 
 
-def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b: int,
-                 slot: np.ndarray, tag: np.ndarray) -> int:
+def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int, nv: int, a: int, b: int,
+                 slot16: np.ndarray, slot: np.ndarray, tag: np.ndarray) -> int:
     """Apply independent records a..b-1 (one level or a prefix of it) in place; returns the face count.
 
-    ``slot`` and ``tag`` are all -1 on entry and are left so.
+    ``slot16`` (all 65535), ``slot`` and ``tag`` (all -1) are scratch tables, left as they were.
     """
+    take = np.take
+    it = F.dtype
     cnt = b - a
-    u = nv + np.arange(cnt, dtype=np.int64)
-    v = pm.v[a:b]
+    u = np.arange(nv, nv + cnt, dtype=it)
+    v = v_all[a:b]
     mask = pm.mask[a:b]
     flags = pm.flags[a:b]
-    slot[v] = np.arange(cnt)
-    flat = F[:nf].reshape(-1)
-    s = slot[flat]
-    slot[v] = -1
-    hit = np.flatnonzero(s >= 0)
-    rec = s[hit]
-    # group the hits by record, keeping face order (radix sort when records fit 16 bits)
-    order = np.argsort(rec.astype(np.uint16) if cnt < 65536 else rec, kind="stable")
-    hit = hit[order]
-    rec = rec[order]
-    starts = np.searchsorted(rec, np.arange(cnt))
-    rank = np.arange(len(rec)) - starts[rec]
-    if np.any(rank >= MAX_FAN):
+    flat = F.reshape(-1)
+    if cnt < 65535:  # a 16-bit slot table: the scan moves less memory, the sort is a radix sort
+        slot16[v] = np.arange(cnt, dtype=np.uint16)
+        s = take(slot16, flat[: 3 * nf])
+        slot16[v] = 65535
+        hit = np.flatnonzero(s != 65535)
+        rec16 = take(s, hit)
+        order = np.argsort(rec16, kind="stable")
+        rec = take(rec16, order).astype(it)
+    else:
+        slot[v] = np.arange(cnt, dtype=it)
+        s = take(slot, flat[: 3 * nf])
+        slot[v] = -1
+        hit = np.flatnonzero(s >= 0)
+        rec = take(s, hit)
+        order = np.argsort(rec, kind="stable")
+        rec = take(rec, order)
+    # the hits grouped by record, in face order; each record's rank among its faces
+    hit = take(hit, order)
+    size = np.bincount(rec, minlength=cnt)
+    starts = np.cumsum(size) - size
+    rank = np.arange(len(rec)) - take(starts, rec)
+    if len(rank) and rank.max() >= MAX_FAN:
         rank = np.minimum(rank, MAX_FAN - 1)  # only in corrupt data; the checksum guards files
-    sel = ((mask[rec] >> rank.astype(np.uint64)) & np.uint64(1)).astype(bool)
-    hit = hit[sel]
-    rec = rec[sel]
-    flat[hit] = u[rec]
-    face = hit // 3
+    sel = np.flatnonzero(((take(mask, rec) >> rank.astype(np.uint64)) & np.uint64(1)).astype(bool))
+    hit = take(hit, sel)
+    rec = take(rec, sel)
+    flat[hit] = take(u, rec)
     corner = hit % 3
-    nxt = F[face, (corner + 1) % 3]
-    prv = F[face, (corner + 2) % 3]
+    base = hit - corner
+    nxt = take(flat, base + take(_NEXT, corner))
+    prv = take(flat, base + take(_PREV, corner))
     # ends of the arc: p is a "next" vertex that is no "previous" of the same record, q the
     # reverse; the records' rings are disjoint, so one tag table serves them all
     tag[prv] = rec
-    pm_ = tag[nxt] != rec
+    pe = np.flatnonzero(take(tag, nxt) != rec)
     tag[prv] = -1
     tag[nxt] = rec
-    qm_ = tag[prv] != rec
+    qe = np.flatnonzero(take(tag, prv) != rec)
     tag[nxt] = -1
-    p = np.zeros(cnt, dtype=np.int64)
-    q = np.zeros(cnt, dtype=np.int64)
-    p[rec[pm_]] = nxt[pm_]
-    q[rec[qm_]] = prv[qm_]
+    p = np.zeros(cnt, dtype=it)
+    q = np.zeros(cnt, dtype=it)
+    p[take(rec, pe)] = take(nxt, pe)
+    q[take(rec, qe)] = take(prv, qe)
     single = (flags & FLAG_SINGLE).astype(bool)
     second = (flags & FLAG_SECOND).astype(bool)
-    f1 = np.stack([u, v, p], axis=1)
-    f2 = np.stack([u, q, v], axis=1)
     has1 = ~single | ~second
-    has2 = ~single | second
-    new = np.empty((cnt, 2, 3), dtype=np.int64)
-    new[:, 0] = np.where(has1[:, None], f1, f2)
-    new[:, 1] = f2
-    keep = np.stack([np.ones(cnt, bool), has1 & has2], axis=1)
-    new = new[keep]
-    F[nf : nf + len(new)] = new
-    return nf + len(new)
+    two = has1 & (~single | second)
+    # each record adds [u, v, p] (or [u, q, v] when that is its only face), then [u, q, v]
+    rows = nf + np.cumsum(two) - two + np.arange(cnt)
+    F[rows, 0] = u
+    F[rows, 1] = np.where(has1, v, q)
+    F[rows, 2] = np.where(has1, p, v)
+    r2 = rows[two] + 1
+    F[r2, 0] = u[two]
+    F[r2, 1] = q[two]
+    F[r2, 2] = v[two]
+    return nf + cnt + int(two.sum())
 
 
 # --------------------------------------------------------------------------- encoding
@@ -297,8 +321,6 @@ class _Live:
         return self.F[self.F[:, 0] < n]
 
 
-_NEXT = np.array([1, 2, 0])
-_PREV = np.array([2, 0, 1])
 
 
 _CHUNK = 1 << 15  # corners per block of quadric work (its temporaries stay in cache)
