@@ -283,6 +283,7 @@ class _Ctx:
     V: np.ndarray  # (n, 3)
     VT: np.ndarray  # (3, n)
     QT: np.ndarray  # (10, n) vertex quadrics (transposed: gathers stay contiguous); v absorbs u
+    E: np.ndarray  # (n,) each vertex's own error Q_v(V_v)
     go: np.ndarray  # (n,) bool: may be removed
     locked: np.ndarray  # (n,) bool: may not absorb (non-manifold, isolated)
     bvert: np.ndarray  # (n,) bool: on the boundary (stays so: collapses keep the boundary)
@@ -336,15 +337,14 @@ def _update_costs(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
 
 
 def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
+    # cost of a -> b: (Q_a + Q_b)(V_b) = Q_a(V_b) + E_b, with E_b = Q_b(V_b) kept per vertex
     take = np.take
     Fl = live.F.ravel()
     a = take(Fl, corners)
     b = take(Fl, corners - corners % 3 + take(_NEXT, corners % 3))
-    qs = take(ctx.QT, a, axis=1)
-    qs += take(ctx.QT, b, axis=1)
     bnd = take(live.bnd.ravel(), corners)
     allowed = take(ctx.go, a) & ~take(ctx.locked, b) & (bnd == take(ctx.bvert, a))
-    into_b = _quadric_eval_t(qs, take(ctx.VT, b, axis=1))
+    into_b = _quadric_eval_t(take(ctx.QT, a, axis=1), take(ctx.VT, b, axis=1)) + take(ctx.E, b)
     into_b[~allowed] = np.inf
     live.cost.ravel()[corners] = into_b
     rc = live.rcost.ravel()
@@ -352,7 +352,7 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     on = np.flatnonzero(bnd)
     if len(on):
         a, b = a[on], b[on]
-        r = _quadric_eval_t(qs[:, on], take(ctx.VT, a, axis=1))
+        r = _quadric_eval_t(take(ctx.QT, b, axis=1), take(ctx.VT, a, axis=1)) + take(ctx.E, a)
         r[~(ctx.go[b] & ~ctx.locked[a])] = np.inf
         rc[corners[on]] = r
 
@@ -459,7 +459,7 @@ def build_progressive_mesh(
     QT[:, :n] = _vertex_quadrics(V, F0, bnd)
     VT = np.zeros((3, n + 1))
     VT[:, :n] = V.T
-    ctx = _Ctx(V=V, VT=VT, QT=QT, go=~locked & ~keep, locked=locked,
+    ctx = _Ctx(V=V, VT=VT, QT=QT, E=_quadric_eval_t(QT, VT), go=~locked & ~keep, locked=locked,
                bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
@@ -537,7 +537,7 @@ def _around(live: _Live, nn: int, wv, cu, ru, rows) -> tuple[np.ndarray, ...]:
     """
     F = live.F
     tag = np.full(nn, -1, np.int64)
-    tag[F[cu // 3]] = ru[:, None]
+    tag[np.take(F, cu // 3, axis=0)] = ru[:, None]
     c2, r2 = _corners_of(F, tag, rows)
     at_v = np.take(F.ravel(), c2) == np.take(wv, r2)
     return c2[at_v], r2[at_v], c2 // 3, r2, tag
@@ -608,7 +608,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         if ok.any():
             acc = ok[near_r]
             # block the 2-rings of the accepted u: every vertex of a face touching their 1-rings
-            best[F[near_f[acc]]] = np.inf
+            best[np.take(F, near_f[acc], axis=0)] = np.inf
             parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_f[acc]).subset(ok))
     return _Chosen.join(parts)
 
@@ -731,7 +731,9 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     live.cost[gone] = np.inf
     live.rcost[gone] = np.inf
     live.n_dead += len(gone)
-    ctx.QT[:, v] += ctx.QT[:, u]
+    for j in range(10):
+        ctx.QT[j, v] += ctx.QT[j, u]
+    ctx.E[v] = _quadric_eval_t(np.take(ctx.QT, v, axis=1), np.take(ctx.VT, v, axis=1))
     # costs change on the half-edges from and to v; failed candidates get another chance nearby
     at_v = F[all_f] == v[all_r][:, None]
     at_v |= at_v[:, [1, 2, 0]]  # corner j ends at v when corner j + 1 is at v
