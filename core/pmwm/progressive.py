@@ -466,7 +466,8 @@ def build_progressive_mesh(
                  rcost=np.empty((m, 3)), failed=np.zeros((m, 3), bool), rfailed=np.zeros((m, 3), bool))
     _update_costs(ctx, live, np.arange(3 * m))
 
-    alive = np.ones(n, bool)
+    alive = np.ones(n, bool)  # by input id
+    ids = np.arange(n, dtype=np.int64)  # input id of each local vertex (the arrays shrink as vertices go)
     n_alive = n
     target = max(int(base_vertices), 4)
     passes: list[_Pass] = []
@@ -479,10 +480,14 @@ def build_progressive_mesh(
         forced_phase = len(todo) > 0 and stalls < 4
         if not forced_phase and n_alive <= target:
             break
-        cnt = np.bincount(live.F.ravel(), minlength=n + 1)
+        nl = len(ids)  # local vertices; nl is the sink
+        cnt = np.bincount(live.F.ravel(), minlength=nl + 1)
         if forced_phase:
-            ch = _select_forced(ctx, live, cnt, forced_pairs[todo])
-            hit = np.isin(forced_pairs[todo, 0] * n + forced_pairs[todo, 1], ch.u * n + ch.v)
+            local = np.full(n, nl, np.int64)  # a removed vertex maps to the sink: no edge
+            local[ids] = np.arange(nl)
+            pairs = local[forced_pairs[todo]]
+            ch = _select_forced(ctx, live, cnt, pairs)
+            hit = np.isin(pairs[:, 0] * (nl + 1) + pairs[:, 1], ch.u * (nl + 1) + ch.v)
             forced_done[todo[hit]] = True
         else:
             ch = _select(ctx, live, cnt)
@@ -498,16 +503,35 @@ def build_progressive_mesh(
             if not forced_phase:
                 break
             continue
-        passes.append(_collapse(ctx, live, ch))
-        alive[ch.u] = False
-        n_alive -= len(ch.u)
+        p = _collapse(ctx, live, ch)
+        p.u, p.v = ids[p.u], ids[p.v]
+        passes.append(p)
+        alive[p.u] = False
+        n_alive -= len(p.u)
         if progress is not None:
             progress(min(1.0, (n - n_alive) / total), f"progressive mesh: {n_alive} vertices")
         if trace is not None:
-            trace.append(live.faces(n))
-    F_end = live.F[:, 0] < n
-    pm = _assemble(V, F0, live.F[F_end], live.fid[F_end], alive, passes)
+            trace.append(ids[live.faces(nl)])
+        if 2 * n_alive < nl:
+            ctx, ids = _compact(ctx, live, ids, alive[ids])
+    F_end = live.F[:, 0] < len(ids)
+    pm = _assemble(V, F0, ids[live.F[F_end]], live.fid[F_end], alive, passes)
     return pm, forced_done
+
+
+def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple[_Ctx, np.ndarray]:
+    """Renumber the live vertices 0..k-1 (sink k) so per-vertex work follows the shrinking mesh."""
+    nl = len(ids)
+    kept = np.flatnonzero(keep)
+    k = len(kept)
+    new_id = np.full(nl + 1, k, np.int64)
+    new_id[kept] = np.arange(k)
+    live.keep(live.F[:, 0] < nl)
+    live.n_dead = 0
+    live.F = new_id[live.F]
+    sel = np.r_[kept, nl]  # the old sink's entries (locked, zero quadric) serve the new sink
+    return _Ctx(V=ctx.V[kept], VT=ctx.VT[:, sel], QT=ctx.QT[:, sel], E=ctx.E[sel], go=ctx.go[sel],
+                locked=ctx.locked[sel], bvert=ctx.bvert[sel], area_eps=ctx.area_eps), ids[kept]
 
 
 _BUCKETS = 16
@@ -631,7 +655,10 @@ def _select_forced(ctx: _Ctx, live: _Live, cnt: np.ndarray, pairs: np.ndarray) -
         tag[wu] = np.arange(len(wu))
         cu, ru = _corners_of(F, tag)
         cv, rv, near_f, near_r, ring = _around(live, nn, wv, cu, ru, None)
-        if np.any(np.bincount(rv, minlength=len(wu)) == 0):
+        Fl = F.ravel()
+        fu, ju = cu // 3, cu % 3
+        edge = (Fl[fu * 3 + _NEXT[ju]] == wv[ru]) | (Fl[fu * 3 + _PREV[ju]] == wv[ru])
+        if np.any(np.bincount(ru[edge], minlength=len(wu)) == 0):
             raise MeshError("internal error: a forced collapse is not an edge of the mesh")
         ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=False)
         rank[wu[~ok]] = _BIG
