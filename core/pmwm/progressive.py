@@ -309,12 +309,12 @@ class _Live:
     bnd: np.ndarray  # (m, 3) bool: the half-edge is on the boundary
     cost: np.ndarray  # (m, 3) forward cost, inf where the vertex flags forbid it
     rcost: np.ndarray  # (m, 3) reverse cost, inf off the boundary or where forbidden
-    failed: np.ndarray  # (m, 3) bool: forward candidate found invalid (until its neighbourhood changes)
-    rfailed: np.ndarray  # (m, 3) bool: the same for the reverse candidate
+    failed: np.ndarray  # (m, 3) uint8: bit 1 forward, bit 2 reverse candidate found invalid (until
+    # its neighbourhood changes)
     n_dead: int = 0
 
     def keep(self, rows: np.ndarray) -> None:
-        for name in ("F", "fid", "bnd", "cost", "rcost", "failed", "rfailed"):
+        for name in ("F", "fid", "bnd", "cost", "rcost", "failed"):
             setattr(self, name, getattr(self, name)[rows])
 
     def faces(self, n: int) -> np.ndarray:
@@ -463,7 +463,7 @@ def build_progressive_mesh(
                bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
-                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), bool), rfailed=np.zeros((m, 3), bool))
+                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
     _update_costs(ctx, live, np.arange(3 * m))
 
     alive = np.ones(n, bool)  # by input id
@@ -540,8 +540,8 @@ _BIG = np.iinfo(np.int64).max
 
 def _best(ctx: _Ctx, live: _Live) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per vertex, the cost of its cheapest live candidate; and the live cost arrays."""
-    fwd = np.where(live.failed, np.inf, live.cost)
-    rev = np.where(live.rfailed, np.inf, live.rcost)
+    fwd = np.where(live.failed & 1, np.inf, live.cost)
+    rev = np.where(live.failed & 2, np.inf, live.rcost)
     best = np.full(len(ctx.go), np.inf)
     F = live.F
     for j in range(3):
@@ -621,8 +621,8 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=True)
         # failed candidates leave the running; their vertices try their next candidate
         bad = ~ok
-        live.failed.ravel()[pcorner[bad & ~rev_pick]] = True
-        live.rfailed.ravel()[pcorner[bad & rev_pick]] = True
+        live.failed.ravel()[pcorner[bad & ~rev_pick]] |= 1
+        live.failed.ravel()[pcorner[bad & rev_pick]] |= 2
         fwd.ravel()[pcorner[bad & ~rev_pick]] = np.inf
         rev.ravel()[pcorner[bad & rev_pick]] = np.inf
         best[wu[bad]] = np.inf
@@ -712,7 +712,7 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
         mv = ~has_v
         tri = np.take(live.F, fu[mv], axis=0)
         r = ru[mv]
-        p = ctx.V[tri]
+        p = np.take(ctx.V, tri, axis=0)
         before = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
         p[np.arange(len(tri)), ju[mv]] = ctx.V[v[r]]
         after = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
@@ -762,14 +762,12 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
         ctx.QT[j, v] += ctx.QT[j, u]
     ctx.E[v] = _quadric_eval_t(np.take(ctx.QT, v, axis=1), np.take(ctx.VT, v, axis=1))
     # costs change on the half-edges from and to v; failed candidates get another chance nearby
-    at_v = F[all_f] == v[all_r][:, None]
+    at_v = np.take(F, all_f, axis=0) == v[all_r][:, None]
     at_v |= at_v[:, [1, 2, 0]]  # corner j ends at v when corner j + 1 is at v
     rr, jj = np.nonzero(at_v)
     _update_costs(ctx, live, all_f[rr] * 3 + jj)
-    live.failed[ch.near] = False
-    live.rfailed[ch.near] = False
-    live.failed[fv] = False
-    live.rfailed[fv] = False
+    live.failed[ch.near] = 0
+    live.failed[fv] = 0
     if live.n_dead * 4 > len(F):
         live.keep(F[:, 0] < n)
         live.n_dead = 0
