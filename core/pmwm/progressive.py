@@ -7,6 +7,22 @@ pseudo-random order, Luby-style) is the best among all vertices within two rings
 so the closed 1-rings of the collapsed vertices are disjoint and the whole pass can
 be applied (and undone) at once with numpy. One pass is one level of detail.
 
+How it stays fast in numpy (issue 13): nothing is rebuilt per pass. The live faces
+carry their candidates per corner (corner j of face f: collapse F[f, j] into F[f, j+1],
+and the reverse on boundary half-edges) with their costs, recomputed only on the
+half-edges from and to each pass's survivors (cost of a -> b = Q_a(V_b) + E_b, E the
+vertices' own errors); the 2-ring minima come from face-wise minima, the corners of a
+vertex set from one gather over the faces in play; removed faces point to a sink vertex
+until a quarter of the rows are dead, and the vertices are renumbered whenever half of
+them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here).
+
+Why not a compiled dependency: numba 0.68.1 (with numpy 1.26.4, Python 3.11) ran the
+per-corner cost and 2-ring kernels of one igea pass 2.5-3x faster than these numpy
+passes, but costs 0.8-1.0 s to import and 0.8 s to load even two small cached kernels
+(2.3 s to compile them cold) in every CLI process, more than the whole PM budget, and
+its llvmlite wheels are 26-60 MB per platform and Python (about 375 MB for the eight
+wheels the Blender extension would carry). Numbers: BENCHMARKS.md, section pm-speed.
+
 Records. Refinement runs the passes backwards. Record r adds vertex
 ``n_base_vertices + r`` at ``pos[r]`` next to vertex ``v[r]``. ``mask[r]`` says which
 of v's faces (sorted by face index, at the moment of the split) go to the new
@@ -14,7 +30,8 @@ vertex; the new faces are derived from the ends of that arc of faces, so a recor
 costs 24 bytes (float32 position, v, 64-bit mask). ``flags[r]`` bit 0 marks a split
 that adds one face (on a boundary); bit 1 says which of the two possible faces.
 Any prefix of the records is a valid mesh, and all records give back exactly the
-input mesh (vertex order: ``vertex_order``; face order: ``face_order``).
+input mesh (vertex order: ``vertex_order``; face order: ``face_order``). The record
+format is unchanged from .pmwm version 1.
 """
 
 from __future__ import annotations
@@ -282,6 +299,7 @@ class _Ctx:
 
     V: np.ndarray  # (n, 3)
     VT: np.ndarray  # (3, n)
+    order: np.ndarray  # (n,) int64: a fixed permutation, the tiebreak of equal cost buckets
     QT: np.ndarray  # (10, n) vertex quadrics (transposed: gathers stay contiguous); v absorbs u
     E: np.ndarray  # (n,) each vertex's own error Q_v(V_v)
     go: np.ndarray  # (n,) bool: may be removed
@@ -381,10 +399,8 @@ def _ring_min(F: np.ndarray, val: np.ndarray) -> np.ndarray:
     return out
 
 
-def _hash(ids: np.ndarray, salt: int) -> np.ndarray:
-    """A fixed pseudo-random bijection of 32-bit ids (deterministic, seeded by the round)."""
-    h = (ids.astype(np.uint64) * np.uint64(0x9E3779B1) + np.uint64((salt * 0x7F4A7C15) & 0xFFFFFFFF))
-    return (h & np.uint64(0xFFFFFFFF)).astype(np.int64)
+# per round, a constant XOR-ed into the tiebreak (a bijection of 32-bit values: ties stay impossible)
+_SALTS = np.array([0, 0x5BD1E995, 0x2545F491, 0x7FEB352D, 0x68E31DA4, 0x1B873593, 0x3C6EF372, 0x6A09E667])
 
 
 @dataclass
@@ -459,7 +475,7 @@ def build_progressive_mesh(
     QT[:, :n] = _vertex_quadrics(V, F0, bnd)
     VT = np.zeros((3, n + 1))
     VT[:, :n] = V.T
-    ctx = _Ctx(V=V, VT=VT, QT=QT, E=_quadric_eval_t(QT, VT), go=~locked & ~keep, locked=locked,
+    ctx = _Ctx(V=V, VT=VT, order=np.r_[np.random.default_rng(n).permutation(n), n], QT=QT, E=_quadric_eval_t(QT, VT), go=~locked & ~keep, locked=locked,
                bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
@@ -530,7 +546,7 @@ def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple
     live.n_dead = 0
     live.F = new_id[live.F]
     sel = np.r_[kept, nl]  # the old sink's entries (locked, zero quadric) serve the new sink
-    return _Ctx(V=ctx.V[kept], VT=ctx.VT[:, sel], QT=ctx.QT[:, sel], E=ctx.E[sel], go=ctx.go[sel],
+    return _Ctx(V=ctx.V[kept], VT=ctx.VT[:, sel], order=ctx.order[sel], QT=ctx.QT[:, sel], E=ctx.E[sel], go=ctx.go[sel],
                 locked=ctx.locked[sel], bvert=ctx.bvert[sel], area_eps=ctx.area_eps), ids[kept]
 
 
@@ -583,7 +599,8 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
     fin = best[np.isfinite(best)]
     if len(fin) == 0:
         return _Chosen.join([])
-    thr = np.quantile(fin, np.arange(1, _BUCKETS) / _BUCKETS)
+    step = max(1, len(fin) // 20000)  # bucket bounds from a fixed subsample: they need not be exact
+    thr = np.quantile(fin[::step], np.arange(1, _BUCKETS) / _BUCKETS)
     parts: list[_Chosen] = []
     rows = np.arange(len(F))  # faces in play
     for r in range(64):
@@ -600,7 +617,8 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
             rows = rows[_any3(np.take(in_play, Fr))]
             Fr = np.take(F, rows, axis=0)
         val = np.full(nn, _BIG, np.int64)
-        val[bu] = (np.searchsorted(thr, best[bu], side="right").astype(np.int64) << 32) | _hash(bu, r)
+        bucket = np.searchsorted(thr, np.take(best, bu), side="right").astype(np.int64)
+        val[bu] = (bucket << 32) | (np.take(ctx.order, bu) ^ _SALTS[r % len(_SALTS)])
         m2 = _ring_min(Fr, _ring_min(Fr, val))
         wu = bu[val[bu] == m2[bu]]
         # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
