@@ -206,38 +206,24 @@ def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int,
 
 
 def _face_quadrics(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted plane quadrics of the faces as 10 coefficients, and unit normals."""
-    p0, p1, p2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    cr = np.cross(p1 - p0, p2 - p0)
-    area2 = np.linalg.norm(cr, axis=1)
+    """Area-weighted plane quadrics of the faces as (10, m) coefficients, and (m, 3) unit normals."""
+    p0 = np.take(V, F[:, 0], axis=0)
+    cr = np.cross(np.take(V, F[:, 1], axis=0) - p0, np.take(V, F[:, 2], axis=0) - p0)
+    area2 = np.sqrt(np.einsum("ij,ij->i", cr, cr))
     n = cr / np.maximum(area2, 1e-300)[:, None]
     d = -np.einsum("ij,ij->i", n, p0)
     return _plane_quadric(n, d, 0.5 * area2), n
 
 
 def _plane_quadric(n: np.ndarray, d: np.ndarray, w: np.ndarray) -> np.ndarray:
-    a, b, c = n[:, 0], n[:, 1], n[:, 2]
-    return w[:, None] * np.stack([a * a, a * b, a * c, a * d, b * b, b * c, b * d, c * c, c * d, d * d], axis=1)
-
-
-def _quadric_eval(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
-    x, y, z = p[:, 0], p[:, 1], p[:, 2]
-    return (
-        Q[:, 0] * x * x
-        + 2 * Q[:, 1] * x * y
-        + 2 * Q[:, 2] * x * z
-        + 2 * Q[:, 3] * x
-        + Q[:, 4] * y * y
-        + 2 * Q[:, 5] * y * z
-        + 2 * Q[:, 6] * y
-        + Q[:, 7] * z * z
-        + 2 * Q[:, 8] * z
-        + Q[:, 9]
-    )
+    """(10, k) coefficients of the planes n . x + d = 0 weighted by w."""
+    a, b, c = (np.ascontiguousarray(x) for x in n.T)
+    wa, wb, wc = w * a, w * b, w * c
+    return np.stack([wa * a, wa * b, wa * c, wa * d, wb * b, wb * c, wb * d, wc * c, wc * d, w * d * d])
 
 
 def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """``_quadric_eval`` on transposed data: Q (10, k), p (3, k)."""
+    """Quadric error Q(p) of quadrics Q (10, k) (upper triangle of the 4x4 matrix) at points p (3, k)."""
     x, y, z = p
     return (
         (Q[0] * x + 2 * (Q[1] * y + Q[2] * z + Q[3])) * x
@@ -248,16 +234,16 @@ def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def _vertex_quadrics(V: np.ndarray, F: np.ndarray, bnd: np.ndarray) -> np.ndarray:
-    """Sum of face quadrics per vertex, plus boundary-edge constraint planes; (10, n).
+    """Sum of face quadrics per vertex, plus boundary-edge constraint planes; (n, 10).
 
     ``bnd`` (m, 3) bool marks the boundary half-edges F[f, j] -> F[f, j+1].
     """
     n = len(V)
     Qf, normals = _face_quadrics(V, F)
-    QT = np.zeros((10, n))
+    QT = np.empty((10, n))
+    idx = F.T.ravel()  # corner by corner: the face's weights repeat three times
     for j in range(10):
-        for c in range(3):
-            QT[j] += np.bincount(F[:, c], weights=Qf[:, j], minlength=n)
+        QT[j] = np.bincount(idx, weights=np.tile(Qf[j], 3), minlength=n)
     fb, jb = np.nonzero(bnd)
     if len(fb):
         e0, e1 = F[fb, jb], F[fb, _NEXT[jb]]
@@ -268,8 +254,8 @@ def _vertex_quadrics(V: np.ndarray, F: np.ndarray, bnd: np.ndarray) -> np.ndarra
         d = -np.einsum("ij,ij->i", pn, V[e0])
         Qb = _plane_quadric(pn, d, 10.0 * np.einsum("ij,ij->i", ev, ev))
         for j in range(10):
-            QT[j] += np.bincount(e0, weights=Qb[:, j], minlength=n) + np.bincount(e1, weights=Qb[:, j], minlength=n)
-    return QT
+            QT[j] += np.bincount(e0, weights=Qb[j], minlength=n) + np.bincount(e1, weights=Qb[j], minlength=n)
+    return np.ascontiguousarray(QT.T)
 
 
 def _boundary_half_edges(F: np.ndarray, adj: Adjacency) -> np.ndarray:
@@ -297,10 +283,9 @@ class _Pass:
 class _Ctx:
     """What stays fixed while encoding: geometry, quadrics (updated in place) and vertex flags."""
 
-    V: np.ndarray  # (n, 3)
-    VT: np.ndarray  # (3, n)
+    V: np.ndarray  # (n + 1, 3) positions (the last row: the sink)
     order: np.ndarray  # (n,) int64: a fixed permutation, the tiebreak of equal cost buckets
-    QT: np.ndarray  # (10, n) vertex quadrics (transposed: gathers stay contiguous); v absorbs u
+    Q: np.ndarray  # (n + 1, 10) vertex quadrics (a row per vertex: one gather is one cache line); v absorbs u
     E: np.ndarray  # (n,) each vertex's own error Q_v(V_v)
     go: np.ndarray  # (n,) bool: may be removed
     locked: np.ndarray  # (n,) bool: may not absorb (non-manifold, isolated)
@@ -362,7 +347,7 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     b = take(Fl, corners - corners % 3 + take(_NEXT, corners % 3))
     bnd = take(live.bnd.ravel(), corners)
     allowed = take(ctx.go, a) & ~take(ctx.locked, b) & (bnd == take(ctx.bvert, a))
-    into_b = _quadric_eval_t(take(ctx.QT, a, axis=1), take(ctx.VT, b, axis=1)) + take(ctx.E, b)
+    into_b = _quadric_eval_t(take(ctx.Q, a, axis=0).T, take(ctx.V, b, axis=0).T) + take(ctx.E, b)
     into_b[~allowed] = np.inf
     live.cost.ravel()[corners] = into_b
     rc = live.rcost.ravel()
@@ -370,7 +355,7 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     on = np.flatnonzero(bnd)
     if len(on):
         a, b = a[on], b[on]
-        r = _quadric_eval_t(take(ctx.QT, b, axis=1), take(ctx.VT, a, axis=1)) + take(ctx.E, a)
+        r = _quadric_eval_t(take(ctx.Q, b, axis=0).T, take(ctx.V, a, axis=0).T) + take(ctx.E, a)
         r[~(ctx.go[b] & ~ctx.locked[a])] = np.inf
         rc[corners[on]] = r
 
@@ -471,12 +456,12 @@ def build_progressive_mesh(
         keep[:n] = np.asarray(protected, bool)
     bbox = float(np.linalg.norm(V.max(0) - V.min(0))) if n else 1.0
     bnd = _boundary_half_edges(F0, adj0)
-    QT = np.zeros((10, n + 1))
-    QT[:, :n] = _vertex_quadrics(V, F0, bnd)
-    VT = np.zeros((3, n + 1))
-    VT[:, :n] = V.T
-    ctx = _Ctx(V=V, VT=VT, order=np.r_[np.random.default_rng(n).permutation(n), n], QT=QT, E=_quadric_eval_t(QT, VT), go=~locked & ~keep, locked=locked,
-               bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
+    Q = np.zeros((n + 1, 10))
+    Q[:n] = _vertex_quadrics(V, F0, bnd)
+    Vs = np.zeros((n + 1, 3))
+    Vs[:n] = V
+    ctx = _Ctx(V=Vs, order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
+               go=~locked & ~keep, locked=locked, bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
                  rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
@@ -509,8 +494,8 @@ def build_progressive_mesh(
             ch = _select(ctx, live, cnt)
             room = n_alive - target
             if len(ch.u) > room:
-                qs = ctx.QT[:, ch.u] + ctx.QT[:, ch.v]
-                first = np.argsort(_quadric_eval_t(qs, ctx.VT[:, ch.v]), kind="stable")[:room]
+                qs = ctx.Q[ch.u] + ctx.Q[ch.v]
+                first = np.argsort(_quadric_eval_t(qs.T, ctx.V[ch.v].T), kind="stable")[:room]
                 keep_rec = np.zeros(len(ch.u), bool)
                 keep_rec[first] = True
                 ch = ch.subset(keep_rec)
@@ -546,7 +531,7 @@ def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple
     live.n_dead = 0
     live.F = new_id[live.F]
     sel = np.r_[kept, nl]  # the old sink's entries (locked, zero quadric) serve the new sink
-    return _Ctx(V=ctx.V[kept], VT=ctx.VT[:, sel], order=ctx.order[sel], QT=ctx.QT[:, sel], E=ctx.E[sel], go=ctx.go[sel],
+    return _Ctx(V=ctx.V[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
                 locked=ctx.locked[sel], bvert=ctx.bvert[sel], area_eps=ctx.area_eps), ids[kept]
 
 
@@ -776,9 +761,8 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     live.cost[gone] = np.inf
     live.rcost[gone] = np.inf
     live.n_dead += len(gone)
-    for j in range(10):
-        ctx.QT[j, v] += ctx.QT[j, u]
-    ctx.E[v] = _quadric_eval_t(np.take(ctx.QT, v, axis=1), np.take(ctx.VT, v, axis=1))
+    ctx.Q[v] += ctx.Q[u]
+    ctx.E[v] = _quadric_eval_t(ctx.Q[v].T, ctx.V[v].T)
     # costs change on the half-edges from and to v; failed candidates get another chance nearby
     at_v = np.take(F, all_f, axis=0) == v[all_r][:, None]
     at_v |= at_v[:, [1, 2, 0]]  # corner j ends at v when corner j + 1 is at v
