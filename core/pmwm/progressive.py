@@ -120,7 +120,7 @@ def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
     nf = len(pm.base_faces)
     F[:nf] = pm.base_faces
     bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k])
-    slot16 = np.full(nb + k, 65535, dtype=np.uint16)  # scratch tables, reset after each level
+    slot16 = np.zeros(nb + k, dtype=np.uint16)  # scratch tables, reset after each level
     slot = np.full(nb + k, -1, dtype=it)
     tag = np.full(nb + k, -1, dtype=it)
     v_all = pm.v[:k].astype(it)
@@ -133,7 +133,7 @@ def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int,
                  slot16: np.ndarray, slot: np.ndarray, tag: np.ndarray) -> int:
     """Apply independent records a..b-1 (one level or a prefix of it) in place; returns the face count.
 
-    ``slot16`` (all 65535), ``slot`` and ``tag`` (all -1) are scratch tables, left as they were.
+    ``slot16`` (all 0), ``slot`` and ``tag`` (all -1) are scratch tables, left as they were.
     """
     take = np.take
     it = F.dtype
@@ -144,13 +144,13 @@ def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int,
     flags = pm.flags[a:b]
     flat = F.reshape(-1)
     if cnt < 65535:  # a 16-bit slot table: the scan moves less memory, the sort is a radix sort
-        slot16[v] = np.arange(cnt, dtype=np.uint16)
+        slot16[v] = np.arange(1, cnt + 1, dtype=np.uint16)  # record + 1; 0: no record
         s = take(slot16, flat[: 3 * nf])
-        slot16[v] = 65535
-        hit = np.flatnonzero(s != 65535)
+        slot16[v] = 0
+        hit = np.flatnonzero(s)
         rec16 = take(s, hit)
         order = np.argsort(rec16, kind="stable")
-        rec = take(rec16, order).astype(it)
+        rec = take(rec16, order).astype(it) - 1
     else:
         slot[v] = np.arange(cnt, dtype=it)
         s = take(slot, flat[: 3 * nf])
