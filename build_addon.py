@@ -1,16 +1,27 @@
 #!/usr/bin/env python3
-"""Build the installable Blender extension ``dist/<id>-<version>.zip``.
+"""Build the installable Blender extension zips ``dist/<id>-<version>-<python>-<platform>.zip``.
 
-    python build_addon.py [--out-dir dist] [--trimesh VERSION] [--no-validate]
+    python build_addon.py [--out-dir dist] [--platform P ...] [--python X.Y ...] [--trimesh VERSION]
+                          [--no-validate]
 
-The zip holds ``blender_manifest.toml`` and the add-on (``blender_pmwm/``) at its root, and under
-``wheels/`` the pure-python wheels the add-on imports: ``pmwm`` itself and ``trimesh`` (``pip download
---no-deps``). The pmwm wheel holds the library only: it is built (``pip wheel --no-deps``) from a copy
-of ``core/pmwm`` with a pyproject derived from this checkout's, without the evaluation package
-``pmwm_bench``, its ``pmwm.commands`` entry point and the extras; the build checks that. numpy is
-never bundled: Blender ships it. The manifest's ``wheels`` list is rewritten to name exactly the bundled files, and
-the archive is checked with Blender's own validator (``blender_ext.py validate``, found inside the
-installed ``bpy`` wheel). The archive is reproducible: sorted entries, fixed timestamps.
+pmwm's spatial queries use scipy, a compiled package, so the extension is built per platform (Blender's
+split-platform build: linux-x64, windows-x64, macos-arm64, macos-x64) and per Blender Python: Blender
+4.2 to 5.0 run Python 3.11 and Blender 5.1 and later run Python 3.13, each zip names its range in
+``blender_version_min``/``blender_version_max`` and its platform in ``platforms``. One zip per pair, so
+that each carries exactly one scipy wheel: Blender 4.2 does not match a wheel's Python tag and would
+pick the newest of two. By default all eight are built; ``--platform this --python this`` builds the
+one for the machine at hand (what the add-on tests install).
+
+Each zip holds ``blender_manifest.toml`` and the add-on (``blender_pmwm/``) at its root, and under
+``wheels/``: ``pmwm`` itself, ``trimesh`` (pure python) and scipy for that platform and Python
+(``pip download --no-deps``; the scipy versions are chosen for the numpy each Blender ships: scipy
+1.15.3 accepts numpy 1.23.5 to 2.4, Blender 4.2-5.0's numpy 1.24-1.26; scipy 1.17.1 accepts Blender
+5.1+'s numpy 2.x). The pmwm wheel holds the library only: it is built (``pip wheel --no-deps``) from
+a copy of ``core/pmwm`` with a pyproject derived from this checkout's, without the evaluation package
+``pmwm_bench``, its ``pmwm.commands`` entry point and the extras; the build checks that. numpy is never
+bundled: Blender ships it. The manifest's ``wheels`` list is rewritten to name exactly the bundled
+files, and each archive is checked with Blender's own validator (``blender_ext.py validate``, found
+inside the installed ``bpy`` wheel). The archives are reproducible: sorted entries, fixed timestamps.
 """
 
 from __future__ import annotations
@@ -19,19 +30,92 @@ import argparse
 import importlib.metadata
 import importlib.util
 import json
+import platform
 import re
 import shutil
 import subprocess
 import sys
+import sysconfig
 import tempfile
 import tomllib
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 ROOT = Path(__file__).resolve().parent
 ADDON = ROOT / "blender_pmwm"
 DEFAULT_TRIMESH = "5.2.0"  # pinned for reproducible builds; override with --trimesh
 SKIP = ("__pycache__", ".pyc", ".pyo", ".DS_Store")
+
+# Blender's platform names -> the pip platform tags to download for (pip takes older macOS tags by itself,
+# not older manylinux ones). Blender itself needs glibc 2.28 on Linux and macOS 11.2 on macOS; the macOS
+# arm64 scipy wheels start at macOS 12.
+PLATFORMS = {
+    "linux-x64": ("manylinux_2_28_x86_64", "manylinux_2_17_x86_64", "manylinux2014_x86_64"),
+    "windows-x64": ("win_amd64",),
+    "macos-arm64": ("macosx_12_0_arm64",),
+    "macos-x64": ("macosx_11_0_x86_64",),
+}
+
+
+@dataclass(frozen=True)
+class BlenderPython:
+    """The Python of a range of Blender releases, and the compiled wheels built for it."""
+
+    version: str  # "3.11"
+    blender_min: str
+    blender_max: Optional[str]  # exclusive, as the manifest's blender_version_max
+    scipy: str
+
+
+PYTHONS = {
+    "3.11": BlenderPython("3.11", "4.2.0", "5.1.0", "1.15.3"),
+    "3.13": BlenderPython("3.13", "5.1.0", None, "1.17.1"),
+}
+
+
+@dataclass(frozen=True)
+class Target:
+    platform: str  # a key of PLATFORMS
+    python: BlenderPython
+
+    @property
+    def tag(self) -> str:
+        """The file-name part: py311-linux_x64."""
+        return f"py{self.python.version.replace('.', '')}-{self.platform.replace('-', '_')}"
+
+
+def this_platform() -> str:
+    """Blender's name of this machine's platform (a SystemExit when Blender has no build for it)."""
+    plat = sysconfig.get_platform()
+    machine = platform.machine().lower()
+    arm = machine in ("arm64", "aarch64")
+    name = ("windows" if plat.startswith("win") else "macos" if plat.startswith("macosx") else
+            "linux" if plat.startswith("linux") else plat) + ("-arm64" if arm else "-x64")
+    if name not in PLATFORMS:
+        raise SystemExit(f"no Blender extension build for this platform ({plat}, {machine})")
+    return name
+
+
+def targets(platforms: list[str], pythons: list[str]) -> list[Target]:
+    """The (platform, Python) pairs to build from the command line's choices: a name, "this" (the
+    machine at hand) or "all" (the default)."""
+    def expand(values: list[str], known: list[str], this, what: str) -> list[str]:
+        out: list[str] = []
+        for v in values or ["all"]:
+            for p in known if v == "all" else [this() if v == "this" else v]:
+                if p not in known:
+                    raise SystemExit(f"unknown {what} {p!r}: choose from {', '.join(known)}, this or all")
+                if p not in out:
+                    out.append(p)
+        return out
+
+    def this_python() -> str:
+        return f"{sys.version_info.major}.{sys.version_info.minor}"
+
+    return [Target(pl, PYTHONS[py]) for py in expand(pythons, list(PYTHONS), this_python, "Python")
+            for pl in expand(platforms, list(PLATFORMS), this_platform, "platform")]
 
 
 def _run(cmd: list[str]) -> None:
@@ -133,22 +217,41 @@ def download_trimesh_wheel(dest: Path, version: str) -> Path:
     return _one(dest, "trimesh-*.whl")
 
 
-def _one(folder: Path, pattern: str) -> Path:
+def download_compiled_wheel(dest: Path, requirement: str, target: Target) -> Path:
+    """Fetch the binary wheel of ``requirement`` for the target's platform and Python (no dependencies)."""
+    py = target.python.version.replace(".", "")
+    _run([sys.executable, "-m", "pip", "download", "--quiet", "--no-deps", "--only-binary=:all:",
+          *[a for tag in PLATFORMS[target.platform] for a in ("--platform", tag)],
+          "--python-version", target.python.version,
+          "--implementation", "cp", "--abi", f"cp{py}", "-d", str(dest), requirement])
+    return _one(dest, requirement.split("==")[0] + "-*.whl", pure=False)
+
+
+def _one(folder: Path, pattern: str, pure: bool = True) -> Path:
     found = sorted(folder.glob(pattern))
     if len(found) != 1:
         raise SystemExit(f"expected one {pattern} in {folder}, found {[p.name for p in found]}")
-    if not found[0].name.endswith("-py3-none-any.whl"):
+    if pure and not found[0].name.endswith("-py3-none-any.whl"):
         raise SystemExit(f"{found[0].name} is not a pure-python wheel: it cannot be bundled")
     return found[0]
 
 
-def manifest_with_wheels(text: str, wheels: list[str]) -> str:
-    """The manifest text with its ``wheels = [...]`` list naming exactly ``wheels``."""
+def manifest_for(text: str, wheels: list[str], target: Target) -> str:
+    """The manifest text with its ``wheels = [...]`` list naming exactly ``wheels``, and the target's
+    platform and Blender range (``platforms``, ``blender_version_min``/``_max``)."""
     listing = "wheels = [\n" + "".join(f'  "./wheels/{w}",\n' for w in wheels) + "]"
     new, n = re.subn(r"(?ms)^wheels\s*=\s*\[.*?\]", listing, text)
     if n != 1:
         raise SystemExit("blender_manifest.toml must hold exactly one 'wheels = [...]' list")
-    return new
+    new, n = re.subn(r'(?m)^blender_version_min\s*=.*$', f'blender_version_min = "{target.python.blender_min}"', new)
+    if n != 1:
+        raise SystemExit("blender_manifest.toml must hold exactly one blender_version_min")
+    if re.search(r"(?m)^(blender_version_max|platforms)\s*=", new):
+        raise SystemExit("blender_manifest.toml must not set blender_version_max or platforms: the build does")
+    extra = f'platforms = ["{target.platform}"]\n'
+    if target.python.blender_max:
+        extra = f'blender_version_max = "{target.python.blender_max}"\n' + extra
+    return re.sub(r'(?m)^(blender_version_min = .*\n)', lambda m: m.group(1) + extra, new, count=1)
 
 
 def addon_files() -> list[Path]:
@@ -200,23 +303,30 @@ def validate(zip_path: Path) -> None:
     _run([sys.executable, str(tool), "validate", str(zip_path)])
 
 
-def build(out_dir: Path, trimesh_version: str, check: bool = True) -> Path:
-    """Build, write and (optionally) validate the extension zip; returns its path."""
+def build(out_dir: Path, trimesh_version: str, check: bool = True,
+          which: Optional[list[Target]] = None) -> list[Path]:
+    """Build, write and (optionally) validate one extension zip per target (default: every platform
+    and Python); returns their paths."""
     manifest_text = (ADDON / "blender_manifest.toml").read_text(encoding="utf-8")
     meta = tomllib.loads(manifest_text)
+    built = []
     with tempfile.TemporaryDirectory(prefix="pmwm-wheels-") as tmp:
         wheel_dir = Path(tmp)
-        wheels = [build_pmwm_wheel(wheel_dir / "pmwm"), download_trimesh_wheel(wheel_dir / "trimesh", trimesh_version)]
-        pmwm_version = wheels[0].name.split("-")[1]
+        common = [build_pmwm_wheel(wheel_dir / "pmwm"), download_trimesh_wheel(wheel_dir / "trimesh", trimesh_version)]
+        pmwm_version = common[0].name.split("-")[1]
         if pmwm_version != meta["version"]:
             raise SystemExit(f"manifest version {meta['version']} differs from the pmwm wheel's {pmwm_version}")
-        manifest = manifest_with_wheels(manifest_text, [w.name for w in wheels])
-        out = out_dir / f"{meta['id']}-{meta['version']}.zip"
-        write_zip(out, manifest, wheels)
-    if check:
-        validate(out)
-    print(f"built {out}")
-    return out
+        for target in which if which is not None else targets([], []):
+            scipy = download_compiled_wheel(wheel_dir / target.tag, f"scipy=={target.python.scipy}", target)
+            wheels = [*common, scipy]
+            manifest = manifest_for(manifest_text, [w.name for w in wheels], target)
+            out = out_dir / f"{meta['id']}-{meta['version']}-{target.tag}.zip"
+            write_zip(out, manifest, wheels)
+            if check:
+                validate(out)
+            print(f"built {out} ({out.stat().st_size / 2**20:.1f} MiB)")
+            built.append(out)
+    return built
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -224,6 +334,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out-dir", type=Path, default=ROOT / "dist", help="output folder (default: dist/)")
     ap.add_argument("--trimesh", default=None,
                     help=f"trimesh version to bundle (default: the installed one, else {DEFAULT_TRIMESH})")
+    ap.add_argument("--platform", action="append", default=[],
+                    help=f"a Blender platform ({', '.join(PLATFORMS)}), this, or all (default; repeatable)")
+    ap.add_argument("--python", action="append", default=[],
+                    help=f"a Blender Python ({', '.join(PYTHONS)}), this, or all (default; repeatable)")
     ap.add_argument("--no-validate", action="store_true", help="skip Blender's validator")
     args = ap.parse_args(argv)
     version = args.trimesh
@@ -232,7 +346,7 @@ def main(argv: list[str] | None = None) -> int:
             version = importlib.metadata.version("trimesh")
         except importlib.metadata.PackageNotFoundError:
             version = DEFAULT_TRIMESH
-    build(args.out_dir, version, check=not args.no_validate)
+    build(args.out_dir, version, check=not args.no_validate, which=targets(args.platform, args.python))
     return 0
 
 

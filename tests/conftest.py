@@ -3,6 +3,7 @@ bunny shipped with the package, and meshes generated in code, so the suite needs
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -56,15 +57,19 @@ def build_addon():
 
     spec = importlib.util.spec_from_file_location("build_addon", ROOT / "build_addon.py")
     module = importlib.util.module_from_spec(spec)
+    sys.modules["build_addon"] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
     return module
 
 
 @pytest.fixture(scope="session")
 def extension_zip(build_addon, tmp_path_factory) -> Path:
-    """The Blender extension zip built by build_addon.py from this checkout (pmwm wheel + trimesh), once
-    per test session; not validated here (tests/blender/test_install.py runs Blender's validator on it)."""
+    """The Blender extension zip built by build_addon.py from this checkout for this platform and Python
+    (pmwm wheel, trimesh, scipy), once per test session; not validated here (tests/blender/test_install.py
+    runs Blender's validator on it)."""
     import importlib.metadata
 
     out = tmp_path_factory.mktemp("dist")
-    return build_addon.build(out, importlib.metadata.version("trimesh"), check=False)
+    (built,) = build_addon.build(out, importlib.metadata.version("trimesh"), check=False,
+                                 which=build_addon.targets(["this"], ["this"]))
+    return built

@@ -66,10 +66,13 @@ def select_carriers(
     rng = np.random.default_rng(seed)
     local = np.full(adj.n_vertices, -1, dtype=np.int64)
     local[cand] = np.arange(len(cand))
-    pos = v[cand]
+    pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, for the distance updates
     jitter = rng.uniform(JITTER_MIN, 1.0, size=len(cand))
-    alive = np.ones(len(cand), dtype=bool)
-    dist = np.full(len(cand), np.inf)
+    # farthest-point order with a keyed jitter: the next pick maximises distance * jitter, kept squared
+    # (the same order as the distance itself) and -inf where the 2-ring rule blocks a candidate
+    weight = jitter * jitter
+    dist2 = np.full(len(cand), np.inf)
+    score = np.full(len(cand), np.inf)
     chosen: list[int] = []
     pick = int(rng.integers(len(cand))) if len(cand) else -1
     while pick >= 0:
@@ -77,13 +80,16 @@ def select_carriers(
         chosen.append(c)
         if len(chosen) == n:
             break
+        d2 = (pos[0] - pos[0, pick]) ** 2
+        d2 += (pos[1] - pos[1, pick]) ** 2
+        d2 += (pos[2] - pos[2, pick]) ** 2
+        np.minimum(dist2, d2, out=dist2)
         blocked = local[two_ring(adj, c)]
-        alive[blocked[blocked >= 0]] = False
-        d = pos - pos[pick]
-        np.minimum(dist, np.sqrt(np.einsum("ij,ij->i", d, d)), out=dist)
+        score[blocked[blocked >= 0]] = -np.inf
+        alive = score > -np.inf
+        np.multiply(dist2, weight, out=score, where=alive)
         if not alive.any():
             break
-        score = np.where(alive, dist * jitter, -np.inf)
         pick = int(np.argmax(score))
     if len(chosen) < n:
         raise PayloadError(

@@ -4,7 +4,7 @@
     BLENDER_USER_RESOURCES=DIR python install_check.py use WORKDIR
 
 ``install`` installs and enables the zip. ``use`` is a restarted Blender: it enables the installed
-extension, imports pmwm and trimesh, and runs watermark + verify with the installed operators.
+extension, imports pmwm, trimesh and scipy, and runs watermark + verify with the installed operators.
 Each prints one line ``RESULT:{json}`` that test_install.py checks. BLENDER_USER_RESOURCES must be
 set before ``import bpy`` and a process imports bpy once, hence subprocesses. Blender puts the
 wheels' site-packages in front of Python's own only at start-up (an install appends it), so which
@@ -50,10 +50,12 @@ def use(workdir: str) -> dict:
     bpy.ops.preferences.addon_enable(module=MODULE)
     import numpy
     import pmwm
+    import scipy.spatial
     import trimesh
 
     result = _common(bpy, addon_utils)
-    result.update(pmwm_file=pmwm.__file__, trimesh_file=trimesh.__file__, numpy_file=numpy.__file__)
+    result.update(pmwm_file=pmwm.__file__, trimesh_file=trimesh.__file__, numpy_file=numpy.__file__,
+                  scipy_file=scipy.spatial.__file__)
 
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.mesh.primitive_monkey_add()

@@ -19,26 +19,46 @@ ROOT = HERE.parents[1]
 
 @pytest.fixture(scope="module")
 def built_zip(extension_zip):
-    """dist/pmwm-<version>.zip built by build_addon.py (pip wheel of this checkout + trimesh)."""
+    """dist/pmwm-<version>-<python>-<platform>.zip built by build_addon.py for this machine (pip wheel of
+    this checkout, trimesh, scipy)."""
     return extension_zip
 
 
-def test_zip_holds_manifest_addon_and_pure_python_wheels(built_zip):
+def test_zip_holds_manifest_addon_and_the_wheels_for_this_platform(built_zip, build_addon):
     manifest_src = tomllib.loads((ROOT / "blender_pmwm" / "blender_manifest.toml").read_text())
     with zipfile.ZipFile(built_zip) as zf:
         names = set(zf.namelist())
         manifest = tomllib.loads(zf.read("blender_manifest.toml").decode())
-    assert built_zip.name == f"{manifest['id']}-{manifest['version']}.zip"
+    py = f"{sys.version_info.major}{sys.version_info.minor}"
+    platform = build_addon.this_platform()
+    assert built_zip.name == f"{manifest['id']}-{manifest['version']}-py{py}-{platform.replace('-', '_')}.zip"
     assert {"__init__.py", "operators.py", "panel.py", "props.py", "examples/watermark_all.py"} <= names
     assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
     wheels = sorted(n for n in names if n.startswith("wheels/"))
-    assert [w.split("/")[1].split("-")[0] for w in wheels] == ["pmwm", "trimesh"]
-    assert all(w.endswith("-py3-none-any.whl") for w in wheels)
+    assert [w.split("/")[1].split("-")[0] for w in wheels] == ["pmwm", "scipy", "trimesh"]
+    pure = [w for w in wheels if "scipy" not in w]
+    assert all(w.endswith("-py3-none-any.whl") for w in pure)
+    (scipy,) = [w for w in wheels if "scipy" in w]
+    assert f"-cp{py}-cp{py}-" in scipy  # compiled for this Blender's Python, one wheel only
+    assert not any("numpy" in w for w in wheels)  # Blender ships numpy
     assert sorted(manifest["wheels"]) == sorted("./" + w for w in wheels)
-    for field in ("schema_version", "id", "type", "blender_version_min", "license", "permissions", "tagline"):
+    for field in ("schema_version", "id", "type", "license", "permissions", "tagline"):
         assert manifest[field] == manifest_src[field]
-    assert (manifest["id"], manifest["type"], manifest["blender_version_min"]) == ("pmwm", "add-on", "4.2.0")
+    assert manifest["platforms"] == [platform]
+    # the Blender releases that run this Python: 4.2 to 5.0 on 3.11, 5.1 and later on 3.13
+    span = {"311": ("4.2.0", "5.1.0"), "313": ("5.1.0", None)}[py]
+    assert (manifest["blender_version_min"], manifest.get("blender_version_max")) == span
+    assert (manifest["id"], manifest["type"]) == ("pmwm", "add-on")
     assert manifest["license"] == ["SPDX:GPL-3.0-or-later"] and "files" in manifest["permissions"]
+
+
+def test_every_platform_and_python_is_a_build_target(build_addon):
+    built = build_addon.targets([], [])
+    assert {(t.platform, t.python.version) for t in built} == {
+        (p, v) for p in ("linux-x64", "windows-x64", "macos-arm64", "macos-x64") for v in ("3.11", "3.13")}
+    assert len({t.tag for t in built}) == 8
+    with pytest.raises(SystemExit, match="unknown platform"):
+        build_addon.targets(["linux-arm"], [])
 
 
 def test_blenders_validator_accepts_the_zip(built_zip, build_addon):
@@ -85,6 +105,7 @@ def test_install_into_isolated_user_resources(built_zip, tmp_path):
     assert used["enabled"] and used["warnings"] == {} and used["key_folder_pref"]
     assert used["pmwm_file"].startswith(str(site)), used["pmwm_file"]
     assert used["trimesh_file"].startswith(str(site)), used["trimesh_file"]
+    assert used["scipy_file"].startswith(str(site)), used["scipy_file"]  # the bundled platform wheel
     assert not used["numpy_file"].startswith(str(resources))  # numpy is Blender's own
     assert "operator_error" not in used, used.get("operator_error")
     assert used["verdict"] == {"marked": True, "payload": "Hi"}

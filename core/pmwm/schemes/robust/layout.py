@@ -60,26 +60,29 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     np.add.at(count, bit, kept.astype(np.int64))
     need = min(CUT_KEEP_MIN, int(np.bincount(bit).min()))
     bit = bit.copy()
+    kept_n = kept.astype(np.int64)
 
     def try_swap(i: int, j: int) -> bool:
         """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
         b, a = bit[i], bit[j]
-        delta = kept[j].astype(np.int64) - kept[i]
+        delta = kept_n[j] - kept_n[i]
         new_b, new_a = count[b] + delta, count[a] - delta
-        before = (count[b] < need).sum() + (count[a] < need).sum()
-        if (new_b < need).sum() + (new_a < need).sum() > before:
+        before = np.count_nonzero(count[b] < need) + np.count_nonzero(count[a] < need)
+        if np.count_nonzero(new_b < need) + np.count_nonzero(new_a < need) > before:
             return False
         count[b], count[a] = new_b, new_a
         bit[i], bit[j] = a, b
         return True
 
+    kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites): one cut's sites are contiguous
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
-        bad = np.argwhere(count < need)
+        bad = np.flatnonzero(count < need)  # (bit, cut) pairs in row-major order
         if len(bad) == 0:
             break
-        b, c = bad[rng.integers(len(bad))]
-        mine = np.flatnonzero((bit == b) & ~kept[:, c])
-        other = np.flatnonzero((bit != b) & kept[:, c])
+        b, c = divmod(int(bad[rng.integers(len(bad))]), count.shape[1])
+        in_b = bit == b
+        mine = np.flatnonzero(in_b & ~kept_t[c])
+        other = np.flatnonzero(~in_b & kept_t[c])
         if len(mine) == 0 or len(other) == 0:
             continue
         try_swap(mine[rng.integers(len(mine))], other[rng.integers(len(other))])
