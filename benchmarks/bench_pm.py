@@ -8,7 +8,19 @@ the same arrays to the same vertex count, timed in the same worker. A last table
 processes on igea: ``pmwm embed`` (read, embed, write mesh, key and .pmwm) against a script that reads
 the file with trimesh, decimates it to 1 % with fast_simplification and writes a PLY.
 
-Run: OMP_NUM_THREADS=1 python benchmarks/bench_pm.py [--old PATH] [--repeat 3]
+With ``--numba-python PY`` (an interpreter with numba and numpy installed, e.g. a scratch venv), the
+section adds the numba probe behind the choice of pure numpy: two kernels of one encoder pass on igea
+(every corner's collapse cost with each vertex's cheapest, and one 2-ring minimum step) compiled with
+numba, beside the same work in this checkout's numpy code; import, compile and cached-load times in
+fresh processes.
+
+With ``--numba-wheels DIR`` it lists the numba and llvmlite wheels found under DIR (one folder per
+platform and Python, as fetched by ``pip download --no-deps --only-binary=:all: --platform P
+--python-version V --implementation cp numba llvmlite -d DIR/V-P``) with their sizes: what the Blender
+extension zip would have to carry.
+
+Run: OMP_NUM_THREADS=1 python benchmarks/bench_pm.py [--old PATH] [--repeat 3] [--numba-python PY]
+[--numba-wheels DIR]
 Writes the "pm-speed" section of BENCHMARKS.md.
 """
 
@@ -28,6 +40,62 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import ROOT, command, commit, load, machine, mesh_path, write_section  # noqa: E402
 
 BASE_RATIO = 0.03  # the embedders' default base ratio
+NUMBA_PROBE = r'''
+import json, sys, time
+t0 = time.perf_counter()
+import numpy as np
+import numba
+from numba import njit
+t1 = time.perf_counter()
+cache = sys.argv[2] == "cache"
+
+@njit(cache=cache)
+def costs_and_best(F, Q, V, E, go, locked, bvert, bnd, cost, best):
+    best[:] = np.inf
+    for f in range(F.shape[0]):
+        for j in range(3):
+            a = F[f, j]
+            b = F[f, (j + 1) % 3]
+            x, y, z = V[b, 0], V[b, 1], V[b, 2]
+            q = Q[a]
+            c = (q[0] * x * x + 2 * q[1] * x * y + 2 * q[2] * x * z + 2 * q[3] * x + q[4] * y * y
+                 + 2 * q[5] * y * z + 2 * q[6] * y + q[7] * z * z + 2 * q[8] * z + q[9]) + E[b]
+            if not go[a] or locked[b] or bnd[f, j] != bvert[a]:
+                c = np.inf
+            cost[f, j] = c
+            if c < best[a]:
+                best[a] = c
+
+@njit(cache=cache)
+def ring_min(F, val, out):
+    out[:] = val
+    for f in range(F.shape[0]):
+        mn = min(val[F[f, 0]], val[F[f, 1]], val[F[f, 2]])
+        for j in range(3):
+            if mn < out[F[f, j]]:
+                out[F[f, j]] = mn
+
+d = np.load(sys.argv[1])
+V, F = d["V"], d["F"]
+n = len(V)
+rng = np.random.default_rng(0)
+Q, E = rng.random((n, 10)), np.zeros(n)
+go, locked, bvert = np.ones(n, bool), np.zeros(n, bool), np.zeros(n, bool)
+bnd, cost, best = np.zeros(F.shape, bool), np.empty(F.shape), np.empty(n)
+val, out = rng.permutation(n), np.empty(n, np.int64)
+t2 = time.perf_counter()
+costs_and_best(F, Q, V, E, go, locked, bvert, bnd, cost, best)
+ring_min(F, val, out)
+t3 = time.perf_counter()
+runs = []
+for _ in range(5):
+    s = time.perf_counter()
+    costs_and_best(F, Q, V, E, go, locked, bvert, bnd, cost, best)
+    ring_min(F, val, out)
+    runs.append(time.perf_counter() - s)
+print(json.dumps({"numba": numba.__version__, "numpy": np.__version__, "python": sys.version.split()[0],
+                  "import_s": t1 - t0, "first_call_s": t3 - t2, "run_s": min(runs)}))
+'''
 NEW_CORE = ROOT / "core"
 OLD_CORE = ROOT.parent / "main" / "core"
 
@@ -65,10 +133,54 @@ def worker(mesh: str, repeat: int) -> None:
     except ImportError:
         pass
     print(json.dumps({
+        "kernels_s": numpy_kernels(V, F, adj),
         "build_s": min(build), "decode_s": min(dec), "records": pm.n_records, "levels": len(pm.level_records),
         "fs_s": min(fs) if fs else None, "version": pmwm.__file__,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     }))
+
+
+def numpy_kernels(V, F, adj) -> "float | None":
+    """The numba probe's two kernels in this code's numpy (None for code without them): all corners'
+    costs with each vertex's cheapest, and one 2-ring minimum step; best of 5."""
+    import numpy as np
+
+    try:
+        from pmwm.progressive import _best, _Ctx, _Live, _ring_min, _update_costs
+    except ImportError:
+        return None
+    n, m = len(V), len(F)
+    rng = np.random.default_rng(0)
+    Vs = np.zeros((n + 1, 3))
+    Vs[:n] = V
+    no = np.zeros(n + 1, bool)
+    ctx = _Ctx(V=Vs, order=np.arange(n + 1), Q=rng.random((n + 1, 10)), E=np.zeros(n + 1), go=~no, locked=no,
+               bvert=no, area_eps=0.0)
+    live = _Live(F=F.copy(), fid=np.arange(m), bnd=np.zeros((m, 3), bool), cost=np.empty((m, 3)),
+                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
+    val = np.r_[rng.permutation(n), n]
+    runs = []
+    for _ in range(5):
+        t = time.perf_counter()
+        _update_costs(ctx, live, np.arange(3 * m))
+        _best(ctx, live)
+        _ring_min(F, val)
+        runs.append(time.perf_counter() - t)
+    return min(runs)
+
+
+def numba_probe(py: str, mesh: str) -> list:
+    """Three fresh processes of ``py`` running NUMBA_PROBE: no cache, cache cold (compiles), cache warm."""
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        script = os.path.join(tmp, "numba_probe.py")  # numba caches only functions defined in a file
+        Path(script).write_text(NUMBA_PROBE)
+        env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(tmp, "cache"))
+        for mode in ("nocache", "cache", "cache"):
+            res = subprocess.run([py, script, mesh, mode], env=env, check=True, capture_output=True,
+                                 text=True).stdout
+            out.append(json.loads(res.strip().splitlines()[-1]))
+    return out
 
 
 def run_worker(core: Path, mesh: str, repeat: int) -> dict:
@@ -97,6 +209,8 @@ def main() -> None:
     ap.add_argument("--worker")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--old", default=str(OLD_CORE), help="the old code's core/ folder (skipped if absent)")
+    ap.add_argument("--numba-python", help="an interpreter with numba, for the numba probe")
+    ap.add_argument("--numba-wheels", help="a folder of downloaded numba/llvmlite wheels, to list their sizes")
     a = ap.parse_args()
     if a.worker:
         worker(a.worker, a.repeat)
@@ -107,6 +221,7 @@ def main() -> None:
 
     old = Path(a.old) if Path(a.old, "pmwm").is_dir() else None
     rows = []
+    probe = None
     with tempfile.TemporaryDirectory() as tmp:
         meshes = {"bunny": load("bunny"), "igea": load("igea")}
         meshes["igea x4 (1M faces)"] = subdivide(*meshes["igea"], scheme="midpoint")
@@ -121,6 +236,8 @@ def main() -> None:
             if old:
                 was = best(was, run_worker(old, path, rep))
             rows.append((name, len(V), len(F), new, was))
+            if name == "igea" and a.numba_python:
+                probe = numba_probe(a.numba_python, path)
         # whole processes on igea: pmwm embed vs fast_simplification to 1 %
         igea = str(mesh_path("igea"))
         env_new = dict(os.environ, PYTHONPATH=str(NEW_CORE))
@@ -174,6 +291,28 @@ def main() -> None:
         f"| {t_embed_new:.2f} s | {'–' if t_embed_old is None else f'{t_embed_old:.2f} s'} | {t_fs:.2f} s "
         f"| {t_embed_new / t_fs:.2f}x |",
     ]
+    if probe:
+        cold, first, warm = probe
+        igea_new = next(r[3] for r in rows if r[0] == "igea")
+        lines += [
+            "",
+            f"Numba probe (why the encoder stays numpy): numba {cold['numba']}, numpy {cold['numpy']}, Python "
+            f"{cold['python']}, igea. The same two kernels (all corners' collapse costs with each vertex's "
+            "cheapest; one 2-ring minimum step):",
+            "",
+            "| numba run | numpy run (this code) | `import numba` | first call, no cache (compile) "
+            "| first call, cache cold | first call, cache warm |",
+            "|---|---|---|---|---|---|",
+            f"| {ms(cold['run_s'])} | {ms(igea_new['kernels_s'])} | {cold['import_s']:.2f} s "
+            f"| {cold['first_call_s']:.2f} s | {first['first_call_s']:.2f} s | {warm['first_call_s']:.2f} s |",
+        ]
+    if a.numba_wheels:
+        wheels = sorted(Path(a.numba_wheels).rglob("*.whl"))
+        total = sum(w.stat().st_size for w in wheels)
+        lines += ["", "Numba wheels per platform and Python (what the extension zip would carry):", "",
+                  "| wheel | MB |", "|---|---|"]
+        lines += [f"| {w.name} | {w.stat().st_size / 1e6:.1f} |" for w in wheels]
+        lines.append(f"| total ({len(wheels)} wheels) | {total / 1e6:.0f} |")
     write_section("pm-speed", "\n".join(lines))
 
 
