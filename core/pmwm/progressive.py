@@ -797,20 +797,20 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
     fpm_of = np.empty(len(F0), np.int64)
     fpm_of[face_order] = np.arange(len(face_order))
 
-    # masks: fan entries of each record sorted by PM face index; arc entries set bits
+    # masks: fan entries of each record sorted by PM face index; arc entries set bits (pass by pass:
+    # the temporaries stay small)
     mask = np.zeros(R, np.uint64)
-    if R:
-        sizes = np.concatenate([np.diff(p.fan_ptr) for p in rev])
-        rec = np.repeat(np.arange(R, dtype=np.int64), sizes)
-        fpm = fpm_of[np.concatenate([p.fan for p in rev])]
-        arc = np.concatenate([p.arc for p in rev])
-        order = np.argsort(rec * len(face_order) + fpm)
-        rec_s, arc_s = rec[order], arc[order]
-        ptr = np.cumsum(sizes) - sizes
-        rank = np.arange(len(rec_s)) - ptr[rec_s]
-        bits = np.where(arc_s, np.left_shift(np.uint64(1), rank.astype(np.uint64)), np.uint64(0))
-        nonempty = sizes > 0
-        mask[nonempty] = np.bitwise_or.reduceat(bits, ptr[nonempty])
+    r0 = 0
+    for p in rev:
+        k = len(p.u)
+        sizes = np.diff(p.fan_ptr)
+        rec = np.repeat(np.arange(k, dtype=np.int64), sizes)
+        order = np.argsort(rec * len(face_order) + fpm_of[p.fan])
+        rank = (np.arange(len(rec)) - p.fan_ptr[rec]).astype(np.uint64)  # rec is sorted already
+        bits = np.where(p.arc[order], np.left_shift(np.uint64(1), rank), np.uint64(0))
+        nonempty = np.flatnonzero(sizes > 0)
+        mask[r0 + nonempty] = np.bitwise_or.reduceat(bits, p.fan_ptr[nonempty])
+        r0 += k
     level_records = np.cumsum([len(p.u) for p in rev]).astype(np.int64)
     base_faces = pm_of[F_end[np.argsort(fid_end)]]
     return ProgressiveMesh(
