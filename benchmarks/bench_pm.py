@@ -100,7 +100,7 @@ NEW_CORE = ROOT / "core"
 OLD_CORE = ROOT.parent / "main" / "core"
 
 
-def worker(mesh: str, repeat: int) -> None:
+def worker(mesh: str, repeat: int, kernels: bool) -> None:
     """Time build_progressive_mesh, a full decode and fast_simplification on ``mesh`` (an .npz)."""
     import numpy as np
 
@@ -132,12 +132,13 @@ def worker(mesh: str, repeat: int) -> None:
             fs.append(time.perf_counter() - t)
     except ImportError:
         pass
-    print(json.dumps({
-        "kernels_s": numpy_kernels(V, F, adj),
+    out = {
         "build_s": min(build), "decode_s": min(dec), "records": pm.n_records, "levels": len(pm.level_records),
         "fs_s": min(fs) if fs else None, "version": pmwm.__file__,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-    }))
+    }
+    out["kernels_s"] = numpy_kernels(V, F, adj) if kernels else None  # after the peak memory was read
+    print(json.dumps(out))
 
 
 def numpy_kernels(V, F, adj) -> "float | None":
@@ -183,16 +184,26 @@ def numba_probe(py: str, mesh: str) -> list:
     return out
 
 
-def run_worker(core: Path, mesh: str, repeat: int) -> dict:
+def run_worker(core: Path, mesh: str, repeat: int, kernels: bool = False) -> dict:
     env = dict(os.environ, PYTHONPATH=str(core))
-    out = subprocess.run([sys.executable, __file__, "--worker", mesh, "--repeat", str(repeat)], env=env,
+    cmd = [sys.executable, __file__, "--worker", mesh, "--repeat", str(repeat)] + (["--kernels"] if kernels else [])
+    out = subprocess.run(cmd, env=env,
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
 def best(a: dict, b: dict) -> dict:
-    """Per field, the better of two runs of the same code (times: the smaller)."""
-    return {k: (min(a[k], b[k]) if isinstance(a[k], float) else a[k]) for k in a}
+    """Two runs of the same code merged: the smaller time, the larger peak memory, a value over None."""
+    out = {}
+    for k in a:
+        x, y = a[k], b[k]
+        if x is None or y is None:
+            out[k] = y if x is None else x
+        elif k == "peak_mb":
+            out[k] = max(x, y)
+        else:
+            out[k] = min(x, y) if isinstance(x, float) else x
+    return out
 
 
 def wall(cmd: list, env: dict, repeat: int) -> float:
@@ -208,12 +219,13 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--worker")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--kernels", action="store_true", help="(worker) also time the numba probe's kernels in numpy")
     ap.add_argument("--old", default=str(OLD_CORE), help="the old code's core/ folder (skipped if absent)")
     ap.add_argument("--numba-python", help="an interpreter with numba, for the numba probe")
     ap.add_argument("--numba-wheels", help="a folder of downloaded numba/llvmlite wheels, to list their sizes")
     a = ap.parse_args()
     if a.worker:
-        worker(a.worker, a.repeat)
+        worker(a.worker, a.repeat, a.kernels)
         return
     import numpy as np
 
@@ -232,7 +244,7 @@ def main() -> None:
             # alternate new and old, twice, so that both see the same machine load
             new = run_worker(NEW_CORE, path, rep)
             was = run_worker(old, path, rep) if old else None
-            new = best(new, run_worker(NEW_CORE, path, rep))
+            new = best(new, run_worker(NEW_CORE, path, rep, kernels=name == "igea"))
             if old:
                 was = best(was, run_worker(old, path, rep))
             rows.append((name, len(V), len(F), new, was))
