@@ -110,8 +110,8 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     keys = lo * n + hi
     fwd_he = he_from < he_to
     del he_to, lo, hi
-    order = np.argsort(keys)  # any order within an edge: its half-edges are paired symmetrically
-    skeys = np.take(keys, order)
+    order = np.argsort(keys, kind="stable")
+    skeys = keys[order]
     n_he = len(keys)
     del keys
     first = np.r_[True, skeys[1:] != skeys[:-1]] if len(skeys) else np.zeros(0, bool)
@@ -193,7 +193,7 @@ def _fan_count(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray, n: int)
     del prev_he
     nxt = np.where(step >= 0, step, corner).astype(it)
     del step
-    fwd = np.take(pos, np.take(nxt, order))  # in vertex order: position -> position of the next corner
+    fwd = pos[nxt[order]]  # in vertex order: position -> position of the next corner
     del nxt
     ident = np.arange(nc, dtype=it)
     bwd = ident.copy()
@@ -202,12 +202,11 @@ def _fan_count(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray, n: int)
     del moved
     lf = ident.copy()
     lb = ident.copy()
-    take = np.take  # faster than fancy indexing for these flat gathers
     for _ in range(40):
-        lf2 = np.minimum(lf, take(lf, fwd))
-        lb2 = np.minimum(lb, take(lb, bwd))
-        fwd = take(fwd, fwd)
-        bwd = take(bwd, bwd)
+        lf2 = np.minimum(lf, lf[fwd])
+        lb2 = np.minimum(lb, lb[bwd])
+        fwd = fwd[fwd]
+        bwd = bwd[bwd]
         if np.array_equal(lf2, lf) and np.array_equal(lb2, lb):
             break  # no window doubled its minimum: every orbit has converged
         lf, lb = lf2, lb2

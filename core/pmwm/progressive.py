@@ -145,7 +145,7 @@ def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int,
     flat = F.reshape(-1)
     if cnt < 65535:  # a 16-bit slot table: the scan moves less memory, the sort is a radix sort
         slot16[v] = np.arange(1, cnt + 1, dtype=np.uint16)  # record + 1; 0: no record
-        s = take(slot16, flat[: 3 * nf])
+        s = slot16[flat[: 3 * nf]]  # (fancy indexing: np.take would copy the 32-bit indices to 64 bits)
         slot16[v] = 0
         hit = np.flatnonzero(s)
         rec16 = take(s, hit)
@@ -153,7 +153,7 @@ def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int,
         rec = take(rec16, order).astype(it) - 1
     else:
         slot[v] = np.arange(cnt, dtype=it)
-        s = take(slot, flat[: 3 * nf])
+        s = slot[flat[: 3 * nf]]
         slot[v] = -1
         hit = np.flatnonzero(s >= 0)
         rec = take(s, hit)
