@@ -14,14 +14,16 @@ half-edges from and to each pass's survivors (cost of a -> b = Q_a(V_b) + E_b, E
 vertices' own errors); the 2-ring minima come from face-wise minima, the corners of a
 vertex set from one gather over the faces in play; removed faces point to a sink vertex
 until a quarter of the rows are dead, and the vertices are renumbered whenever half of
-them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here).
+them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with
+32-bit indices, which it first copies to 64 bits).
 
-Why not a compiled dependency: numba 0.68.1 (with numpy 1.26.4, Python 3.11) ran the
-per-corner cost and 2-ring kernels of one igea pass 2.5-3x faster than these numpy
-passes, but costs 0.8-1.0 s to import and 0.8 s to load even two small cached kernels
-(2.3 s to compile them cold) in every CLI process, more than the whole PM budget, and
-its llvmlite wheels are 26-60 MB per platform and Python (about 375 MB for the eight
-wheels the Blender extension would carry). Numbers: BENCHMARKS.md, section pm-speed.
+Why not a compiled dependency: numba 0.68.1 (numpy 1.26.4, Python 3.11; it also imports
+with numpy 2.5.5 on Python 3.13) ran two kernels of one igea pass (all corners' costs with
+each vertex's cheapest, one 2-ring minimum step) in 9 ms against 30 ms for this numpy, but
+every fresh process pays about 0.4 s to import numba and 0.2 s to load the cached kernels
+(2.2-2.6 s to compile them without a cache, e.g. on a read-only install), and the extension
+would carry numba + llvmlite wheels for four platforms and two Pythons: 377 MB. Figures:
+BENCHMARKS.md, section pm-speed (benchmarks/bench_pm.py).
 
 Records. Refinement runs the passes backwards. Record r adds vertex
 ``n_base_vertices + r`` at ``pos[r]`` next to vertex ``v[r]``. ``mask[r]`` says which
