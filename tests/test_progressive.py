@@ -14,9 +14,17 @@ import meshes
 from conftest import canonical_faces, quad_torus_obj
 
 
-def _check_every_level(V, F, base_ratio=0.03, protected=None):
+def _check_every_level(V, F, base_ratio=0.03, protected=None, forced=None):
     trace: list = []
-    pm, _ = build_progressive_mesh(V, F, base_vertices=int(base_ratio * len(V)), protected=protected, trace=trace)
+    pm, done = build_progressive_mesh(V, F, base_vertices=int(base_ratio * len(V)), protected=protected,
+                                      forced=forced, trace=trace)
+    if forced is not None:
+        # every applied forced collapse happened: its u is a record that splits from its v
+        rec_of = np.full(len(V), -1)
+        rec_of[pm.vertex_order[pm.n_base_vertices :]] = np.arange(pm.n_records)
+        u, v = forced[done, 0], forced[done, 1]
+        assert np.all(rec_of[u] >= 0)
+        assert np.array_equal(pm.vertex_order[pm.v[rec_of[u]]], v)
     order = pm.vertex_order
     # the full mesh is the input, exactly: same positions, same oriented triangles
     V_full, F_full = pm.decode()
@@ -98,6 +106,17 @@ def test_nonmanifold_vertex_is_kept_and_reconstructed():
     assert len(pinched) == 1
     pm = _check_every_level(V, F, base_ratio=0.05)
     assert pinched[0] in pm.vertex_order[: pm.n_base_vertices]
+
+
+def test_forced_collapses_go_first_and_every_level_stays_exact():
+    V, F = meshes.blob()
+    adj = pmwm.adjacency.build_adjacency(F, len(V))
+    # spread-out vertices, each absorbed by its first neighbour (what the paper scheme forces)
+    u = np.arange(0, len(V), 97)
+    v = adj.ring_idx[adj.ring_ptr[u]]
+    forced = np.stack([u, v], axis=1)
+    pm = _check_every_level(V, F, forced=forced)
+    assert pm.n_base_vertices <= 0.035 * len(V)
 
 
 def test_bad_faces_are_refused():

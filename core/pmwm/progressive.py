@@ -7,6 +7,24 @@ pseudo-random order, Luby-style) is the best among all vertices within two rings
 so the closed 1-rings of the collapsed vertices are disjoint and the whole pass can
 be applied (and undone) at once with numpy. One pass is one level of detail.
 
+How it stays fast in numpy (issue 13): nothing is rebuilt per pass. The live faces
+carry their candidates per corner (corner j of face f: collapse F[f, j] into F[f, j+1],
+and the reverse on boundary half-edges) with their costs, recomputed only on the
+half-edges from and to each pass's survivors (cost of a -> b = Q_a(V_b) + E_b, E the
+vertices' own errors); the 2-ring minima come from face-wise minima, the corners of a
+vertex set from one gather over the faces in play; removed faces point to a sink vertex
+until a quarter of the rows are dead, and the vertices are renumbered whenever half of
+them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with
+32-bit indices, which it first copies to 64 bits).
+
+Why not a compiled dependency: numba 0.68.1 (numpy 1.26.4, Python 3.11; it also imports
+with numpy 2.5.5 on Python 3.13) ran two kernels of one igea pass (all corners' costs with
+each vertex's cheapest, one 2-ring minimum step) in 9 ms against 30 ms for this numpy, but
+every fresh process pays about 0.4 s to import numba and 0.2 s to load the cached kernels
+(2.2-2.6 s to compile them without a cache, e.g. on a read-only install), and the extension
+would carry numba + llvmlite wheels for four platforms and two Pythons: 377 MB. Figures:
+BENCHMARKS.md, section pm-speed (benchmarks/bench_pm.py).
+
 Records. Refinement runs the passes backwards. Record r adds vertex
 ``n_base_vertices + r`` at ``pos[r]`` next to vertex ``v[r]``. ``mask[r]`` says which
 of v's faces (sorted by face index, at the moment of the split) go to the new
@@ -14,7 +32,8 @@ vertex; the new faces are derived from the ends of that arc of faces, so a recor
 costs 24 bytes (float32 position, v, 64-bit mask). ``flags[r]`` bit 0 marks a split
 that adds one face (on a boundary); bit 1 says which of the two possible faces.
 Any prefix of the records is a valid mesh, and all records give back exactly the
-input mesh (vertex order: ``vertex_order``; face order: ``face_order``).
+input mesh (vertex order: ``vertex_order``; face order: ``face_order``). The record
+format is unchanged from .pmwm version 1.
 """
 
 from __future__ import annotations
@@ -24,7 +43,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .adjacency import Adjacency, build_adjacency, ranges, segment_reduce
+from .adjacency import Adjacency, build_adjacency
 from .errors import MeshError
 
 Progress = Optional[Callable[[float, str], None]]
@@ -32,6 +51,8 @@ Progress = Optional[Callable[[float, str], None]]
 MAX_FAN = 64  # faces around v at a split: the mask is 64 bits
 FLAG_SINGLE = 1  # the split adds one face (boundary collapse)
 FLAG_SECOND = 2  # ... and that face is the one holding the half-edge v -> u
+_NEXT = np.array([1, 2, 0])  # the next corner of a face
+_PREV = np.array([2, 0, 1])
 
 
 @dataclass
@@ -83,150 +104,170 @@ class ProgressiveMesh:
 
 
 def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Apply the first k records to the base mesh; vectorised per level."""
+    """Apply the first k records to the base mesh; vectorised per level.
+
+    Each level finds its records' faces with one gather over the faces so far (a slot table
+    indexed by vertex) and works in 32-bit indices when they fit. Keeping per-vertex corner
+    lists instead (touching only the faces around the records) measured slower in numpy:
+    the scan is a quarter of the time, the per-face work the rest.
+    """
     nb = pm.n_base_vertices
     n_new_faces = 2 - (pm.flags[:k] & FLAG_SINGLE).astype(np.int64)
     nf_total = len(pm.base_faces) + int(n_new_faces.sum())
+    it = np.int32 if max(nb + k, 3 * nf_total) < 2**31 - 1 else np.int64
     V = np.empty((nb + k, 3), dtype=np.float64)
     V[:nb] = pm.base_vertices
     V[nb:] = pm.pos[:k]
-    F = np.empty((nf_total, 3), dtype=np.int64)
+    F = np.empty((nf_total, 3), dtype=it)
     nf = len(pm.base_faces)
     F[:nf] = pm.base_faces
     bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k])
-    slot = np.full(nb + k, -1, dtype=np.int64)  # scratch tables, reset after each level
-    tag = np.full(nb + k, -1, dtype=np.int64)
+    slot16 = np.zeros(nb + k, dtype=np.uint16)  # scratch tables, reset after each level
+    slot = np.full(nb + k, -1, dtype=it)
+    tag = np.full(nb + k, -1, dtype=it)
+    v_all = pm.v[:k].astype(it)
     for a, b in zip(bounds[:-1], bounds[1:]):
-        nf = _split_chunk(pm, F, nf, nb + a, a, b, slot, tag)
-    return V, F
+        nf = _split_chunk(pm, v_all, F, nf, nb + a, a, b, slot16, slot, tag)
+    return V, F.astype(np.int64)
 
 
-def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b: int,
-                 slot: np.ndarray, tag: np.ndarray) -> int:
+def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int, nv: int, a: int, b: int,
+                 slot16: np.ndarray, slot: np.ndarray, tag: np.ndarray) -> int:
     """Apply independent records a..b-1 (one level or a prefix of it) in place; returns the face count.
 
-    ``slot`` and ``tag`` are all -1 on entry and are left so.
+    ``slot16`` (all 0), ``slot`` and ``tag`` (all -1) are scratch tables, left as they were.
     """
+    take = np.take
+    it = F.dtype
     cnt = b - a
-    u = nv + np.arange(cnt, dtype=np.int64)
-    v = pm.v[a:b]
+    u = np.arange(nv, nv + cnt, dtype=it)
+    v = v_all[a:b]
     mask = pm.mask[a:b]
     flags = pm.flags[a:b]
-    slot[v] = np.arange(cnt)
-    flat = F[:nf].reshape(-1)
-    s = slot[flat]
-    slot[v] = -1
-    hit = np.flatnonzero(s >= 0)
-    rec = s[hit]
-    # group the hits by record, keeping face order (radix sort when records fit 16 bits)
-    order = np.argsort(rec.astype(np.uint16) if cnt < 65536 else rec, kind="stable")
-    hit = hit[order]
-    rec = rec[order]
-    starts = np.searchsorted(rec, np.arange(cnt))
-    rank = np.arange(len(rec)) - starts[rec]
-    if np.any(rank >= MAX_FAN):
+    flat = F.reshape(-1)
+    if cnt < 65535:  # a 16-bit slot table: the scan moves less memory, the sort is a radix sort
+        slot16[v] = np.arange(1, cnt + 1, dtype=np.uint16)  # record + 1; 0: no record
+        s = slot16[flat[: 3 * nf]]  # (fancy indexing: np.take would copy the 32-bit indices to 64 bits)
+        slot16[v] = 0
+        hit = np.flatnonzero(s)
+        rec16 = take(s, hit)
+        order = np.argsort(rec16, kind="stable")
+        rec = take(rec16, order).astype(it) - 1
+    else:
+        slot[v] = np.arange(cnt, dtype=it)
+        s = slot[flat[: 3 * nf]]
+        slot[v] = -1
+        hit = np.flatnonzero(s >= 0)
+        rec = take(s, hit)
+        order = np.argsort(rec, kind="stable")
+        rec = take(rec, order)
+    # the hits grouped by record, in face order; each record's rank among its faces
+    hit = take(hit, order)
+    size = np.bincount(rec, minlength=cnt)
+    starts = np.cumsum(size) - size
+    rank = np.arange(len(rec)) - take(starts, rec)
+    if len(rank) and rank.max() >= MAX_FAN:
         rank = np.minimum(rank, MAX_FAN - 1)  # only in corrupt data; the checksum guards files
-    sel = ((mask[rec] >> rank.astype(np.uint64)) & np.uint64(1)).astype(bool)
-    hit = hit[sel]
-    rec = rec[sel]
-    flat[hit] = u[rec]
-    face = hit // 3
+    sel = np.flatnonzero(((take(mask, rec) >> rank.astype(np.uint64)) & np.uint64(1)).astype(bool))
+    hit = take(hit, sel)
+    rec = take(rec, sel)
+    flat[hit] = take(u, rec)
     corner = hit % 3
-    nxt = F[face, (corner + 1) % 3]
-    prv = F[face, (corner + 2) % 3]
+    base = hit - corner
+    nxt = take(flat, base + take(_NEXT, corner))
+    prv = take(flat, base + take(_PREV, corner))
     # ends of the arc: p is a "next" vertex that is no "previous" of the same record, q the
     # reverse; the records' rings are disjoint, so one tag table serves them all
     tag[prv] = rec
-    pm_ = tag[nxt] != rec
+    pe = np.flatnonzero(take(tag, nxt) != rec)
     tag[prv] = -1
     tag[nxt] = rec
-    qm_ = tag[prv] != rec
+    qe = np.flatnonzero(take(tag, prv) != rec)
     tag[nxt] = -1
-    p = np.zeros(cnt, dtype=np.int64)
-    q = np.zeros(cnt, dtype=np.int64)
-    p[rec[pm_]] = nxt[pm_]
-    q[rec[qm_]] = prv[qm_]
+    p = np.zeros(cnt, dtype=it)
+    q = np.zeros(cnt, dtype=it)
+    p[take(rec, pe)] = take(nxt, pe)
+    q[take(rec, qe)] = take(prv, qe)
     single = (flags & FLAG_SINGLE).astype(bool)
     second = (flags & FLAG_SECOND).astype(bool)
-    f1 = np.stack([u, v, p], axis=1)
-    f2 = np.stack([u, q, v], axis=1)
     has1 = ~single | ~second
-    has2 = ~single | second
-    new = np.empty((cnt, 2, 3), dtype=np.int64)
-    new[:, 0] = np.where(has1[:, None], f1, f2)
-    new[:, 1] = f2
-    keep = np.stack([np.ones(cnt, bool), has1 & has2], axis=1)
-    new = new[keep]
-    F[nf : nf + len(new)] = new
-    return nf + len(new)
+    two = has1 & (~single | second)
+    # each record adds [u, v, p] (or [u, q, v] when that is its only face), then [u, q, v]
+    rows = nf + np.cumsum(two) - two + np.arange(cnt)
+    F[rows, 0] = u
+    F[rows, 1] = np.where(has1, v, q)
+    F[rows, 2] = np.where(has1, p, v)
+    r2 = rows[two] + 1
+    F[r2, 0] = u[two]
+    F[r2, 1] = q[two]
+    F[r2, 2] = v[two]
+    return nf + cnt + int(two.sum())
 
 
 # --------------------------------------------------------------------------- encoding
 
 
 def _face_quadrics(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted plane quadrics of the faces as 10 coefficients, and unit normals."""
-    p0, p1, p2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    cr = np.cross(p1 - p0, p2 - p0)
-    area2 = np.linalg.norm(cr, axis=1)
+    """Area-weighted plane quadrics of the faces as (10, m) coefficients, and (m, 3) unit normals."""
+    p0 = np.take(V, F[:, 0], axis=0)
+    cr = np.cross(np.take(V, F[:, 1], axis=0) - p0, np.take(V, F[:, 2], axis=0) - p0)
+    area2 = np.sqrt(np.einsum("ij,ij->i", cr, cr))
     n = cr / np.maximum(area2, 1e-300)[:, None]
     d = -np.einsum("ij,ij->i", n, p0)
     return _plane_quadric(n, d, 0.5 * area2), n
 
 
 def _plane_quadric(n: np.ndarray, d: np.ndarray, w: np.ndarray) -> np.ndarray:
-    a, b, c = n[:, 0], n[:, 1], n[:, 2]
-    return w[:, None] * np.stack([a * a, a * b, a * c, a * d, b * b, b * c, b * d, c * c, c * d, d * d], axis=1)
+    """(10, k) coefficients of the planes n . x + d = 0 weighted by w."""
+    a, b, c = (np.ascontiguousarray(x) for x in n.T)
+    wa, wb, wc = w * a, w * b, w * c
+    return np.stack([wa * a, wa * b, wa * c, wa * d, wb * b, wb * c, wb * d, wc * c, wc * d, w * d * d])
 
 
-def _quadric_eval(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
-    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Quadric error Q(p) of quadrics Q (10, k) (upper triangle of the 4x4 matrix) at points p (3, k)."""
+    x, y, z = p
     return (
-        Q[:, 0] * x * x
-        + 2 * Q[:, 1] * x * y
-        + 2 * Q[:, 2] * x * z
-        + 2 * Q[:, 3] * x
-        + Q[:, 4] * y * y
-        + 2 * Q[:, 5] * y * z
-        + 2 * Q[:, 6] * y
-        + Q[:, 7] * z * z
-        + 2 * Q[:, 8] * z
-        + Q[:, 9]
+        (Q[0] * x + 2 * (Q[1] * y + Q[2] * z + Q[3])) * x
+        + (Q[4] * y + 2 * (Q[5] * z + Q[6])) * y
+        + (Q[7] * z + 2 * Q[8]) * z
+        + Q[9]
     )
 
 
-def _vertex_quadrics(V: np.ndarray, F: np.ndarray, adj: Adjacency) -> np.ndarray:
-    """Sum of face quadrics per vertex, plus boundary-edge constraint planes."""
+def _vertex_quadrics(V: np.ndarray, F: np.ndarray, bnd: np.ndarray) -> np.ndarray:
+    """Sum of face quadrics per vertex, plus boundary-edge constraint planes; (n, 10).
+
+    ``bnd`` (m, 3) bool marks the boundary half-edges F[f, j] -> F[f, j+1].
+    """
     n = len(V)
     Qf, normals = _face_quadrics(V, F)
-    Q = np.zeros((n, 10))
+    QT = np.empty((10, n))
+    idx = F.T.ravel()  # corner by corner: the face's weights repeat three times
     for j in range(10):
-        Q[:, j] = np.bincount(F.ravel(), weights=np.repeat(Qf[:, j], 3), minlength=n)
-    bmask = adj.edge_face_count == 1
-    if bmask.any():
-        e = adj.edges[bmask]
-        # the face of each boundary edge: any incident face containing both ends
-        fa = _edge_faces(F, e, n)
-        ev = V[e[:, 1]] - V[e[:, 0]]
-        pn = np.cross(ev, normals[fa])
+        QT[j] = np.bincount(idx, weights=np.tile(Qf[j], 3), minlength=n)
+    fb, jb = np.nonzero(bnd)
+    if len(fb):
+        e0, e1 = F[fb, jb], F[fb, _NEXT[jb]]
+        ev = V[e1] - V[e0]
+        pn = np.cross(ev, normals[fb])
         ln = np.linalg.norm(pn, axis=1)
         pn = pn / np.maximum(ln, 1e-300)[:, None]
-        d = -np.einsum("ij,ij->i", pn, V[e[:, 0]])
+        d = -np.einsum("ij,ij->i", pn, V[e0])
         Qb = _plane_quadric(pn, d, 10.0 * np.einsum("ij,ij->i", ev, ev))
         for j in range(10):
-            Q[:, j] += np.bincount(e.ravel(), weights=np.repeat(Qb[:, j], 2), minlength=n)
-    return Q
+            QT[j] += np.bincount(e0, weights=Qb[j], minlength=n) + np.bincount(e1, weights=Qb[j], minlength=n)
+    return np.ascontiguousarray(QT.T)
 
 
-def _edge_faces(F: np.ndarray, e: np.ndarray, n: int) -> np.ndarray:
-    """For each edge (given once), one face that holds it."""
-    a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
-    keys = np.minimum(a, b) * n + np.maximum(a, b)
-    order = np.argsort(keys)
-    want = e.min(axis=1) * n + e.max(axis=1)
-    pos = np.searchsorted(keys[order], want)
-    return order[pos] // 3
+def _boundary_half_edges(F: np.ndarray, adj: Adjacency) -> np.ndarray:
+    """(m, 3) bool: the half-edge F[f, j] -> F[f, j+1] has no twin (looked up only between boundary vertices)."""
+    a, b = F.ravel(), F[:, _NEXT].ravel()
+    bnd = np.zeros(len(a), bool)
+    both = np.flatnonzero(adj.boundary_vertex[a] & adj.boundary_vertex[b])
+    if len(both):
+        bnd[both] = adj.edge_face_count[adj.edge_index(a[both], b[both])] == 1
+    return bnd.reshape(-1, 3)
 
 
 @dataclass
@@ -238,6 +279,148 @@ class _Pass:
     fan_ptr: np.ndarray  # CSR over records: faces around v after the collapse (input face ids)
     fan: np.ndarray
     arc: np.ndarray  # bool per fan entry: goes back to u on the split
+
+
+@dataclass
+class _Ctx:
+    """What stays fixed while encoding: geometry, quadrics (updated in place) and vertex flags."""
+
+    V: np.ndarray  # (n + 1, 3) positions (the last row: the sink)
+    order: np.ndarray  # (n,) int64: a fixed permutation, the tiebreak of equal cost buckets
+    Q: np.ndarray  # (n + 1, 10) vertex quadrics (a row per vertex: one gather is one cache line); v absorbs u
+    E: np.ndarray  # (n,) each vertex's own error Q_v(V_v)
+    go: np.ndarray  # (n,) bool: may be removed
+    locked: np.ndarray  # (n,) bool: may not absorb (non-manifold, isolated)
+    bvert: np.ndarray  # (n,) bool: on the boundary (stays so: collapses keep the boundary)
+    area_eps: float
+
+    @property
+    def n(self) -> int:
+        return len(self.V)
+
+
+@dataclass
+class _Live:
+    """The live mesh while encoding, with per-corner candidates kept across passes.
+
+    Corner j of face f is the half-edge F[f, j] -> F[f, j+1]; its forward candidate collapses
+    F[f, j] into F[f, j+1], its reverse candidate (boundary half-edges only) F[f, j+1] into
+    F[f, j]. Costs are recomputed only on the half-edges from and to each pass's survivors.
+    Removed faces become (n, n, n) (a sink vertex, tagged never) until the arrays are compacted.
+    """
+
+    F: np.ndarray  # (m, 3) int64 input vertex ids (n: removed face)
+    fid: np.ndarray  # (m,) input face ids
+    bnd: np.ndarray  # (m, 3) bool: the half-edge is on the boundary
+    cost: np.ndarray  # (m, 3) forward cost, inf where the vertex flags forbid it
+    rcost: np.ndarray  # (m, 3) reverse cost, inf off the boundary or where forbidden
+    failed: np.ndarray  # (m, 3) uint8: bit 1 forward, bit 2 reverse candidate found invalid (until
+    # its neighbourhood changes)
+    n_dead: int = 0
+
+    def keep(self, rows: np.ndarray) -> None:
+        for name in ("F", "fid", "bnd", "cost", "rcost", "failed"):
+            setattr(self, name, getattr(self, name)[rows])
+
+    def faces(self, n: int) -> np.ndarray:
+        """The live faces (rows without the sink)."""
+        return self.F[self.F[:, 0] < n]
+
+
+
+
+_CHUNK = 1 << 15  # corners per block of quadric work (its temporaries stay in cache)
+
+
+def _update_costs(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
+    """Recompute the forward (and, on the boundary, reverse) candidates of flat ``corners``.
+
+    Costs are quadric errors, inf where the vertex flags forbid the collapse.
+    """
+    for s in range(0, len(corners), _CHUNK):
+        _update_block(ctx, live, corners[s : s + _CHUNK])
+
+
+def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
+    # cost of a -> b: (Q_a + Q_b)(V_b) = Q_a(V_b) + E_b, with E_b = Q_b(V_b) kept per vertex
+    take = np.take
+    Fl = live.F.ravel()
+    a = take(Fl, corners)
+    b = take(Fl, corners - corners % 3 + take(_NEXT, corners % 3))
+    bnd = take(live.bnd.ravel(), corners)
+    allowed = take(ctx.go, a) & ~take(ctx.locked, b) & (bnd == take(ctx.bvert, a))
+    into_b = _quadric_eval_t(take(ctx.Q, a, axis=0).T, take(ctx.V, b, axis=0).T) + take(ctx.E, b)
+    into_b[~allowed] = np.inf
+    live.cost.ravel()[corners] = into_b
+    rc = live.rcost.ravel()
+    rc[corners] = np.inf
+    on = np.flatnonzero(bnd)
+    if len(on):
+        a, b = a[on], b[on]
+        r = _quadric_eval_t(take(ctx.Q, b, axis=0).T, take(ctx.V, a, axis=0).T) + take(ctx.E, a)
+        r[~(ctx.go[b] & ~ctx.locked[a])] = np.inf
+        rc[corners[on]] = r
+
+
+def _any3(m: np.ndarray) -> np.ndarray:
+    """Row-wise any of an (m, 3) bool array (faster than .any(axis=1))."""
+    return m[:, 0] | m[:, 1] | m[:, 2]
+
+
+def _corners_of(F: np.ndarray, tag: np.ndarray, rows: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+    """Flat corner ids (into F) whose vertex has tag >= 0, and their tags; only faces ``rows`` if given."""
+    t = np.take(tag, F.ravel() if rows is None else np.take(F, rows, axis=0).ravel())
+    c = np.flatnonzero(t >= 0)
+    if rows is None:
+        return c, t[c]
+    return rows[c // 3] * 3 + c % 3, t[c]
+
+
+def _ring_min(F: np.ndarray, val: np.ndarray) -> np.ndarray:
+    """Minimum of ``val`` over each vertex's closed 1-ring (through its faces)."""
+    g = np.take(val, F)
+    fm = np.minimum(np.minimum(g[:, 0], g[:, 1]), g[:, 2])
+    out = val.copy()
+    for j in range(3):
+        np.minimum.at(out, F[:, j], fm)
+    return out
+
+
+# per round, a constant XOR-ed into the tiebreak (a bijection of 32-bit values: ties stay impossible)
+_SALTS = np.array([0, 0x5BD1E995, 0x2545F491, 0x7FEB352D, 0x68E31DA4, 0x1B873593, 0x3C6EF372, 0x6A09E667])
+
+
+@dataclass
+class _Chosen:
+    """Accepted collapses of a pass and the corners around them (flat ids into the live F)."""
+
+    u: np.ndarray  # (k,)
+    v: np.ndarray  # (k,)
+    cu: np.ndarray  # corners at u
+    ru: np.ndarray  # their record
+    cv: np.ndarray  # corners at v
+    rv: np.ndarray
+    near: np.ndarray  # faces touching the closed 1-ring of u (failed candidates there get a new chance)
+
+    @staticmethod
+    def join(parts: list["_Chosen"]) -> "_Chosen":
+        if not parts:
+            z = np.zeros(0, np.int64)
+            return _Chosen(z, z, z, z, z, z, z)
+        off = np.cumsum([0] + [len(p.u) for p in parts[:-1]])
+        cat = np.concatenate
+        return _Chosen(
+            u=cat([p.u for p in parts]), v=cat([p.v for p in parts]),
+            cu=cat([p.cu for p in parts]), ru=cat([p.ru + o for p, o in zip(parts, off)]),
+            cv=cat([p.cv for p in parts]), rv=cat([p.rv + o for p, o in zip(parts, off)]),
+            near=cat([p.near for p in parts]))
+
+    def subset(self, keep: np.ndarray) -> "_Chosen":
+        """The records ``keep`` (bool per record), renumbered."""
+        new = np.cumsum(keep) - 1
+        ku, kv = keep[self.ru], keep[self.rv]
+        return _Chosen(self.u[keep], self.v[keep], self.cu[ku], new[self.ru[ku]], self.cv[kv],
+                       new[self.rv[kv]], self.near)
 
 
 def build_progressive_mesh(
@@ -268,15 +451,26 @@ def build_progressive_mesh(
     if np.any((F0[:, 0] == F0[:, 1]) | (F0[:, 1] == F0[:, 2]) | (F0[:, 0] == F0[:, 2])):
         raise MeshError("the mesh has faces that repeat a vertex; remove degenerate faces first")
     adj0 = adjacency if adjacency is not None else build_adjacency(F0, n)
-    locked = adj0.nonmanifold_vertex | adj0.isolated_vertex
-    keep = np.zeros(n, bool) if protected is None else np.asarray(protected, bool).copy()
-    Q = _vertex_quadrics(V, F0, adj0)
+    # vertex arrays get one more entry: the sink n that removed faces point to
+    locked = np.r_[adj0.nonmanifold_vertex | adj0.isolated_vertex, True]
+    keep = np.zeros(n + 1, bool)
+    if protected is not None:
+        keep[:n] = np.asarray(protected, bool)
     bbox = float(np.linalg.norm(V.max(0) - V.min(0))) if n else 1.0
-    area_eps = (1e-12 * bbox) ** 2
+    bnd = _boundary_half_edges(F0, adj0)
+    Q = np.zeros((n + 1, 10))
+    Q[:n] = _vertex_quadrics(V, F0, bnd)
+    Vs = np.zeros((n + 1, 3))
+    Vs[:n] = V
+    ctx = _Ctx(V=Vs, order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
+               go=~locked & ~keep, locked=locked, bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
+    m = len(F0)
+    live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
+                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
+    _update_costs(ctx, live, np.arange(3 * m))
 
-    F = F0.copy()
-    fid = np.arange(len(F0), dtype=np.int64)
-    alive = np.ones(n, bool)
+    alive = np.ones(n, bool)  # by input id
+    ids = np.arange(n, dtype=np.int64)  # input id of each local vertex (the arrays shrink as vertices go)
     n_alive = n
     target = max(int(base_vertices), 4)
     passes: list[_Pass] = []
@@ -284,283 +478,304 @@ def build_progressive_mesh(
     forced_done = np.zeros(len(forced_pairs), bool)
     total = max(n_alive - target, 1)
     stalls = 0
-    failed = np.zeros(0, np.int64)  # keys u * n + v of collapses that failed validation
     while True:
         todo = np.flatnonzero(~forced_done)
         forced_phase = len(todo) > 0 and stalls < 4
         if not forced_phase and n_alive <= target:
             break
-        adj = build_adjacency(F, n, detect_pinches=False)
+        nl = len(ids)  # local vertices; nl is the sink
+        cnt = np.bincount(live.F.ravel(), minlength=nl + 1)
         if forced_phase:
-            cost = _forced_candidates(forced_pairs[todo], adj)
-        else:
-            cost = _candidates(V, Q, adj, locked, keep)
-            # collapses found invalid earlier stay out until their neighbourhood changes
-            if len(failed):
-                keys = adj.ring_owner() * n + adj.ring_idx
-                cost[np.isin(keys, failed)] = np.inf
-        sel_u, sel_v, bad = _select(V, adj, cost, area_eps, check_flips=not forced_phase)
-        if not forced_phase:
-            if len(sel_u):
-                touched = np.zeros(n, bool)
-                touched[sel_u] = True
-                touched[sel_v] = True
-                touched = _dilate(touched, adj)
-                failed = failed[~(touched[failed // n] | touched[failed % n])]
-            failed = np.union1d(failed, bad)
-        if not forced_phase:
-            room = n_alive - target
-            if len(sel_u) > room:
-                first = np.argsort(_quadric_eval(Q[sel_u] + Q[sel_v], V[sel_v]), kind="stable")[:room]
-                sel_u, sel_v = sel_u[first], sel_v[first]
-        else:
-            hit = np.isin(forced_pairs[todo, 0] * n + forced_pairs[todo, 1], sel_u * n + sel_v)
+            local = np.full(n, nl, np.int64)  # a removed vertex maps to the sink: no edge
+            local[ids] = np.arange(nl)
+            pairs = local[forced_pairs[todo]]
+            ch = _select_forced(ctx, live, cnt, pairs)
+            hit = np.isin(pairs[:, 0] * (nl + 1) + pairs[:, 1], ch.u * (nl + 1) + ch.v)
             forced_done[todo[hit]] = True
-        if len(sel_u) == 0:
+        else:
+            ch = _select(ctx, live, cnt)
+            room = n_alive - target
+            if len(ch.u) > room:
+                qs = ctx.Q[ch.u] + ctx.Q[ch.v]
+                first = np.argsort(_quadric_eval_t(qs.T, ctx.V[ch.v].T), kind="stable")[:room]
+                keep_rec = np.zeros(len(ch.u), bool)
+                keep_rec[first] = True
+                ch = ch.subset(keep_rec)
+        if len(ch.u) == 0:
             stalls += 1
             if not forced_phase:
                 break
             continue
-        p, F = _collapse(F, fid, adj, sel_u, sel_v)
+        p = _collapse(ctx, live, ch)
+        p.u, p.v = ids[p.u], ids[p.v]
         passes.append(p)
-        Q[sel_v] += Q[sel_u]
-        alive[sel_u] = False
-        n_alive -= len(sel_u)
+        alive[p.u] = False
+        n_alive -= len(p.u)
         if progress is not None:
             progress(min(1.0, (n - n_alive) / total), f"progressive mesh: {n_alive} vertices")
-        fid = fid[_alive_faces(p, fid)]
         if trace is not None:
-            trace.append(F.copy())
-        del adj, cost  # free before the next pass builds its own
-    pm = _assemble(V, F0, F, fid, alive, passes)
+            trace.append(ids[live.faces(nl)])
+        if 2 * n_alive < nl:
+            ctx, ids = _compact(ctx, live, ids, alive[ids])
+    F_end = live.F[:, 0] < len(ids)
+    pm = _assemble(V, F0, ids[live.F[F_end]], live.fid[F_end], alive, passes)
     return pm, forced_done
 
 
-def _alive_faces(p: _Pass, fid: np.ndarray) -> np.ndarray:
-    dead = p.dead[p.dead >= 0]
-    return ~np.isin(fid, dead)
-
-
-def _candidates(V, Q, adj: Adjacency, locked, keep):
-    """Cost of every half-edge collapse u -> v along the ring entries (inf where invalid)."""
-    u = adj.ring_owner()
-    v = adj.ring_idx
-    e = adj.ring_edge
-    nf = np.diff(adj.vf_ptr)
-    bedge_e = adj.edge_face_count == 1
-    bedge = bedge_e[e]
-    dead_faces = 2 - bedge
-    can_go = ~locked & ~keep
-    ok = can_go[u] & ~locked[v]
-    ok &= bedge == adj.boundary_vertex[u]  # boundary vertices slide along the boundary only
-    ok &= nf[u] > dead_faces  # an arc of faces remains to hand back
-    ok &= nf[u] + nf[v] - 2 * dead_faces <= MAX_FAN
-    # quadric sums once per edge, evaluated at either end
-    a, b = adj.edges[:, 0], adj.edges[:, 1]
-    Qs = Q[a] + Q[b]
-    cost_into_b = _quadric_eval(Qs, V[b])
-    cost_into_a = _quadric_eval(Qs, V[a])
-    cost = np.where(v == b[e], cost_into_b[e], cost_into_a[e])
-    cost[~ok] = np.inf
-    return cost
-
-
-def _forced_candidates(pairs: np.ndarray, adj: Adjacency):
-    """The forced collapses, ranked by their order, restricted to existing edges."""
-    u, v = pairs[:, 0], pairs[:, 1]
-    if not (adj.edge_index(u, v) >= 0).all():
-        raise MeshError("internal error: a forced collapse is not an edge of the mesh")
-    # place each pair's rank on its ring entry; everything else is not a candidate
-    cost = np.full(len(adj.ring_idx), np.inf)
-    entry = _ring_entry(adj, u, v)
-    cost[entry] = np.arange(len(u), dtype=np.float64)
-    return cost
-
-
-def _ring_entry(adj: Adjacency, u, v) -> np.ndarray:
-    """Position in ring_idx of v within u's ring (the pair must be an edge)."""
-    cnt = np.diff(adj.ring_ptr)[u]
-    rec = np.repeat(np.arange(len(u)), cnt)
-    pos = ranges(adj.ring_ptr[u], cnt)
-    hit = adj.ring_idx[pos] == v[rec]
-    out = np.empty(len(u), np.int64)
-    out[rec[hit]] = pos[hit]
-    return out
-
-
-def _select(V, adj: Adjacency, cost, area_eps, check_flips, rounds=4):
-    """Independent valid collapses, cheapest first, with disjoint closed 1-rings of their u.
-
-    ``cost`` is per ring entry (u = owner, v = neighbour; inf = not a candidate).
-    Each round, a vertex whose cheapest remaining candidate has the best priority
-    within two rings wins (priority: cost quantile, then a fixed pseudo-random order);
-    winners are validated, valid ones accepted (blocking their 2-rings), failed
-    candidates dropped so the vertex tries its next one. Later rounds only look
-    around the vertices still in play.
-    """
-    n = adj.n_vertices
-    ptr = adj.ring_ptr
-    cost = cost.copy()
-    best = segment_reduce(ptr, cost, np.minimum, np.inf)  # cheapest live candidate per vertex
-    big = np.iinfo(np.int64).max
-    acc_u, acc_v, bad_u, bad_v = [], [], [], []
-    for r in range(64):
-        if r >= rounds and acc_u:
-            break  # enough rounds; keep going only while nothing valid was found
-        bu = np.flatnonzero(np.isfinite(best))
-        if len(bu) == 0:
-            break
-        # priority: cost quantile bucket first, then a fixed pseudo-random order, so that
-        # smooth cost fields still give many local minima (Luby-style selection)
-        nb_ = len(bu)
-        bucket = np.empty(nb_, np.int64)
-        bucket[np.argsort(best[bu], kind="stable")] = np.arange(nb_) * _BUCKETS // nb_
-        val = np.full(n, big, np.int64)
-        val[bu] = bucket * nb_ + _tiebreak(nb_, r)
-        near = np.flatnonzero(_dilate(_mask(n, bu), adj))
-        m1 = np.full(n, big, np.int64)
-        m1[near] = np.minimum(val[near], _rows_min(adj, near, val, big))
-        m2 = np.minimum(m1[bu], _rows_min(adj, bu, m1, big))
-        wu = bu[val[bu] == m2]
-        # the entry of each winner's cheapest candidate
-        cnt = np.diff(ptr)[wu]
-        rec = np.repeat(np.arange(len(wu)), cnt)
-        pos = ranges(ptr[wu], cnt)
-        cand = np.flatnonzero(cost[pos] == best[wu][rec])
-        pick = np.full(len(wu), -1, np.int64)
-        pick_rec, at = np.unique(rec[cand], return_index=True)
-        pick[pick_rec] = pos[cand[at]]
-        wv = adj.ring_idx[pick]
-        ok = _valid(V, adj, wu, wv, area_eps, check_flips)
-        cost[pick[~ok]] = np.inf
-        failed = wu[~ok]
-        best[failed] = _rows_min(adj, failed, cost, np.inf, per_entry=True)
-        bad_u.append(failed)
-        bad_v.append(wv[~ok])
-        if ok.any():
-            acc_u.append(wu[ok])
-            acc_v.append(wv[ok])
-            best[_dilate(_dilate(_mask(n, wu[ok]), adj), adj)] = np.inf
-    if not acc_u:
-        acc_u, acc_v = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    bad = (np.concatenate(bad_u) * n + np.concatenate(bad_v)) if bad_u else np.zeros(0, np.int64)
-    return np.concatenate(acc_u), np.concatenate(acc_v), bad
-
-
-def _mask(n: int, idx: np.ndarray) -> np.ndarray:
-    m = np.zeros(n, bool)
-    m[idx] = True
-    return m
-
-
-def _rows_min(adj: Adjacency, verts: np.ndarray, values: np.ndarray, empty, per_entry: bool = False) -> np.ndarray:
-    """Minimum over each vertex's ring of ``values`` (per neighbour, or per ring entry)."""
-    cnt = np.diff(adj.ring_ptr)[verts]
-    pos = ranges(adj.ring_ptr[verts], cnt)
-    vals = values[pos] if per_entry else values[adj.ring_idx[pos]]
-    return segment_reduce(np.r_[0, np.cumsum(cnt)], vals, np.minimum, empty)
+def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple[_Ctx, np.ndarray]:
+    """Renumber the live vertices 0..k-1 (sink k) so per-vertex work follows the shrinking mesh."""
+    nl = len(ids)
+    kept = np.flatnonzero(keep)
+    k = len(kept)
+    new_id = np.full(nl + 1, k, np.int64)
+    new_id[kept] = np.arange(k)
+    live.keep(live.F[:, 0] < nl)
+    live.n_dead = 0
+    live.F = new_id[live.F]
+    sel = np.r_[kept, nl]  # the old sink's entries (locked, zero quadric) serve the new sink
+    return _Ctx(V=ctx.V[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
+                locked=ctx.locked[sel], bvert=ctx.bvert[sel], area_eps=ctx.area_eps), ids[kept]
 
 
 _BUCKETS = 16
+_BIG = np.iinfo(np.int64).max
 
 
-def _tiebreak(k: int, salt: int) -> np.ndarray:
-    """A fixed permutation of range(k) (deterministic: seeded by k and the round)."""
-    return np.random.default_rng([k, salt]).permutation(k)
+def _best(ctx: _Ctx, live: _Live) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per vertex, the cost of its cheapest live candidate; and the live cost arrays."""
+    fwd = np.where(live.failed & 1, np.inf, live.cost)
+    rev = np.where(live.failed & 2, np.inf, live.rcost)
+    best = np.full(len(ctx.go), np.inf)
+    F = live.F
+    for j in range(3):
+        np.minimum.at(best, F[:, j], fwd[:, j])
+    b = np.flatnonzero(np.isfinite(rev.ravel()))
+    if len(b):
+        np.minimum.at(best, F.ravel()[(b // 3) * 3 + _NEXT[b % 3]], rev.ravel()[b])
+    return best, fwd, rev
 
 
-def _dilate(mask: np.ndarray, adj: Adjacency) -> np.ndarray:
-    """The mask grown by one ring (gathers only the rings of the marked vertices)."""
-    idx = np.flatnonzero(mask)
-    cnt = np.diff(adj.ring_ptr)[idx]
-    out = mask.copy()
-    out[adj.ring_idx[ranges(adj.ring_ptr[idx], cnt)]] = True
-    return out
+def _around(live: _Live, nn: int, wv, cu, ru, rows) -> tuple[np.ndarray, ...]:
+    """Corners at each winner's v, the faces touching each winner's closed 1-ring by record, and
+    the table giving each vertex of a closed 1-ring its record (-1 elsewhere).
+
+    The winners' closed 1-rings are disjoint (their u are three edges apart), so one tag table
+    labels them all.
+    """
+    F = live.F
+    tag = np.full(nn, -1, np.int64)
+    tag[np.take(F, cu // 3, axis=0)] = ru[:, None]
+    c2, r2 = _corners_of(F, tag, rows)
+    at_v = np.take(F.ravel(), c2) == np.take(wv, r2)
+    return c2[at_v], r2[at_v], c2 // 3, r2, tag
 
 
-def _valid(V, adj: Adjacency, u, v, area_eps, check_flips=True) -> np.ndarray:
-    """Link condition, no degenerate neighbours and (optionally) no flipped faces."""
-    if len(u) == 0:
+def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen:
+    """Independent valid collapses, cheapest first, whose u are at least three edges apart.
+
+    Each round, a vertex whose cheapest remaining candidate has the best priority within
+    two rings wins (priority: cost quantile bucket, then a fixed pseudo-random order,
+    Luby-style); winners are validated, valid ones accepted (blocking their 2-rings),
+    failed candidates are marked so the vertex tries its next one. Later rounds work on
+    the faces around the vertices still in play only.
+    """
+    nn = len(ctx.go)
+    F = live.F
+    Fl = F.ravel()
+    best, fwd, rev = _best(ctx, live)
+    fin = best[np.isfinite(best)]
+    if len(fin) == 0:
+        return _Chosen.join([])
+    step = max(1, len(fin) // 20000)  # bucket bounds from a fixed subsample: they need not be exact
+    thr = np.quantile(fin[::step], np.arange(1, _BUCKETS) / _BUCKETS)
+    parts: list[_Chosen] = []
+    rows = np.arange(len(F))  # faces in play
+    for r in range(64):
+        if r >= rounds and parts:
+            break
+        bu = np.flatnonzero(np.isfinite(best))
+        if len(bu) == 0:
+            break
+        Fr = np.take(F, rows, axis=0)
+        if r > 0:  # keep the faces within one ring of a vertex still in play
+            in_play = np.zeros(nn, bool)
+            in_play[bu] = True
+            in_play[Fr[_any3(np.take(in_play, Fr))]] = True
+            rows = rows[_any3(np.take(in_play, Fr))]
+            Fr = np.take(F, rows, axis=0)
+        val = np.full(nn, _BIG, np.int64)
+        bucket = np.searchsorted(thr, np.take(best, bu), side="right").astype(np.int64)
+        val[bu] = (bucket << 32) | (np.take(ctx.order, bu) ^ _SALTS[r % len(_SALTS)])
+        m2 = _ring_min(Fr, _ring_min(Fr, val))
+        wu = bu[val[bu] == m2[bu]]
+        # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
+        tag = np.full(nn, -1, np.int64)
+        tag[wu] = np.arange(len(wu))
+        cu, ru = _corners_of(F, tag, rows)
+        fr, j = cu // 3, cu % 3
+        pc = fr * 3 + _PREV[j]  # the corner of the half-edge arriving at u
+        cf, cr = fwd.ravel()[cu], rev.ravel()[pc]
+        bw = best[wu][ru]
+        cand = np.concatenate([np.where(cf == bw, 2 * cu, _BIG), np.where(cr == bw, 2 * pc + 1, _BIG)])
+        pick = np.full(len(wu), _BIG, np.int64)
+        np.minimum.at(pick, np.concatenate([ru, ru]), cand)
+        rev_pick = (pick & 1).astype(bool)
+        pcorner = pick >> 1
+        wv = np.where(rev_pick, Fl[pcorner], Fl[(pcorner // 3) * 3 + _NEXT[pcorner % 3]])
+        cv, rv, near_f, near_r, ring = _around(live, nn, wv, cu, ru, rows)
+        ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=True)
+        # failed candidates leave the running; their vertices try their next candidate
+        bad = ~ok
+        live.failed.ravel()[pcorner[bad & ~rev_pick]] |= 1
+        live.failed.ravel()[pcorner[bad & rev_pick]] |= 2
+        fwd.ravel()[pcorner[bad & ~rev_pick]] = np.inf
+        rev.ravel()[pcorner[bad & rev_pick]] = np.inf
+        best[wu[bad]] = np.inf
+        sel = bad[ru]
+        if sel.any():
+            np.minimum.at(best, wu[ru[sel]], np.minimum(fwd.ravel()[cu[sel]], rev.ravel()[pc[sel]]))
+        if ok.any():
+            acc = ok[near_r]
+            # block the 2-rings of the accepted u: every vertex of a face touching their 1-rings
+            best[np.take(F, near_f[acc], axis=0)] = np.inf
+            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_f[acc]).subset(ok))
+    return _Chosen.join(parts)
+
+
+def _select_forced(ctx: _Ctx, live: _Live, cnt: np.ndarray, pairs: np.ndarray) -> _Chosen:
+    """The forced collapses that can go in this pass, earliest first, u three edges apart."""
+    nn = len(ctx.go)
+    F = live.F
+    rank = np.full(nn, _BIG, np.int64)
+    np.minimum.at(rank, pairs[:, 0], np.arange(len(pairs), dtype=np.int64))
+    parts: list[_Chosen] = []
+    for _ in range(64):
+        bu = np.flatnonzero(rank < _BIG)
+        if len(bu) == 0:
+            break
+        m2 = _ring_min(F, _ring_min(F, rank))
+        wu = bu[rank[bu] == m2[bu]]
+        wv = pairs[rank[wu], 1]
+        tag = np.full(nn, -1, np.int64)
+        tag[wu] = np.arange(len(wu))
+        cu, ru = _corners_of(F, tag)
+        cv, rv, near_f, near_r, ring = _around(live, nn, wv, cu, ru, None)
+        Fl = F.ravel()
+        fu, ju = cu // 3, cu % 3
+        edge = (Fl[fu * 3 + _NEXT[ju]] == wv[ru]) | (Fl[fu * 3 + _PREV[ju]] == wv[ru])
+        if np.any(np.bincount(ru[edge], minlength=len(wu)) == 0):
+            raise MeshError("internal error: a forced collapse is not an edge of the mesh")
+        ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=False)
+        rank[wu[~ok]] = _BIG
+        if ok.any():
+            acc = ok[near_r]
+            rank[F[near_f[acc]]] = _BIG
+            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_f[acc]).subset(ok))
+    return _Chosen.join(parts)
+
+
+def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=True) -> np.ndarray:
+    """Link condition, enough edges left, no new boundary, no flipped faces (optionally).
+
+    ``cu``, ``ru`` / ``cv``, ``rv``: the flat corners at the u / at the v and their record;
+    ``ring``: per vertex, the record whose u's closed 1-ring holds it (they are disjoint), else -1.
+    """
+    k = len(u)
+    if k == 0:
         return np.zeros(0, bool)
-    val = np.diff(adj.ring_ptr)
-    cnt = val[u]
-    rec = np.repeat(np.arange(len(u)), cnt)
-    w = adj.ring_idx[ranges(adj.ring_ptr[u], cnt)]
-    common = (w != v[rec]) & (adj.edge_index(v[rec], w) >= 0)
-    n_common = np.bincount(rec, weights=common, minlength=len(u)).astype(np.int64)
-    bedge = adj.edge_face_count[adj.edge_index(u, v)] == 1
-    ok = n_common == np.where(bedge, 1, 2)
+    take = np.take
+    Fl = live.F.ravel()
+    bl = live.bnd.ravel()
+    fu, ju = cu // 3, cu % 3
+    vu = take(v, ru)
+    has_v = (take(Fl, fu * 3 + take(_NEXT, ju)) == vu) | (take(Fl, fu * 3 + take(_PREV, ju)) == vu)
+    ndead = np.bincount(ru[has_v], minlength=k)
+    # common neighbours of u and v: v's neighbours (each once: the next vertex of every face at v,
+    # and the previous one across a boundary half-edge) that lie in u's 1-ring
+    fv, jv = cv // 3, cv % 3
+    w = take(Fl, fv * 3 + take(_NEXT, jv))
+    pb = fv * 3 + take(_PREV, jv)
+    on_b = take(bl, pb)
+    w = np.concatenate([w, take(Fl, pb[on_b])])
+    wr = np.concatenate([rv, rv[on_b]])
+    com = (take(ring, w) == wr) & (w != take(u, wr))
+    w, crec = w[com], wr[com]
+    n_common = np.bincount(crec, minlength=k)
+    bedge = ndead == 1
+    ok = (ndead >= 1) & (n_common == np.where(bedge, 1, 2))
     # the opposite vertices must keep enough edges (no two faces folded onto each other)
-    need = np.where(bedge, 3, 4)
-    low = common & (val[w] < need[rec])
-    ok &= np.bincount(rec, weights=low, minlength=len(u)) == 0
+    valence = take(cnt, w) + take(ctx.bvert, w)
+    ok &= np.bincount(crec, weights=valence < take(np.where(bedge, 3, 4), crec), minlength=k) == 0
+    ok &= cnt[u] > ndead  # an arc of faces remains to hand back
+    ok &= cnt[u] + cnt[v] - 2 * ndead <= MAX_FAN
+    # the removed faces hold no boundary edge but the collapsed one (the boundary stays as it is)
+    fd = fu[has_v]
+    nbd = np.bincount(ru[has_v], weights=take(bl, fd * 3) + take(bl, fd * 3 + 1) + take(bl, fd * 3 + 2),
+                      minlength=k)
+    ok &= nbd == bedge
     if check_flips:
-        fcnt = np.diff(adj.vf_ptr)[u]
-        frec = np.repeat(np.arange(len(u)), fcnt)
-        f = adj.vf_idx[ranges(adj.vf_ptr[u], fcnt)]
-        tri = adj.faces[f]
-        moving = ~np.any(tri == v[frec][:, None], axis=1)
-        tri, frec = tri[moving], frec[moving]
-        p = V[tri]
+        mv = ~has_v
+        tri = np.take(live.F, fu[mv], axis=0)
+        r = ru[mv]
+        p = np.take(ctx.V, tri, axis=0)
         before = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        is_u = tri == u[frec][:, None]
-        p = np.where(is_u[:, :, None], V[v[frec]][:, None, :], p)
+        p[np.arange(len(tri)), ju[mv]] = ctx.V[v[r]]
         after = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
         nb = np.linalg.norm(before, axis=1)
         na = np.linalg.norm(after, axis=1)
         cosang = np.einsum("ij,ij->i", before, after) / np.maximum(nb * na, 1e-300)
-        bad = (cosang < 0.2) | (na < area_eps)
-        ok &= np.bincount(frec, weights=bad, minlength=len(u)) == 0
+        bad = (cosang < 0.2) | (na < ctx.area_eps)
+        ok &= np.bincount(r, weights=bad, minlength=k) == 0
     return ok
 
 
-def _collapse(F, fid, adj: Adjacency, u, v) -> tuple[_Pass, np.ndarray]:
-    """Apply independent collapses u -> v; returns the records' data and the new face array."""
+def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
+    """Apply independent collapses u -> v to the live mesh; returns the records' data."""
+    u, v = ch.u, ch.v
     k = len(u)
-    fcnt = np.diff(adj.vf_ptr)[u]
-    frec = np.repeat(np.arange(k), fcnt)
-    f = adj.vf_idx[ranges(adj.vf_ptr[u], fcnt)]
-    tri = F[f]
-    has_v = np.any(tri == v[frec][:, None], axis=1)
-    # dead faces: f1 holds half-edge u -> v, f2 holds v -> u
-    cu = np.argmax(tri == u[frec][:, None], axis=1)
-    forward = tri[np.arange(len(f)), (cu + 1) % 3] == v[frec]
+    n = len(ctx.go) - 1
+    F = live.F
+    Fl = F.ravel()
+    cu, ru, cv, rv = ch.cu, ch.ru, ch.cv, ch.rv
+    fu, ju = cu // 3, cu % 3
+    d1 = Fl[fu * 3 + _NEXT[ju]] == v[ru]  # f1 holds the half-edge u -> v
+    d2 = Fl[fu * 3 + _PREV[ju]] == v[ru]  # f2 holds v -> u
     dead = np.full((k, 2), -1, np.int64)
-    d1 = has_v & forward
-    d2 = has_v & ~forward
-    dead[frec[d1], 0] = fid[f[d1]]
-    dead[frec[d2], 1] = fid[f[d2]]
+    dead[ru[d1], 0] = live.fid[fu[d1]]
+    dead[ru[d2], 1] = live.fid[fu[d2]]
     single = (dead < 0).any(axis=1)
     flags = np.where(single, FLAG_SINGLE | np.where(dead[:, 0] < 0, FLAG_SECOND, 0), 0).astype(np.uint8)
-    # fan of v after the collapse: v's faces and u's faces, minus the dead ones
-    arc_f = f[~has_v]
-    arc_r = frec[~has_v]
-    vcnt = np.diff(adj.vf_ptr)[v]
-    vrec = np.repeat(np.arange(k), vcnt)
-    vf = adj.vf_idx[ranges(adj.vf_ptr[v], vcnt)]
-    vkeep = ~np.any(F[vf] == u[vrec][:, None], axis=1)
-    vf, vrec = vf[vkeep], vrec[vkeep]
-    all_r = np.concatenate([arc_r, vrec])
-    all_f = np.concatenate([arc_f, vf])
-    all_arc = np.concatenate([np.ones(len(arc_f), bool), np.zeros(len(vf), bool)])
+    arc = ~(d1 | d2)
+    fv = cv // 3
+    vkeep = (F[fv, 0] != u[rv]) & (F[fv, 1] != u[rv]) & (F[fv, 2] != u[rv])
+    all_r = np.concatenate([ru[arc], rv[vkeep]])
+    all_f = np.concatenate([fu[arc], fv[vkeep]])
+    all_arc = np.concatenate([np.ones(int(arc.sum()), bool), np.zeros(int(vkeep.sum()), bool)])
     order = np.argsort(all_r, kind="stable")
     fan_ptr = np.zeros(k + 1, np.int64)
     np.cumsum(np.bincount(all_r, minlength=k), out=fan_ptr[1:])
-    p = _Pass(
-        u=u.copy(),
-        v=v.copy(),
-        flags=flags,
-        dead=dead,
-        fan_ptr=fan_ptr,
-        fan=fid[all_f[order]],
-        arc=all_arc[order],
-    )
-    # apply: rewrite u -> v in the arc faces, drop dead faces
-    G = F.copy()
-    G[arc_f] = np.where(F[arc_f] == u[arc_r][:, None], v[arc_r][:, None], F[arc_f])
-    alive = np.ones(len(G), bool)
-    alive[f[has_v]] = False
-    return p, G[alive]
+    p = _Pass(u=u.copy(), v=v.copy(), flags=flags, dead=dead, fan_ptr=fan_ptr,
+              fan=live.fid[all_f[order]], arc=all_arc[order])
+    # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
+    Fl[cu[arc]] = v[ru[arc]]
+    gone = fu[~arc]
+    F[gone] = n
+    live.cost[gone] = np.inf
+    live.rcost[gone] = np.inf
+    live.n_dead += len(gone)
+    ctx.Q[v] += ctx.Q[u]
+    ctx.E[v] = _quadric_eval_t(ctx.Q[v].T, ctx.V[v].T)
+    # costs change on the half-edges from and to v; failed candidates get another chance nearby
+    at_v = np.take(F, all_f, axis=0) == v[all_r][:, None]
+    at_v |= at_v[:, [1, 2, 0]]  # corner j ends at v when corner j + 1 is at v
+    rr, jj = np.nonzero(at_v)
+    _update_costs(ctx, live, all_f[rr] * 3 + jj)
+    live.failed[ch.near] = 0
+    live.failed[fv] = 0
+    if live.n_dead * 4 > len(F):
+        live.keep(F[:, 0] < n)
+        live.n_dead = 0
+    return p
 
 
 def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveMesh:
@@ -584,21 +799,19 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
     fpm_of = np.empty(len(F0), np.int64)
     fpm_of[face_order] = np.arange(len(face_order))
 
-    # masks: fan entries of each record sorted by PM face index; arc entries set bits
+    # masks: fan entries of each record sorted by PM face index; arc entries set bits (pass by pass:
+    # the temporaries stay small)
     mask = np.zeros(R, np.uint64)
     r0 = 0
     for p in rev:
         k = len(p.u)
-        rec = np.repeat(np.arange(k), np.diff(p.fan_ptr))
-        fpm = fpm_of[p.fan]
-        order = np.lexsort((fpm, rec))
-        rec_s = rec[order]
-        arc_s = p.arc[order]
-        rank = np.arange(len(rec_s)) - p.fan_ptr[rec_s]
-        bits = np.where(arc_s, np.left_shift(np.uint64(1), rank.astype(np.uint64)), np.uint64(0))
-        m = np.zeros(k, np.uint64)
-        np.bitwise_or.at(m, rec_s, bits)
-        mask[r0 : r0 + k] = m
+        sizes = np.diff(p.fan_ptr)
+        rec = np.repeat(np.arange(k, dtype=np.int64), sizes)
+        order = np.argsort(rec * len(face_order) + fpm_of[p.fan])
+        rank = (np.arange(len(rec)) - p.fan_ptr[rec]).astype(np.uint64)  # rec is sorted already
+        bits = np.where(p.arc[order], np.left_shift(np.uint64(1), rank), np.uint64(0))
+        nonempty = np.flatnonzero(sizes > 0)
+        mask[r0 + nonempty] = np.bitwise_or.reduceat(bits, p.fan_ptr[nonempty])
         r0 += k
     level_records = np.cumsum([len(p.u) for p in rev]).astype(np.int64)
     base_faces = pm_of[F_end[np.argsort(fid_end)]]
