@@ -141,6 +141,8 @@ class RobustKeyData:
             vertex = _unpack(x["sample_vertex"], "<u4", (total,))
             normal_tt = _unpack(x["sample_normal"], "<f2", (total, 2)) if "sample_normal" in x else None
             frame = SurfaceFrame.from_json(x["frame"])
+            if not all(np.isfinite(site[k]).all() for k in ("origin", "normal", "chip")):
+                raise ValueError("site places, normals or chips are not finite numbers")
             if not (np.isfinite(uvh).all() and radius > 0 and amplitude > 0 and np.isfinite(swirl)) \
                     or (normal_tt is not None and not (np.abs(normal_tt) <= 1.0).all()):
                 raise ValueError("sample values")
