@@ -44,7 +44,7 @@ class EmbedOptions:
     scheme: "robust" (the default), "paper" (the paper's Algorithms 1-2), "cho1" or "cho2" (Cho et
     al. 2007, methods I and II), "blind" (read with ``passphrase`` alone). strength: None for the
     scheme's default; for robust and paper a factor (2), for cho1/cho2 Cho's margin alpha (0.05),
-    for blind the bin-mean margin (0.05). passphrase: the blind scheme's secret (never stored).
+    for blind the bin-mean margin (0.07). passphrase: the blind scheme's secret (never stored).
     """
 
     payload: Optional[str] = None

@@ -30,7 +30,7 @@ from .keydata import BlindKeyData
 
 __all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "BlindKeyData"]
 
-DEFAULT_ALPHA = 0.05
+DEFAULT_ALPHA = 0.07
 BINS_PER_BIT = 1
 NAME = "blind"
 
@@ -82,6 +82,7 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
     if len(F) == 0:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     readings = []
+    flips = ((np.arange(2**word.CHASE_BITS)[:, None] >> np.arange(word.CHASE_BITS)) & 1).astype(np.uint8)
     for L in word.PAYLOAD_BITS:
         n_word = L + word.CHECK_BITS
         n_bins = _n_bins(n_word)
@@ -92,12 +93,21 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
         got = (score > 0).astype(np.uint8)
         got[erased] = keyed_bits(secret, f"blind-erasure:{n_word}", n_word)[erased]
         got ^= scramble
+        weak = np.argsort(np.abs(score), kind="stable")[:word.CHASE_BITS]
+        candidates = np.repeat(got[None], len(flips), axis=0)
+        candidates[:, weak] ^= flips  # row 0: the word as read
         for kind in word.KINDS:
-            payload = got[:L]
-            m = int(np.sum(got[L:] == word.check_bits(secret, kind, payload)))
-            readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, L, kind, payload, got, score))
+            best = None
+            for cand in candidates:
+                m = int(np.sum(cand[L:] == word.check_bits(secret, kind, cand[:L])))
+                if best is None or m > best[0]:
+                    best = (m, cand)
+                if m == word.CHECK_BITS:
+                    break
+            m, cand = best
+            readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, L, kind, cand[:L], cand, score))
     p1, neg_m, L, kind, payload, got, score = min(readings, key=lambda r: (r[0], r[1]))
-    p = float(min(1.0, len(readings) * p1))
+    p = float(min(1.0, len(readings) * len(flips) * p1))
     m = -neg_m
     text = word.text_of(payload) if kind == "text" else None
     expected = word.check_bits(secret, kind, payload)

@@ -3,19 +3,21 @@
 Everything secret derives from the pass phrase through scrypt with a fixed public salt
 (``derive_secret``): the 64-hex-digit secret then seeds every keyed stream (``pmwm.key.keyed_bits``).
 
-The word. ``PAYLOAD_BITS`` lists the payload lengths a word can have (40, 64, 104 or 232 bits: 5, 8,
-13 or 29 bytes of text); behind the payload come ``CHECK_BITS`` = 24 check bits, a keyed hash of the
+The word. ``PAYLOAD_BITS`` lists the payload lengths a word can have (32, 64, 96 or 224 bits: 4, 8,
+12 or 28 bytes of text); behind the payload come ``CHECK_BITS`` = 32 check bits, a keyed hash of the
 secret, the payload kind (text or bits) and the payload. The reader knows neither the length nor the
-kind: it tries the ``len(PAYLOAD_BITS) * 2`` = 8 readings. Under the null (an unmarked mesh, or the
-wrong pass phrase) the expected check bits of a reading are fair coins independent of the bits read
-(a keyed hash of what was read), so P(m or more of the 24 match) = P(Binomial(24, 1/2) >= m)
-exactly, and the p-value of the best of the 8 readings is at most 8 times that (a union bound):
-all 24 matching gives p <= 8 * 2^-24 = 4.8e-7.
+kind: it tries the 4 * 2 = 8 readings, and in each the 2^8 words that flip any of the
+``CHASE_BITS`` = 8 least reliable bits (Chase decoding: a few weak bits are corrected). Under the
+null (an unmarked mesh, or the wrong pass phrase) the expected check bits of a candidate are fair
+coins independent of the bits read (a keyed hash of what was read), so P(m or more of the 32 match)
+= P(Binomial(32, 1/2) >= m) exactly per candidate, and the p-value reported is the union bound over
+the 8 * 256 = 2048 candidates: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 < 1e-6.
 
-Why 24 check bits in the 64-bit benchmark word (40 payload + 24 check): the decision threshold is
-p < 1e-6, which 8 * 2^-K meets from K = 23 on; 24 keeps a margin, and every further check bit is a
-payload bit less. A reading is "marked" only with all its check bits right, so a payload reported as
-marked is the embedded one up to a hash collision (2^-24).
+Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
+search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
+the bunny after 8-bit quantisation); 32 check bits pay for the 2^8 Chase candidates. A reading is
+"marked" only with all its check bits right, so a payload reported as marked is the embedded one up
+to a hash collision (2^-32 per candidate).
 """
 
 from __future__ import annotations
@@ -30,8 +32,9 @@ from ...errors import PayloadError
 from ...key import keyed_bits
 from ...validate import parse_bits
 
-PAYLOAD_BITS = (40, 64, 104, 232)
-CHECK_BITS = 24
+PAYLOAD_BITS = (32, 64, 96, 224)
+CHECK_BITS = 32
+CHASE_BITS = 8  # the reader tries every flip of the 8 least reliable bits of a word
 KINDS = ("bits", "text")
 SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
 SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
