@@ -28,7 +28,8 @@ from ...validate import check_mesh
 from . import radial, word
 from .keydata import BlindKeyData
 
-__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "BlindKeyData"]
+__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "bin_statistics", "decide",
+           "word_read", "BlindKeyData"]
 
 DEFAULT_ALPHA = 0.07
 BINS_PER_BIT = 1
@@ -74,28 +75,40 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
                         data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
 
 
-def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
-    """The blind reading (module docstring): the payload read, its verdict and p-value.
-
-    vertices (n, 3), faces (m, 3) of the suspect; ``secret`` from ``word.derive_secret``."""
+def bin_statistics(vertices, faces) -> dict[int, np.ndarray]:
+    """What the reader measures on a suspect, for every word length N: the bins' statistics (N *
+    BINS_PER_BIT,) float64 (bin mean of r - 1/2; NaN: an empty bin). Independent of the pass phrase."""
     V, F = check_mesh(vertices, faces)
     if len(F) == 0:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
+    words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
+    many = radial.read_statistics_many(V, F, [_n_bins(n) for n in words])
+    return {n: stat for n, (stat, _) in zip(words, many)}
+
+
+def word_read(stat: np.ndarray, secret: str, n_word: int) -> tuple[np.ndarray, np.ndarray]:
+    """The word of length ``n_word`` as read (hard decisions, erasures drawn from a keyed coin) (N,)
+    uint8, and the score of each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure)."""
+    bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
+    score = np.bincount(bit_of_bin, weights=np.nan_to_num(stat, nan=0.0), minlength=n_word)
+    got = (score > 0).astype(np.uint8)
+    erased = score == 0
+    got[erased] = keyed_bits(secret, f"blind-erasure:{n_word}", n_word)[erased]
+    return got ^ scramble, score
+
+
+_FLIPS = ((np.arange(2**word.CHASE_BITS)[:, None] >> np.arange(word.CHASE_BITS)) & 1).astype(np.uint8)
+
+
+def decide(stats: dict[int, np.ndarray], secret: str, p_threshold: float = 1e-6) -> Verdict:
+    """The verdict from the statistics of ``bin_statistics`` and a secret (module docstring)."""
     readings = []
-    flips = ((np.arange(2**word.CHASE_BITS)[:, None] >> np.arange(word.CHASE_BITS)) & 1).astype(np.uint8)
     for L in word.PAYLOAD_BITS:
         n_word = L + word.CHECK_BITS
-        n_bins = _n_bins(n_word)
-        stat, _ = radial.read_statistics(V, F, n_bins)
-        bit_of_bin, scramble = word.layout(secret, n_word, n_bins)
-        score = np.bincount(bit_of_bin, weights=np.nan_to_num(stat, nan=0.0), minlength=n_word)
-        erased = score == 0
-        got = (score > 0).astype(np.uint8)
-        got[erased] = keyed_bits(secret, f"blind-erasure:{n_word}", n_word)[erased]
-        got ^= scramble
+        got, score = word_read(stats[n_word], secret, n_word)
         weak = np.argsort(np.abs(score), kind="stable")[:word.CHASE_BITS]
-        candidates = np.repeat(got[None], len(flips), axis=0)
-        candidates[:, weak] ^= flips  # row 0: the word as read
+        candidates = np.repeat(got[None], len(_FLIPS), axis=0)
+        candidates[:, weak] ^= _FLIPS  # row 0: the word as read
         for kind in word.KINDS:
             best = None
             for cand in candidates:
@@ -105,24 +118,32 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
                 if m == word.CHECK_BITS:
                     break
             m, cand = best
-            readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, L, kind, cand[:L], cand, score))
-    p1, neg_m, L, kind, payload, got, score = min(readings, key=lambda r: (r[0], r[1]))
-    p = float(min(1.0, len(readings) * len(flips) * p1))
+            readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, L, kind, cand, score, got))
+    p1, neg_m, L, kind, cand, score, raw = min(readings, key=lambda r: (r[0], r[1]))
+    p = float(min(1.0, len(readings) * len(_FLIPS) * p1))
     m = -neg_m
+    payload = cand[:L]
     text = word.text_of(payload) if kind == "text" else None
     expected = word.check_bits(secret, kind, payload)
     return Verdict(
         marked=bool(p < p_threshold), p_value=p, bits="".join(map(str, payload.tolist())), payload=text,
+        # matches / bit_errors / carriers_*: over the check bits (what the p-value counts)
         matches=m, bit_errors=word.CHECK_BITS - m,
-        correlation=float(metrics.correlation(expected, got[L:])),
+        correlation=float(metrics.correlation(expected, cand[L:])),
         carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
         p_threshold=p_threshold,
-        # matches / bit_errors / carriers_*: over the check bits (what the p-value counts)
         extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
-               "word": "".join(map(str, got.tolist()))},
+               "word": "".join(map(str, cand.tolist())),  # after the Chase search
+               "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it
         scores=score,  # (N,) sign = the scrambled bit read, as every scheme's scores
         places=np.zeros((0, 3)), place_bits=np.zeros(0, np.int64),
     )
+
+
+def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
+    """The blind reading: the payload read, its verdict and p-value. vertices (n, 3), faces (m, 3)
+    of the suspect; ``secret`` from ``word.derive_secret``."""
+    return decide(bin_statistics(vertices, faces), secret, p_threshold)
 
 
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:

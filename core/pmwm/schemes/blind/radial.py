@@ -107,10 +107,24 @@ def read_statistics(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[np.ndarr
     """Each bin's area-weighted mean of r over the vertices, minus 1/2 (M,) (NaN: empty), and its
     share of the area (M,). (Measured against quadrature points over the faces: on the remeshed
     Venus head the embedder then cannot reach its margins, bins being narrower than triangles.)"""
-    fr, a = frame_of(V, F, n_bins)
-    bv = bin_vertices(V, fr)
-    mean, wsum = bin_statistics(bv.r, bv.bin, a, n_bins)
-    return mean - 0.5, wsum / a.sum()
+    return read_statistics_many(V, F, (n_bins,))[0]
+
+
+def read_statistics_many(V: np.ndarray, F: np.ndarray, bin_counts) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``read_statistics`` for several bin counts, the frame computed once."""
+    fr, a = frame_of(V, F, 1)
+    d = V - fr.centre
+    t0 = (np.sqrt(np.einsum("ij,ij->i", d, d)) - fr.lo) / (fr.hi - fr.lo)  # (n,) in [0, 1] inside the range
+    out = []
+    for n_bins in bin_counts:
+        t = t0 * n_bins
+        b = np.floor(t).astype(np.int64)
+        inside = (b >= 0) & (b < n_bins)
+        b = np.where(inside, b, -1)
+        r = np.where(inside, t - np.floor(t), 0.0)
+        mean, wsum = bin_statistics(r, b, a, n_bins)
+        out.append((mean - 0.5, wsum / a.sum()))
+    return out
 
 
 def _solve_k(r, b, a, n_bins, one, targets) -> np.ndarray:

@@ -77,8 +77,11 @@ def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[
 
 
 def check_bits(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
-    """The keyed check (CHECK_BITS,) uint8 of a payload (L,) of a kind."""
-    return keyed_bits(secret, f"blind-check:{kind}:{''.join(map(str, payload.tolist()))}", CHECK_BITS)
+    """The keyed check (CHECK_BITS,) uint8 of a payload (L,) uint8 of a kind: the first bits of
+    SHA-256(secret, kind, payload) (a MAC; hashlib directly, as the reader computes 2048 of them)."""
+    tag = hashlib.sha256(f"{secret}:blind-check:{kind}:".encode() + np.packbits(payload).tobytes()
+                         + len(payload).to_bytes(2, "little")).digest()
+    return np.unpackbits(np.frombuffer(tag[:CHECK_BITS // 8], np.uint8))
 
 
 def layout(secret: str, n_word: int, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
