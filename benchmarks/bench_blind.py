@@ -118,6 +118,56 @@ def procedural(n: int, seed: int):
     return V, np.asarray(m.faces)
 
 
+EQUAL_GRID = {"blind": (0.03, 0.05, 0.07, 0.1), "cho1": (0.01, 0.025, 0.05, 0.09), "cho2": (0.03, 0.05, 0.1, 0.18)}
+EQUAL_ATTACKS = [("noise 0.3 %", "noise_benchmark", {"amplitude": 0.003}),
+                 ("noise 0.5 %", "noise_benchmark", {"amplitude": 0.005}),
+                 ("smoothing 5 it.", "smooth_laplacian", {"lam": 0.1, "iterations": 5}),
+                 ("smoothing 10 it.", "smooth_laplacian", {"lam": 0.1, "iterations": 10}),
+                 ("quantization 8 bits", "quantize", {"bits": 8}),
+                 ("quantization 7 bits", "quantize", {"bits": 7}),
+                 ("simplification 50 %", "simplify", {"ratio": 0.5}),
+                 ("subdivision loop", "subdivide", {"scheme": "loop"})]
+
+
+def equal_mrms(models: list[str], keys: int) -> str:
+    """Blind against Cho I and II at several strengths each: MRMS and the BER of 64 bits per attack
+    (blind: the 64-bit word read; Cho: its 64 payload bits), so rows of equal MRMS can be compared."""
+    from pmwm_bench.methods import SchemeMethod
+
+    out = ["## Blind scheme against Cho I and II at several strengths (equal MRMS)", "",
+           f"{keys} keys per row; 64 bits (blind: 32 payload + 32 check). BER per attack, mean over the keys.", "",
+           "| model | method | strength | MRMS % | " + " | ".join(lbl for lbl, _, _ in EQUAL_ATTACKS) + " |",
+           "|---|---|---|---|" + "---|" * len(EQUAL_ATTACKS)]
+    for model in models:
+        V, F = load(model)
+        for scheme, grid in EQUAL_GRID.items():
+            for strength in grid:
+                mr, bers = [], {lbl: [] for lbl, _, _ in EQUAL_ATTACKS}
+                for k in range(keys):
+                    seed = 2000 + k
+                    if scheme == "blind":
+                        payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
+                        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed, strength=strength,
+                                                                 passphrase=f"pmwm-bench:{seed}", base_ratio=1.0))
+                        marked = res.vertices
+                    else:
+                        bits = np.random.default_rng(seed).integers(0, 2, 64)
+                        method = SchemeMethod(scheme, strength)
+                        marked, key = method.embed(V, F, bits, seed=seed)
+                    mr.append(metrics.surface_distance(V, F, marked, F, 100000, seed=seed)[0])
+                    for i, (lbl, name, params) in enumerate(EQUAL_ATTACKS):
+                        Va, Fa = attacks.ATTACKS[name](marked, F, seed=attack_seed(seed, "equal", i), **params)
+                        if scheme == "blind":
+                            bers[lbl].append(read_one(Va, Fa, res.key.secret, payload)[0])
+                        else:
+                            got = np.array(list(method.extract(Va, Fa, key)), dtype=int)
+                            bers[lbl].append(float(np.mean(got != bits)))
+                out.append(f"| {model} | {scheme} | {strength:g} | {np.mean(mr):.4f} | "
+                           + " | ".join(f"{np.mean(bers[lbl]):.3f}" for lbl, _, _ in EQUAL_ATTACKS) + " |")
+                print(out[-1], file=sys.stderr, flush=True)
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--keys", type=int, default=10)
@@ -125,7 +175,14 @@ def main(argv=None) -> int:
     ap.add_argument("--fp", type=int, default=10000, help="verifications of unmarked meshes")
     ap.add_argument("--quick", action="store_true", help="the quick attack settings")
     ap.add_argument("--no-write", action="store_true", help="print only")
+    ap.add_argument("--equal", metavar="MODELS", help="only the equal-MRMS comparison with Cho I/II on these "
+                                                      "models (section blind-equal-mrms)")
     a = ap.parse_args(argv)
+    if a.equal:
+        body = f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.\n\n" + \
+            equal_mrms(a.equal.split(","), a.keys)
+        print(body) if a.no_write else write_section("blind-equal-mrms", body)
+        return 0
     models = a.models.split(",")
     settings = benchmark_settings(a.quick)
     rows, whole_rows, pm_rows, dist_rows = [], [], [], []

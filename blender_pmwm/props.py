@@ -16,7 +16,7 @@ SCHEME_ITEMS = [
                          "cropping, simplification, re-export and posing (the default)"),
     ("paper", "Paper", "The paper's scheme: one carrier vertex per bit against its 1-ring (for comparison)"),
     ("blind", "Blind", "Read with the Pass Phrase alone: no key file, the payload is read, not known "
-                       "(the radial distribution of the surface)"),
+                       "(the distribution of vertex norms)"),
 ]
 
 

@@ -183,3 +183,12 @@ def test_cli_errors(tmp_path):
     assert p.returncode == 2 and "pass phrase" in p.stderr
     p = run("verify", src, "--passphrase-file", tmp_path / "missing.txt")
     assert p.returncode == 2 and "pass-phrase file" in p.stderr
+
+
+def test_bench_method_reads_its_bits(bunny):
+    from pmwm_bench.methods import SchemeMethod
+
+    method = SchemeMethod("pmwm-blind")
+    bits = bitstring(32, 9)
+    marked, key = method.embed(*bunny, bits, seed=4)
+    assert method.extract(A.reorder(marked, bunny[1], seed=1)[0], A.reorder(marked, bunny[1], seed=1)[1], key) == bits

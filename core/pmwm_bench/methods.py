@@ -10,7 +10,7 @@ robust     pmwm          bump height factor (2: 0.24 mean edge lengths)
 paper      pmwm-paper    the paper's factor (mu +- strength * sigma)
 cho1       Cho I         Cho et al. 2007's alpha (margin of the bin mean)
 cho2       Cho II        Cho et al. 2007's alpha (margin of the bin moment)
-blind      pmwm-blind    the margin of the area-weighted bin mean
+blind      pmwm-blind    the margin of the bin mean (Cho's method I on a quantile range)
 =========  ============  ==================================================
 
 The blind method marks with the pass phrase ``BLIND_PASSPHRASE`` + the seed and reads with it alone

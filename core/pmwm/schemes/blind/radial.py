@@ -1,21 +1,28 @@
-"""The carrier of the blind scheme: the area-weighted distribution of distances to the surface centroid.
+"""The carrier of the blind scheme: the distribution of the vertices' distances to their centroid.
 
 Everything here is computed from the mesh alone, so the reader needs no original:
 
-- centre c: the area-weighted vertex centroid (each vertex weighs a third of its faces' area), an
-  estimate of the surface centroid, so vertex density does not move it (simplification,
-  subdivision, remeshing) and a similarity transform moves it along;
-- rho_i = |v_i - c| and the range [lo, hi]: the area-weighted quantiles ``QUANTILES`` of rho, which
-  noise, quantisation or smoothing barely move (Cho et al. use the extreme vertices, which any noise
-  moves);
+- centre c: the mean of the vertices that lie on a face of positive area;
+- rho_i = |v_i - c| and the range [lo, hi]: the quantiles ``QUANTILES`` of rho (Cho et al. use the
+  extreme vertices, which any noise moves; a quantile barely moves);
 - M equal-width bins over [lo, hi] (vertices outside carry nothing); inside bin j the normalised
-  radius r in [0, 1] and the bin's statistic, the area-weighted mean of r.
+  radius r in [0, 1] and the bin's statistic, the mean of r over its vertices.
 
-Embedding (Cho et al.'s method I, on area-weighted statistics): within every bin r -> r**k moves the
-mean above 1/2 + alpha (bit 1, k < 1) or below 1/2 - alpha (bit 0, k > 1); vertices move along their
-radius, r = 0 and r = 1 stay, so no vertex changes bin. Reading: the sign of (bin mean - 1/2),
-weighted by the bin's confidence. The embedder re-reads its own output (float32, with the frame
-recomputed from the marked mesh) and raises the margin of any bin that came out wrong.
+Embedding (Cho et al.'s method I): within every bin r -> r**k moves the mean above 1/2 + alpha (bit 1,
+k < 1) or below 1/2 - alpha (bit 0, k > 1); vertices move along their radius, r = 0 and r = 1 stay,
+so no vertex changes bin. Reading: the sign of (bin mean - 1/2). The embedder re-reads its own output
+(float32, frame recomputed from the marked mesh) and raises the margin of any bin that came out wrong
+or weak (below alpha / 2).
+
+Weights, measured (3 keys, 64 bins, alpha 0.07, BER summed over noise 0.3/0.5 %, smoothing 5/10
+it., quantization 8/7 bits, simplification 50 %, loop and midpoint subdivision): every vertex
+weighing 1 sums to 0.86 (bunny), 1.51 (Venus head), 0.81 (dragon); area-weighted statistics, centre
+and quantiles 0.67, 2.70, -; the area-weighted centre with unit statistics 0.56, 2.31, 0.84; areas
+smoothed over the 1-ring (2 or 6 passes), sqrt(area) or the areas of a smoothed copy were no better.
+The areas of the marked mesh move with the mark and with any noise; unit weights lose instead under
+simplification (bunny 50 %: BER 0.43 against 0.07 with areas). Face quadrature (6 points per face)
+instead of vertices: the embedder no longer reaches its margins on the Venus head (bins are
+narrower than its triangles).
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ import numpy as np
 
 from ...errors import MeshError
 
-QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as area-weighted quantiles
+QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as quantiles over the vertices
 K_GRID = 1e-3  # the step of the exponent k (Cho's)
 
 
@@ -58,9 +65,9 @@ def _weighted_quantiles(x: np.ndarray, w: np.ndarray, q) -> np.ndarray:
 
 
 def frame_of(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[Frame, np.ndarray]:
-    """The frame of a mesh and its vertex areas (n,). MeshError when the surface has no area or no
-    radial range."""
-    a = vertex_areas(V, F)
+    """The frame of a mesh and its vertex weights (n,) (1 on a face of positive area, else 0).
+    MeshError when the surface has no area or no radial range."""
+    a = (vertex_areas(V, F) > 0).astype(np.float64)  # every vertex of the surface weighs 1 (see the docstring)
     total = a.sum()
     if not total > 0:
         raise MeshError("the mesh has no surface area; the blind scheme reads a surface")
@@ -96,7 +103,7 @@ def bin_vertices(V: np.ndarray, fr: Frame) -> Binned:
 
 
 def bin_statistics(r: np.ndarray, b: np.ndarray, a: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per bin: the area-weighted mean of r (NaN when empty) and the bin's area, both (M,)."""
+    """Per bin: the weighted mean of r (NaN when empty) and the bin's total weight, both (M,)."""
     ok = b >= 0
     wsum = np.bincount(b[ok], weights=a[ok], minlength=n_bins)
     s = np.bincount(b[ok], weights=(a * r)[ok], minlength=n_bins)
@@ -104,9 +111,8 @@ def bin_statistics(r: np.ndarray, b: np.ndarray, a: np.ndarray, n_bins: int) -> 
 
 
 def read_statistics(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each bin's area-weighted mean of r over the vertices, minus 1/2 (M,) (NaN: empty), and its
-    share of the area (M,). (Measured against quadrature points over the faces: on the remeshed
-    Venus head the embedder then cannot reach its margins, bins being narrower than triangles.)"""
+    """Each bin's mean of r over its vertices, minus 1/2 (M,) (NaN: empty), and its share of the
+    vertices (M,)."""
     return read_statistics_many(V, F, (n_bins,))[0]
 
 
