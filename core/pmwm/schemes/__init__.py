@@ -3,7 +3,7 @@
 - ``robust`` (the default): bumps and swirls spread over sites, registered, matched-filter reading.
 - ``paper``: the paper's Algorithms 1-2 (one carrier vertex per bit, read against its 1-ring).
 - ``cho1``, ``cho2``: Cho et al. 2007, methods I and II (the distribution of vertex norms; blind).
-- ``blind``: read with a pass phrase alone, no key file (the radial distribution of the surface).
+- ``blind``: read with a pass phrase alone, no key file (vertex norms over a quantile range, keyed check).
 
 Each scheme module imports the shared layers below it (``base``, ``key``, geometry), never another
 scheme and never ``pmwm.api``.
