@@ -1,8 +1,8 @@
 """The blind scheme ("blind"): a pass phrase and the suspect mesh are all the reader needs.
 
 - ``word``: the pass phrase (scrypt), the payload and its keyed check, the keyed layout.
-- ``radial``: the carrier, the distribution of the vertices' distances to their centroid in equal
-  bins (Cho et al.'s method I, over a quantile range instead of the extreme vertices).
+- ``radial``: the carrier, the distribution of the vertices' distances to the surface centroid in
+  equal bins (Cho et al.'s method I, over an area-quantile range instead of the extreme vertices).
 - ``keydata``: the record in the in-memory key (no key file is written; nothing from the mesh).
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed

@@ -2,11 +2,12 @@
 
 Everything here is computed from the mesh alone, so the reader needs no original:
 
-- centre c: the mean of the vertices that lie on a face of positive area;
-- rho_i = |v_i - c| and the range [lo, hi]: the quantiles ``QUANTILES`` of rho (Cho et al. use the
-  extreme vertices, which any noise moves; a quantile barely moves);
+- centre c: the area-weighted vertex centroid (each vertex weighs a third of its faces' area), an
+  estimate of the surface centroid that vertex density does not move (simplification, subdivision);
+- rho_i = |v_i - c| and the range [lo, hi]: the area-weighted quantiles ``QUANTILES`` of rho (Cho et
+  al. use the extreme vertices, which any noise moves; a quantile barely moves);
 - M equal-width bins over [lo, hi] (vertices outside carry nothing); inside bin j the normalised
-  radius r in [0, 1] and the bin's statistic, the mean of r over its vertices.
+  radius r in [0, 1] and the bin's statistic, the mean of r over its vertices (unit weights).
 
 Embedding (Cho et al.'s method I): within every bin r -> r**k moves the mean above 1/2 + alpha (bit 1,
 k < 1) or below 1/2 - alpha (bit 0, k > 1); vertices move along their radius, r = 0 and r = 1 stay,
@@ -15,14 +16,15 @@ so no vertex changes bin. Reading: the sign of (bin mean - 1/2). The embedder re
 or weak (below alpha / 2).
 
 Weights, measured (3 keys, 64 bins, alpha 0.07, BER summed over noise 0.3/0.5 %, smoothing 5/10
-it., quantization 8/7 bits, simplification 50 %, loop and midpoint subdivision): every vertex
-weighing 1 sums to 0.86 (bunny), 1.51 (Venus head), 0.81 (dragon); area-weighted statistics, centre
-and quantiles 0.67, 2.70, -; the area-weighted centre with unit statistics 0.56, 2.31, 0.84; areas
-smoothed over the 1-ring (2 or 6 passes), sqrt(area) or the areas of a smoothed copy were no better.
-The areas of the marked mesh move with the mark and with any noise; unit weights lose instead under
-simplification (bunny 50 %: BER 0.43 against 0.07 with areas). Face quadrature (6 points per face)
-instead of vertices: the embedder no longer reaches its margins on the Venus head (bins are
-narrower than its triangles).
+it., quantization 8/7 bits, simplification 50 %, loop and midpoint subdivision; bunny, Venus head,
+dragon): area-weighted centre and quantiles with unit-weight statistics (this module) 0.56, 2.31,
+0.84; everything area-weighted 0.67, 2.70, -; everything unit-weighted 0.86, 1.51, 0.81, but
+simplification 50 % then gives BER 0.43 / 0.39 / 0.21 against 0.05 / 0.32 / 0.07 here (the vertex
+mean moves when simplification removes vertices unevenly; in the full benchmark run with unit weights
+even 10 % simplification gave BER 0.39 on the bunny). Area weights in the statistics follow the
+mark itself and any noise; areas smoothed over the 1-ring, sqrt(area) or the areas of a smoothed copy
+were no better. Face quadrature (6 points per face) instead of vertices: the embedder no longer
+reaches its margins on the Venus head (bins are narrower than its triangles).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import numpy as np
 
 from ...errors import MeshError
 
-QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as quantiles over the vertices
+QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as area-weighted quantiles
 K_GRID = 1e-3  # the step of the exponent k (Cho's)
 
 
@@ -65,15 +67,17 @@ def _weighted_quantiles(x: np.ndarray, w: np.ndarray, q) -> np.ndarray:
 
 
 def frame_of(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[Frame, np.ndarray]:
-    """The frame of a mesh and its vertex weights (n,) (1 on a face of positive area, else 0).
-    MeshError when the surface has no area or no radial range."""
-    a = (vertex_areas(V, F) > 0).astype(np.float64)  # every vertex of the surface weighs 1 (see the docstring)
-    total = a.sum()
+    """The frame of a mesh (area-weighted centre and range) and the vertices' weights in the bin
+    statistics (n,) (1 on a face of positive area, else 0). MeshError when the surface has no area
+    or no radial range."""
+    area = vertex_areas(V, F)
+    total = area.sum()
     if not total > 0:
         raise MeshError("the mesh has no surface area; the blind scheme reads a surface")
-    c = (a[:, None] * V).sum(0) / total
+    c = (area[:, None] * V).sum(0) / total  # the surface's centroid: vertex density does not move it
     rho = np.linalg.norm(V - c, axis=1)
-    lo, hi = _weighted_quantiles(rho, a, QUANTILES)
+    lo, hi = _weighted_quantiles(rho, area, QUANTILES)
+    a = (area > 0).astype(np.float64)  # in the statistics every vertex of the surface weighs 1
     if not hi > lo * (1 + 1e-9) or not hi > 0:
         raise MeshError("the surface has no range of distances from its centre; the blind scheme needs one")
     return Frame(c, float(lo), float(hi), n_bins), a
