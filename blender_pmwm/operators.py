@@ -32,7 +32,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy.types import Operator
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from . import meshdata, prefs, session
+from . import meshdata, prefs, props, session
 from .jobs import BackgroundJob
 from .props import SCHEME_ITEMS, records_at_level
 
@@ -179,6 +179,16 @@ class WatermarkTask(_Task):
         import pmwm
 
         ob = _active_mesh(context)
+        self.blind = scheme == "blind"
+        if self.blind:
+            phrase = props.passphrase(context)
+            if not phrase:
+                raise _Failed("the Blind scheme needs a Pass Phrase: type it in the Mark panel")
+            self._remember_mesh(ob)
+            self.key_path = ""
+            self.opts = pmwm.EmbedOptions(payload=payload or None, strength=None, base_ratio=float(base_ratio),
+                                          seed=None if seed < 0 else int(seed), scheme=scheme, passphrase=phrase)
+            return
         self.key_path, self.make_folder = _key_path(context, ob, key_path)
         self.overwrite = bool(overwrite_key)
         if os.path.isdir(self.key_path):
@@ -204,9 +214,10 @@ class WatermarkTask(_Task):
         import pmwm
 
         ob = self.current_object()
-        if self.make_folder:
-            os.makedirs(os.path.dirname(self.key_path), exist_ok=True)
-        pmwm.write_key(self.key_path, res.key, overwrite=self.overwrite)
+        if not self.blind:
+            if self.make_folder:
+                os.makedirs(os.path.dirname(self.key_path), exist_ok=True)
+            pmwm.write_key(self.key_path, res.key, overwrite=self.overwrite)
 
         # Success: write back (nothing before this touched the scene).
         mesh = ob.data
@@ -221,8 +232,9 @@ class WatermarkTask(_Task):
             meshdata.mark_carriers(ob, res.carriers)
             report({"WARNING"}, "carriers are in vertex group 'pmwm_carriers': "
                                 "turn Show Carriers off before sharing the .blend")
+        where = "no key file (the pass phrase reads it)" if self.blind else f"key written to {self.key_path}"
         report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {len(res.carriers)} carriers, "
-                         f"VSNR {res.vsnr_db:.1f} dB; key written to {self.key_path}")
+                         f"VSNR {res.vsnr_db:.1f} dB; {where}")
 
 
 class VerifyTask(_Task):
@@ -234,6 +246,15 @@ class VerifyTask(_Task):
         import pmwm
 
         ob = _active_mesh(context)
+        self.blind = context.scene.pmwm.scheme == "blind"
+        if self.blind:
+            phrase = props.passphrase(context)
+            if not phrase:
+                raise _Failed("the Blind scheme needs a Pass Phrase: type it in the Mark panel")
+            self.key = pmwm.schemes.blind.key_from_passphrase(phrase)  # the derived secret only
+            self.key_path = self.key_sha256 = ""
+            self._remember_mesh(ob)
+            return
         self.key_path, _ = _key_path(context, ob, key_path)
         if not os.path.isfile(self.key_path):
             raise _Failed(f"key file not found: {self.key_path}: set Key File to the key written when "
@@ -256,7 +277,12 @@ class VerifyTask(_Task):
         s.verdict_marked = bool(verdict.marked)
         s.verdict_p_value = f"{verdict.p_value:.3g}"
         s.verdict_payload = verdict.payload if verdict.payload is not None else verdict.bits
-        s.verdict_matches = f"{verdict.matches}/{len(verdict.bits)}"
+        s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total if self.blind else len(verdict.bits)}"
+        if self.blind:  # no key file: nothing for the HTML report to cite
+            found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
+            report({"INFO"}, f"'{ob.name}' is {'MARKED' if verdict.marked else 'not marked'} (blind): p-value "
+                             f"{verdict.p_value:.3g}, {verdict.matches}/{verdict.carriers_total} check bits match, {found}")
+            return
         session.remember_verified(ob, session.Verified(
             name=ob.name, verdict=verdict, key=self.key, key_path=self.key_path, key_sha256=self.key_sha256,
             positions=self.positions32, faces=self.F))

@@ -76,9 +76,14 @@ class VIEW3D_PT_pmwm_mark(_Sidebar, Panel):
         ob = _mesh(context)
         col = layout.column()
         col.prop(s, "payload")
-        _key_field(col, context)
+        if s.scheme == "blind":
+            col.prop(context.window_manager.pmwm_secrets, "passphrase")
+            col.label(text="No key file: the pass phrase reads the mark", icon="INFO")
+        else:
+            _key_field(col, context)
         col.prop(s, "scheme")
-        col.prop(s, "overwrite_key")
+        if s.scheme != "blind":
+            col.prop(s, "overwrite_key")
         layout.operator("pmwm.watermark", icon="LOCKED")
 
         col = layout.column()
@@ -145,7 +150,10 @@ class VIEW3D_PT_pmwm_verify(_Sidebar, Panel):
     def draw(self, context):
         layout = _split(self.layout)
         s = context.scene.pmwm
-        _key_field(layout.column(), context)
+        if s.scheme == "blind":
+            layout.column().prop(context.window_manager.pmwm_secrets, "passphrase")
+        else:
+            _key_field(layout.column(), context)
         layout.operator("pmwm.verify", icon="VIEWZOOM")
         if s.verdict_object:
             box = layout.box()

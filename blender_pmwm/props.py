@@ -15,6 +15,8 @@ SCHEME_ITEMS = [
     ("robust", "Robust", "Bumps spread over the surface, read after registration: survives noise, smoothing, "
                          "cropping, simplification, re-export and posing (the default)"),
     ("paper", "Paper", "The paper's scheme: one carrier vertex per bit against its 1-ring (for comparison)"),
+    ("blind", "Blind", "Read with the Pass Phrase alone: no key file, the payload is read, not known "
+                       "(the distribution of vertex norms)"),
 ]
 
 
@@ -134,7 +136,43 @@ class PMWM_ObjectLoD(PropertyGroup):
     status: StringProperty(name="Status", default="")
 
 
-classes = (PMWM_SceneSettings, PMWM_ObjectLoD)
+class PMWM_Secrets(PropertyGroup):
+    """What must never reach the .blend (window_manager.pmwm_secrets): the blind scheme's pass phrase.
+    Window-manager properties are not saved with the file, and ``_forget_on_save`` empties it before
+    any save anyway."""
+
+    passphrase: StringProperty(
+        name="Pass Phrase",
+        description="Blind scheme: the secret that marks and reads; the same phrase may mark many meshes. "
+                    "Never saved in the .blend",
+        subtype="PASSWORD", default="", options={"SKIP_SAVE"},
+    )
+
+
+def passphrase(context) -> str:
+    """The pass phrase typed in this session ("" if none)."""
+    secrets = getattr(context.window_manager, "pmwm_secrets", None)
+    return secrets.passphrase if secrets is not None else ""
+
+
+_kept: list[str] = []
+
+
+@bpy.app.handlers.persistent
+def _forget_on_save(*_args) -> None:
+    for wm in bpy.data.window_managers:
+        _kept.append(wm.pmwm_secrets.passphrase)
+        wm.pmwm_secrets.passphrase = ""
+
+
+@bpy.app.handlers.persistent
+def _restore_after_save(*_args) -> None:
+    for wm, phrase in zip(bpy.data.window_managers, list(_kept)):
+        wm.pmwm_secrets.passphrase = phrase
+    _kept.clear()
+
+
+classes = (PMWM_SceneSettings, PMWM_ObjectLoD, PMWM_Secrets)
 
 
 def register() -> None:
@@ -142,9 +180,17 @@ def register() -> None:
         bpy.utils.register_class(cls)
     bpy.types.Scene.pmwm = PointerProperty(type=PMWM_SceneSettings)
     bpy.types.Object.pmwm_lod = PointerProperty(type=PMWM_ObjectLoD)
+    bpy.types.WindowManager.pmwm_secrets = PointerProperty(type=PMWM_Secrets)
+    bpy.app.handlers.save_pre.append(_forget_on_save)
+    bpy.app.handlers.save_post.append(_restore_after_save)
 
 
 def unregister() -> None:
+    for handlers, fn in ((bpy.app.handlers.save_pre, _forget_on_save),
+                         (bpy.app.handlers.save_post, _restore_after_save)):
+        if fn in handlers:
+            handlers.remove(fn)
+    del bpy.types.WindowManager.pmwm_secrets
     del bpy.types.Object.pmwm_lod
     del bpy.types.Scene.pmwm
     for cls in reversed(classes):

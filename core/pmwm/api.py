@@ -10,10 +10,11 @@ from __future__ import annotations
 from typing import Optional
 
 from .base import EmbedOptions, EmbedResult, Progress, Verdict
-from .errors import KeyFileError
+from .errors import KeyFileError, PayloadError
 from .key import WatermarkKey, read_key_json
 from .progressive import ProgressiveMesh
 from .schemes import get_scheme
+from .schemes.blind import key_from_passphrase
 
 __all__ = ["embed", "verify", "verify_pm", "ber_per_level", "read_key", "load_key_data"]
 
@@ -37,16 +38,22 @@ def read_key(path) -> WatermarkKey:
     return load_key_data(read_key_json(path))
 
 
-def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
-    """Read the mark from a suspect mesh (any order, possibly attacked) with the key's scheme."""
+def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: float = 1e-6, *,
+           passphrase: Optional[str] = None) -> Verdict:
+    """Read the mark from a suspect mesh (any order, possibly attacked) with the key's scheme, or,
+    with ``passphrase`` instead of a key, with the blind scheme (the payload is read, not known)."""
+    if (key is None) == (passphrase is None):
+        raise PayloadError("give a key or a pass phrase (the blind scheme), not both or neither")
+    if key is None:
+        key = key_from_passphrase(passphrase)
     return get_scheme(key.scheme, KeyFileError).verify(vertices, faces, key, p_threshold)
 
 
-def verify_pm(pm: ProgressiveMesh, key: WatermarkKey, records: Optional[int] = None,
-              p_threshold: float = 1e-6) -> Verdict:
+def verify_pm(pm: ProgressiveMesh, key: Optional[WatermarkKey] = None, records: Optional[int] = None,
+              p_threshold: float = 1e-6, *, passphrase: Optional[str] = None) -> Verdict:
     """Read the mark from a progressive mesh at a level of detail (default: full)."""
     V, F = pm.decode(records=records)
-    return verify(V, F, key, p_threshold)
+    return verify(V, F, key, p_threshold, passphrase=passphrase)
 
 
 def ber_per_level(pm: ProgressiveMesh, key: WatermarkKey) -> list[tuple[int, int, float]]:

@@ -42,8 +42,9 @@ class EmbedOptions:
     """Options of ``pmwm.embed`` (see docs/api.md).
 
     scheme: "robust" (the default), "paper" (the paper's Algorithms 1-2), "cho1" or "cho2" (Cho et
-    al. 2007, methods I and II). strength: None for the scheme's default; for robust and paper a
-    factor (2), for cho1/cho2 Cho's margin alpha (0.05).
+    al. 2007, methods I and II), "blind" (read with ``passphrase`` alone). strength: None for the
+    scheme's default; for robust and paper a factor (2), for cho1/cho2 Cho's margin alpha (0.05),
+    for blind the bin-mean margin (0.07). passphrase: the blind scheme's secret (never stored).
     """
 
     payload: Optional[str] = None
@@ -53,6 +54,7 @@ class EmbedOptions:
     base_ratio: float = 0.03
     seed: Optional[int] = None
     scheme: str = "robust"
+    passphrase: Optional[str] = field(default=None, repr=False)
 
 
 @dataclass

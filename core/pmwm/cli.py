@@ -28,6 +28,7 @@ from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .pmfile import read_pm, record_size, write_pm
 from .schemes import SCHEMES
+from .schemes.blind import key_from_passphrase
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
 
@@ -88,17 +89,50 @@ def _mesh_ext(path: str, what: str) -> None:
 # --------------------------------------------------------------------------- commands
 
 
+PASSPHRASE_ENV = "PMWM_PASSPHRASE"
+
+
+def _passphrase(path: Optional[str]) -> Optional[str]:
+    """The pass phrase of the blind scheme: the first line of ``path`` (its line ending dropped), else
+    $PMWM_PASSPHRASE, else None. Never printed."""
+    if path is None:
+        return os.environ.get(PASSPHRASE_ENV) or None
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read(65537)
+    except OSError as exc:
+        raise UsageError(f"cannot read the pass-phrase file {path}: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8").splitlines()[0] if raw.strip() else ""
+    except UnicodeDecodeError:
+        raise UsageError(f"the pass-phrase file {path} is not UTF-8 text") from None
+    if not text or len(raw) > 65536:
+        raise UsageError(f"the pass-phrase file {path} is empty or too long (its first line is the pass phrase)")
+    return text
+
+
 def cmd_embed(a) -> int:
     _mesh_ext(a.output, "output")
+    blind = a.scheme == "blind"
+    passphrase = _passphrase(a.passphrase_file) if blind else None
+    if blind and a.key is not None:
+        raise UsageError("the blind scheme writes no key file (the pass phrase is the key); omit --key")
+    if blind and passphrase is None:
+        raise UsageError(f"the blind scheme needs a pass phrase: --passphrase-file F or ${PASSPHRASE_ENV}")
+    if not blind and a.key is None:
+        raise UsageError("the key file to write is missing: --key KEY.json (only --scheme blind needs none)")
+    if not blind and a.passphrase_file is not None:
+        raise UsageError("--passphrase-file is for --scheme blind; the other schemes write a key file")
     _check_outputs([a.output, a.key, a.pm], [a.input], a.force)
     src = read_mesh(a.input)
     opts = EmbedOptions(payload=a.payload, bits=a.bits, n_bits=a.n_bits, strength=a.strength,
-                        base_ratio=a.base_ratio, seed=a.seed, scheme=a.scheme)
+                        base_ratio=a.base_ratio, seed=a.seed, scheme=a.scheme, passphrase=passphrase)
     res = embed(src.vertices, src.faces, opts, progress=_progress(a.quiet))
     written: list[str] = []
     try:
-        write_key(a.key, res.key, overwrite=a.force)
-        written.append(a.key)
+        if not blind:
+            write_key(a.key, res.key, overwrite=a.force)
+            written.append(a.key)
         if a.pm:
             write_pm(a.pm, res.pm, force=a.force)
             written.append(a.pm)
@@ -119,7 +153,10 @@ def cmd_embed(a) -> int:
             print(f"warning: {w}", file=sys.stderr)
         print(f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
               f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}")
-        print(f"key -> {a.key} (keep it secret: it reveals where the mark is)")
+        if blind:
+            print(f"payload bits: {''.join(map(str, res.bits.tolist()))} (no key file: the pass phrase reads it)")
+        else:
+            print(f"key -> {a.key} (keep it secret: it reveals where the mark is)")
         if a.pm:
             print(f"progressive mesh -> {a.pm} ({res.pm.n_base_vertices} base vertices, "
                   f"{res.pm.n_records} records, {len(res.pm.level_records)} levels)")
@@ -131,6 +168,11 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
         print(json.dumps(v.to_dict()))
         return
     state = "MARKED" if v.marked else "not marked"
+    if v.mode == "blind":
+        print(f"{state}: {v.matches}/{v.carriers_total} check bits match, p = {v.p_value:.3g} "
+              f"(threshold {v.p_threshold:g}), {v.extra.get('payload_bits')}-bit payload read (blind)")
+        print(f"payload: {v.payload!r}" if v.payload is not None else f"payload bits: {v.bits}")
+        return
     print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "
           f"(threshold {v.p_threshold:g}), correlation {v.correlation:.3f}, "
           f"{v.carriers_found}/{v.carriers_total} carriers read ({v.mode})")
@@ -142,8 +184,15 @@ def cmd_verify(a) -> int:
     if a.report is not None:
         if not a.report.lower().endswith((".html", ".htm")):
             raise UsageError(f"--report {a.report}: give an .html file name")
-        _check_outputs([a.report], [a.suspect, a.key], a.force)
-    key = read_key(a.key)
+        _check_outputs([a.report], [p for p in (a.suspect, a.key) if p is not None], a.force)
+    passphrase = _passphrase(a.passphrase_file) if a.key is None else None
+    if a.key is not None and a.passphrase_file is not None:
+        raise UsageError("give --key or --passphrase-file, not both")
+    if a.key is None and passphrase is None:
+        raise UsageError(f"give --key KEY.json, or a pass phrase for a blind mark (--passphrase-file F or ${PASSPHRASE_ENV})")
+    if passphrase is not None and a.report is not None:
+        raise UsageError("--report needs a key file; a blind mark has none")
+    key = read_key(a.key) if a.key is not None else key_from_passphrase(passphrase)
     if a.suspect.lower().endswith(".pmwm"):
         pm = read_pm(a.suspect)
         records = pm.records_for_vertices(a.vertices) if a.vertices is not None else a.level
@@ -404,7 +453,9 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("embed", help="watermark a mesh")
     e.add_argument("input")
     e.add_argument("-o", "--output", required=True, help="marked mesh (OBJ, PLY, STL, OFF, GLB)")
-    e.add_argument("--key", required=True, help="key file to write (JSON; keep it secret)")
+    e.add_argument("--key", help="key file to write (JSON; keep it secret); not with --scheme blind")
+    e.add_argument("--passphrase-file", metavar="F",
+                   help=f"--scheme blind: the pass phrase is F's first line (else ${PASSPHRASE_ENV}); never printed")
     e.add_argument("--pm", help="also write the progressive mesh (.pmwm)")
     g = e.add_mutually_exclusive_group()
     g.add_argument("--payload", help="text payload (UTF-8)")
@@ -412,7 +463,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--n-bits", type=int, default=64, help="random payload length without --payload/--bits")
     e.add_argument("--seed", type=int, help="seed of every random choice (default: a fresh secret)")
     e.add_argument("--strength", type=float,
-                   help="robust and paper: a factor (default 2); cho1, cho2: Cho's alpha (default 0.05)")
+                   help="robust and paper: a factor (default 2); cho1, cho2: Cho's alpha (default 0.05); "
+                        "blind: the bin-mean margin (default 0.07)")
     e.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
     e.add_argument("--scheme", choices=tuple(SCHEMES), default="robust",
                    help="; ".join(f"{s.name}: {s.description}" for s in SCHEMES.values()))
@@ -422,7 +474,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("verify", help="check a suspect mesh or .pmwm for the mark")
     v.add_argument("suspect")
-    v.add_argument("--key", required=True)
+    v.add_argument("--key", help="the key file of the mark (not for a blind mark)")
+    v.add_argument("--passphrase-file", metavar="F",
+                   help=f"read a blind mark with the pass phrase in F's first line (else ${PASSPHRASE_ENV})")
     v.add_argument("--json", action="store_true", help="one JSON object on stdout")
     v.add_argument("--level", type=int, help="(.pmwm) records to apply")
     v.add_argument("--vertices", type=int, help="(.pmwm) level of detail by vertex count")

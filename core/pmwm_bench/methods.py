@@ -10,7 +10,12 @@ robust     pmwm          bump height factor (2: 0.24 mean edge lengths)
 paper      pmwm-paper    the paper's factor (mu +- strength * sigma)
 cho1       Cho I         Cho et al. 2007's alpha (margin of the bin mean)
 cho2       Cho II        Cho et al. 2007's alpha (margin of the bin moment)
+blind      pmwm-blind    the margin of the bin mean (Cho's method I on a quantile range)
 =========  ============  ==================================================
+
+The blind method marks with the pass phrase ``BLIND_PASSPHRASE`` + the seed and reads with it alone
+(``extract`` returns the payload read, so its length is the payload's: 32, 64, 96 or 224 bits; the
+benchmark protocol's 64 bits in total are 32 payload + 32 check bits, see benchmarks/bench_blind.py).
 
 ``strength=None`` leaves the choice to the scheme: its ``default_strength`` in ``pmwm.SCHEMES``
 (2 for robust and paper, 0.05 for Cho's methods).
@@ -26,17 +31,23 @@ import numpy as np
 import pmwm
 
 #: scheme name (``pmwm.EmbedOptions.scheme``) -> display name in every table
-DISPLAY: dict[str, str] = {"robust": "pmwm", "paper": "pmwm-paper", "cho1": "Cho I", "cho2": "Cho II"}
+DISPLAY: dict[str, str] = {"robust": "pmwm", "paper": "pmwm-paper", "cho1": "Cho I", "cho2": "Cho II",
+                           "blind": "pmwm-blind"}
 #: what each scheme's strength is, in a few words (for the reports)
 STRENGTH_MEANING: dict[str, str] = {
     "robust": "bump height factor", "paper": "the paper's factor", "cho1": "alpha", "cho2": "alpha",
+    "blind": "bin-mean margin",
 }
+#: the pass phrase of the blind method's embeddings (+ ":" + the seed)
+BLIND_PASSPHRASE = "pmwm-bench"
 #: the schemes that are pmwm's own (the paper protocol's Table 1 measures these only)
 PMWM_SCHEMES: tuple[str, ...] = ("robust", "paper")
-ALL_SCHEMES: tuple[str, ...] = tuple(DISPLAY)
+#: what ``pmwm bench`` runs by default (the blind method is run by benchmarks/bench_blind.py: its payload
+#: lengths are 32, 64, 96 or 224 bits, not the paper protocol's 50)
+ALL_SCHEMES: tuple[str, ...] = tuple(s for s in DISPLAY if s != "blind")
 
 _ALIASES = {"pmwm": "robust", "pmwm-robust": "robust", "pmwm-paper": "paper", "cho i": "cho1", "cho-i": "cho1",
-            "choi": "cho1", "cho ii": "cho2", "cho-ii": "cho2", "choii": "cho2", "cho-1": "cho1", "cho-2": "cho2"}
+            "choi": "cho1", "pmwm-blind": "blind", "cho ii": "cho2", "cho-ii": "cho2", "choii": "cho2", "cho-1": "cho1", "cho-2": "cho2"}
 
 
 def scheme_of(name: str) -> str:
@@ -80,7 +91,9 @@ class SchemeMethod:
     def options(self, bits: Any, seed: Optional[int]) -> pmwm.EmbedOptions:
         """The ``pmwm.EmbedOptions`` of one embedding."""
         strength = None if self.strength is None else float(self.strength)
-        return pmwm.EmbedOptions(bits=np.asarray(bits).ravel(), seed=seed, strength=strength, scheme=self.scheme)
+        phrase = f"{BLIND_PASSPHRASE}:{seed}" if self.scheme == "blind" else None
+        return pmwm.EmbedOptions(bits=np.asarray(bits).ravel(), seed=seed, strength=strength, scheme=self.scheme,
+                                 passphrase=phrase)
 
     def embed(self, vertices: np.ndarray, faces: np.ndarray, bits: Any, seed: Optional[int] = None
               ) -> tuple[np.ndarray, Any]:
@@ -99,5 +112,5 @@ def default_methods(strength: Optional[float] = None) -> list[SchemeMethod]:
     return [SchemeMethod("robust", strength), SchemeMethod("paper"), SchemeMethod("cho1"), SchemeMethod("cho2")]
 
 
-__all__ = ["ALL_SCHEMES", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod",
+__all__ = ["ALL_SCHEMES", "BLIND_PASSPHRASE", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod",
            "default_methods", "scheme_of"]

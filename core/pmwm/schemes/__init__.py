@@ -3,6 +3,7 @@
 - ``robust`` (the default): bumps and swirls spread over sites, registered, matched-filter reading.
 - ``paper``: the paper's Algorithms 1-2 (one carrier vertex per bit, read against its 1-ring).
 - ``cho1``, ``cho2``: Cho et al. 2007, methods I and II (the distribution of vertex norms; blind).
+- ``blind``: read with a pass phrase alone, no key file (vertex norms over a quantile range, keyed check).
 
 Each scheme module imports the shared layers below it (``base``, ``key``, geometry), never another
 scheme and never ``pmwm.api``.
@@ -12,11 +13,12 @@ from __future__ import annotations
 
 from ..base import Scheme
 from ..errors import PayloadError
+from .blind import SCHEME as BLIND
 from .cho import CHO1, CHO2
 from .paper import SCHEME as PAPER
 from .robust import SCHEME as ROBUST
 
-SCHEMES: dict[str, Scheme] = {s.name: s for s in (ROBUST, PAPER, CHO1, CHO2)}
+SCHEMES: dict[str, Scheme] = {s.name: s for s in (ROBUST, PAPER, CHO1, CHO2, BLIND)}
 DEFAULT_SCHEME = "robust"
 
 __all__ = ["SCHEMES", "DEFAULT_SCHEME", "get_scheme"]

@@ -1,0 +1,171 @@
+"""The blind scheme ("blind"): a pass phrase and the suspect mesh are all the reader needs.
+
+- ``word``: the pass phrase (scrypt), the payload and its keyed check, the keyed layout.
+- ``radial``: the carrier, the distribution of the vertices' distances to the surface centroid in
+  equal bins (Cho et al.'s method I, over an area-quantile range instead of the extreme vertices).
+- ``keydata``: the record in the in-memory key (no key file is written; nothing from the mesh).
+
+Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed
+bins. Reading computes the bins' statistics for every possible word length, and keeps the reading
+whose check bits match best; its p-value is exact per reading and a union bound over the 8 readings
+(see ``word``). The mark is global (no places); it is rotation-, scale-, translation- and
+order-invariant by construction.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from ... import metrics
+from ...adjacency import build_adjacency
+from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
+from ...errors import MeshError, PayloadError
+from ...key import WatermarkKey, keyed_bits
+from ...progressive import build_progressive_mesh
+from ...validate import check_mesh
+from . import radial, word
+from .keydata import BlindKeyData
+
+__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "bin_statistics", "decide",
+           "word_read", "BlindKeyData"]
+
+DEFAULT_ALPHA = 0.07
+BINS_PER_BIT = 1
+NAME = "blind"
+
+
+def _n_bins(n_word: int) -> int:
+    return n_word * BINS_PER_BIT
+
+
+def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
+    """Mark a mesh, vertices (n, 3) float64, faces (m, 3) int64 (kept), with the pass phrase of
+    ``options``; the payload is ``options.payload`` (text), ``options.bits`` or ``options.n_bits``
+    random bits (from ``options.seed``)."""
+    opts = options or EmbedOptions(scheme=NAME)
+    passphrase = getattr(opts, "passphrase", None)
+    if passphrase is None:
+        raise PayloadError("the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file "
+                           "or PMWM_PASSPHRASE)")
+    secret = word.derive_secret(passphrase)
+    # the generic first steps with an explicit-bits stand-in (the blind payload has its own lengths)
+    job = start_embed(vertices, faces, EmbedOptions(bits="0", strength=opts.strength, base_ratio=opts.base_ratio,
+                                                    seed=opts.seed, scheme=NAME), progress, NAME, DEFAULT_ALPHA)
+    if not job.strength < 0.5:
+        raise PayloadError(f"the blind scheme's strength (the bin-mean margin) must be below 0.5, got {job.strength}")
+    payload_seed = job.secret  # fresh randomness, or from the seed: one payload per mesh
+    payload, kind = word.payload_of(opts.payload, opts.bits, opts.n_bits,
+                                    lambda n: keyed_bits(payload_seed, "blind-random-payload", n))
+    w = word.word_of(secret, kind, payload)
+    n_bins = _n_bins(len(w))
+    bit_of_bin, scramble = word.layout(secret, len(w), n_bins)
+    signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
+    V, F = job.vertices, job.faces
+    job.report(0.0, "marking the radial distribution")
+    marked = radial.embed_signs(V, F, signs, job.strength)
+    job.secret, job.bits, job.payload_kind = secret, payload, kind
+    adj = build_adjacency(F, len(V))
+    base = max(int(round(opts.base_ratio * len(V))), 4)
+    pm, _ = build_progressive_mesh(marked, F, base_vertices=base, adjacency=adj,
+                                   progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
+    none = np.zeros(0, np.int64)
+    return finish_embed(job, NAME, marked, adj, pm, none, none,
+                        data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
+
+
+def bin_statistics(vertices, faces) -> dict[int, np.ndarray]:
+    """What the reader measures on a suspect, for every word length N: the bins' statistics (N *
+    BINS_PER_BIT,) float64 (bin mean of r - 1/2; NaN: an empty bin). Independent of the pass phrase."""
+    V, F = check_mesh(vertices, faces)
+    if len(F) == 0:
+        raise MeshError("the suspect has no faces; the blind scheme reads a surface")
+    words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
+    many = radial.read_statistics_many(V, F, [_n_bins(n) for n in words])
+    return {n: stat for n, (stat, _) in zip(words, many)}
+
+
+def word_read(stat: np.ndarray, secret: str, n_word: int) -> tuple[np.ndarray, np.ndarray]:
+    """The word of length ``n_word`` as read (hard decisions, erasures drawn from a keyed coin) (N,)
+    uint8, and the score of each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure)."""
+    bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
+    score = np.bincount(bit_of_bin, weights=np.nan_to_num(stat, nan=0.0), minlength=n_word)
+    got = (score > 0).astype(np.uint8)
+    erased = score == 0
+    got[erased] = keyed_bits(secret, f"blind-erasure:{n_word}", n_word)[erased]
+    return got ^ scramble, score
+
+
+_FLIPS = ((np.arange(2**word.CHASE_BITS)[:, None] >> np.arange(word.CHASE_BITS)) & 1).astype(np.uint8)
+
+
+def decide(stats: dict[int, np.ndarray], secret: str, p_threshold: float = 1e-6) -> Verdict:
+    """The verdict from the statistics of ``bin_statistics`` and a secret (module docstring)."""
+    readings = []
+    for L in word.PAYLOAD_BITS:
+        n_word = L + word.CHECK_BITS
+        got, score = word_read(stats[n_word], secret, n_word)
+        weak = np.argsort(np.abs(score), kind="stable")[:word.CHASE_BITS]
+        candidates = np.repeat(got[None], len(_FLIPS), axis=0)
+        candidates[:, weak] ^= _FLIPS  # row 0: the word as read
+        for kind in word.KINDS:
+            best = None
+            for cand in candidates:
+                m = int(np.sum(cand[L:] == word.check_bits(secret, kind, cand[:L])))
+                if best is None or m > best[0]:
+                    best = (m, cand)
+                if m == word.CHECK_BITS:
+                    break
+            m, cand = best
+            readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, L, kind, cand, score, got))
+    p1, neg_m, L, kind, cand, score, raw = min(readings, key=lambda r: (r[0], r[1]))
+    p = float(min(1.0, len(readings) * len(_FLIPS) * p1))
+    m = -neg_m
+    payload = cand[:L]
+    text = word.text_of(payload) if kind == "text" else None
+    expected = word.check_bits(secret, kind, payload)
+    return Verdict(
+        marked=bool(p < p_threshold), p_value=p, bits="".join(map(str, payload.tolist())), payload=text,
+        # matches / bit_errors / carriers_*: over the check bits (what the p-value counts)
+        matches=m, bit_errors=word.CHECK_BITS - m,
+        correlation=float(metrics.correlation(expected, cand[L:])),
+        carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
+        p_threshold=p_threshold,
+        extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
+               "word": "".join(map(str, cand.tolist())),  # after the Chase search
+               "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it
+        scores=score,  # (N,) sign = the scrambled bit read, as every scheme's scores
+        places=np.zeros((0, 3)), place_bits=np.zeros(0, np.int64),
+    )
+
+
+def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
+    """The blind reading: the payload read, its verdict and p-value. vertices (n, 3), faces (m, 3)
+    of the suspect; ``secret`` from ``word.derive_secret``."""
+    return decide(bin_statistics(vertices, faces), secret, p_threshold)
+
+
+def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
+    """Read with the secret of ``key`` (from ``pmwm.embed`` or ``key_from_passphrase``); the payload in
+    the key is not used: the reading is blind."""
+    return read(vertices, faces, key.secret, p_threshold)
+
+
+def key_from_passphrase(passphrase: str) -> WatermarkKey:
+    """An in-memory key for ``pmwm.verify`` that holds only the secret derived from ``passphrase``."""
+    return WatermarkKey(
+        secret=word.derive_secret(passphrase), bits=np.zeros(word.PAYLOAD_BITS[0], np.uint8), payload_kind="bits",
+        strength=DEFAULT_ALPHA, carrier_index=np.zeros(0, np.int64), carrier_pm_index=np.zeros(0, np.int64),
+        carrier_position=np.zeros((0, 3)), n_vertices=1, n_faces=1, mean_edge=1.0, bbox_diagonal=1.0,
+        scheme=NAME, data=BlindKeyData(word.PAYLOAD_BITS[0], word.CHECK_BITS, DEFAULT_ALPHA),
+    )
+
+
+def load_key_data(key: WatermarkKey) -> BlindKeyData:
+    """The blind data of a key."""
+    return BlindKeyData.from_extra(key.extra if isinstance(key.extra, dict) else {})
+
+
+SCHEME = Scheme(NAME, DEFAULT_ALPHA, embed, verify, load_key_data,
+                "blind: read with a pass phrase alone (no key file); the distribution of vertex norms")

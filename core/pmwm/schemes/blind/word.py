@@ -1,0 +1,103 @@
+"""The pass phrase and the word the blind scheme writes: payload, keyed check, scrambling, bin layout.
+
+Everything secret derives from the pass phrase through scrypt with a fixed public salt
+(``derive_secret``): the 64-hex-digit secret then seeds every keyed stream (``pmwm.key.keyed_bits``).
+
+The word. ``PAYLOAD_BITS`` lists the payload lengths a word can have (32, 64, 96 or 224 bits: 4, 8,
+12 or 28 bytes of text); behind the payload come ``CHECK_BITS`` = 32 check bits, a keyed hash of the
+secret, the payload kind (text or bits) and the payload. The reader knows neither the length nor the
+kind: it tries the 4 * 2 = 8 readings, and in each the 2^8 words that flip any of the
+``CHASE_BITS`` = 8 least reliable bits (Chase decoding: a few weak bits are corrected). Under the
+null (an unmarked mesh, or the wrong pass phrase) the expected check bits of a candidate are fair
+coins independent of the bits read (a keyed hash of what was read), so P(m or more of the 32 match)
+= P(Binomial(32, 1/2) >= m) exactly per candidate, and the p-value reported is the union bound over
+the 8 * 256 = 2048 candidates: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 < 1e-6.
+
+Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
+search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
+the bunny after 8-bit quantisation); 32 check bits pay for the 2^8 Chase candidates. A reading is
+"marked" only with all its check bits right, so a payload reported as marked is the embedded one up
+to a hash collision (2^-32 per candidate).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Optional
+
+import numpy as np
+
+from ...base import decode_text
+from ...errors import PayloadError
+from ...key import keyed_bits
+from ...validate import parse_bits
+
+PAYLOAD_BITS = (32, 64, 96, 224)
+CHECK_BITS = 32
+CHASE_BITS = 8  # the reader tries every flip of the 8 least reliable bits of a word
+KINDS = ("bits", "text")
+SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
+SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
+
+
+def derive_secret(passphrase: str) -> str:
+    """The scheme's secret (64 hex digits) from the pass phrase (scrypt, public salt)."""
+    if not isinstance(passphrase, str) or not passphrase:
+        raise PayloadError("the blind scheme needs a non-empty pass phrase")
+    raw = hashlib.scrypt(passphrase.encode("utf-8"), salt=SALT, dklen=32, maxmem=64 * 1024 * 1024, **SCRYPT)
+    return raw.hex()
+
+
+def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[np.ndarray, str]:
+    """The payload (L,) uint8 with L in PAYLOAD_BITS and its kind ("text" or "bits").
+
+    Text is UTF-8 padded with NUL bytes to the shortest length that holds it; explicit bits must
+    have one of the lengths; a random payload has ``n_bits`` bits, drawn by ``random_bits(n)``."""
+    if payload is not None and bits is not None:
+        raise PayloadError("give a text payload or explicit bits, not both")
+    sizes = ", ".join(map(str, PAYLOAD_BITS))
+    if payload is not None:
+        data = payload.encode("utf-8")
+        if not data:
+            raise PayloadError("the payload text is empty; give some text or use --bits")
+        n = next((L for L in PAYLOAD_BITS if L >= 8 * len(data)), None)
+        if n is None:
+            raise PayloadError(f"the blind scheme holds at most {PAYLOAD_BITS[-1] // 8} bytes of text; "
+                               f"this payload has {len(data)}")
+        data = data + b"\0" * (n // 8 - len(data))
+        return np.unpackbits(np.frombuffer(data, np.uint8)), "text"
+    if bits is not None:
+        b = parse_bits(bits)
+        if len(b) not in PAYLOAD_BITS:
+            raise PayloadError(f"the blind scheme carries {sizes} payload bits; got {len(b)}")
+        return b, "bits"
+    if n_bits not in PAYLOAD_BITS:
+        raise PayloadError(f"the blind scheme carries {sizes} payload bits; asked for {n_bits}")
+    return np.asarray(random_bits(n_bits), np.uint8), "bits"
+
+
+def check_bits(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
+    """The keyed check (CHECK_BITS,) uint8 of a payload (L,) uint8 of a kind: the first bits of
+    SHA-256(secret, kind, payload) (a MAC; hashlib directly, as the reader computes 2048 of them)."""
+    tag = hashlib.sha256(f"{secret}:blind-check:{kind}:".encode() + np.packbits(payload).tobytes()
+                         + len(payload).to_bytes(2, "little")).digest()
+    return np.unpackbits(np.frombuffer(tag[:CHECK_BITS // 8], np.uint8))
+
+
+def layout(secret: str, n_word: int, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where the word goes: bin -> word bit (n_bins,) int64 (a keyed permutation, each bit on
+    n_bins // n_word bins) and the keyed scrambling (n_word,) uint8."""
+    rng = np.random.default_rng(int.from_bytes(hashlib.sha256(f"{secret}:blind-layout:{n_word}:{n_bins}".encode())
+                                               .digest()[:8], "little"))
+    bit_of_bin = rng.permutation(np.arange(n_bins) % n_word)
+    return bit_of_bin, keyed_bits(secret, f"blind-scramble:{n_word}", n_word)
+
+
+def word_of(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
+    """The word written (L + CHECK_BITS,) uint8: payload then check."""
+    return np.concatenate([payload, check_bits(secret, kind, payload)]).astype(np.uint8)
+
+
+def text_of(bits: np.ndarray) -> Optional[str]:
+    """The text of a payload read as text (trailing NULs dropped), None if not UTF-8."""
+    return decode_text(bits)

@@ -1,0 +1,51 @@
+"""The Blind scheme in the add-on: the Pass Phrase field marks and reads, no key file is written, and
+the pass phrase never reaches the .blend."""
+
+from __future__ import annotations
+
+import bpy
+import pytest
+
+PHRASE = "tangerine kettle 42"
+
+
+def _secrets():
+    return bpy.context.window_manager.pmwm_secrets
+
+
+def test_blind_watermark_and_verify_with_the_pass_phrase(scene, addon, bl, key_prefs, tmp_path):
+    bl.bunny()
+    scene.pmwm.scheme = "blind"
+    _secrets().passphrase = PHRASE
+    assert bpy.ops.pmwm.watermark(payload="Acme", scheme="blind", seed=3) == {"FINISHED"}
+    folder = tmp_path / "key-folder"
+    assert not folder.exists() or not any(folder.iterdir())  # no key file anywhere
+    assert bpy.ops.pmwm.verify() == {"FINISHED"}
+    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    _secrets().passphrase = PHRASE + "?"
+    assert bpy.ops.pmwm.verify() == {"FINISHED"}
+    assert scene.pmwm.verdict_marked is False
+
+
+def test_blind_without_a_pass_phrase_is_a_clear_error(scene, addon, bl):
+    bl.new_object("tet", [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]])
+    scene.pmwm.scheme = "blind"
+    _secrets().passphrase = ""
+    before = bl.snapshot()
+    with pytest.raises(RuntimeError, match="needs a Pass Phrase"):
+        bpy.ops.pmwm.watermark(scheme="blind")
+    with pytest.raises(RuntimeError, match="needs a Pass Phrase"):
+        bpy.ops.pmwm.verify()
+    assert bl.snapshot() == before
+
+
+def test_the_pass_phrase_is_never_saved_in_the_blend(scene, addon, bl, tmp_path):
+    scene.pmwm.scheme = "blind"
+    _secrets().passphrase = PHRASE
+    path = tmp_path / "scene.blend"
+    assert bpy.ops.wm.save_as_mainfile(filepath=str(path), compress=False) == {"FINISHED"}
+    assert PHRASE.encode() not in path.read_bytes()
+    assert _secrets().passphrase == PHRASE  # still there in this session
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    assert _secrets().passphrase == ""
+    assert bpy.context.scene.pmwm.scheme == "blind"

@@ -1,0 +1,194 @@
+"""The blind scheme: a pass phrase and the suspect mesh read the payload, with an exact p-value;
+no key file; the same pass phrase over many meshes; the command line and its errors."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import meshes
+import pmwm
+from pmwm import attacks as A
+from pmwm.errors import MeshError, PayloadError
+from pmwm.meshio import read_mesh, write_mesh
+from pmwm.schemes.blind import word
+
+BUNNY = Path(pmwm.__file__).parent / "data" / "bunny.off"
+PHRASE = "correct horse battery staple"
+
+
+@pytest.fixture(scope="module")
+def bunny():
+    m = trimesh.load(BUNNY, process=False)
+    return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64)
+
+
+@pytest.fixture(scope="module")
+def marked(bunny):
+    v, f = bunny
+    return pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3))
+
+
+def bitstring(n: int, seed: int) -> str:
+    return "".join(map(str, np.random.default_rng(seed).integers(0, 2, n)))
+
+
+def test_text_payload_read_with_the_pass_phrase_alone(marked):
+    v = pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme" and v.mode == "blind"
+    assert v.p_value == pytest.approx(8 * 256 * 2.0**-32)  # all 32 check bits, union over 2048 candidates
+    assert v.extra["payload_kind"] == "text" and v.extra["payload_bits"] == 32
+
+
+def test_wrong_pass_phrase_and_unmarked_mesh_are_not_marked(bunny, marked):
+    assert not pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE + "!").marked
+    v = pmwm.verify(*bunny, passphrase=PHRASE)
+    assert not v.marked and v.payload is None
+
+
+def test_the_key_and_the_pass_phrase_read_alike(marked):
+    by_key = pmwm.verify(marked.vertices, marked.faces, marked.key)
+    by_phrase = pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE)
+    assert by_key.to_dict() == by_phrase.to_dict()
+    with pytest.raises(PayloadError, match="not both"):
+        pmwm.verify(marked.vertices, marked.faces, marked.key, passphrase=PHRASE)
+    with pytest.raises(PayloadError, match="pass phrase"):
+        pmwm.verify(marked.vertices, marked.faces)
+
+
+@pytest.mark.parametrize("attack", [
+    lambda v, f: A.similarity(v, f, seed=4),
+    lambda v, f: A.reorder(v, f, seed=5),
+    lambda v, f: A.quantize(v, f, bits=10),
+    lambda v, f: A.noise_benchmark(v, f, 0.003, seed=6),
+], ids=["similarity", "reorder", "quantize10", "noise0.3%"])
+def test_whole_payload_survives(marked, attack):
+    v = pmwm.verify(*attack(marked.vertices, marked.faces), passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme"
+
+
+@pytest.mark.parametrize("ext", [".obj", ".ply", ".stl", ".glb"])
+def test_whole_payload_survives_re_export(marked, tmp_path, ext):
+    path = tmp_path / f"copy{ext}"
+    write_mesh(str(path), marked.vertices, marked.faces)
+    m = read_mesh(str(path))
+    v = pmwm.verify(m.vertices, m.faces, passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme"
+
+
+def test_one_pass_phrase_many_meshes_each_its_own_payload(bunny):
+    v, f = bunny
+    copies = {}
+    for name, (V, F) in {"bunny": (v, f), "cap": meshes.open_cap()}.items():
+        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", passphrase=PHRASE, n_bits=32))
+        copies[name] = res
+    payloads = {n: "".join(map(str, r.bits.tolist())) for n, r in copies.items()}
+    assert payloads["bunny"] != payloads["cap"]  # a fresh random payload per mesh
+    for name, res in copies.items():
+        got = pmwm.verify(res.vertices, res.faces, passphrase=PHRASE)
+        assert got.marked and got.bits == payloads[name] and got.extra["payload_kind"] == "bits"
+
+
+@pytest.mark.parametrize("n", word.PAYLOAD_BITS[:3])
+def test_explicit_bits_of_every_length(bunny, n):
+    bits = bitstring(n, n)
+    res = pmwm.embed(*bunny, pmwm.EmbedOptions(scheme="blind", bits=bits, passphrase=PHRASE, base_ratio=0.5))
+    got = pmwm.verify(res.vertices, res.faces, passphrase=PHRASE)
+    assert got.marked and got.bits == bits and got.payload is None
+
+
+def test_false_positive_rate_is_at_most_alpha():
+    """Unmarked meshes and wrong pass phrases: the p-value is a valid one (P(p <= a) <= a)."""
+    shapes = [meshes.blob(), meshes.cad_part(), meshes.pinched_torus()]
+    rng = np.random.default_rng(11)
+    ps = []
+    for i in range(150):
+        V, F = shapes[i % len(shapes)]
+        R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        ps.append(pmwm.verify(V @ R.T * rng.uniform(0.5, 2), F, passphrase=f"wrong {i}").p_value)
+    ps = np.array(ps)
+    assert not np.any(ps < 1e-6)
+    assert np.mean(ps <= 0.1) <= 0.1 + 3 * np.sqrt(0.1 * 0.9 / len(ps))
+
+
+def test_progressive_mesh_full_level_reads(marked):
+    got = pmwm.verify_pm(marked.pm, passphrase=PHRASE)
+    assert got.marked and got.payload == "Acme"
+
+
+def test_bad_input_gives_one_clear_error(bunny):
+    v, f = bunny
+    with pytest.raises(PayloadError, match="pass phrase"):
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x"))
+    with pytest.raises(PayloadError, match="pass phrase"):
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=""))
+    with pytest.raises(PayloadError, match="at most 28 bytes"):
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x" * 30, passphrase=PHRASE))
+    with pytest.raises(PayloadError, match="32, 64, 96, 224"):
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", bits="0101", passphrase=PHRASE))
+    with pytest.raises(PayloadError, match="below 0.5"):
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, strength=0.6))
+    with pytest.raises(MeshError):
+        pmwm.verify(np.zeros((3, 3)), np.array([[0, 1, 2]]), passphrase=PHRASE)
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def run(*args, env=None, cwd=None):
+    full = dict(os.environ, PYTHONPATH=str(Path(pmwm.__file__).parent.parent))
+    full.pop("PMWM_PASSPHRASE", None)
+    full.update(env or {})
+    return subprocess.run([sys.executable, "-m", "pmwm", *map(str, args)], capture_output=True, text=True,
+                          env=full, cwd=cwd, timeout=300)
+
+
+def test_cli_embed_and_verify_with_a_pass_phrase_file_write_no_key(tmp_path):
+    src = tmp_path / "cap.off"
+    meshes.write_off(src, *meshes.open_cap())
+    phrase = tmp_path / "phrase.txt"
+    phrase.write_text("a long secret phrase\n")
+    out = tmp_path / "marked.ply"
+    p = run("embed", src, "-o", out, "--scheme", "blind", "--passphrase-file", phrase, "--payload", "Studio X",
+            "--pm", tmp_path / "m.pmwm")
+    assert p.returncode == 0, p.stderr
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["cap.off", "m.pmwm", "marked.ply", "phrase.txt"]
+    assert "a long secret phrase" not in p.stdout + p.stderr
+    v = run("verify", out, "--passphrase-file", phrase)
+    assert v.returncode == 0 and "MARKED" in v.stdout and "'Studio X'" in v.stdout
+    assert "a long secret phrase" not in v.stdout + v.stderr
+    env = run("verify", out, "--json", env={"PMWM_PASSPHRASE": "a long secret phrase"})
+    assert env.returncode == 0 and '"payload": "Studio X"' in env.stdout
+    wrong = run("verify", out, env={"PMWM_PASSPHRASE": "another phrase"})
+    assert wrong.returncode == 1 and "not marked" in wrong.stdout
+
+
+def test_cli_errors(tmp_path):
+    src = tmp_path / "blob.off"
+    meshes.write_off(src, *meshes.blob())
+    p = run("embed", src, "-o", tmp_path / "m.ply", "--scheme", "blind")
+    assert p.returncode == 2 and "pass phrase" in p.stderr and "Traceback" not in p.stderr
+    p = run("embed", src, "-o", tmp_path / "m.ply", "--scheme", "blind", "--key", tmp_path / "k.json",
+            env={"PMWM_PASSPHRASE": "x"})
+    assert p.returncode == 2 and "omit --key" in p.stderr
+    p = run("embed", src, "-o", tmp_path / "m.ply")
+    assert p.returncode == 2 and "--key" in p.stderr
+    p = run("verify", src)
+    assert p.returncode == 2 and "pass phrase" in p.stderr
+    p = run("verify", src, "--passphrase-file", tmp_path / "missing.txt")
+    assert p.returncode == 2 and "pass-phrase file" in p.stderr
+
+
+def test_bench_method_reads_its_bits(bunny):
+    from pmwm_bench.methods import SchemeMethod
+
+    method = SchemeMethod("pmwm-blind")
+    bits = np.random.default_rng(9).integers(0, 2, 32)
+    marked, key = method.embed(*bunny, bits, seed=4)
+    assert method.extract(*A.reorder(marked, bunny[1], seed=1), key) == "".join(map(str, bits))
