@@ -19,9 +19,7 @@ phrases go through scrypt too.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -39,16 +37,6 @@ PAYLOAD_BITS = 32
 N_WORD = PAYLOAD_BITS + blind.word.CHECK_BITS
 
 
-def reexport(ext: str):
-    def attack(V, F, seed=None):
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, "copy" + ext)
-            pmwm.write_mesh(path, V, F)
-            src = pmwm.read_mesh(path)
-            return src.vertices, src.faces
-    return attack
-
-
 def crop_posed(V, F, seed=None):
     """A 30 % plane crop of a copy in a random pose."""
     Vs, Fs = attacks.similarity(V, F, seed=seed)
@@ -58,7 +46,7 @@ def crop_posed(V, F, seed=None):
 WHOLE = [
     ("similarity", lambda V, F, seed: attacks.similarity(V, F, seed=seed)),
     ("reordering", lambda V, F, seed: attacks.reorder(V, F, seed=seed)),
-    *[(f"re-export {e[1:].upper()}", (lambda e: lambda V, F, seed: reexport(e)(V, F))(e))
+    *[(f"re-export {e[1:].upper()}", (lambda e: lambda V, F, seed: attacks.reexport(V, F, e))(e))
       for e in (".obj", ".ply", ".stl", ".glb")],
     ("quantization 8 bits", lambda V, F, seed: attacks.quantize(V, F, bits=8)),
     ("simplification 50 %", lambda V, F, seed: attacks.simplify(V, F, ratio=0.5, seed=seed)),
@@ -246,7 +234,6 @@ def main(argv=None) -> int:
     ps = np.array(ps)
 
     # ---- speed
-    import pmwm.schemes.blind as B  # noqa: F401
 
     speed = []
     for model in ("bunny", "igea"):

@@ -28,7 +28,7 @@ from _report import REPORT, command, commit, load, machine, mesh_path, write_sec
 import pmwm  # noqa: E402
 from pmwm import attacks  # noqa: E402
 from pmwm.fingerprint import FingerprintOptions, analyse_asset  # noqa: E402
-from pmwm.fingerprint.codes import accuse, codewords, p_values  # noqa: E402
+from pmwm.fingerprint.codes import accuse, codewords  # noqa: E402
 from pmwm.fingerprint.trace import site_readings  # noqa: E402
 from pmwm.fingerprint.registry import FingerprintKey  # noqa: E402
 from pmwm_bench.protocols import attack_seed, benchmark_settings  # noqa: E402

@@ -17,9 +17,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -38,25 +36,15 @@ from pmwm.schemes.robust import read_scores  # noqa: E402
 OTHERS = ["armadillo", "venus-head", "horse", "igea", "camelhead", "rocker-arm"]
 
 
-def reexport(ext: str):
-    def attack(V, F, seed=None):
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, "copy" + ext)
-            pmwm.write_mesh(path, V, F)
-            src = pmwm.read_mesh(path)
-            return src.vertices, src.faces
-    return attack
-
-
 ATTACKS = [
     ("none", lambda V, F, s: (V, F)),
     ("quads re-triangulated", lambda V, F, s: attacks.retriangulate(V, F, seed=s)),
     ("reorder", lambda V, F, s: attacks.reorder(V, F, seed=s)),
     ("similarity", lambda V, F, s: attacks.similarity(V, F, seed=s)),
-    ("OBJ", lambda V, F, s: reexport(".obj")(V, F)),
-    ("PLY", lambda V, F, s: reexport(".ply")(V, F)),
-    ("STL", lambda V, F, s: reexport(".stl")(V, F)),
-    ("GLB", lambda V, F, s: reexport(".glb")(V, F)),
+    ("OBJ", lambda V, F, s: attacks.reexport(V, F, ".obj")),
+    ("PLY", lambda V, F, s: attacks.reexport(V, F, ".ply")),
+    ("STL", lambda V, F, s: attacks.reexport(V, F, ".stl")),
+    ("GLB", lambda V, F, s: attacks.reexport(V, F, ".glb")),
     ("quantize 9 bits", lambda V, F, s: attacks.quantize(V, F, 9)),
     ("quantize 8 bits", lambda V, F, s: attacks.quantize(V, F, 8)),
     ("quantize 7 bits", lambda V, F, s: attacks.quantize(V, F, 7)),

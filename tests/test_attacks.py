@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 import trimesh
 
+import meshes
 from pmwm import attacks as A
 from pmwm.adjacency import build_adjacency
 from pmwm.errors import MeshError
 from pmwm.metrics import surface_distance
+from pmwm.spatial import nearest
 
 BUNNY = Path(A.__file__).parent / "data" / "bunny.off"
 
@@ -349,3 +351,14 @@ def test_retriangulate_flips_diagonals_and_keeps_the_surface(bunny):
     assert vol(F2) == pytest.approx(vol(F), rel=1e-3)
     assert np.array_equal(A.retriangulate(V, F, seed=3)[1], F2)  # seeded
     assert np.array_equal(A.retriangulate(V, F, fraction=0.0, seed=3)[1], F)
+
+
+@pytest.mark.parametrize("ext", [".obj", ".ply", ".stl", ".glb"])
+def test_reexport_keeps_the_surface_up_to_float32(ext):
+    V, F = meshes.blob()
+    Vr, Fr = A.reexport(V, F, ext)
+    assert len(Fr) == len(F)
+    # every written triangle comes back (corners in order), up to float32 rounding, whatever the order
+    j, _ = nearest(Vr[Fr].mean(axis=1), V[F].mean(axis=1))  # each triangle's counterpart, by centre
+    assert len(np.unique(j)) == len(F)
+    assert np.abs(Vr[Fr][j] - V[F]).max() < 1e-6 * np.abs(V).max()

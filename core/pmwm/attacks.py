@@ -478,3 +478,19 @@ def attack_parameters(name: str) -> dict[str, tuple[object, object]]:
 
 
 __all__ = ["ATTACKS", "attack_parameters", "remove_vertices", *ATTACKS]
+
+
+def reexport(vertices: np.ndarray, faces: np.ndarray, ext: str) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh written to a file of format ``ext`` (".obj", ".ply", ".stl", ".glb", ...) and read back:
+    what a re-export does to the coordinates (float32), the vertex order and shared vertices (STL).
+    vertices : (n, 3) float64, faces : (m, 3) int64 -> the same, as read."""
+    import os
+    import tempfile
+
+    from .meshio import read_mesh, write_mesh  # meshio loads trimesh: only when this attack runs
+
+    with tempfile.TemporaryDirectory(prefix="pmwm-reexport-") as tmp:
+        path = os.path.join(tmp, "copy" + ext)
+        write_mesh(path, vertices, faces)
+        src = read_mesh(path)
+        return src.vertices, src.faces
