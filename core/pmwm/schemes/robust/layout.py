@@ -61,25 +61,32 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     need = min(CUT_KEEP_MIN, int(np.bincount(bit).min()))
     bit = bit.copy()
     kept_n = kept.astype(np.int64)
+    short_rows = np.count_nonzero(count < need, axis=1)  # (bit, cut) pairs short of sites, per bit
 
     def try_swap(i: int, j: int) -> bool:
         """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
         b, a = bit[i], bit[j]
         delta = kept_n[j] - kept_n[i]
         new_b, new_a = count[b] + delta, count[a] - delta
-        before = np.count_nonzero(count[b] < need) + np.count_nonzero(count[a] < need)
-        if np.count_nonzero(new_b < need) + np.count_nonzero(new_a < need) > before:
+        short_b, short_a = np.count_nonzero(new_b < need), np.count_nonzero(new_a < need)
+        if short_b + short_a > short_rows[b] + short_rows[a]:
             return False
         count[b], count[a] = new_b, new_a
+        short_rows[b], short_rows[a] = short_b, short_a
         bit[i], bit[j] = a, b
         return True
 
     kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites): one cut's sites are contiguous
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
-        bad = np.flatnonzero(count < need)  # (bit, cut) pairs in row-major order
-        if len(bad) == 0:
+        # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
+        # counts per bit, then the column within that row
+        total = int(short_rows.sum())
+        if total == 0:
             break
-        b, c = divmod(int(bad[rng.integers(len(bad))]), count.shape[1])
+        k = int(rng.integers(total))
+        ends = np.cumsum(short_rows)
+        b = int(np.searchsorted(ends, k, side="right"))
+        c = int(np.flatnonzero(count[b] < need)[k - (ends[b] - short_rows[b])])
         in_b = bit == b
         mine = np.flatnonzero(in_b & ~kept_t[c])
         other = np.flatnonzero(~in_b & kept_t[c])
