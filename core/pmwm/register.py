@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sampling import sample_surface
-from .spatial import PointIndex, nearest
+from .spatial import MovingNearest, PointIndex, nearest
 
 
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
@@ -139,7 +139,7 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
                     COARSE_ITERATIONS)  # every cut start at once: one tree query per iteration
         screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
-    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS)
+    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True)
     refined = [(not plausible(k), res, i, finalists[i][0], R, k, t)  # plausible fits first
                for i, (R, k, t, res) in enumerate(fits)]
     _, res, _, name, R, k, t = min(refined)
@@ -214,7 +214,7 @@ def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_s: float,
-         iterations: int) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
+         iterations: int, track: bool = False) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
     """Trimmed point-to-plane similarity ICP of the sources S (m, 3) onto the reference points of
     ``index`` (n, 3) with normals ref_N (n, 3), from every start (R (3, 3), k, t (3,)) at once (each
     stops when its own step is negligible, as it would alone). Returns (R, k, t, residual) per
@@ -230,13 +230,16 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
     n_keep = min(max(int(TRIM * len(S)), 7), len(S))
     X_last = np.zeros((len(k), len(S), 3))  # each start's points at its last search
     trim = np.full(len(k), np.inf)  # and the distance of its farthest kept pair then (inf: no bound)
+    # long refinements converge: their points mostly keep their nearest, searched again only when
+    # it can have changed (MovingNearest); the short coarse runs move too much for that to pay
+    tracker = MovingNearest(index, len(k), len(S)) if track else None
 
     def search(ids: np.ndarray):
         """The starts ``ids``' points at their current pose (b, m, 3), their closest reference points
         and squared distances (b, m), and the indices of the kept pairs (b, n_keep), closest first."""
         X = (k[ids, None, None] * S) @ R[ids].transpose(0, 2, 1) + t[ids, None, :]
         bound = trim[ids] + np.linalg.norm(X - X_last[ids], axis=2).max(axis=1)
-        j, d2 = _closest(index, X, bound, n_keep)
+        j, d2 = _closest(index, tracker, ids, X, bound, n_keep)
         keep = np.argsort(d2, axis=1)[:, :n_keep]
         X_last[ids], trim[ids] = X, np.sqrt(np.take_along_axis(d2, keep[:, -1:], axis=1)[:, 0])
         return X, j, d2, keep
@@ -269,18 +272,24 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
     return [(R[b], float(k[b]), t[b], float(res[b])) for b in range(len(k))]
 
 
-def _closest(index: PointIndex, X: np.ndarray, bound: np.ndarray, n_keep: int
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest reference point (b, m) and squared distance (b, m) of each start's points X (b, m, 3),
-    searched within the start's ``bound`` (b,) (beyond it: -1, inf); a start with fewer than
-    ``n_keep`` points inside is searched again without a bound."""
+def _closest(index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, X: np.ndarray,
+             bound: np.ndarray, n_keep: int) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest reference point (b, m) and squared distance (b, m) of the starts ``ids``' points X
+    (b, m, 3), searched within each start's ``bound`` (b,) (beyond it: -1, inf); a start with fewer
+    than ``n_keep`` points inside is searched again without a bound. With a ``tracker``, the same
+    answers, searching only the points whose nearest can have changed."""
     if not np.all(np.isfinite(bound)):
-        return index.nearest(X)
-    j, d2 = np.empty(X.shape[:2], np.int64), np.empty(X.shape[:2])
-    for b in range(len(X)):
-        j[b], d2[b] = index.nearest(X[b], bound[b] * (1.0 + 1e-9) + 1e-300)
-        if np.count_nonzero(d2[b] < np.inf) < n_keep:
-            j[b], d2[b] = index.nearest(X[b])
+        return index.nearest(X) if tracker is None else tracker.nearest(ids, X, np.full(len(X), np.inf))
+    ub = bound * (1.0 + 1e-9) + 1e-300
+    if tracker is None:
+        j, d2 = np.empty(X.shape[:2], np.int64), np.empty(X.shape[:2])
+        for b in range(len(X)):
+            j[b], d2[b] = index.nearest(X[b], ub[b])
+    else:
+        j, d2 = tracker.nearest(ids, X, ub)
+    short = np.flatnonzero(np.count_nonzero(d2 < np.inf, axis=1) < n_keep)
+    for b in short:
+        j[b], d2[b] = index.nearest(X[b])
     return j, d2
 
 

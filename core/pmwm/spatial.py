@@ -20,7 +20,7 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["PointIndex", "nearest", "pairs_within", "min_spacing", "surface_distances",
+__all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
            "closest_point_on_triangles"]
 
 
@@ -74,6 +74,72 @@ class PointIndex:
         i, j, d = i[keep], j[keep], d[keep]
         order = np.lexsort((j, i))
         return i[order], j[order], d[order]
+
+
+class MovingNearest:
+    """Nearest points of a ``PointIndex`` for rows of query points that move a little between
+    calls (an ICP: the same m source points under each start's pose, (rows, m, 3)).
+
+    Each call answers exactly what ``index.nearest(Q[r], bound[r])`` answers for each row r, but a
+    point is searched again only when its answer can have changed. After a search from place x0 the
+    point knows its nearest point j (or none within the bound) and a lower bound L on the distance
+    from x0 to every other point of T (the second nearest, else the bound). From a new place x,
+    |x - x0| = delta away, every other point is at least L - delta away, so j is still the unique
+    nearest when |x - T[j]| < L - delta; its distance is then computed as the tree computes it.
+    Only points whose certificate fails (or whose distance is within rounding of the bound) are
+    searched, in one tree query per row.
+    """
+
+    def __init__(self, index: PointIndex, rows: int, m: int):
+        self.index = index
+        self._x0 = np.zeros((rows, m, 3))  # each point's place at its last search
+        self._j0 = np.full((rows, m), -1, np.int64)  # its nearest then (-1: none within the bound)
+        self._l0 = np.full((rows, m), -np.inf)  # lower bound on the distance to every other point
+        self._big = float(np.abs(index.points).max()) if len(index) else 0.0
+
+    def nearest(self, rows: np.ndarray, Q: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``rows`` (r,) at places Q (r, m, 3), each searched within its ``bound`` (r,) (inf:
+        no bound): the nearest point's index (r, m) int64 and squared distance (r, m) float64
+        (-1 and inf where none is within the bound), exactly as ``PointIndex.nearest``."""
+        index, T = self.index, self.index.points
+        Q = np.asarray(Q, np.float64)
+        bound = np.asarray(bound, np.float64)
+        if index._tree is None:
+            return np.full(Q.shape[:2], -1, np.int64), np.full(Q.shape[:2], np.inf)
+        x0, j0, l0 = self._x0[rows], self._j0[rows], self._l0[rows]
+        # rounding of the distances below: far below 1e-9 of the coordinates' size
+        tol = 1e-9 * (self._big + float(np.abs(Q).max()))
+        delta = np.sqrt(_sq3(Q - x0))
+        q = T[np.maximum(j0, 0)]
+        s = _sq3(Q - q)  # as the tree sums it: the same bits
+        dj = np.sqrt(s)
+        lower = l0 - delta  # every point but j0 is at least this far
+        ub = bound[:, None]
+        kept = (j0 >= 0) & (dj < lower - tol)
+        found = kept & (dj < ub - tol)
+        gone = (kept & (dj > ub + tol)) | ((j0 < 0) & (lower > ub + tol))
+        j = np.where(found, j0, -1)
+        d2 = np.where(found, dj * dj, np.inf)
+        todo = ~(found | gone)
+        n = len(T)
+        for r in np.flatnonzero(todo.any(axis=1)):
+            i = np.flatnonzero(todo[r])
+            d, jq = index._tree.query(Q[r, i], k=2, distance_upper_bound=bound[r], workers=1)
+            first = np.where(jq[:, 0] < n, jq[:, 0], -1)
+            tie = np.isfinite(d[:, 0]) & (d[:, 0] == d[:, 1])
+            if tie.any():  # two nearest at one distance: the one a single-neighbour search picks
+                first[tie] = index.nearest(Q[r, i[tie]], bound[r])[0]
+            j[r, i], d2[r, i] = first, d[:, 0] * d[:, 0]
+            row = rows[r]
+            self._x0[row, i], self._j0[row, i] = Q[r, i], first
+            self._l0[row, i] = np.where(np.isfinite(d[:, 1]), d[:, 1], bound[r])
+        return j, d2
+
+
+def _sq3(d: np.ndarray) -> np.ndarray:
+    """Squared length of each vector d (..., 3), summed in the KD-tree's order (same bits)."""
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    return (x * x + y * y) + z * z
 
 
 def nearest(T: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
