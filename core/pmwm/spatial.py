@@ -80,44 +80,46 @@ class MovingNearest:
     """Nearest points of a ``PointIndex`` for rows of query points that move a little between
     calls (an ICP: the same m source points under each start's pose, (rows, m, 3)).
 
-    Each call answers exactly what ``index.nearest(Q[r], bound[r])`` answers for each row r, but a
-    point is searched again only when its answer can have changed. After a search from place x0 the
-    point knows its nearest point j (or none within the bound) and a lower bound L on the distance
-    from x0 to every other point of T (the second nearest, else the bound). From a new place x,
-    |x - x0| = delta away, every other point is at least L - delta away, so j is still the unique
-    nearest when |x - T[j]| < L - delta; its distance is then computed as the tree computes it.
-    Only points whose certificate fails (or whose distance is within rounding of the bound) are
-    searched, in one tree query per row.
+    Each call answers what ``index.nearest(Q[r], bound[r])`` answers for each row r, but a point is
+    searched again only when its answer can have changed. After a search from place x0 the point
+    knows its nearest point j at distance d0 (or none within the bound: d0 = the bound) and a lower
+    bound L on the distance from x0 to every other point of T (the second nearest, else the bound).
+    From a new place x, |x - x0| = delta away, every point is at least d0 - delta away and every
+    other point at least L - delta, so j is still the unique nearest when |x - T[j]| < L - delta
+    (its distance is then computed as the tree computes it, the same bits), and there is none within
+    the bound when d0 - delta exceeds it. Only the other points are searched, one tree query per row
+    (this pays when most points keep their nearest: converging poses; a query for two neighbours
+    costs more than one).
     """
 
     def __init__(self, index: PointIndex, rows: int, m: int):
         self.index = index
         self._x0 = np.zeros((rows, m, 3))  # each point's place at its last search
         self._j0 = np.full((rows, m), -1, np.int64)  # its nearest then (-1: none within the bound)
+        self._d0 = np.full((rows, m), -np.inf)  # the nearest's distance then (else the bound)
         self._l0 = np.full((rows, m), -np.inf)  # lower bound on the distance to every other point
         self._big = float(np.abs(index.points).max()) if len(index) else 0.0
 
     def nearest(self, rows: np.ndarray, Q: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rows ``rows`` (r,) at places Q (r, m, 3), each searched within its ``bound`` (r,) (inf:
-        no bound): the nearest point's index (r, m) int64 and squared distance (r, m) float64
-        (-1 and inf where none is within the bound), exactly as ``PointIndex.nearest``."""
+        """Rows ``rows`` (r,) (of the rows given at construction) at places Q (r, m, 3), each
+        searched within its ``bound`` (r,) (inf: no bound): the nearest point's index (r, m) int64
+        and squared distance (r, m) float64 (-1 and inf where none is within the bound), exactly
+        as ``PointIndex.nearest`` answers."""
         index, T = self.index, self.index.points
         Q = np.asarray(Q, np.float64)
         bound = np.asarray(bound, np.float64)
         if index._tree is None:
             return np.full(Q.shape[:2], -1, np.int64), np.full(Q.shape[:2], np.inf)
-        x0, j0, l0 = self._x0[rows], self._j0[rows], self._l0[rows]
+        x0, j0, d0, l0 = self._x0[rows], self._j0[rows], self._d0[rows], self._l0[rows]
         # rounding of the distances below: far below 1e-9 of the coordinates' size
         tol = 1e-9 * (self._big + float(np.abs(Q).max()))
         delta = np.sqrt(_sq3(Q - x0))
-        q = T[np.maximum(j0, 0)]
-        s = _sq3(Q - q)  # as the tree sums it: the same bits
+        s = _sq3(Q - T[np.maximum(j0, 0)])  # as the tree sums it: the same bits
         dj = np.sqrt(s)
-        lower = l0 - delta  # every point but j0 is at least this far
         ub = bound[:, None]
-        kept = (j0 >= 0) & (dj < lower - tol)
-        found = kept & (dj < ub - tol)
-        gone = (kept & (dj > ub + tol)) | ((j0 < 0) & (lower > ub + tol))
+        unique = (j0 >= 0) & (dj < l0 - delta - tol)  # j0 is still the nearest
+        found = unique & (dj < ub - tol)
+        gone = (unique & (dj > ub + tol)) | (d0 - delta > ub + tol)  # none within the bound
         j = np.where(found, j0, -1)
         d2 = np.where(found, dj * dj, np.inf)
         todo = ~(found | gone)
@@ -129,10 +131,11 @@ class MovingNearest:
             tie = np.isfinite(d[:, 0]) & (d[:, 0] == d[:, 1])
             if tie.any():  # two nearest at one distance: the one a single-neighbour search picks
                 first[tie] = index.nearest(Q[r, i[tie]], bound[r])[0]
-            j[r, i], d2[r, i] = first, d[:, 0] * d[:, 0]
             row = rows[r]
             self._x0[row, i], self._j0[row, i] = Q[r, i], first
+            self._d0[row, i] = np.where(first >= 0, d[:, 0], bound[r])
             self._l0[row, i] = np.where(np.isfinite(d[:, 1]), d[:, 1], bound[r])
+            j[r, i], d2[r, i] = first, d[:, 0] * d[:, 0]
         return j, d2
 
 
