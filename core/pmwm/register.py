@@ -256,7 +256,7 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         xc = x - m[:, None, :]  # linearise about the sources' centroid: better conditioned
         r = np.einsum("bij,bij->bi", q - x, n)
         J = np.concatenate([np.einsum("bij,bij->bi", xc, n)[..., None], np.cross(xc, n), n], axis=2)
-        sol = np.stack([np.linalg.lstsq(J[b], r[b], rcond=None)[0] for b in range(len(active))])
+        sol = _lstsq(J, r)
         ds, w, dt = sol[:, 0], sol[:, 1:4], sol[:, 4:7]
         angle = np.linalg.norm(w, axis=1)
         dR = _rotations(w, angle)
@@ -282,15 +282,35 @@ def _closest(index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, 
         return index.nearest(X) if tracker is None else tracker.nearest(ids, X, np.full(len(X), np.inf))
     ub = bound * (1.0 + 1e-9) + 1e-300
     if tracker is None:
-        j, d2 = np.empty(X.shape[:2], np.int64), np.empty(X.shape[:2])
-        for b in range(len(X)):
-            j[b], d2[b] = index.nearest(X[b], ub[b])
+        j, d2 = index.nearest_rows(X, ub)
     else:
         j, d2 = tracker.nearest(ids, X, ub)
     short = np.flatnonzero(np.count_nonzero(d2 < np.inf, axis=1) < n_keep)
     for b in short:
         j[b], d2[b] = index.nearest(X[b])
     return j, d2
+
+
+def _lstsq(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``np.linalg.lstsq(J[b], r[b], rcond=None)[0]`` for every b: J (b, m, p), r (b, m) -> (b, p).
+
+    numpy's solver is a generalised ufunc that solves a stack of systems in one call, each by the
+    same LAPACK routine as a single call (the same bits); ``np.linalg.lstsq`` only accepts one
+    system. This numpy's stacked form is used when it has the expected one (numpy 1.x), one call
+    per system otherwise."""
+    b, m, p = J.shape
+    try:
+        from numpy.linalg import _umath_linalg
+        from numpy.linalg import linalg as la
+        if m > p and b > 0:
+            extobj = la.get_linalg_error_extobj(la._raise_linalgerror_lstsq)
+            rcond = np.finfo(np.float64).eps * max(m, p)
+            x = _umath_linalg.lstsq_n(np.asarray(J, np.float64), np.asarray(r, np.float64)[..., None], rcond,
+                                      signature="ddd->ddid", extobj=extobj)[0]
+            return x[..., 0]
+    except (ImportError, AttributeError, TypeError):
+        pass
+    return np.stack([np.linalg.lstsq(J[i], r[i], rcond=None)[0] for i in range(b)]).reshape(b, p)
 
 
 def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:

@@ -65,10 +65,9 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     F = np.asarray(F, np.int64).reshape(-1, 3)
     if len(F) == 0 or S == 0:
         return out
-    tri = V[F]
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    cen = (a + b + c) / 3.0  # (reductions over axes of 3 are slow in numpy: corner by corner)
-    rad = np.sqrt(np.maximum(np.maximum(_sq(a - cen), _sq(b - cen)), _sq(c - cen)))
+    p0, p1, p2 = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]  # the corners, each contiguous
+    cen = (p0 + p1 + p2) / 3.0  # (reductions over axes of 3 are slow in numpy: corner by corner)
+    rad = np.sqrt(np.maximum(np.maximum(_sq(p0 - cen), _sq(p1 - cen)), _sq(p2 - cen)))
     # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
     fi, si, _ = pairs_within(cen, origin, reach + rad)
     order = np.lexsort((fi, si))
@@ -79,8 +78,8 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     key = (np.arange(S)[:, None] * band + uv[..., 0]).ravel()
     by_u = np.argsort(key, kind="stable")
     key = key[by_u]
-    found = [_crossings(tri[fi[c]] - origin[si[c]][:, None, :], si[c], t1, t2, normal, uv, key, by_u,
-                        band, reach) for c in _chunks(len(si), PAIR_CHUNK)]
+    found = [_crossings(np.stack([p0[fi[c]], p1[fi[c]], p2[fi[c]]], axis=1) - origin[si[c]][:, None, :],
+                        si[c], t1, t2, normal, uv, key, by_u, band, reach) for c in _chunks(len(si), PAIR_CHUNK)]
     if not found:
         return out
     slot, h, back = (np.concatenate(x) for x in zip(*found))
