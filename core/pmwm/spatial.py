@@ -166,30 +166,38 @@ def nearest(T: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return PointIndex(T).nearest(Q)
 
 
-def pairs_within(P: np.ndarray, Q: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pairs_within(P: np.ndarray, Q: np.ndarray, radius, by_j: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every pair of points closer than ``radius``.
 
     P : (n, 3), Q : (m, 3) float64; radius : scalar or (n,) per point of P.
-    Returns (i, j, distance): (k,) int64, (k,) int64, (k,) float64, ordered by i then j.
-    The tree is built over the smaller set (over P in groups of radii within a factor of 2).
+    Returns (i, j, distance): (k,) int64, (k,) int64, (k,) float64, ordered by i then j (by j then
+    i with ``by_j``). The tree is built over the smaller set (over P in groups of radii within a
+    factor of 2).
     """
     P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
     Q = np.asarray(Q, dtype=np.float64).reshape(-1, 3)
     if len(P) <= len(Q) or not len(Q):
-        return PointIndex(Q).within(P, radius)
+        i, j, d = PointIndex(Q).within(P, radius)
+        if by_j:
+            order = np.lexsort((i, j))
+            i, j, d = i[order], j[order], d[order]
+        return i, j, d
     rad = np.broadcast_to(np.asarray(radius, np.float64), (len(P),))
     found = [(np.empty(0, np.int64), np.empty(0, np.int64))]
     for p in _radius_groups(rad):
         # a tree over many points (faces) for a few balls (sites): large leaves build and search faster
-        hits = _tree(P[p], leafsize=256).query_ball_point(Q, float(rad[p].max()), workers=1)
+        hits = _tree(P[p], leafsize=256).query_ball_point(Q, float(rad[p].max()), workers=1,
+                                                          return_sorted=False)  # (sorted below)
         counts = np.fromiter(map(len, hits), np.int64, count=len(hits))
         found.append((p[np.fromiter(itertools.chain.from_iterable(hits), np.int64, count=int(counts.sum()))],
                       np.repeat(np.arange(len(Q), dtype=np.int64), counts)))
     i, j = (np.concatenate(x) for x in zip(*found))
     d = np.sqrt(_sq3(P[i] - Q[j]))
     keep = d < rad[i]
-    order = np.lexsort((j[keep], i[keep]))
-    return i[keep][order], j[keep][order], d[keep][order]
+    i, j, d = i[keep], j[keep], d[keep]
+    order = np.lexsort((i, j) if by_j else (j, i))
+    return i[order], j[order], d[order]
 
 
 def _radius_groups(rad: np.ndarray) -> list[np.ndarray]:

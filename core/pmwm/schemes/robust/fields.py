@@ -69,9 +69,7 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     cen = (p0 + p1 + p2) / 3.0  # (reductions over axes of 3 are slow in numpy: corner by corner)
     rad = np.sqrt(np.maximum(np.maximum(_sq(p0 - cen), _sq(p1 - cen)), _sq(p2 - cen)))
     # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
-    fi, si, _ = pairs_within(cen, origin, reach + rad)
-    order = np.lexsort((fi, si))
-    si, fi = si[order], fi[order]
+    fi, si, _ = pairs_within(cen, origin, reach + rad, by_j=True)  # by site, then face
     # the samples in order of (site, u): the samples inside a face projected into its site's frame
     # are in the run of that order between the face's smallest and largest u (sites ``band`` apart)
     band = 3.0 * (reach + 2.0 * float(rad.max()))
