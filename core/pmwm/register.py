@@ -241,7 +241,7 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         bound = trim[ids] + np.linalg.norm(X - X_last[ids], axis=2).max(axis=1)
         j, d2 = _closest(index, tracker, ids, X, bound, n_keep)
         keep = np.argsort(d2, axis=1)[:, :n_keep]
-        X_last[ids], trim[ids] = X, np.sqrt(np.take_along_axis(d2, keep[:, -1:], axis=1)[:, 0])
+        X_last[ids], trim[ids] = X, np.sqrt(d2[np.arange(len(ids)), keep[:, -1]])
         return X, j, d2, keep
 
     active = np.arange(len(k))
@@ -249,13 +249,18 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         if len(active) == 0:
             break
         X, j, _, keep = search(active)
-        x = np.take_along_axis(X, keep[..., None], axis=1)
-        jj = np.take_along_axis(j, keep, axis=1)
+        rows = np.arange(len(active))[:, None]
+        x = X[rows, keep]
+        jj = j[rows, keep]
         q, n = ref_P[jj], ref_N[jj]
         m = x.mean(axis=1)
         xc = x - m[:, None, :]  # linearise about the sources' centroid: better conditioned
         r = np.einsum("bij,bij->bi", q - x, n)
-        J = np.concatenate([np.einsum("bij,bij->bi", xc, n)[..., None], np.cross(xc, n), n], axis=2)
+        J = np.empty(xc.shape[:2] + (7,))  # scale, rotation (xc x n, as np.cross), translation
+        J[..., 0] = np.einsum("bij,bij->bi", xc, n)
+        (a0, a1, a2), (n0, n1, n2) = np.moveaxis(xc, 2, 0), np.moveaxis(n, 2, 0)
+        J[..., 1], J[..., 2], J[..., 3] = a1 * n2 - a2 * n1, a2 * n0 - a0 * n2, a0 * n1 - a1 * n0
+        J[..., 4:] = n
         sol = _lstsq(J, r)
         ds, w, dt = sol[:, 0], sol[:, 1:4], sol[:, 4:7]
         angle = np.linalg.norm(w, axis=1)
@@ -268,7 +273,7 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         moving = (np.abs(ds) >= 1e-7) | (angle >= 1e-7) | (np.linalg.norm(dt, axis=1) >= 1e-7 * ref_s)
         active = active[moving]
     _, _, d2, keep = search(np.arange(len(k)))
-    res = np.sqrt(np.mean(np.take_along_axis(d2, keep, axis=1), axis=1)) / ref_s  # point-to-point: no sliding
+    res = np.sqrt(np.mean(d2[np.arange(len(k))[:, None], keep], axis=1)) / ref_s  # point-to-point: no sliding
     return [(R[b], float(k[b]), t[b], float(res[b])) for b in range(len(k))]
 
 
