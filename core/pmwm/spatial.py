@@ -123,7 +123,7 @@ class MovingNearest:
             return np.full(Q.shape[:2], -1, np.int64), np.full(Q.shape[:2], np.inf)
         x0, j0, d0, l0 = self._x0[rows], self._j0[rows], self._d0[rows], self._l0[rows]
         # rounding of the distances below: far below 1e-9 of the coordinates' size
-        tol = 1e-9 * (self._big + float(np.abs(Q).max()))
+        tol = 1e-9 * (self._big + float(np.abs(Q).max(initial=0.0)))
         delta = np.sqrt(_sq3(Q - x0))
         s = _sq3(Q - T[np.maximum(j0, 0)])  # as the tree sums it: the same bits
         dj = np.sqrt(s)
