@@ -26,7 +26,8 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
 
 Nearest neighbours come from one KD-tree over the key's samples (``pmwm.spatial.PointIndex``), built
 once per registration; the starts of each step are refined together, one tree query per ICP iteration
-for all of them.
+for all of them. In the final refinement, where the poses converge, a point is searched again only
+when its nearest sample can have changed (``pmwm.spatial.MovingNearest``: the same answers).
 """
 
 from __future__ import annotations
@@ -305,9 +306,9 @@ def _lstsq(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     per system otherwise."""
     b, m, p = J.shape
     try:
-        from numpy.linalg import _umath_linalg
-        from numpy.linalg import linalg as la
-        if m > p and b > 0:
+        if m > p and b > 0 and np.lib.NumpyVersion(np.__version__) < "2.0.0":
+            from numpy.linalg import _umath_linalg
+            from numpy.linalg import linalg as la
             extobj = la.get_linalg_error_extobj(la._raise_linalgerror_lstsq)
             rcond = np.finfo(np.float64).eps * max(m, p)
             x = _umath_linalg.lstsq_n(np.asarray(J, np.float64), np.asarray(r, np.float64)[..., None], rcond,

@@ -7,7 +7,9 @@ never takes more than the caller's thread). Distances are computed from coordina
 far-off coordinates keep their digits.
 
 ``PointIndex`` is the reusable form: a tree built ONCE over a reference set and queried many times
-(the registration queries the key's samples some hundred times per suspect). ``nearest``,
+(the registration queries the key's samples some hundred times per suspect); ``MovingNearest`` answers
+the same queries for points that move a little between calls (an ICP) without searching again the
+points whose nearest cannot have changed. ``nearest``,
 ``pairs_within``, ``min_spacing`` and ``surface_distances`` (exact point-to-triangle-surface
 distances, for the metrics) are the one-shot functions. Each answers exactly what a brute-force scan
 answers (tests/test_spatial.py).

@@ -77,7 +77,8 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     by_u = np.argsort(key, kind="stable")
     key = key[by_u]
     found = [_crossings(np.stack([p0[fi[c]], p1[fi[c]], p2[fi[c]]], axis=1) - origin[si[c]][:, None, :],
-                        si[c], t1, t2, normal, uv, key, by_u, band, reach) for c in _chunks(len(si), PAIR_CHUNK)]
+                        si[c], t1, t2, normal, uv, key, by_u, band, reach)
+             for c in _chunks(len(si), PAIR_CHUNK)]
     if not found:
         return out
     slot, h, back = (np.concatenate(x) for x in zip(*found))
