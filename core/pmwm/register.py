@@ -167,7 +167,11 @@ def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:
     th = np.pi * (1.0 + 5.0**0.5) * i
     dirs = np.stack([np.sqrt(1.0 - z * z) * np.cos(th), np.sqrt(1.0 - z * z) * np.sin(th), z], axis=1)
     proj = ref_P @ dirs.T
-    cuts = proj <= np.quantile(proj, CUT_KEEP, axis=0)[:, None, :]  # (keep, point, direction)
+    # the quantiles of each direction's sorted projections: the same values (order statistics), and
+    # numpy partitions sorted rows much faster than unsorted columns
+    rows = np.ascontiguousarray(proj.T)
+    rows.sort(axis=1)
+    cuts = proj <= np.quantile(rows, CUT_KEEP, axis=1)[:, None, :]  # (keep, point, direction)
     cuts = cuts.transpose(0, 2, 1).reshape(-1, len(ref_P))
     dist = np.abs(_log_spread(ref_P, cuts) - _log_spread(S, np.ones((1, len(S)), bool))).sum(axis=1)
     out = []
