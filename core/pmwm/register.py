@@ -254,10 +254,10 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         if len(active) == 0:
             break
         X, j, _, keep = search(active)
-        rows = np.arange(len(active))[:, None]
-        x = X[rows, keep]
-        jj = j[rows, keep]
-        q, n = ref_P[jj], ref_N[jj]
+        flat = np.arange(len(active))[:, None] * len(S) + keep  # the kept pairs in X, j (np.take: fast)
+        x = np.take(X.reshape(-1, 3), flat, axis=0)
+        jj = np.take(j, flat)
+        q, n = np.take(ref_P, jj, axis=0), np.take(ref_N, jj, axis=0)
         m = x.mean(axis=1)
         xc = x - m[:, None, :]  # linearise about the sources' centroid: better conditioned
         r = np.einsum("bij,bij->bi", q - x, n)
@@ -278,7 +278,7 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         moving = (np.abs(ds) >= 1e-7) | (angle >= 1e-7) | (np.linalg.norm(dt, axis=1) >= 1e-7 * ref_s)
         active = active[moving]
     _, _, d2, keep = search(np.arange(len(k)))
-    res = np.sqrt(np.mean(d2[np.arange(len(k))[:, None], keep], axis=1)) / ref_s  # point-to-point: no sliding
+    res = np.sqrt(np.mean(np.take(d2, np.arange(len(k))[:, None] * len(S) + keep), axis=1)) / ref_s  # point-to-point: no sliding
     return [(R[b], float(k[b]), t[b], float(res[b])) for b in range(len(k))]
 
 
