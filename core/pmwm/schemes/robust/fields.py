@@ -126,11 +126,12 @@ def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float
     lo = np.searchsorted(key, si * band + lo_u - margin, "left")
     n = np.searchsorted(key, si * band + hi_u + margin, "right") - lo
     pk = np.repeat(np.arange(len(si)), n)
-    kk = by_u[np.arange(len(pk)) - np.repeat(np.cumsum(n) - n - lo, n)] % K
-    qu, qv = uv[si[pk], kk, 0], uv[si[pk], kk, 1]
-    dx, dy = qu - x[pk, 0], qv - y[pk, 0]
-    l1 = (dx * (y[pk, 2] - y[pk, 0]) - dy * (x[pk, 2] - x[pk, 0])) / det[pk]
-    l2 = ((x[pk, 1] - x[pk, 0]) * dy - (y[pk, 1] - y[pk, 0]) * dx) / det[pk]
+    kk = np.take(by_u, np.arange(len(pk)) - np.repeat(np.cumsum(n) - n - lo, n)) % K
+    q = np.take(uv.reshape(-1, 2), np.take(si, pk) * K + kk, axis=0)  # (np.take: as uv[si[pk], kk])
+    xp, yp, dp = np.take(x, pk, axis=0), np.take(y, pk, axis=0), np.take(det, pk)
+    dx, dy = q[:, 0] - xp[:, 0], q[:, 1] - yp[:, 0]
+    l1 = (dx * (yp[:, 2] - yp[:, 0]) - dy * (xp[:, 2] - xp[:, 0])) / dp
+    l2 = ((xp[:, 1] - xp[:, 0]) * dy - (yp[:, 1] - yp[:, 0]) * dx) / dp
     l0 = 1.0 - l1 - l2
     tol = -1e-7  # a line through a vertex must hit one of its faces despite rounding
     inside = (l0 >= tol) & (l1 >= tol) & (l2 >= tol)
