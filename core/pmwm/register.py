@@ -243,7 +243,7 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         """The starts ``ids``' points at their current pose (b, m, 3), their closest reference points
         and squared distances (b, m), and the indices of the kept pairs (b, n_keep), closest first."""
         X = (k[ids, None, None] * S) @ R[ids].transpose(0, 2, 1) + t[ids, None, :]
-        bound = trim[ids] + np.linalg.norm(X - X_last[ids], axis=2).max(axis=1)
+        bound = trim[ids] + np.linalg.norm(X - np.take(X_last, ids, axis=0), axis=2).max(axis=1)
         j, d2 = _closest(index, tracker, ids, X, bound, n_keep)
         keep = np.argsort(d2, axis=1)[:, :n_keep]
         X_last[ids], trim[ids] = X, np.sqrt(d2[np.arange(len(ids)), keep[:, -1]])

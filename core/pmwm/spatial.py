@@ -139,13 +139,14 @@ class MovingNearest:
         n = len(T)
         for r in np.flatnonzero(todo.any(axis=1)):
             i = np.flatnonzero(todo[r])
-            d, jq = index._tree.query(Q[r, i], k=2, distance_upper_bound=bound[r], workers=1)
+            Qi = np.take(Q[r], i, axis=0)
+            d, jq = index._tree.query(Qi, k=2, distance_upper_bound=bound[r], workers=1)
             first = np.where(jq[:, 0] < n, jq[:, 0], -1)
             tie = np.isfinite(d[:, 0]) & (d[:, 0] == d[:, 1])
             if tie.any():  # two nearest at one distance: the one a single-neighbour search picks
-                first[tie] = index.nearest(Q[r, i[tie]], bound[r])[0]
+                first[tie] = index.nearest(Qi[tie], bound[r])[0]
             row = rows[r]
-            self._x0[row, i], self._j0[row, i] = Q[r, i], first
+            self._x0[row, i], self._j0[row, i] = Qi, first
             self._d0[row, i] = np.where(first >= 0, d[:, 0], bound[r])
             self._l0[row, i] = np.where(np.isfinite(d[:, 1]), d[:, 1], bound[r])
             j[r, i], d2[r, i] = first, d[:, 0] * d[:, 0]
