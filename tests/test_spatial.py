@@ -57,6 +57,41 @@ def test_nearest_within_a_bound_returns_nothing_beyond_it():
     np.testing.assert_array_equal(d2, [1.0, np.inf, 0.25])
 
 
+@pytest.mark.parametrize("offset", [0.0, 1e6])
+def test_moving_nearest_answers_as_a_search_of_every_point(offset):
+    """Rows of points moved a little (and sometimes far) between calls, searched within bounds of
+    every size: the tracker's answers are the tree's, index for index and bit for bit, ties too."""
+    T = _points(400, 8, offset)
+    index = PointIndex(T)
+    rng = np.random.default_rng(9)
+    S = _points(120, 11, offset)
+    S[:10] = T[:10]  # on targets, some of them duplicated (two nearest at one distance)
+    rows = 4
+    tracker = spatial.MovingNearest(index, rows, len(S))
+    X = np.repeat(S[None], rows, axis=0)
+    for step in range(12):
+        ids = np.arange(rows) if step % 3 == 0 else np.array([0, 2])
+        scale = 1e-3 if step % 4 else 0.3  # mostly small moves, now and then a jump
+        X[ids] += rng.normal(scale=scale, size=(len(ids), len(S), 3))
+        if step in (5, 9):  # points with none within the bound land next to targets
+            X[ids, 20:40] = T[40 + step:60 + step] + rng.normal(scale=1e-4, size=(len(ids), 20, 3))
+        bound = np.array([np.inf, 0.4, 0.05, 2.0])[ids] if step else np.full(len(ids), np.inf)
+        j, d2 = tracker.nearest(ids, X[ids], bound)
+        for r, b in enumerate(ids):
+            fj, fd2 = index.nearest(X[b], bound[r])
+            np.testing.assert_array_equal(j[r], fj)
+            np.testing.assert_array_equal(d2[r], fd2)
+        j2, d22 = index.nearest_rows(X[ids], bound)
+        np.testing.assert_array_equal(j2, j)
+        np.testing.assert_array_equal(d22, d2)
+
+
+def test_moving_nearest_on_an_empty_set():
+    tracker = spatial.MovingNearest(PointIndex(np.empty((0, 3))), 2, 5)
+    j, d2 = tracker.nearest(np.arange(2), np.zeros((2, 5, 3)), np.full(2, np.inf))
+    assert np.all(j == -1) and np.all(np.isinf(d2))
+
+
 def _pairs_brute(P, Q, radius):
     D = _dist(P, Q)
     rad = np.broadcast_to(np.asarray(radius, float), (len(P),))
@@ -77,6 +112,18 @@ def test_pairs_within_are_the_brute_force_pairs_in_order(n_p, n_q, kind):
     np.testing.assert_array_equal(i, bi)  # ordered by i then j, as the brute force's nonzero
     np.testing.assert_array_equal(j, bj)
     np.testing.assert_allclose(d, bd, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("n_p, n_q", [(80, 400), (400, 80)])
+def test_pairs_within_by_j_are_the_same_pairs_ordered_by_j_then_i(n_p, n_q):
+    P, Q = _points(n_p, 4), _points(n_q, 5)
+    radius = np.random.default_rng(6).uniform(0.2, 0.9, n_p)
+    i, j, d = spatial.pairs_within(P, Q, radius)
+    bi, bj, bd = spatial.pairs_within(P, Q, radius, by_j=True)
+    order = np.lexsort((i, j))
+    np.testing.assert_array_equal(bi, i[order])
+    np.testing.assert_array_equal(bj, j[order])
+    np.testing.assert_array_equal(bd, d[order])
 
 
 def test_pairs_within_are_strictly_closer_and_handle_empty_sets():

@@ -26,7 +26,8 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
 
 Nearest neighbours come from one KD-tree over the key's samples (``pmwm.spatial.PointIndex``), built
 once per registration; the starts of each step are refined together, one tree query per ICP iteration
-for all of them.
+for all of them. In the final refinement, where the poses converge, a point is searched again only
+when its nearest sample can have changed (``pmwm.spatial.MovingNearest``: the same answers).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sampling import sample_surface
-from .spatial import PointIndex, nearest
+from .spatial import MovingNearest, PointIndex, nearest
 
 
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
@@ -139,7 +140,7 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
                     COARSE_ITERATIONS)  # every cut start at once: one tree query per iteration
         screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
-    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS)
+    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True)
     refined = [(not plausible(k), res, i, finalists[i][0], R, k, t)  # plausible fits first
                for i, (R, k, t, res) in enumerate(fits)]
     _, res, _, name, R, k, t = min(refined)
@@ -166,7 +167,11 @@ def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:
     th = np.pi * (1.0 + 5.0**0.5) * i
     dirs = np.stack([np.sqrt(1.0 - z * z) * np.cos(th), np.sqrt(1.0 - z * z) * np.sin(th), z], axis=1)
     proj = ref_P @ dirs.T
-    cuts = proj <= np.quantile(proj, CUT_KEEP, axis=0)[:, None, :]  # (keep, point, direction)
+    # the quantiles of each direction's sorted projections: the same values (order statistics), and
+    # numpy partitions sorted rows much faster than unsorted columns
+    rows = np.ascontiguousarray(proj.T)
+    rows.sort(axis=1)
+    cuts = proj <= np.quantile(rows, CUT_KEEP, axis=1)[:, None, :]  # (keep, point, direction)
     cuts = cuts.transpose(0, 2, 1).reshape(-1, len(ref_P))
     dist = np.abs(_log_spread(ref_P, cuts) - _log_spread(S, np.ones((1, len(S)), bool))).sum(axis=1)
     out = []
@@ -214,7 +219,7 @@ def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_s: float,
-         iterations: int) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
+         iterations: int, track: bool = False) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
     """Trimmed point-to-plane similarity ICP of the sources S (m, 3) onto the reference points of
     ``index`` (n, 3) with normals ref_N (n, 3), from every start (R (3, 3), k, t (3,)) at once (each
     stops when its own step is negligible, as it would alone). Returns (R, k, t, residual) per
@@ -230,15 +235,18 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
     n_keep = min(max(int(TRIM * len(S)), 7), len(S))
     X_last = np.zeros((len(k), len(S), 3))  # each start's points at its last search
     trim = np.full(len(k), np.inf)  # and the distance of its farthest kept pair then (inf: no bound)
+    # long refinements converge: their points mostly keep their nearest, searched again only when
+    # it can have changed (MovingNearest); the short coarse runs move too much for that to pay
+    tracker = MovingNearest(index, len(k), len(S)) if track else None
 
     def search(ids: np.ndarray):
         """The starts ``ids``' points at their current pose (b, m, 3), their closest reference points
         and squared distances (b, m), and the indices of the kept pairs (b, n_keep), closest first."""
         X = (k[ids, None, None] * S) @ R[ids].transpose(0, 2, 1) + t[ids, None, :]
-        bound = trim[ids] + np.linalg.norm(X - X_last[ids], axis=2).max(axis=1)
-        j, d2 = _closest(index, X, bound, n_keep)
+        bound = trim[ids] + np.linalg.norm(X - np.take(X_last, ids, axis=0), axis=2).max(axis=1)
+        j, d2 = _closest(index, tracker, ids, X, bound, n_keep)
         keep = np.argsort(d2, axis=1)[:, :n_keep]
-        X_last[ids], trim[ids] = X, np.sqrt(np.take_along_axis(d2, keep[:, -1:], axis=1)[:, 0])
+        X_last[ids], trim[ids] = X, np.sqrt(d2[np.arange(len(ids)), keep[:, -1]])
         return X, j, d2, keep
 
     active = np.arange(len(k))
@@ -246,14 +254,19 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         if len(active) == 0:
             break
         X, j, _, keep = search(active)
-        x = np.take_along_axis(X, keep[..., None], axis=1)
-        jj = np.take_along_axis(j, keep, axis=1)
-        q, n = ref_P[jj], ref_N[jj]
+        flat = np.arange(len(active))[:, None] * len(S) + keep  # the kept pairs in X, j (np.take: fast)
+        x = np.take(X.reshape(-1, 3), flat, axis=0)
+        jj = np.take(j, flat)
+        q, n = np.take(ref_P, jj, axis=0), np.take(ref_N, jj, axis=0)
         m = x.mean(axis=1)
         xc = x - m[:, None, :]  # linearise about the sources' centroid: better conditioned
         r = np.einsum("bij,bij->bi", q - x, n)
-        J = np.concatenate([np.einsum("bij,bij->bi", xc, n)[..., None], np.cross(xc, n), n], axis=2)
-        sol = np.stack([np.linalg.lstsq(J[b], r[b], rcond=None)[0] for b in range(len(active))])
+        J = np.empty(xc.shape[:2] + (7,))  # scale, rotation (xc x n, as np.cross), translation
+        J[..., 0] = np.einsum("bij,bij->bi", xc, n)
+        (a0, a1, a2), (n0, n1, n2) = np.moveaxis(xc, 2, 0), np.moveaxis(n, 2, 0)
+        J[..., 1], J[..., 2], J[..., 3] = a1 * n2 - a2 * n1, a2 * n0 - a0 * n2, a0 * n1 - a1 * n0
+        J[..., 4:] = n
+        sol = _lstsq(J, r)
         ds, w, dt = sol[:, 0], sol[:, 1:4], sol[:, 4:7]
         angle = np.linalg.norm(w, axis=1)
         dR = _rotations(w, angle)
@@ -265,23 +278,49 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         moving = (np.abs(ds) >= 1e-7) | (angle >= 1e-7) | (np.linalg.norm(dt, axis=1) >= 1e-7 * ref_s)
         active = active[moving]
     _, _, d2, keep = search(np.arange(len(k)))
-    res = np.sqrt(np.mean(np.take_along_axis(d2, keep, axis=1), axis=1)) / ref_s  # point-to-point: no sliding
+    res = np.sqrt(np.mean(np.take(d2, np.arange(len(k))[:, None] * len(S) + keep), axis=1)) / ref_s  # point-to-point: no sliding
     return [(R[b], float(k[b]), t[b], float(res[b])) for b in range(len(k))]
 
 
-def _closest(index: PointIndex, X: np.ndarray, bound: np.ndarray, n_keep: int
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest reference point (b, m) and squared distance (b, m) of each start's points X (b, m, 3),
-    searched within the start's ``bound`` (b,) (beyond it: -1, inf); a start with fewer than
-    ``n_keep`` points inside is searched again without a bound."""
+def _closest(index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, X: np.ndarray,
+             bound: np.ndarray, n_keep: int) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest reference point (b, m) and squared distance (b, m) of the starts ``ids``' points X
+    (b, m, 3), searched within each start's ``bound`` (b,) (beyond it: -1, inf); a start with fewer
+    than ``n_keep`` points inside is searched again without a bound. With a ``tracker``, the same
+    answers, searching only the points whose nearest can have changed."""
     if not np.all(np.isfinite(bound)):
-        return index.nearest(X)
-    j, d2 = np.empty(X.shape[:2], np.int64), np.empty(X.shape[:2])
-    for b in range(len(X)):
-        j[b], d2[b] = index.nearest(X[b], bound[b] * (1.0 + 1e-9) + 1e-300)
-        if np.count_nonzero(d2[b] < np.inf) < n_keep:
-            j[b], d2[b] = index.nearest(X[b])
+        return index.nearest(X) if tracker is None else tracker.nearest(ids, X, np.full(len(X), np.inf))
+    ub = bound * (1.0 + 1e-9) + 1e-300
+    if tracker is None:
+        j, d2 = index.nearest_rows(X, ub)
+    else:
+        j, d2 = tracker.nearest(ids, X, ub)
+    short = np.flatnonzero(np.count_nonzero(d2 < np.inf, axis=1) < n_keep)
+    for b in short:
+        j[b], d2[b] = index.nearest(X[b])
     return j, d2
+
+
+def _lstsq(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``np.linalg.lstsq(J[b], r[b], rcond=None)[0]`` for every b: J (b, m, p), r (b, m) -> (b, p).
+
+    numpy's solver is a generalised ufunc that solves a stack of systems in one call, each by the
+    same LAPACK routine as a single call (the same bits); ``np.linalg.lstsq`` only accepts one
+    system. This numpy's stacked form is used when it has the expected one (numpy 1.x), one call
+    per system otherwise."""
+    b, m, p = J.shape
+    try:
+        if m > p and b > 0 and np.lib.NumpyVersion(np.__version__) < "2.0.0":
+            from numpy.linalg import _umath_linalg
+            from numpy.linalg import linalg as la
+            extobj = la.get_linalg_error_extobj(la._raise_linalgerror_lstsq)
+            rcond = np.finfo(np.float64).eps * max(m, p)
+            x = _umath_linalg.lstsq_n(np.asarray(J, np.float64), np.asarray(r, np.float64)[..., None], rcond,
+                                      signature="ddd->ddid", extobj=extobj)[0]
+            return x[..., 0]
+    except (ImportError, AttributeError, TypeError):
+        pass
+    return np.stack([np.linalg.lstsq(J[i], r[i], rcond=None)[0] for i in range(b)]).reshape(b, p)
 
 
 def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:

@@ -7,7 +7,9 @@ never takes more than the caller's thread). Distances are computed from coordina
 far-off coordinates keep their digits.
 
 ``PointIndex`` is the reusable form: a tree built ONCE over a reference set and queried many times
-(the registration queries the key's samples some hundred times per suspect). ``nearest``,
+(the registration queries the key's samples some hundred times per suspect); ``MovingNearest`` answers
+the same queries for points that move a little between calls (an ICP) without searching again the
+points whose nearest cannot have changed. ``nearest``,
 ``pairs_within``, ``min_spacing`` and ``surface_distances`` (exact point-to-triangle-surface
 distances, for the metrics) are the one-shot functions. Each answers exactly what a brute-force scan
 answers (tests/test_spatial.py).
@@ -20,13 +22,13 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["PointIndex", "nearest", "pairs_within", "min_spacing", "surface_distances",
+__all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
            "closest_point_on_triangles"]
 
 
-def _tree(P: np.ndarray) -> cKDTree:
+def _tree(P: np.ndarray, leafsize: int = 32) -> cKDTree:
     # leaves of 32 points: 5-10 % faster than 16 for the registration's queries, as fast elsewhere
-    return cKDTree(P, leafsize=32, balanced_tree=False, compact_nodes=False)
+    return cKDTree(P, leafsize=leafsize, balanced_tree=False, compact_nodes=False)
 
 
 class PointIndex:
@@ -53,6 +55,17 @@ class PointIndex:
         j = np.where(j < len(self.points), j, -1).astype(np.int64)
         return j.reshape(lead), (d * d).reshape(lead)
 
+    def nearest_rows(self, Q: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``nearest`` for each row of queries Q (b, m, 3) within its own bound (b,): index (b, m)
+        int64 and squared distance (b, m) float64 (-1 and inf beyond the row's bound)."""
+        Q = np.asarray(Q, dtype=np.float64)
+        if self._tree is None or Q.shape[0] == 0:
+            return np.full(Q.shape[:2], -1, np.int64), np.full(Q.shape[:2], np.inf)
+        d, j = np.empty(Q.shape[:2]), np.empty(Q.shape[:2], np.intp)
+        for b in range(len(Q)):
+            d[b], j[b] = self._tree.query(Q[b], k=1, distance_upper_bound=bound[b], workers=1)
+        return np.where(j < len(self.points), j, -1).astype(np.int64), d * d
+
     def within(self, Q: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every pair (query i, point j of T) closer than ``radius`` (scalar or (m,) per query).
 
@@ -76,6 +89,76 @@ class PointIndex:
         return i[order], j[order], d[order]
 
 
+class MovingNearest:
+    """Nearest points of a ``PointIndex`` for rows of query points that move a little between
+    calls (an ICP: the same m source points under each start's pose, (rows, m, 3)).
+
+    Each call answers what ``index.nearest(Q[r], bound[r])`` answers for each row r, but a point is
+    searched again only when its answer can have changed. After a search from place x0 the point
+    knows its nearest point j at distance d0 (or none within the bound: d0 = the bound) and a lower
+    bound L on the distance from x0 to every other point of T (the second nearest, else the bound).
+    From a new place x, |x - x0| = delta away, every point is at least d0 - delta away and every
+    other point at least L - delta, so j is still the unique nearest when |x - T[j]| < L - delta
+    (its distance is then computed as the tree computes it, the same bits), and there is none within
+    the bound when d0 - delta exceeds it. Only the other points are searched, one tree query per row
+    (this pays when most points keep their nearest: converging poses; a query for two neighbours
+    costs more than one).
+    """
+
+    def __init__(self, index: PointIndex, rows: int, m: int):
+        self.index = index
+        self._x0 = np.zeros((rows, m, 3))  # each point's place at its last search
+        self._j0 = np.full((rows, m), -1, np.int64)  # its nearest then (-1: none within the bound)
+        self._d0 = np.full((rows, m), -np.inf)  # the nearest's distance then (else the bound)
+        self._l0 = np.full((rows, m), -np.inf)  # lower bound on the distance to every other point
+        self._big = float(np.abs(index.points).max()) if len(index) else 0.0
+
+    def nearest(self, rows: np.ndarray, Q: np.ndarray, bound: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rows ``rows`` (r,) (of the rows given at construction) at places Q (r, m, 3), each
+        searched within its ``bound`` (r,) (inf: no bound): the nearest point's index (r, m) int64
+        and squared distance (r, m) float64 (-1 and inf where none is within the bound), exactly
+        as ``PointIndex.nearest`` answers."""
+        index, T = self.index, self.index.points
+        Q = np.asarray(Q, np.float64)
+        bound = np.asarray(bound, np.float64)
+        if index._tree is None:
+            return np.full(Q.shape[:2], -1, np.int64), np.full(Q.shape[:2], np.inf)
+        x0, j0, d0, l0 = (np.take(a, rows, axis=0) for a in (self._x0, self._j0, self._d0, self._l0))
+        # rounding of the distances below: far below 1e-9 of the coordinates' size
+        tol = 1e-9 * (self._big + float(np.abs(Q).max(initial=0.0)))
+        delta = np.sqrt(_sq3(Q - x0))
+        s = _sq3(Q - np.take(T, np.maximum(j0, 0), axis=0))  # as the tree sums it: the same bits
+        dj = np.sqrt(s)
+        ub = bound[:, None]
+        unique = (j0 >= 0) & (dj < l0 - delta - tol)  # j0 is still the nearest
+        found = unique & (dj < ub - tol)
+        gone = (unique & (dj > ub + tol)) | (d0 - delta > ub + tol)  # none within the bound
+        j = np.where(found, j0, -1)
+        d2 = np.where(found, dj * dj, np.inf)
+        todo = ~(found | gone)
+        n = len(T)
+        for r in np.flatnonzero(todo.any(axis=1)):
+            i = np.flatnonzero(todo[r])
+            Qi = np.take(Q[r], i, axis=0)
+            d, jq = index._tree.query(Qi, k=2, distance_upper_bound=bound[r], workers=1)
+            first = np.where(jq[:, 0] < n, jq[:, 0], -1)
+            tie = np.isfinite(d[:, 0]) & (d[:, 0] == d[:, 1])
+            if tie.any():  # two nearest at one distance: the one a single-neighbour search picks
+                first[tie] = index.nearest(Qi[tie], bound[r])[0]
+            row = rows[r]
+            self._x0[row, i], self._j0[row, i] = Qi, first
+            self._d0[row, i] = np.where(first >= 0, d[:, 0], bound[r])
+            self._l0[row, i] = np.where(np.isfinite(d[:, 1]), d[:, 1], bound[r])
+            j[r, i], d2[r, i] = first, d[:, 0] * d[:, 0]
+        return j, d2
+
+
+def _sq3(d: np.ndarray) -> np.ndarray:
+    """Squared length of each vector d (..., 3), summed in the KD-tree's order (same bits)."""
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    return (x * x + y * y) + z * z
+
+
 def nearest(T: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Nearest point of T to each query.
 
@@ -86,29 +169,39 @@ def nearest(T: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return PointIndex(T).nearest(Q)
 
 
-def pairs_within(P: np.ndarray, Q: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pairs_within(P: np.ndarray, Q: np.ndarray, radius, by_j: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every pair of points closer than ``radius``.
 
     P : (n, 3), Q : (m, 3) float64; radius : scalar or (n,) per point of P.
-    Returns (i, j, distance): (k,) int64, (k,) int64, (k,) float64, ordered by i then j.
-    The tree is built over the smaller set (over P in groups of radii within a factor of 2).
+    Returns (i, j, distance): (k,) int64, (k,) int64, (k,) float64, ordered by i then j (by j then
+    i with ``by_j``). The tree is built over the smaller set (over P in groups of radii within a
+    factor of 2).
     """
     P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
     Q = np.asarray(Q, dtype=np.float64).reshape(-1, 3)
     if len(P) <= len(Q) or not len(Q):
-        return PointIndex(Q).within(P, radius)
+        i, j, d = PointIndex(Q).within(P, radius)
+        if by_j:
+            order = np.lexsort((i, j))
+            i, j, d = i[order], j[order], d[order]
+        return i, j, d
     rad = np.broadcast_to(np.asarray(radius, np.float64), (len(P),))
     found = [(np.empty(0, np.int64), np.empty(0, np.int64))]
     for p in _radius_groups(rad):
-        hits = _tree(P[p]).query_ball_point(Q, float(rad[p].max()), workers=1)
+        # a tree over many points (faces) for a few balls (sites): large leaves build and search faster
+        hits = _tree(P[p], leafsize=256).query_ball_point(Q, float(rad[p].max()), workers=1,
+                                                          return_sorted=False)  # (sorted below)
         counts = np.fromiter(map(len, hits), np.int64, count=len(hits))
-        found.append((p[np.fromiter(itertools.chain.from_iterable(hits), np.int64, count=int(counts.sum()))],
+        found.append((np.take(p, np.fromiter(itertools.chain.from_iterable(hits), np.int64,
+                                             count=int(counts.sum()))),
                       np.repeat(np.arange(len(Q), dtype=np.int64), counts)))
     i, j = (np.concatenate(x) for x in zip(*found))
-    d = np.sqrt(((P[i] - Q[j]) ** 2).sum(axis=1))
-    keep = d < rad[i]
-    order = np.lexsort((j[keep], i[keep]))
-    return i[keep][order], j[keep][order], d[keep][order]
+    d = np.sqrt(_sq3(np.take(P, i, axis=0) - np.take(Q, j, axis=0)))  # (np.take: as P[i], faster)
+    keep = d < np.take(rad, i)
+    i, j, d = i[keep], j[keep], d[keep]
+    order = np.lexsort((i, j) if by_j else (j, i))
+    return i[order], j[order], d[order]
 
 
 def _radius_groups(rad: np.ndarray) -> list[np.ndarray]:
