@@ -303,23 +303,8 @@ def _closest(index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, 
 
 def _lstsq(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     """``np.linalg.lstsq(J[b], r[b], rcond=None)[0]`` for every b: J (b, m, p), r (b, m) -> (b, p).
-
-    numpy's solver is a generalised ufunc that solves a stack of systems in one call, each by the
-    same LAPACK routine as a single call (the same bits); ``np.linalg.lstsq`` only accepts one
-    system. This numpy's stacked form is used when it has the expected one (numpy 1.x), one call
-    per system otherwise."""
-    b, m, p = J.shape
-    try:
-        if m > p and b > 0 and np.lib.NumpyVersion(np.__version__) < "2.0.0":
-            from numpy.linalg import _umath_linalg
-            from numpy.linalg import linalg as la
-            extobj = la.get_linalg_error_extobj(la._raise_linalgerror_lstsq)
-            rcond = np.finfo(np.float64).eps * max(m, p)
-            x = _umath_linalg.lstsq_n(np.asarray(J, np.float64), np.asarray(r, np.float64)[..., None], rcond,
-                                      signature="ddd->ddid", extobj=extobj)[0]
-            return x[..., 0]
-    except (ImportError, AttributeError, TypeError):
-        pass
+    One small system per start (a handful per step): numpy's public solver, one call each."""
+    b, _, p = J.shape
     return np.stack([np.linalg.lstsq(J[i], r[i], rcond=None)[0] for i in range(b)]).reshape(b, p)
 
 
