@@ -259,7 +259,7 @@ class VerifyTask(_Task):
         if not os.path.isfile(self.key_path):
             raise _Failed(f"key file not found: {self.key_path}: set Key File to the key written when "
                           "this object was watermarked")
-        from pmwm.verify_report import file_sha256
+        from pmwm.atomic import file_sha256
 
         self.key = pmwm.read_key(self.key_path)
         self.key_sha256 = file_sha256(self.key_path)
@@ -581,7 +581,8 @@ per-bit chart, pictures)"""
         return {"RUNNING_MODAL"}
 
     def run(self, context):
-        from pmwm.verify_report import file_sha256, write_report
+        from pmwm.atomic import file_sha256
+        from pmwm.verify_report import write_report
 
         ob = _active_mesh(context)
         rec = _remembered(ob, session.lookup_verified, NOT_VERIFIED)

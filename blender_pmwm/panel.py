@@ -32,8 +32,12 @@ def _mesh(context):
     return ob if ob is not None and ob.type == "MESH" else None
 
 
-def _key_field(layout, context) -> None:
-    """The Key File option; when empty, the path it stands for (the default key path)."""
+def _secret_field(layout, context) -> None:
+    """What reads the mark: the Pass Phrase for the Blind scheme, else the Key File option."""
+    if context.scene.pmwm.scheme == "blind":
+        layout.prop(context.window_manager.pmwm_secrets, "passphrase")
+        layout.label(text="No key file: the pass phrase reads the mark", icon="INFO")
+        return
     s = context.scene.pmwm
     ob = _mesh(context)
     default = prefs.default_key_path(context, ob) if ob is not None else ""
@@ -76,11 +80,7 @@ class VIEW3D_PT_pmwm_mark(_Sidebar, Panel):
         ob = _mesh(context)
         col = layout.column()
         col.prop(s, "payload")
-        if s.scheme == "blind":
-            col.prop(context.window_manager.pmwm_secrets, "passphrase")
-            col.label(text="No key file: the pass phrase reads the mark", icon="INFO")
-        else:
-            _key_field(col, context)
+        _secret_field(col, context)
         col.prop(s, "scheme")
         if s.scheme != "blind":
             col.prop(s, "overwrite_key")
@@ -150,10 +150,7 @@ class VIEW3D_PT_pmwm_verify(_Sidebar, Panel):
     def draw(self, context):
         layout = _split(self.layout)
         s = context.scene.pmwm
-        if s.scheme == "blind":
-            layout.column().prop(context.window_manager.pmwm_secrets, "passphrase")
-        else:
-            _key_field(layout.column(), context)
+        _secret_field(layout.column(), context)
         layout.operator("pmwm.verify", icon="VIEWZOOM")
         if s.verdict_object:
             box = layout.box()

@@ -154,7 +154,6 @@ def _tree(root: Path) -> dict:
 
 
 def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identically(tmp_path):
-    pytest.importorskip("distributed")
     from pmwm.fingerprint.catalogue import run_catalogue
 
     bad = tmp_path / "broken.off"

@@ -1,9 +1,11 @@
 """Atomic file writing: an output appears whole or not at all, and an existing one is kept unless
 forced. Used by every writer (meshes, keys, progressive meshes, reports); imports nothing heavier
-than the standard library, so the key and .pmwm writers do not pull in trimesh."""
+than the standard library, so the key and .pmwm writers do not pull in trimesh. Also the SHA-256 of
+a file, which reports and registries record of what was written."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import secrets
 from contextlib import contextmanager
@@ -11,7 +13,16 @@ from typing import Iterator
 
 from .errors import OutputExistsError, PmwmError
 
-__all__ = ["atomic_output", "atomic_write_bytes"]
+__all__ = ["atomic_output", "atomic_write_bytes", "file_sha256"]
+
+
+def file_sha256(path) -> str:
+    """Hex SHA-256 of a file's bytes (read in blocks); FileNotFoundError when it does not exist."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 

@@ -191,23 +191,34 @@ def start_embed(vertices, faces, options: Optional[EmbedOptions], progress: Prog
     return EmbedJob(opts, strength, V, F, secret, bits, kind, progress or no_progress)
 
 
+def make_key(secret: str, bits: np.ndarray, payload_kind: str, strength: float, vertices: np.ndarray,
+             faces: np.ndarray, marked: np.ndarray, adj: Adjacency, pm: ProgressiveMesh,
+             key_carriers: np.ndarray, scheme: str, data: object = None) -> WatermarkKey:
+    """The key of a marked mesh: vertices (n, 3) the input, faces (m, 3), marked (n, 3) the marked
+    positions, ``key_carriers`` (k,) int64 the vertices the key records (index, progressive-mesh
+    index and marked place), the mesh's size and the faces fingerprints in both numberings, and the
+    scheme's typed data (written to the key file's ``extra`` by its ``to_extra``)."""
+    pm_of = np.empty(len(vertices), np.int64)
+    pm_of[pm.vertex_order] = np.arange(len(vertices))
+    return WatermarkKey(
+        secret=secret, bits=bits, payload_kind=payload_kind, strength=strength,
+        carrier_index=key_carriers, carrier_pm_index=pm_of[key_carriers],
+        carrier_position=marked[key_carriers].copy(), n_vertices=len(vertices), n_faces=len(faces),
+        mean_edge=mean_edge_length(marked, adj),
+        bbox_diagonal=float(np.linalg.norm(vertices.max(0) - vertices.min(0))),
+        scheme=scheme, data=data,
+        faces_fingerprint=face_fingerprint(faces), pm_faces_fingerprint=face_fingerprint(pm_of[faces]),
+    )
+
+
 def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, pm: ProgressiveMesh,
                  key_carriers: np.ndarray, carriers: np.ndarray, data: object = None) -> EmbedResult:
     """The key and the result, the last step of every embedder. marked : (n, 3) float64 the marked
-    mesh; key_carriers : (k,) int64 the vertices the key records (index, progressive-mesh index and
-    marked place; k = 0 or one per bit); carriers : the vertices reported as carrying the mark;
-    data: the scheme's typed key data (written to the key file's ``extra`` by its ``to_extra``)."""
+    mesh; key_carriers : (k,) int64 the vertices the key records (k = 0 or one per bit); carriers :
+    the vertices reported as carrying the mark; data: the scheme's typed key data (``make_key``)."""
     V, F = job.vertices, job.faces
-    pm_of = np.empty(len(V), np.int64)
-    pm_of[pm.vertex_order] = np.arange(len(V))
-    key = WatermarkKey(
-        secret=job.secret, bits=job.bits, payload_kind=job.payload_kind, strength=job.strength,
-        carrier_index=key_carriers, carrier_pm_index=pm_of[key_carriers],
-        carrier_position=marked[key_carriers].copy(), n_vertices=len(V), n_faces=len(F),
-        mean_edge=mean_edge_length(marked, adj), bbox_diagonal=float(np.linalg.norm(V.max(0) - V.min(0))),
-        scheme=scheme, data=data,
-        faces_fingerprint=face_fingerprint(F), pm_faces_fingerprint=face_fingerprint(pm_of[F]),
-    )
+    key = make_key(job.secret, job.bits, job.payload_kind, job.strength, V, F, marked, adj, pm, key_carriers,
+                   scheme, data)
     job.report(1.0, "done")
     return EmbedResult(vertices=marked, faces=F, pm=pm, key=key, carriers=carriers, bits=job.bits,
                        vsnr_db=metrics.vsnr(V, marked), rmse=metrics.vertex_rmse(V, marked))

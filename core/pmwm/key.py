@@ -187,6 +187,15 @@ def face_fingerprint(faces: np.ndarray) -> str:
     return hashlib.sha256(G.tobytes()).hexdigest()
 
 
+def mesh_sha256(vertices, faces, float_type: str = "<f4") -> str:
+    """Hex SHA-256 of mesh data: the vertex positions (n, 3) as little-endian ``float_type`` ("<f4",
+    what a suspect such as a Blender object holds; "<f8" for canonical float64 arrays), then the
+    triangles (m, 3) as little-endian int64."""
+    h = hashlib.sha256(np.ascontiguousarray(vertices, float_type).tobytes())
+    h.update(np.ascontiguousarray(faces, "<i8").tobytes())
+    return h.hexdigest()
+
+
 def read_key_json(path) -> WatermarkKey:
     """Read a key file and check its generic part (``pmwm.read_key`` also reads the scheme's data);
     KeyFileError on anything wrong."""

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import base64
 import datetime as _dt
-import hashlib
 import html
 import os
 import struct
@@ -26,35 +25,17 @@ from typing import Optional
 import numpy as np
 
 from . import __version__
-from .atomic import atomic_write_bytes
+from .atomic import atomic_write_bytes, file_sha256
 from .base import Verdict
-from .key import WatermarkKey
+from .key import WatermarkKey, mesh_sha256
 
-__all__ = ["build_report", "write_report", "render_views", "png_bytes", "file_sha256", "mesh_sha256",
-           "p_value_in_words"]
+__all__ = ["build_report", "write_report", "render_views", "png_bytes", "p_value_in_words"]
 
 VIEW_SIZE = 360  # pixels of each picture (rendered at twice that, then averaged 2x2)
 MATCH, MISMATCH, ERASED = "#1a9850", "#d73027", "#9e9e9e"
 
 
 # --------------------------------------------------------------------------- fingerprints
-
-
-def file_sha256(path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def mesh_sha256(vertices, faces) -> str:
-    """Hex SHA-256 of mesh data: the vertex positions as little-endian float32, then the triangles as
-    little-endian int64 (for a suspect that is not a file, e.g. a Blender object)."""
-    h = hashlib.sha256(np.ascontiguousarray(vertices, "<f4").tobytes())
-    h.update(np.ascontiguousarray(faces, "<i8").tobytes())
-    return h.hexdigest()
 
 
 # --------------------------------------------------------------------------- PNG and the rasteriser

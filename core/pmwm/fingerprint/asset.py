@@ -8,7 +8,6 @@ none (and stale temporary files of an earlier kill are removed on the next run).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 import time
@@ -17,30 +16,20 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from ..atomic import file_sha256
 from ..errors import KeyFileError, PmwmError
+from ..key import mesh_sha256
 from ..meshio import read_mesh
 from .codes import pack_codeword
-from .copies import AssetAnalysis, FingerprintOptions, analyse_asset, asset_sha256
+from .copies import AssetAnalysis, FingerprintOptions, analyse_asset
 from .registry import (FingerprintKey, Registry, RegistryEntry, read_fingerprint_key, read_registry,
                        write_fingerprint_key, write_registry)
 
-__all__ = ["REGISTRY_NAME", "FingerprintRun", "prepare_asset", "pending", "file_sha256", "fingerprint_asset",
+__all__ = ["REGISTRY_NAME", "FingerprintRun", "prepare_asset", "pending", "fingerprint_asset",
            "clean_temporaries"]
 
 REGISTRY_NAME = "registry.json"
 REGISTRY_EVERY = 2.0  # seconds between registry writes while copies are written (and at the end)
-
-
-def file_sha256(path) -> Optional[str]:
-    """SHA-256 (hex) of a file, None when it does not exist."""
-    h = hashlib.sha256()
-    try:
-        with open(path, "rb") as fh:
-            for chunk in iter(lambda: fh.read(1 << 20), b""):
-                h.update(chunk)
-    except FileNotFoundError:
-        return None
-    return h.hexdigest()
 
 
 _TEMPORARY = re.compile(r"\..+\.tmp-[^.]+\.(ply|pmwm|json)")  # pmwm.atomic's temporary names
@@ -64,7 +53,7 @@ def prepare_asset(asset_path, key_path, options: Optional[FingerprintOptions] = 
     V, F = src.vertices, src.faces
     if os.path.exists(key_path):
         fk = read_fingerprint_key(key_path)
-        if fk.asset_sha256 != asset_sha256(V, F):
+        if fk.asset_sha256 != mesh_sha256(V, F, "<f8"):
             raise KeyFileError(f"{key_path} is the fingerprinting key of another asset than {asset_path}; "
                                "give that asset's key, or a new --key path")
         opts = FingerprintOptions(fk.options.strength, fk.options.n_sites, fk.options.base_ratio)
@@ -83,12 +72,20 @@ def _expected(rid: str, pm: bool) -> list:
     return [rid + ".ply"] + ([rid + ".pmwm"] if pm else [])
 
 
+def _on_disk(path: str, sha256: str) -> bool:
+    """The file exists with this SHA-256."""
+    try:
+        return file_sha256(path) == sha256
+    except FileNotFoundError:
+        return False
+
+
 def pending(reg: Registry, out_dir, recipients, pm: bool) -> list:
     """The recipients whose files are not all in the registry and on disk with its SHA-256."""
     todo = []
     for rid in recipients:
         e = reg.entries.get(rid)
-        ok = e is not None and all(name in e.files and file_sha256(os.path.join(out_dir, name)) == e.files[name]
+        ok = e is not None and all(name in e.files and _on_disk(os.path.join(out_dir, name), e.files[name])
                                    for name in _expected(rid, pm))
         if not ok:
             todo.append(rid)

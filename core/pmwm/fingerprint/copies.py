@@ -20,10 +20,9 @@ from typing import Optional
 import numpy as np
 
 from ..atomic import atomic_output
-from ..base import Progress, no_progress
+from ..base import Progress, check_options, make_key, no_progress
 from ..errors import PayloadError
-from ..features import mean_edge_length
-from ..key import WatermarkKey, derive_seed, face_fingerprint, make_secret
+from ..key import WatermarkKey, derive_seed, make_secret, mesh_sha256
 from ..pmfile import to_bytes
 from ..progressive import ProgressiveMesh
 from ..register import surface_frame
@@ -33,7 +32,7 @@ from ..schemes.robust.read import NAME
 from ..validate import MAX_COORDINATE, check_mesh
 from .codes import codeword
 
-__all__ = ["FingerprintOptions", "AssetAnalysis", "CopyFiles", "analyse_asset", "asset_sha256"]
+__all__ = ["FingerprintOptions", "AssetAnalysis", "CopyFiles", "analyse_asset"]
 
 
 @dataclass
@@ -50,13 +49,6 @@ class FingerprintOptions:
 
     def to_dict(self) -> dict:
         return {"strength": self.strength, "n_sites": self.n_sites, "base_ratio": self.base_ratio}
-
-
-def asset_sha256(vertices: np.ndarray, faces: np.ndarray) -> str:
-    """SHA-256 (hex) of an asset's canonical arrays: float64 vertices (n, 3) then int64 faces (m, 3)."""
-    h = hashlib.sha256(np.ascontiguousarray(vertices, "<f8").tobytes())
-    h.update(np.ascontiguousarray(faces, "<i8").tobytes())
-    return h.hexdigest()
 
 
 @dataclass
@@ -142,15 +134,12 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
     key's ``secret`` (None: drawn from ``options.seed``, or fresh)."""
     opts = options or FingerprintOptions()
     report = progress or no_progress
-    if not (np.isfinite(opts.strength) and opts.strength > 0):
-        raise PayloadError(f"strength must be a positive number, got {opts.strength}")
-    if not (0 < opts.base_ratio <= 1):
-        raise PayloadError(f"base ratio must be in (0, 1], got {opts.base_ratio}")
+    strength = check_options(opts, DEFAULT_STRENGTH)
     if int(opts.n_sites) < 2 * SITES_PER_BIT:
         raise PayloadError(f"a fingerprint needs at least {2 * SITES_PER_BIT} sites, got {opts.n_sites}")
     V, F = check_mesh(vertices, faces, max_coordinate=MAX_COORDINATE)
     secret = secret if secret is not None else make_secret(opts.seed)
-    an = analyse(V, F, secret, float(opts.strength), max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
+    an = analyse(V, F, secret, strength, max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
                  report=lambda f, m: report(0.5 * f, m))
     S = an.n_sites
     # which sites read: decided on a keyed reference copy, the same for every recipient
@@ -161,18 +150,10 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
     frame = surface_frame(V, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
     data = dataclasses.replace(an.site, bit=np.arange(S), chip=np.ones(S), usable=usable, centre_ok=centre_ok,
                                swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)
-    pm_of = np.empty(len(V), np.int64)
-    pm_of[pm.vertex_order] = np.arange(len(V))
-    empty = np.zeros(0, np.int64)
-    key = WatermarkKey(
-        secret=secret, bits=np.zeros(S, np.uint8), payload_kind="bits", strength=float(opts.strength),
-        carrier_index=empty, carrier_pm_index=empty, carrier_position=np.zeros((0, 3)),
-        n_vertices=len(V), n_faces=len(F), mean_edge=mean_edge_length(V, an.adj),
-        bbox_diagonal=float(np.linalg.norm(V.max(0) - V.min(0))), scheme=NAME,
-        data=RobustKeyData.from_extra(data.to_extra(), S, len(V)),  # as the key file will read
-        faces_fingerprint=face_fingerprint(F), pm_faces_fingerprint=face_fingerprint(pm_of[F]))
+    key = make_key(secret, np.zeros(S, np.uint8), "bits", strength, V, F, V, an.adj, pm, np.zeros(0, np.int64),
+                   NAME, data=RobustKeyData.from_extra(data.to_extra(), S, len(V)))  # as the key file will read
     head, body = _ply_parts(len(V), F)
     report(1.0, "analysed")
     return AssetAnalysis(sites=an, key=key, options=opts, bump=np.where(dead, 0.0, 1.0),
-                         swirl=np.where(dead | no_swirl, 0.0, 1.0), pm=pm, asset_sha256=asset_sha256(V, F),
+                         swirl=np.where(dead | no_swirl, 0.0, 1.0), pm=pm, asset_sha256=mesh_sha256(V, F, "<f8"),
                          _ply_head=head, _ply_faces=body)

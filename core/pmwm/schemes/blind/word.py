@@ -29,7 +29,7 @@ import numpy as np
 
 from ...base import decode_text
 from ...errors import PayloadError
-from ...key import keyed_bits
+from ...key import derive_seed, keyed_bits
 from ...validate import parse_bits
 
 PAYLOAD_BITS = (32, 64, 96, 224)
@@ -87,8 +87,7 @@ def check_bits(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
 def layout(secret: str, n_word: int, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
     """Where the word goes: bin -> word bit (n_bins,) int64 (a keyed permutation, each bit on
     n_bins // n_word bins) and the keyed scrambling (n_word,) uint8."""
-    rng = np.random.default_rng(int.from_bytes(hashlib.sha256(f"{secret}:blind-layout:{n_word}:{n_bins}".encode())
-                                               .digest()[:8], "little"))
+    rng = np.random.default_rng(derive_seed(secret, f"blind-layout:{n_word}:{n_bins}"))
     bit_of_bin = rng.permutation(np.arange(n_bins) % n_word)
     return bit_of_bin, keyed_bits(secret, f"blind-scramble:{n_word}", n_word)
 
