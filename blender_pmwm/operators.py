@@ -175,7 +175,8 @@ class WatermarkTask(_Task):
     verb, doing = "watermarked", "watermarking"
 
     def __init__(self, context, payload: str = "", key_path: str = "", scheme: str = "robust",
-                 strength: float = 2.0, base_ratio: float = 0.03, seed: int = -1, overwrite_key: bool = False):
+                 strength: float = 2.0, base_ratio: float = 0.03, seed: int = -1, overwrite_key: bool = False,
+                 blind_margin: float = props.BLIND_MARGIN):
         import pmwm
 
         ob = _active_mesh(context)
@@ -186,7 +187,8 @@ class WatermarkTask(_Task):
                 raise _Failed("the Blind scheme needs a Pass Phrase: type it in the Mark panel")
             self._remember_mesh(ob)
             self.key_path = ""
-            self.opts = pmwm.EmbedOptions(payload=payload or None, strength=None, base_ratio=float(base_ratio),
+            self.opts = pmwm.EmbedOptions(payload=payload or None, strength=round(float(blind_margin), 6),  # float32 0.07 -> 0.07
+                                          base_ratio=float(base_ratio),
                                           seed=None if seed < 0 else int(seed), scheme=scheme, passphrase=phrase)
             return
         self.key_path, self.make_folder = _key_path(context, ob, key_path)
@@ -455,13 +457,15 @@ class PMWM_OT_watermark(_BackgroundOperator, Operator):
     seed: IntProperty(name="Seed", description="-1: a fresh random secret", default=-1, min=-1,
                       options={"SKIP_SAVE"})
     overwrite_key: BoolProperty(name="Overwrite Key", default=False, options={"SKIP_SAVE"})
+    blind_margin: FloatProperty(name="Margin", description="The Blind scheme's strength (Cho's alpha)",
+                                default=props.BLIND_MARGIN, min=0.01, max=0.45, options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):
         return _poll_mesh(cls, context)
 
     def make_task(self, context):
-        names = ("payload", "key_path", "scheme", "strength", "base_ratio", "seed", "overwrite_key")
+        names = ("payload", "key_path", "scheme", "strength", "base_ratio", "seed", "overwrite_key", "blind_margin")
         return WatermarkTask(context, **{n: self.option(context, n) for n in names})
 
 

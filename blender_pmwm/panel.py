@@ -108,7 +108,7 @@ class VIEW3D_PT_pmwm_advanced(_Sidebar, Panel):
         layout = _split(self.layout)
         s = context.scene.pmwm
         col = layout.column()
-        col.prop(s, "strength")
+        col.prop(s, "blind_margin" if s.scheme == "blind" else "strength")
         col.label(text="Higher: more robust, more visible")
         col.prop(s, "base_ratio")
         col.label(text="Size of the first streamed level")

@@ -11,6 +11,8 @@ from bpy.types import PropertyGroup
 
 from . import meshdata, session
 
+BLIND_MARGIN = 0.07  # pmwm.schemes.blind.DEFAULT_ALPHA (a test checks they agree)
+
 SCHEME_ITEMS = [
     ("robust", "Robust", "Bumps spread over the surface, read after registration: survives noise, smoothing, "
                          "cropping, simplification, re-export and posing (the default)"),
@@ -90,6 +92,13 @@ class PMWM_SceneSettings(PropertyGroup):
                     "neighbour standard deviations (paper). Higher survives more damage and shows more; 2 is "
                     "the default",
         default=2.0, min=0.01, max=100.0, soft_min=0.5, soft_max=5.0,
+    )
+    blind_margin: FloatProperty(
+        name="Margin",
+        description="The Blind scheme's strength: how far each bin of vertex distances is pushed from its "
+                    "middle (Cho's alpha, a fraction of the bin). Higher survives more damage and shows "
+                    "more; 0.07 is the default",
+        default=BLIND_MARGIN, min=0.01, max=0.45, soft_max=0.2, precision=3,
     )
     base_ratio: FloatProperty(
         name="Base Ratio",

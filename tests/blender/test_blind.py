@@ -4,6 +4,7 @@ the pass phrase never reaches the .blend."""
 from __future__ import annotations
 
 import bpy
+import numpy as np
 import pytest
 
 PHRASE = "tangerine kettle 42"
@@ -49,3 +50,25 @@ def test_the_pass_phrase_is_never_saved_in_the_blend(scene, addon, bl, tmp_path)
     bpy.ops.wm.open_mainfile(filepath=str(path))
     assert _secrets().passphrase == ""
     assert bpy.context.scene.pmwm.scheme == "blind"
+
+
+def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
+    """Margin is the Blind scheme's own strength (its default is the library's): a larger margin moves
+    the surface further, and both marks read back."""
+    from blender_pmwm import props
+    from pmwm.schemes import blind
+
+    assert props.BLIND_MARGIN == blind.DEFAULT_ALPHA
+    assert scene.pmwm.blind_margin == pytest.approx(blind.DEFAULT_ALPHA)
+    scene.pmwm.scheme = "blind"
+    _secrets().passphrase = PHRASE
+    moved = []
+    for margin in (0.04, 0.2):
+        ob = bl.bunny()
+        before = bl.positions(ob)
+        assert bpy.ops.pmwm.watermark(payload="Acme", scheme="blind", seed=3, blind_margin=margin) == {"FINISHED"}
+        after = bl.positions(bpy.context.active_object)
+        moved.append(float(np.sqrt(np.mean(np.sum((after - before) ** 2, axis=1)))))
+        assert bpy.ops.pmwm.verify() == {"FINISHED"}
+        assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert moved[1] > 2 * moved[0] > 0
