@@ -83,10 +83,10 @@ def test_quick_sweep_writes_tables_verdicts_and_one_plot_per_attack(tmp_path):
     assert sorted(p.name for p in (tmp_path / "B-equal-distortion").glob("*.png")) == sorted(
         f"ber_vs_mrms_{k}.png" for k in QUICK_ATTACKS)
     # the table: every method at both of its strengths, MRMS and BER per model
-    for method in ("pmwm", "pmwm-paper", "Cho I", "Cho II"):
+    for method in ("pmwm", "pmwm-paper", "Cho I", "Cho II", "pmwm-blind"):  # every scheme, the blind one too
         assert sum(1 for ln in text.splitlines() if ln.startswith(f"| {method} |")) == 2 * len(QUICK_ATTACKS)
     raw = json.loads((tmp_path / "B-equal-distortion" / "sweep.json").read_text())
-    assert len(raw["embeddings"]) == 4 * 2 and len(raw["trials"]) == 4 * 2 * len(QUICK_ATTACKS)
+    assert len(raw["embeddings"]) == 5 * 2 and len(raw["trials"]) == 5 * 2 * len(QUICK_ATTACKS)
     by_method: dict[str, list[tuple[float, float]]] = {}
     for e in raw["embeddings"]:
         assert e["mrms_percent"] > 0 and e["n_bits"] == 64
@@ -95,6 +95,9 @@ def test_quick_sweep_writes_tables_verdicts_and_one_plot_per_attack(tmp_path):
         (s0, m0), (s1, m1) = sorted(pts)
         assert s0 < s1 and m0 < m1
     assert all(0.0 <= t["ber"] <= 1.0 for t in raw["trials"])
+    # the blind scheme reads its 64-bit payload blind (pass phrase only) at its higher strength
+    blind = {t["attack"]: t["ber"] for t in raw["trials"] if t["method"] == "pmwm-blind" and t["strength"] == 0.12}
+    assert blind["noise"] == 0.0 and blind["quantization"] < 0.1
 
 
 def test_compare_at_equal_mrms_interpolates_inside_the_overlap_only():

@@ -11,7 +11,7 @@ import shlex
 import sys
 from typing import Optional, Sequence
 
-from .methods import ALL_SCHEMES, SchemeMethod, scheme_of
+from .methods import ALL_SCHEMES, SWEEP_SCHEMES, SchemeMethod, scheme_of
 from .models import CATALOGUE, DATA_ENV
 from .runner import run_bench
 from .sweep import (DEFAULT_GRID, EXTRA_ATTACKS, QUICK_ATTACKS, QUICK_GRID, SECTION, SWEEP_ATTACKS, run_sweep,
@@ -61,7 +61,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="key k uses seed SEED + k (default 0)")
     p.add_argument("--data", help=f"folder holding the benchmark meshes (default ${DATA_ENV})")
     p.add_argument("--methods", default=None, metavar="S,S",
-                   help=f"schemes to run, comma-separated, of {', '.join(ALL_SCHEMES)} (default all)")
+                   help=f"schemes to run, comma-separated, of {', '.join(SWEEP_SCHEMES)} (default: bench "
+                        f"{', '.join(ALL_SCHEMES)}; sweep all)")
     p.add_argument("--cho-only", action="store_true", help="Cho I and II only (same as --methods cho1,cho2)")
     p.add_argument("--strength", type=float, default=2.0,
                    help="bench: strength of the default (robust) scheme; the others stay at their defaults")
@@ -92,7 +93,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     command = ("pmwm bench " + shlex.join(argv)).strip()
     models = list(a.models) + _split(a.models_opt)
     try:
-        schemes = [scheme_of(s) for s in _split([a.methods])] if a.methods else list(ALL_SCHEMES)
+        schemes = ([scheme_of(s) for s in _split([a.methods])] if a.methods
+                   else list(SWEEP_SCHEMES if a.sweep else ALL_SCHEMES))
         if a.cho_only:
             schemes = ["cho1", "cho2"]
         grid: dict[str, list[float]] = {}

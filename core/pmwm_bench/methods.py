@@ -45,6 +45,9 @@ PMWM_SCHEMES: tuple[str, ...] = ("robust", "paper")
 #: what ``pmwm bench`` runs by default (the blind method is run by benchmarks/bench_blind.py: its payload
 #: lengths are 32, 64, 96 or 224 bits, not the paper protocol's 50)
 ALL_SCHEMES: tuple[str, ...] = tuple(s for s in DISPLAY if s != "blind")
+#: what ``pmwm bench --sweep`` runs by default: every scheme, the blind one too (its 64-bit payload is
+#: followed by its 32 check bits; BER over the payload, a reading of another length counts as chance)
+SWEEP_SCHEMES: tuple[str, ...] = tuple(DISPLAY)
 
 _ALIASES = {"pmwm": "robust", "pmwm-robust": "robust", "pmwm-paper": "paper", "cho i": "cho1", "cho-i": "cho1",
             "choi": "cho1", "pmwm-blind": "blind", "cho ii": "cho2", "cho-ii": "cho2", "choii": "cho2", "cho-1": "cho1", "cho-2": "cho2"}
@@ -112,5 +115,5 @@ def default_methods(strength: Optional[float] = None) -> list[SchemeMethod]:
     return [SchemeMethod("robust", strength), SchemeMethod("paper"), SchemeMethod("cho1"), SchemeMethod("cho2")]
 
 
-__all__ = ["ALL_SCHEMES", "BLIND_PASSPHRASE", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod",
+__all__ = ["ALL_SCHEMES", "SWEEP_SCHEMES", "BLIND_PASSPHRASE", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod",
            "default_methods", "scheme_of"]

@@ -27,7 +27,7 @@ from pmwm import attacks as A
 from pmwm import metrics as M
 
 from .markdown import render_sweep
-from .methods import ALL_SCHEMES, DISPLAY, SchemeMethod, scheme_of
+from .methods import DISPLAY, SWEEP_SCHEMES, SchemeMethod, scheme_of
 from .models import load, resolve
 from .protocols import attack_seed
 from .runner import read_attacked
@@ -78,16 +78,18 @@ QUICK_ATTACKS: tuple[str, ...] = ("noise", "quantization")
 #: robust 0.5 -> 0.0047 / 0.0036, 2 -> 0.019, 6 -> 0.060 / 0.046; paper 0.5 -> 0.0040 / 0.0048,
 #: 2 -> 0.027, 3.5 -> ~0.06 / 0.086; Cho I alpha 0.015 -> 0.0063 / 0.0090, 0.05 -> 0.018,
 #: 0.16 -> ~0.058 / 0.058; Cho II alpha 0.03 -> 0.0057 / 0.0059, 0.05 -> 0.0091, 0.3 -> 0.056 / 0.057.
+#: blind margin 0.02 -> 0.0043 (bunny), 0.04 -> 0.0074, 0.07 -> 0.013, 0.12 -> 0.021, 0.2 -> 0.039, 0.3 -> 0.069.
 #: Each grid holds the scheme's default strength, so the sweep meets the robustness tables.
 DEFAULT_GRID: dict[str, tuple[float, ...]] = {
     "robust": (0.5, 1.0, 2.0, 3.5, 6.0),
     "paper": (0.5, 0.8, 1.3, 2.0, 3.5),
     "cho1": (0.01, 0.025, 0.05, 0.09, 0.16),
     "cho2": (0.03, 0.05, 0.1, 0.18, 0.3),
+    "blind": (0.02, 0.04, 0.07, 0.12, 0.25),
 }
 #: two strengths per scheme, for tests and smoke runs
 QUICK_GRID: dict[str, tuple[float, ...]] = {
-    "robust": (1.0, 3.5), "paper": (0.8, 2.0), "cho1": (0.025, 0.09), "cho2": (0.05, 0.18),
+    "robust": (1.0, 3.5), "paper": (0.8, 2.0), "cho1": (0.025, 0.09), "cho2": (0.05, 0.18), "blind": (0.04, 0.12),
 }
 
 
@@ -302,7 +304,7 @@ def run_sweep(
 
     models:  catalogue names or mesh paths; default bunny and dragon (``quick``: bunny, which falls
              back to the copy packaged with pmwm). Missing ones are skipped with a note.
-    keys:    payloads / seeds per point (``quick``: 1). schemes: default all four.
+    keys:    payloads / seeds per point (``quick``: 1). schemes: default all five (``SWEEP_SCHEMES``).
     grid:    scheme -> strengths, overriding ``DEFAULT_GRID`` (``quick``: ``QUICK_GRID``) per scheme.
     attacks: keys of ``SWEEP_ATTACKS`` (``quick``: ``QUICK_ATTACKS``).
     """
@@ -313,7 +315,7 @@ def run_sweep(
         models = models or ("bunny",)
         attacks = attacks or QUICK_ATTACKS
     models = list(models or DEFAULT_SWEEP_MODELS)
-    schemes = [scheme_of(s) for s in (schemes or ALL_SCHEMES)]
+    schemes = [scheme_of(s) for s in (schemes or SWEEP_SCHEMES)]
     base = QUICK_GRID if quick else DEFAULT_GRID
     strengths = {s: tuple(float(x) for x in (grid or {}).get(s, base[s])) for s in schemes}
     chosen = sweep_attacks(attacks)
