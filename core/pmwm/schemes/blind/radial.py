@@ -15,6 +15,11 @@ so no vertex changes bin. Reading: the sign of (bin mean - 1/2). The embedder re
 (float32, frame recomputed from the marked mesh) and raises the margin of any bin that came out wrong
 or weak (below alpha / 2).
 
+Reading (``read_statistics_frames``): the statistics in the suspect's own frame and in the frame
+near it (1.5 bin widths at most) where the mark's energy is largest (``refine_frame``, a compass
+search; the energy involves no pass phrase, so the choice costs the p-value nothing but the second
+frame's readings, which the union bound counts).
+
 Weights, measured (3 keys, 64 bins, alpha 0.07, BER summed over noise 0.3/0.5 %, smoothing 5/10
 it., quantization 8/7 bits, simplification 50 %, loop and midpoint subdivision; bunny, Venus head,
 dragon): area-weighted centre and quantiles with unit-weight statistics (this module) 0.56, 2.31,
