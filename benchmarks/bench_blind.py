@@ -64,14 +64,16 @@ def true_word(secret: str, payload: np.ndarray) -> np.ndarray:
 
 def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False):
     """(BER of the 64-bit word read, whole payload recovered with p < 1e-6) of a suspect; the BER in
-    the frame whose reading the verdict kept (own or refined). With ``own_too``, a third item: the
+    the frame whose reading the verdict kept (own or refined) when marked, else in the own frame. With ``own_too``, a third item: the
     whole payload recovered from the suspect's own frame alone (the reader before the refinement)."""
     try:
         stats = blind.bin_statistics(V, F)
     except pmwm.PmwmError:
         return (0.5, False, False) if own_too else (0.5, False)
     v = blind.decide(stats, secret)
-    fi = 1 if v.extra.get("frame") == "refined" else 0
+    # the BER of the reading the verdict kept when it is marked; otherwise of the suspect's own frame
+    # (an unmarked verdict keeps whichever frame's candidate happened to match best: no measure)
+    fi = 1 if v.marked and v.extra.get("frame") == "refined" else 0
     got, _ = blind.word_read(stats[N_WORD][fi], secret, N_WORD)
     want = "".join(map(str, payload.tolist()))
     ok = v.marked and v.bits == want
@@ -131,7 +133,8 @@ def equal_mrms(models: list[str], keys: int) -> str:
     from pmwm_bench.methods import SchemeMethod
 
     out = ["## Blind scheme against Cho I and II at several strengths (equal MRMS)", "",
-           f"{keys} keys per row; 64 bits (blind: 32 payload + 32 check). BER per attack, mean over the keys.", "",
+           f"{keys} keys per row; 64 bits (blind: 32 payload + 32 check; the word read in the frame the verdict kept "
+           "when marked, else in the suspect's own frame). BER per attack, mean over the keys.", "",
            "| model | method | strength | MRMS % | " + " | ".join(lbl for lbl, _, _ in EQUAL_ATTACKS) + " |",
            "|---|---|---|---|" + "---|" * len(EQUAL_ATTACKS)]
     for model in models:
@@ -269,8 +272,8 @@ def main(argv=None) -> int:
            f"{blind.TARGET_MRMS} % (``blind.TARGET_MRMS``).", "",
            "Embedding distortion (% of the bounding-box diagonal, mean over the keys):", "",
            "| model | vertices | margin (mean) | MRMS % | Hausdorff % |", "|---|---|---|---|---|", *dist_rows, "",
-           "BER of the 64-bit word read (hard decisions in the frame the verdict kept, mean over the keys), "
-           "benchmark protocol:", "",
+           "BER of the 64-bit word read (hard decisions in the frame the verdict kept when marked, else in the "
+           "suspect's own frame; mean over the keys), benchmark protocol:", "",
            "| attack | " + " | ".join(m for m, _ in rows) + " |", "|---|" + "---|" * len(rows)]
     for g, label in groups:
         out.append(f"| {g} {label} | " + " | ".join(f"{r[(g, label)]:.3f}" for _, r in rows) + " |")

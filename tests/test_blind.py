@@ -100,6 +100,17 @@ def test_frame_refinement_does_not_use_the_pass_phrase(marked):
     assert right.marked and not wrong.marked and wrong.p_value > 1e-3
 
 
+def test_default_strength_spends_the_distortion_budget(bunny, marked):
+    """Without a strength the margin is calibrated to MRMS ~TARGET_MRMS % of the bbox diagonal; an
+    explicit strength is used as given."""
+    mrms = pmwm.metrics.surface_distance(*bunny, marked.vertices, marked.faces, 20000, seed=1)[0]
+    assert mrms == pytest.approx(blind.TARGET_MRMS, rel=0.15)
+    V, F = meshes.blob()
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, strength=0.05))
+    assert res.key.strength == 0.05
+    assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "x"
+
+
 def test_a_crop_gives_no_wrong_payload(marked):
     """A 10 % plane crop moves the frame by several bins: the reader does not find the mark there
     (a limit of this carrier), but it never reports a payload that was not embedded."""
