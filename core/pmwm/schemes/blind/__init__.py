@@ -13,19 +13,21 @@ where the mark's energy (sum of n_j (bin mean - 1/2)^2, no pass phrase involved)
 reading and a union bound over all (2 frames x 8 readings x 256 Chase flips = 4096 candidates: all 32
 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``).
 
-Why the refined frame (measured, bunny and dragon 3 keys, Venus head and Igea 2 keys each, whole
-payload read, own frame alone -> both frames): smoothing 5 it. 4/10 -> 8/10, 50 % simplification
-3/10 -> 6/10, noise 0.5 % 1/10 -> 4/10, 30 % simplification 8/10 -> 10/10, loop subdivision 1/10 ->
-3/10; no case read before is lost (the own frame's reading is still among the candidates). After
-these attacks the frame drifts by 0.1-0.4 bin widths while the bins' bias stays: read in the
-original's frame, 50 % simplification of the dragon gives BER 0 against 0.14 in its own frame.
+Why the refined frame (BENCHMARKS.md section ``blind``, 4 models x 3 keys, whole payload read, the
+same copies read in the own frame alone -> in both frames): smoothing 5 it. 5/12 -> 11/12, 10 it.
+0/12 -> 4/12, simplification 50 % 5/12 -> 9/12, 70 % 1/12 -> 6/12, noise 0.5 % 2/12 -> 5/12; no copy
+read in the own frame is lost (its reading is still among the candidates). After these attacks the
+frame drifts by 0.1-0.4 bin widths while the bins' bias stays: read in the original's frame, 50 %
+simplification of the dragon gives BER 0 against 0.14 in its own frame.
+
 Strength: without an explicit ``strength`` the margin is calibrated per mesh to the distortion budget
 (``TARGET_MRMS``; ``_calibrated``): 0.07 everywhere gave MRMS 0.012 % on the Venus head and Igea
 against 0.019 % on the bunny and dragon; calibrated, the margin is about 0.07 on the bunny and dragon,
 0.10-0.12 on the heads.
 
-Cropping is not helped: a 10 % plane crop moves the centre by 5-16 bin widths and lo/hi by up to 8,
-far outside any search a 0.5 s reader can afford (see tests/test_blind.py and BENCHMARKS.md). The mark is global (no places); it is rotation-, scale-, translation- and
+Cropping is not helped: a 10 % plane crop moves the area centroid by 5-16 bin widths and lo/hi by up
+to 8 (measured on the four benchmark models), far outside this search (BENCHMARKS.md: 0/12 copies
+read after a 10 % crop). The mark is global (no places); it is rotation-, scale-, translation- and
 order-invariant by construction.
 """
 
