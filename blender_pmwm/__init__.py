@@ -8,7 +8,7 @@ Scripting API (also usable with ``blender --background --python script.py``)::
     bpy.ops.pmwm.watermark(payload="ACME 2026", key_path="//suzanne.key.json",
                            scheme="robust", strength=2.0, base_ratio=0.03, seed=-1,
                            overwrite_key=False)
-    bpy.ops.pmwm.watermark(payload="ACME", scheme="blind", blind_margin=0.07)  # Pass Phrase: the panel's field
+    bpy.ops.pmwm.watermark(payload="ACME", scheme="blind", blind_margin=0.0)  # 0: per mesh; Pass Phrase: the panel's field
     bpy.ops.pmwm.export_pm(filepath="//suzanne.pmwm")
     bpy.ops.pmwm.import_pm(filepath="//suzanne.pmwm", level=-1)   # -1: full resolution
     bpy.ops.pmwm.verify(key_path="//suzanne.key.json")

@@ -53,17 +53,16 @@ def test_the_pass_phrase_is_never_saved_in_the_blend(scene, addon, bl, tmp_path)
 
 
 def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
-    """Margin is the Blind scheme's own strength (its default is the library's): a larger margin moves
-    the surface further, and both marks read back."""
-    from blender_pmwm import props
-    from pmwm.schemes import blind
+    """Margin is the Blind scheme's own strength: 0 (the default) leaves it to the library, which chooses
+    it per mesh (the same marked mesh as ``pmwm.embed`` without a strength); a larger margin moves the
+    surface further, and every mark reads back."""
+    import pmwm
 
-    assert props.BLIND_MARGIN == blind.DEFAULT_ALPHA
-    assert scene.pmwm.blind_margin == pytest.approx(blind.DEFAULT_ALPHA)
+    assert scene.pmwm.blind_margin == 0.0
     scene.pmwm.scheme = "blind"
     _secrets().passphrase = PHRASE
     moved = []
-    for margin in (0.04, 0.2):
+    for margin in (0.0, 0.04, 0.2):
         ob = bl.bunny()
         before = bl.positions(ob)
         assert bpy.ops.pmwm.watermark(payload="Acme", scheme="blind", seed=3, blind_margin=margin) == {"FINISHED"}
@@ -71,4 +70,8 @@ def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
         moved.append(float(np.sqrt(np.mean(np.sum((after - before) ** 2, axis=1)))))
         assert bpy.ops.pmwm.verify() == {"FINISHED"}
         assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
-    assert moved[1] > 2 * moved[0] > 0
+        if margin == 0.0:
+            lib = pmwm.embed(before.astype(np.float64), bl.polygons(bpy.context.active_object)[0].reshape(-1, 3),
+                             pmwm.EmbedOptions(payload="Acme", scheme="blind", seed=3, passphrase=PHRASE))
+            np.testing.assert_array_equal(after, lib.vertices.astype(np.float32))
+    assert moved[2] > 2 * moved[1] > 0
