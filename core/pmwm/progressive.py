@@ -53,6 +53,8 @@ FLAG_SINGLE = 1  # the split adds one face (boundary collapse)
 FLAG_SECOND = 2  # ... and that face is the one holding the half-edge v -> u
 _NEXT = np.array([1, 2, 0])  # the next corner of a face
 _PREV = np.array([2, 0, 1])
+_TO_NEXT = _NEXT - np.arange(3)  # flat corner id -> the next corner's, by corner
+_TO_PREV = _PREV - np.arange(3)
 
 
 @dataclass
@@ -104,104 +106,236 @@ class ProgressiveMesh:
 
 
 def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Apply the first k records to the base mesh; vectorised per level.
+    """Apply the first k records to the base mesh, level by level; ``(V (nb + k, 3) float64, F (m, 3) int64)``.
 
-    Each level finds its records' faces with one gather over the faces so far (a slot table
-    indexed by vertex) and works in 32-bit indices when they fit. Keeping per-vertex corner
-    lists instead (touching only the faces around the records) measured slower in numpy:
-    the scan is a quarter of the time, the per-face work the rest.
+    Only the faces around each level's split vertices are touched: every vertex keeps the list of
+    its corners (flat ids into F) in a row of a table, in face order, updated as the records move
+    corners and add faces (``_split_chunk``); the output arrays are allocated at their final sizes.
+    The previous decoder rescanned all faces per level (about ten times the final face count in
+    all) and ran at 2.0-2.5 M records/s on igea (BENCHMARKS.md, pm-speed).
     """
     nb = pm.n_base_vertices
-    n_new_faces = 2 - (pm.flags[:k] & FLAG_SINGLE).astype(np.int64)
-    nf_total = len(pm.base_faces) + int(n_new_faces.sum())
-    it = np.int32 if max(nb + k, 3 * nf_total) < 2**31 - 1 else np.int64
+    nf = len(pm.base_faces)
+    nf_total = nf + 2 * int(k) - int(np.count_nonzero(pm.flags[:k] & FLAG_SINGLE))
     V = np.empty((nb + k, 3), dtype=np.float64)
     V[:nb] = pm.base_vertices
     V[nb:] = pm.pos[:k]
-    F = np.empty((nf_total, 3), dtype=it)
-    nf = len(pm.base_faces)
+    F = np.empty((nf_total, 3), dtype=np.int64)
     F[:nf] = pm.base_faces
-    bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k])
-    slot16 = np.zeros(nb + k, dtype=np.uint16)  # scratch tables, reset after each level
-    slot = np.full(nb + k, -1, dtype=it)
-    tag = np.full(nb + k, -1, dtype=it)
-    v_all = pm.v[:k].astype(it)
+    inc = _Incidence.of(F[:nf], nb + k, np.int32 if 3 * nf_total < 2**31 else np.int64)
+    bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k]).tolist()
     for a, b in zip(bounds[:-1], bounds[1:]):
-        nf = _split_chunk(pm, v_all, F, nf, nb + a, a, b, slot16, slot, tag)
-    return V, F.astype(np.int64)
+        nf = _split_chunk(pm, F, nf, nb + a, a, b, inc)
+    return V, F
 
 
-def _split_chunk(pm: ProgressiveMesh, v_all: np.ndarray, F: np.ndarray, nf: int, nv: int, a: int, b: int,
-                 slot16: np.ndarray, slot: np.ndarray, tag: np.ndarray) -> int:
+_FAST = 16  # row width of the incidence table on the fast path (degrees up to _FAST - 2)
+_PERM: list = []  # lazily: the fast path's permutation table and popcounts (1.1 MB)
+
+
+def _perm_table() -> tuple[np.ndarray, np.ndarray]:
+    """For every 16-bit mask m: (16,) uint8 source slots, first the set bits of m ascending, then the
+    clear bits descending from the last slot (so that the reversed row lists them ascending); and
+    the popcount of m. Built once per process (a few ms)."""
+    if not _PERM:
+        m = np.arange(1 << _FAST, dtype="<u2")
+        bits = np.unpackbits(m.view(np.uint8).reshape(-1, 2), axis=1, bitorder="little")
+        below = np.cumsum(bits, axis=1, dtype=np.uint8) - bits  # set bits before each slot
+        j = np.arange(_FAST, dtype=np.uint8)
+        out = np.where(bits, below, _FAST - 1 - j + below)
+        perm = np.empty((1 << _FAST, _FAST), dtype=np.uint8)
+        perm.reshape(-1)[(np.arange(1 << _FAST)[:, None] * _FAST + out).reshape(-1)] = np.tile(j, 1 << _FAST)
+        _PERM[:] = [perm, bits.sum(axis=1, dtype=np.int64)]
+    return _PERM[0], _PERM[1]
+
+
+@dataclass
+class _Incidence:
+    """Each vertex's corners (flat ids into F), ascending: ``rows[x, :deg[x]]``; past ``deg``: stale."""
+
+    rows: np.ndarray  # (n, C) corner ids
+    deg: np.ndarray  # (n,) int64
+
+    @staticmethod
+    def of(F: np.ndarray, n: int, dtype) -> "_Incidence":
+        flat = F.reshape(-1)
+        deg = np.bincount(flat, minlength=n).astype(np.int64)
+        rows = np.zeros((n, max(_FAST, -(-(int(deg.max(initial=0)) + 2) // 8) * 8)), dtype=dtype)
+        order = np.argsort(flat, kind="stable")  # corners grouped by vertex, ascending in each group
+        vert = np.take(flat, order)
+        start = np.cumsum(deg) - deg
+        rows.reshape(-1)[vert * rows.shape[1] + np.arange(len(flat)) - np.take(start, vert)] = order
+        return _Incidence(rows, deg)
+
+    def fit(self, need: int) -> None:
+        """Make room for ``need`` corners per vertex."""
+        C = self.rows.shape[1]
+        if need > C:
+            wider = np.zeros((len(self.rows), -(-max(need, C + C // 2) // 8) * 8), dtype=self.rows.dtype)
+            wider[:, :C] = self.rows
+            self.rows = wider
+
+
+def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b: int, inc: _Incidence) -> int:
     """Apply independent records a..b-1 (one level or a prefix of it) in place; returns the face count.
 
-    ``slot16`` (all 0), ``slot`` and ``tag`` (all -1) are scratch tables, left as they were.
+    Record r moves the corners of its vertex v whose rank among v's faces (in face order) is set
+    in ``mask[r]`` to the new vertex u = nv + r - a, then adds [u, v, p] and/or [u, q, v], p and q
+    the ends of the moved arc. The records' closed 1-rings are disjoint: the chunk is one batch.
     """
     take = np.take
-    it = F.dtype
     cnt = b - a
-    u = np.arange(nv, nv + cnt, dtype=it)
-    v = v_all[a:b]
-    mask = pm.mask[a:b]
+    v = pm.v[a:b].astype(np.int64)
+    u = np.arange(nv, nv + cnt, dtype=np.int64)
     flags = pm.flags[a:b]
+    deg = inc.deg
+    d = take(deg, v)
+    mask = pm.mask[a:b]
     flat = F.reshape(-1)
-    if cnt < 65535:  # a 16-bit slot table: the scan moves less memory, the sort is a radix sort
-        slot16[v] = np.arange(1, cnt + 1, dtype=np.uint16)  # record + 1; 0: no record
-        s = slot16[flat[: 3 * nf]]  # (fancy indexing: np.take would copy the 32-bit indices to 64 bits)
-        slot16[v] = 0
-        hit = np.flatnonzero(s)
-        rec16 = take(s, hit)
-        order = np.argsort(rec16, kind="stable")
-        rec = take(rec16, order).astype(it) - 1
+    # move the corners: records of degree above _FAST - 2 (rare) on the general path, first (it may
+    # widen the table), the others through the permutation table
+    fast = d <= _FAST - 2
+    if fast.all():
+        groups = [(slice(None), u, _move_fast)]
+    elif not fast.any():
+        groups = [(slice(None), u, _move_wide)]
     else:
-        slot[v] = np.arange(cnt, dtype=it)
-        s = slot[flat[: 3 * nf]]
-        slot[v] = -1
-        hit = np.flatnonzero(s >= 0)
-        rec = take(s, hit)
-        order = np.argsort(rec, kind="stable")
-        rec = take(rec, order)
-    # the hits grouped by record, in face order; each record's rank among its faces
-    hit = take(hit, order)
-    size = np.bincount(rec, minlength=cnt)
-    starts = np.cumsum(size) - size
-    rank = np.arange(len(rec)) - take(starts, rec)
-    if len(rank) and rank.max() >= MAX_FAN:
-        rank = np.minimum(rank, MAX_FAN - 1)  # only in corrupt data; the checksum guards files
-    sel = np.flatnonzero(((take(mask, rec) >> rank.astype(np.uint64)) & np.uint64(1)).astype(bool))
-    hit = take(hit, sel)
-    rec = take(rec, sel)
-    flat[hit] = take(u, rec)
+        fast, wide = np.flatnonzero(fast), np.flatnonzero(~fast)
+        groups = [(wide, take(u, wide), _move_wide), (fast, take(u, fast), _move_fast)]
+    n_mv = np.empty(cnt, dtype=np.int64)
+    p = np.empty(cnt, dtype=np.int64)
+    q = np.empty(cnt, dtype=np.int64)
+    for sel, ug, move in groups:
+        hit, n_g = move(inc, v[sel], ug, mask[sel], d[sel])
+        flat[hit] = np.repeat(ug, n_g)
+        n_mv[sel] = n_g
+        p[sel], q[sel] = _arc_ends(flat, hit, n_g)
+    n_kp = d - n_mv
+    single = (flags & FLAG_SINGLE).astype(bool)
+    two = ~single
+    has1 = ~single | ~(flags & FLAG_SECOND).astype(bool)
+    t2 = two.astype(np.int64)
+    c1 = 3 * (nf + np.arange(cnt) + np.cumsum(t2) - t2)  # corner 0 of each record's first new face
+    # the new faces' corners at u and v (past the degree when a record adds one face: stale)
+    C = inc.rows.shape[1]
+    R = inc.rows.reshape(-1)
+    at_u = u * C + n_mv
+    at_v = v * C + n_kp
+    R[np.concatenate([at_u, at_u + 1, at_v, at_v + 1])] = np.concatenate(
+        [c1, c1 + 3, np.where(has1, c1 + 1, c1 + 2), c1 + 5])
+    # each record adds [u, v, p] (or [u, q, v] when that is its only face), then [u, q, v]
+    new = np.empty((cnt, 2, 3), dtype=np.int64)
+    new[:, 0, 0] = u
+    new[:, 0, 1] = np.where(has1, v, q)
+    new[:, 0, 2] = np.where(has1, p, v)
+    new[:, 1, 0] = u
+    new[:, 1, 1] = q
+    new[:, 1, 2] = v
+    n_new = cnt + int(t2.sum())
+    if n_new == 2 * cnt:
+        F[nf : nf + n_new] = new.reshape(-1, 3)
+    else:
+        F[nf : nf + n_new] = new.reshape(-1, 3)[np.c_[np.ones(cnt, bool), two].reshape(-1)]
+    # p and q: one corner each at the end of their lists
+    on = np.r_[has1, ~has1 | two]
+    pq = np.r_[p, q][on]
+    dpq = take(deg, pq)
+    inc.fit(int(dpq.max(initial=0)) + 1)
+    C = inc.rows.shape[1]
+    inc.rows.reshape(-1)[pq * C + dpq] = np.r_[c1 + 2, np.where(two, c1 + 4, c1 + 1)][on]
+    deg[pq] = dpq + 1
+    deg[u] = n_mv + 1 + t2
+    deg[v] = n_kp + 1 + t2
+    return nf + n_new
+
+
+def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split the lists of v (degrees <= 14, rows of 16) into u's (the corners whose rank bit is set)
+    and v's (the rest); returns the moved corners grouped by record, ascending, and their counts.
+
+    One gather through the permutation table puts the moved corners first and the kept ones last in
+    reverse; u's row is that row, v's row the same row reversed (slots past the lists: stale).
+    """
+    take = np.take
+    cnt = len(v)
+    perm, pop = _perm_table()
+    low = np.left_shift(np.uint64(1), d.astype(np.uint64)) - np.uint64(1)
+    m = (mask & low).astype(np.int64)
+    rows = inc.rows
+    C = rows.shape[1]
+    row = take(rows.reshape(-1), (v * C)[:, None] + take(perm, m, axis=0))
+    if len(u) and u[-1] - u[0] == len(u) - 1:
+        u = slice(int(u[0]), int(u[-1]) + 1)  # a block of rows: faster
+    if C == _FAST:
+        rows[u] = row
+        rows[v] = row[:, ::-1]
+    else:  # the table was widened for a few high degrees
+        rows[u, :_FAST] = row
+        rows[v, :_FAST] = row[:, ::-1]
+    n_mv = take(pop, m)
+    starts = np.cumsum(n_mv) - n_mv
+    hit = take(row.reshape(-1), np.repeat(np.arange(0, _FAST * cnt, _FAST) - starts, n_mv) + np.arange(int(n_mv.sum())))
+    return hit.astype(np.int64), n_mv
+
+
+def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``_move_fast`` for any degree: rank masks by shifts and cumulative sums (ranks past 63, only in
+    corrupt data, read bit 63)."""
+    take = np.take
+    cnt = len(v)
+    W = int(d.max(initial=0))
+    inc.fit(W + 2)
+    C = inc.rows.shape[1]
+    col = np.arange(W)
+    moved = ((mask[:, None] >> np.minimum(col, 63).astype(np.uint64)) & np.uint64(1)).astype(bool)
+    moved &= col < d[:, None]
+    below = np.cumsum(moved, axis=1) - moved  # moved corners before each one
+    n_mv = np.count_nonzero(moved, axis=1).astype(np.int64)
+    G = take(inc.rows, v, axis=0)[:, :W]
+    # u's row and v's row side by side in a scratch block; corners past deg(v) land past the new degree
+    rel = np.where(moved, below, (col + C) - below)
+    buf = np.empty((cnt, 2, C), dtype=inc.rows.dtype)
+    buf.reshape(-1)[rel + np.arange(0, 2 * C * cnt, 2 * C)[:, None]] = G
+    inc.rows[u] = buf[:, 0]
+    inc.rows[v] = buf[:, 1]
+    starts = np.cumsum(n_mv) - n_mv
+    hit = take(buf.reshape(-1), np.repeat(np.arange(0, 2 * C * cnt, 2 * C) - starts, n_mv) + np.arange(int(n_mv.sum())))
+    return hit.astype(np.int64), n_mv
+
+
+def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per record, the ends p, q of its moved arc of faces (the moved corners ``hit``, grouped by record).
+
+    Around the arc, each face's previous vertex is the next one of its neighbour, so the sums of
+    (next - previous) and (next^2 - previous^2) over a record's faces telescope to p - q and
+    p^2 - q^2 (exact in wrapping 64-bit integers for vertex ids below 2^31). Records whose arc is
+    empty or closed (only in corrupt data) fall back to matching the ends by a tag table.
+    """
+    take = np.take
     corner = hit % 3
-    base = hit - corner
-    nxt = take(flat, base + take(_NEXT, corner))
-    prv = take(flat, base + take(_PREV, corner))
-    # ends of the arc: p is a "next" vertex that is no "previous" of the same record, q the
-    # reverse; the records' rings are disjoint, so one tag table serves them all
+    nxt = take(flat, hit + take(_TO_NEXT, corner))
+    prv = take(flat, hit + take(_TO_PREV, corner))
+    if len(hit) and np.all(n_mv > 0) and len(flat) < 2**31:
+        dn = nxt - prv
+        ends = np.cumsum(n_mv) - 1
+        s1 = np.diff(take(np.cumsum(dn), ends), prepend=0)  # sums per record (wrapping is fine)
+        s2 = np.diff(take(np.cumsum(dn * (nxt + prv)), ends), prepend=0)
+        if np.all(s1 != 0):
+            both = s2 // s1  # p + q
+            return (both + s1) // 2, (both - s1) // 2
+    cnt = len(n_mv)
+    rec = np.repeat(np.arange(cnt), n_mv)
+    tag = np.full(int(max(nxt.max(initial=0), prv.max(initial=0))) + 1, -1, dtype=np.int64)
     tag[prv] = rec
     pe = np.flatnonzero(take(tag, nxt) != rec)
     tag[prv] = -1
     tag[nxt] = rec
     qe = np.flatnonzero(take(tag, prv) != rec)
-    tag[nxt] = -1
-    p = np.zeros(cnt, dtype=it)
-    q = np.zeros(cnt, dtype=it)
+    p = np.zeros(cnt, dtype=np.int64)
+    q = np.zeros(cnt, dtype=np.int64)
     p[take(rec, pe)] = take(nxt, pe)
     q[take(rec, qe)] = take(prv, qe)
-    single = (flags & FLAG_SINGLE).astype(bool)
-    second = (flags & FLAG_SECOND).astype(bool)
-    has1 = ~single | ~second
-    two = has1 & (~single | second)
-    # each record adds [u, v, p] (or [u, q, v] when that is its only face), then [u, q, v]
-    rows = nf + np.cumsum(two) - two + np.arange(cnt)
-    F[rows, 0] = u
-    F[rows, 1] = np.where(has1, v, q)
-    F[rows, 2] = np.where(has1, p, v)
-    r2 = rows[two] + 1
-    F[r2, 0] = u[two]
-    F[r2, 1] = q[two]
-    F[r2, 2] = v[two]
-    return nf + cnt + int(two.sum())
+    return p, q
 
 
 # --------------------------------------------------------------------------- encoding
