@@ -209,7 +209,7 @@ def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b
         hit, n_g = move(inc, v[sel], ug, mask[sel], d[sel])
         flat[hit] = np.repeat(ug, n_g)
         n_mv[sel] = n_g
-        p[sel], q[sel] = _arc_ends(flat, hit, n_g)
+        p[sel], q[sel] = _arc_ends(flat, hit, n_g, nv + cnt)
     n_kp = d - n_mv
     single = (flags & FLAG_SINGLE).astype(bool)
     two = ~single
@@ -221,8 +221,9 @@ def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b
     R = inc.rows.reshape(-1)
     at_u = u * C + n_mv
     at_v = v * C + n_kp
+    c2 = np.where(two, c1 + 3, c1)  # corner 0 of the second face (a valid corner id for all)
     R[np.concatenate([at_u, at_u + 1, at_v, at_v + 1])] = np.concatenate(
-        [c1, c1 + 3, np.where(has1, c1 + 1, c1 + 2), c1 + 5])
+        [c1, c2, np.where(has1, c1 + 1, c1 + 2), c2 + 2])
     # each record adds [u, v, p] (or [u, q, v] when that is its only face), then [u, q, v]
     new = np.empty((cnt, 2, 3), dtype=np.int64)
     new[:, 0, 0] = u
@@ -242,7 +243,7 @@ def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b
     dpq = take(deg, pq)
     inc.fit(int(dpq.max(initial=0)) + 1)
     C = inc.rows.shape[1]
-    inc.rows.reshape(-1)[pq * C + dpq] = np.r_[c1 + 2, np.where(two, c1 + 4, c1 + 1)][on]
+    inc.rows.reshape(-1)[pq * C + dpq] = np.r_[c1 + 2, np.where(two, c2 + 1, c1 + 1)][on]
     deg[pq] = dpq + 1
     deg[u] = n_mv + 1 + t2
     deg[v] = n_kp + 1 + t2
@@ -303,13 +304,14 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     return hit.astype(np.int64), n_mv
 
 
-def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Per record, the ends p, q of its moved arc of faces (the moved corners ``hit``, grouped by record).
 
     Around the arc, each face's previous vertex is the next one of its neighbour, so the sums of
     (next - previous) and (next^2 - previous^2) over a record's faces telescope to p - q and
     p^2 - q^2 (exact in wrapping 64-bit integers for vertex ids below 2^31). Records whose arc is
-    empty or closed (only in corrupt data) fall back to matching the ends by a tag table.
+    empty or closed, or whose sums give no vertex below ``n`` (only in corrupt data) fall back to
+    matching the ends by a tag table (then every end is a vertex of the mesh).
     """
     take = np.take
     corner = hit % 3
@@ -322,7 +324,9 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray) -> tuple[np.n
         s2 = np.diff(take(np.cumsum(dn * (nxt + prv)), ends), prepend=0)
         if np.all(s1 != 0):
             both = s2 // s1  # p + q
-            return (both + s1) // 2, (both - s1) // 2
+            p, q = (both + s1) // 2, (both - s1) // 2
+            if np.all((p.view(np.uint64) < n) & (q.view(np.uint64) < n)):
+                return p, q
     cnt = len(n_mv)
     rec = np.repeat(np.arange(cnt), n_mv)
     tag = np.full(int(max(nxt.max(initial=0), prv.max(initial=0))) + 1, -1, dtype=np.int64)
