@@ -110,26 +110,77 @@ def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
 
     Only the faces around each level's split vertices are touched: every vertex keeps the list of
     its corners (flat ids into F) in a row of a table, in face order, updated as the records move
-    corners and add faces (``_split_chunk``); the output arrays are allocated at their final sizes.
-    The previous decoder rescanned all faces per level (about ten times the final face count in
-    all) and ran at 2.0-2.5 M records/s on igea (BENCHMARKS.md, pm-speed).
+    corners and add faces (``_split_chunk``). What does not depend on the mesh (the new faces'
+    rows, their corners at u and v) is computed for all records at once, and the output arrays
+    are allocated at their final sizes. The previous decoder rescanned all faces per level (about
+    ten times the final face count in all) and ran at 2.0-2.5 M records/s on igea (BENCHMARKS.md,
+    pm-speed).
     """
     nb = pm.n_base_vertices
     nf = len(pm.base_faces)
-    nf_total = nf + 2 * int(k) - int(np.count_nonzero(pm.flags[:k] & FLAG_SINGLE))
+    rec = _Records.of(pm, k, nf)
     V = np.empty((nb + k, 3), dtype=np.float64)
     V[:nb] = pm.base_vertices
     V[nb:] = pm.pos[:k]
-    F = np.empty((nf_total, 3), dtype=np.int64)
+    F = np.empty((rec.n_faces, 3), dtype=np.int64)
     F[:nf] = pm.base_faces
-    inc = _Incidence.of(F[:nf], nb + k, np.int32 if 3 * nf_total < 2**31 else np.int64)
+    rec.fill_faces(F.reshape(-1), nb)
+    inc = _Incidence.of(F[:nf], nb + k, np.int32 if 3 * rec.n_faces < 2**31 else np.int64)
     bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k]).tolist()
     for a, b in zip(bounds[:-1], bounds[1:]):
-        nf = _split_chunk(pm, F, nf, nb + a, a, b, inc)
+        _split_chunk(rec, F, nb + a, a, b, inc)
     return V, F
 
 
+@dataclass
+class _Records:
+    """The first k records with what follows from them alone, per record (k,): where its faces go.
+    Compact types: fresh memory costs page faults that weigh as much as the arithmetic here."""
+
+    v: np.ndarray  # int64
+    mask: np.ndarray  # uint64
+    two: np.ndarray  # bool: adds two faces
+    has1: np.ndarray  # bool: the first face is [u, v, p] (else [u, q, v])
+    has_q: np.ndarray  # bool: q is in a new face
+    at: np.ndarray  # (6, k) corner ids (flat ids in F): the new faces' corners at u, u, v, v (the second
+    # pair in the second face, or repeating the first face's u and landing on its p slot with one
+    # face), then p's and q's slots (the other's when absent)
+    n_faces: int
+
+    @staticmethod
+    def of(pm: ProgressiveMesh, k: int, nf: int) -> "_Records":
+        flags = pm.flags[:k]
+        single = (flags & FLAG_SINGLE).astype(bool)
+        two = ~single
+        has1 = ~(single & ((flags & FLAG_SECOND) != 0))
+        n_faces = nf + k + int(np.count_nonzero(two))
+        it = np.int32 if 3 * n_faces < 2**31 else np.int64
+        at = np.empty((6, k), dtype=it)
+        c1 = at[0]  # corner 0 of each record's first face
+        np.cumsum(two, dtype=it, out=c1)
+        c1 -= two
+        c1 += np.arange(nf, nf + k, dtype=it)
+        c1 *= 3
+        np.add(c1, np.where(two, 3, 0).astype(it), out=at[1])  # ... of its second face (c1 with one face)
+        np.subtract(c1 + 2, has1, out=at[2], casting="unsafe")
+        np.add(at[1], 2, out=at[3])
+        np.add(c1 + 1, has1, out=at[4], casting="unsafe")
+        at[5] = np.where(two, at[3] - 1, at[4])
+        return _Records(v=np.asarray(pm.v[:k], dtype=np.int64), mask=pm.mask[:k], two=two, has1=has1,
+                        has_q=~has1 | two, at=at, n_faces=n_faces)
+
+    def fill_faces(self, flat: np.ndarray, nb: int) -> None:
+        """Write u and v into the faces the records add (``flat``: F raveled; p and q come with the
+        decoding)."""
+        u = np.arange(nb, nb + len(self.v))
+        flat[self.at[0]] = u
+        flat[self.at[1]] = u
+        flat[self.at[2]] = self.v
+        flat[self.at[3]] = self.v
+
+
 _FAST = 16  # row width of the incidence table on the fast path (degrees up to _FAST - 2)
+_LOW = np.array([(1 << i) - 1 for i in range(_FAST - 1)], dtype=np.uint64)  # the low i bits
 _PERM: list = []  # lazily: the fast path's permutation table and popcounts (1.1 MB)
 
 
@@ -159,7 +210,7 @@ class _Incidence:
     @staticmethod
     def of(F: np.ndarray, n: int, dtype) -> "_Incidence":
         flat = F.reshape(-1)
-        deg = np.bincount(flat, minlength=n).astype(np.int64)
+        deg = np.bincount(flat, minlength=n)
         rows = np.zeros((n, max(_FAST, -(-(int(deg.max(initial=0)) + 2) // 8) * 8)), dtype=dtype)
         order = np.argsort(flat, kind="stable")  # corners grouped by vertex, ascending in each group
         vert = np.take(flat, order)
@@ -176,21 +227,21 @@ class _Incidence:
             self.rows = wider
 
 
-def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b: int, inc: _Incidence) -> int:
-    """Apply independent records a..b-1 (one level or a prefix of it) in place; returns the face count.
+def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _Incidence) -> None:
+    """Apply independent records a..b-1 (one level or a prefix of it) in place.
 
     Record r moves the corners of its vertex v whose rank among v's faces (in face order) is set
-    in ``mask[r]`` to the new vertex u = nv + r - a, then adds [u, v, p] and/or [u, q, v], p and q
-    the ends of the moved arc. The records' closed 1-rings are disjoint: the chunk is one batch.
+    in ``mask[r]`` to the new vertex u = nv + r - a; its new faces [u, v, p] and/or [u, q, v]
+    (already in F but for p and q) take the ends p, q of the moved arc. The records' closed
+    1-rings are disjoint: the chunk is one batch.
     """
     take = np.take
     cnt = b - a
-    v = pm.v[a:b].astype(np.int64)
+    v = rec.v[a:b]
     u = np.arange(nv, nv + cnt, dtype=np.int64)
-    flags = pm.flags[a:b]
     deg = inc.deg
     d = take(deg, v)
-    mask = pm.mask[a:b]
+    mask = rec.mask[a:b]
     flat = F.reshape(-1)
     # move the corners: records of degree above _FAST - 2 (rare) on the general path, first (it may
     # widen the table), the others through the permutation table
@@ -210,44 +261,26 @@ def _split_chunk(pm: ProgressiveMesh, F: np.ndarray, nf: int, nv: int, a: int, b
         flat[hit] = np.repeat(ug, n_g)
         n_mv[sel] = n_g
         p[sel], q[sel] = _arc_ends(flat, hit, n_g, nv + cnt)
+    has1, has_q = rec.has1[a:b], rec.has_q[a:b]
+    pq_at = rec.at[4:, a:b].reshape(-1)
+    flat[pq_at] = np.concatenate([np.where(has1, p, q), np.where(has_q, q, p)])
+    # the lists: u's and v's new corners (the second ones past the degree with one new face),
+    # then one corner at the end of p's and of q's
+    t2 = rec.two[a:b].astype(np.int64)
     n_kp = d - n_mv
-    single = (flags & FLAG_SINGLE).astype(bool)
-    two = ~single
-    has1 = ~single | ~(flags & FLAG_SECOND).astype(bool)
-    t2 = two.astype(np.int64)
-    c1 = 3 * (nf + np.arange(cnt) + np.cumsum(t2) - t2)  # corner 0 of each record's first new face
-    # the new faces' corners at u and v (past the degree when a record adds one face: stale)
     C = inc.rows.shape[1]
-    R = inc.rows.reshape(-1)
     at_u = u * C + n_mv
     at_v = v * C + n_kp
-    c2 = np.where(two, c1 + 3, c1)  # corner 0 of the second face (a valid corner id for all)
-    R[np.concatenate([at_u, at_u + 1, at_v, at_v + 1])] = np.concatenate(
-        [c1, c2, np.where(has1, c1 + 1, c1 + 2), c2 + 2])
-    # each record adds [u, v, p] (or [u, q, v] when that is its only face), then [u, q, v]
-    new = np.empty((cnt, 2, 3), dtype=np.int64)
-    new[:, 0, 0] = u
-    new[:, 0, 1] = np.where(has1, v, q)
-    new[:, 0, 2] = np.where(has1, p, v)
-    new[:, 1, 0] = u
-    new[:, 1, 1] = q
-    new[:, 1, 2] = v
-    n_new = cnt + int(t2.sum())
-    if n_new == 2 * cnt:
-        F[nf : nf + n_new] = new.reshape(-1, 3)
-    else:
-        F[nf : nf + n_new] = new.reshape(-1, 3)[np.c_[np.ones(cnt, bool), two].reshape(-1)]
-    # p and q: one corner each at the end of their lists
-    on = np.r_[has1, ~has1 | two]
-    pq = np.r_[p, q][on]
+    inc.rows.reshape(-1)[np.concatenate([at_u, at_u + 1, at_v, at_v + 1])] = rec.at[:4, a:b].reshape(-1)
+    on = np.concatenate([has1, has_q])
+    pq = np.concatenate([p, q])[on]
     dpq = take(deg, pq)
     inc.fit(int(dpq.max(initial=0)) + 1)
     C = inc.rows.shape[1]
-    inc.rows.reshape(-1)[pq * C + dpq] = np.r_[c1 + 2, np.where(two, c2 + 1, c1 + 1)][on]
+    inc.rows.reshape(-1)[pq * C + dpq] = pq_at[on]
     deg[pq] = dpq + 1
     deg[u] = n_mv + 1 + t2
     deg[v] = n_kp + 1 + t2
-    return nf + n_new
 
 
 def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -260,8 +293,7 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     take = np.take
     cnt = len(v)
     perm, pop = _perm_table()
-    low = np.left_shift(np.uint64(1), d.astype(np.uint64)) - np.uint64(1)
-    m = (mask & low).astype(np.int64)
+    m = (mask & take(_LOW, d)).view(np.int64)
     rows = inc.rows
     C = rows.shape[1]
     row = take(rows.reshape(-1), (v * C)[:, None] + take(perm, m, axis=0))
@@ -295,7 +327,7 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     G = take(inc.rows, v, axis=0)[:, :W]
     # u's row and v's row side by side in a scratch block; corners past deg(v) land past the new degree
     rel = np.where(moved, below, (col + C) - below)
-    buf = np.empty((cnt, 2, C), dtype=inc.rows.dtype)
+    buf = np.zeros((cnt, 2, C), dtype=inc.rows.dtype)  # zeros: slots past the lists stay valid ids
     buf.reshape(-1)[rel + np.arange(0, 2 * C * cnt, 2 * C)[:, None]] = G
     inc.rows[u] = buf[:, 0]
     inc.rows[v] = buf[:, 1]
