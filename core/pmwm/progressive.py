@@ -140,6 +140,7 @@ class _Records:
     v: np.ndarray  # int64
     mask: np.ndarray  # uint64
     two: np.ndarray  # bool: adds two faces
+    n_new: np.ndarray  # int64: the number of faces it adds
     has1: np.ndarray  # bool: the first face is [u, v, p] (else [u, q, v])
     has_q: np.ndarray  # bool: q is in a new face
     at: np.ndarray  # (6, k) corner ids (flat ids in F): the new faces' corners at u, u, v, v (the second
@@ -166,7 +167,8 @@ class _Records:
         np.add(at[1], 2, out=at[3])
         np.add(c1 + 1, has1, out=at[4], casting="unsafe")
         at[5] = np.where(two, at[3] - 1, at[4])
-        return _Records(v=np.asarray(pm.v[:k], dtype=np.int64), mask=pm.mask[:k], two=two, has1=has1,
+        return _Records(v=np.asarray(pm.v[:k], dtype=np.int64), mask=pm.mask[:k], two=two,
+                        n_new=two.astype(np.int64) + 1, has1=has1,
                         has_q=~has1 | two, at=at, n_faces=n_faces)
 
     def fill_faces(self, flat: np.ndarray, nb: int) -> None:
@@ -247,26 +249,25 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     # widen the table), the others through the permutation table
     fast = d <= _FAST - 2
     if fast.all():
-        groups = [(slice(None), u, _move_fast)]
-    elif not fast.any():
-        groups = [(slice(None), u, _move_wide)]
+        hit, n_mv = _move_fast(inc, v, u, mask, d)
+        flat[hit] = np.repeat(u, n_mv)
+        p, q = _arc_ends(flat, hit, n_mv, nv + cnt)
     else:
+        n_mv = np.empty(cnt, dtype=np.int64)
+        p = np.empty(cnt, dtype=np.int64)
+        q = np.empty(cnt, dtype=np.int64)
         fast, wide = np.flatnonzero(fast), np.flatnonzero(~fast)
-        groups = [(wide, take(u, wide), _move_wide), (fast, take(u, fast), _move_fast)]
-    n_mv = np.empty(cnt, dtype=np.int64)
-    p = np.empty(cnt, dtype=np.int64)
-    q = np.empty(cnt, dtype=np.int64)
-    for sel, ug, move in groups:
-        hit, n_g = move(inc, v[sel], ug, mask[sel], d[sel])
-        flat[hit] = np.repeat(ug, n_g)
-        n_mv[sel] = n_g
-        p[sel], q[sel] = _arc_ends(flat, hit, n_g, nv + cnt)
+        for sel, move in [(wide, _move_wide), (fast, _move_fast)]:
+            ug = take(u, sel)
+            hit, n_g = move(inc, take(v, sel), ug, take(mask, sel), take(d, sel))
+            flat[hit] = np.repeat(ug, n_g)
+            n_mv[sel] = n_g
+            p[sel], q[sel] = _arc_ends(flat, hit, n_g, nv + cnt)
     has1, has_q = rec.has1[a:b], rec.has_q[a:b]
     pq_at = rec.at[4:, a:b].reshape(-1)
     flat[pq_at] = np.concatenate([np.where(has1, p, q), np.where(has_q, q, p)])
     # the lists: u's and v's new corners (the second ones past the degree with one new face),
     # then one corner at the end of p's and of q's
-    t2 = rec.two[a:b].astype(np.int64)
     n_kp = d - n_mv
     C = inc.rows.shape[1]
     at_u = u * C + n_mv
@@ -279,8 +280,9 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     C = inc.rows.shape[1]
     inc.rows.reshape(-1)[pq * C + dpq] = pq_at[on]
     deg[pq] = dpq + 1
-    deg[u] = n_mv + 1 + t2
-    deg[v] = n_kp + 1 + t2
+    n_new = rec.n_new[a:b]
+    deg[nv : nv + cnt] = n_mv + n_new
+    deg[v] = n_kp + n_new
 
 
 def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -317,13 +319,14 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     take = np.take
     cnt = len(v)
     W = int(d.max(initial=0))
-    inc.fit(W + 2)
-    C = inc.rows.shape[1]
     col = np.arange(W)
     moved = ((mask[:, None] >> np.minimum(col, 63).astype(np.uint64)) & np.uint64(1)).astype(bool)
     moved &= col < d[:, None]
     below = np.cumsum(moved, axis=1) - moved  # moved corners before each one
     n_mv = np.count_nonzero(moved, axis=1).astype(np.int64)
+    # room for the lists read and for the new ones with their new corners
+    inc.fit(max(W, int(np.maximum(n_mv, d - n_mv).max(initial=0)) + 2))
+    C = inc.rows.shape[1]
     G = take(inc.rows, v, axis=0)[:, :W]
     # u's row and v's row side by side in a scratch block; corners past deg(v) land past the new degree
     rel = np.where(moved, below, (col + C) - below)
@@ -349,7 +352,7 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> tu
     corner = hit % 3
     nxt = take(flat, hit + take(_TO_NEXT, corner))
     prv = take(flat, hit + take(_TO_PREV, corner))
-    if len(hit) and np.all(n_mv > 0) and len(flat) < 2**31:
+    if len(hit) and len(flat) < 2**31:  # (a record without moved corners gets s1 == 0 or garbage)
         dn = nxt - prv
         ends = np.cumsum(n_mv) - 1
         s1 = np.diff(take(np.cumsum(dn), ends), prepend=0)  # sums per record (wrapping is fine)
