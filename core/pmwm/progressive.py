@@ -187,18 +187,25 @@ _PERM: list = []  # lazily: the fast path's permutation table and popcounts (1.1
 
 
 def _perm_table() -> tuple[np.ndarray, np.ndarray]:
-    """For every 16-bit mask m: (16,) uint8 source slots, first the set bits of m ascending, then the
-    clear bits descending from the last slot (so that the reversed row lists them ascending); and
-    the popcount of m. Built once per process (a few ms)."""
+    """For every mask m of _FAST - 2 bits: (_FAST,) uint8 source slots, first the set bits of m
+    ascending, then the clear bits descending from the last slot (so that the reversed row lists
+    them ascending); and the popcount of m. Built once per process (about 1 ms) from the same
+    table for bytes: m's row is its low byte's row with the high byte's row (+ 8) inserted after
+    the low byte's set bits."""
     if not _PERM:
-        m = np.arange(1 << _FAST, dtype="<u2")
-        bits = np.unpackbits(m.view(np.uint8).reshape(-1, 2), axis=1, bitorder="little")
-        below = np.cumsum(bits, axis=1, dtype=np.uint8) - bits  # set bits before each slot
-        j = np.arange(_FAST, dtype=np.uint8)
-        out = np.where(bits, below, _FAST - 1 - j + below)
-        perm = np.empty((1 << _FAST, _FAST), dtype=np.uint8)
-        perm.reshape(-1)[(np.arange(1 << _FAST)[:, None] * _FAST + out).reshape(-1)] = np.tile(j, 1 << _FAST)
-        _PERM[:] = [perm, bits.sum(axis=1, dtype=np.int64)]
+        j = np.arange(8)
+        bits = np.unpackbits(np.arange(256, dtype=np.uint8)[:, None], axis=1, bitorder="little").astype(bool)
+        row8 = np.argsort(np.where(bits, j, 16 - j), axis=1, kind="stable").astype(np.uint8)
+        pop8 = bits.sum(axis=1)
+        n_hi = 1 << (_FAST - 10)
+        perm = np.empty((n_hi, 256, _FAST), dtype=np.uint8)  # [high byte, low byte]
+        for pl in range(9):
+            lo = np.flatnonzero(pop8 == pl)
+            perm[:, lo, :pl] = row8[lo, :pl]
+            perm[:, lo, pl : pl + 8] = (row8[:n_hi] + 8)[:, None, :]
+            perm[:, lo, pl + 8 :] = row8[lo, pl:]
+        pop = (pop8[:n_hi, None] + pop8[None, :]).reshape(-1)
+        _PERM[:] = [perm.reshape(-1, _FAST), pop.astype(np.int64)]
     return _PERM[0], _PERM[1]
 
 
