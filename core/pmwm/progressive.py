@@ -139,10 +139,8 @@ class _Records:
 
     v: np.ndarray  # int64
     mask: np.ndarray  # uint64
-    two: np.ndarray  # bool: adds two faces
     n_new: np.ndarray  # int64: the number of faces it adds
-    has1: np.ndarray  # bool: the first face is [u, v, p] (else [u, q, v])
-    has_q: np.ndarray  # bool: q is in a new face
+    on: np.ndarray  # (2, k) bool: p is in a new face (the first is [u, v, p], else [u, q, v]); q is
     at: np.ndarray  # (6, k) corner ids (flat ids in F): the new faces' corners at u, u, v, v (the second
     # pair in the second face, or repeating the first face's u and landing on its p slot with one
     # face), then p's and q's slots (the other's when absent)
@@ -167,9 +165,9 @@ class _Records:
         np.add(at[1], 2, out=at[3])
         np.add(c1 + 1, has1, out=at[4], casting="unsafe")
         at[5] = np.where(two, at[3] - 1, at[4])
-        return _Records(v=np.asarray(pm.v[:k], dtype=np.int64), mask=pm.mask[:k], two=two,
-                        n_new=two.astype(np.int64) + 1, has1=has1,
-                        has_q=~has1 | two, at=at, n_faces=n_faces)
+        return _Records(v=np.asarray(pm.v[:k], dtype=np.int64), mask=pm.mask[:k],
+                        n_new=two.astype(np.int64) + 1, on=np.stack([has1, ~has1 | two]), at=at,
+                        n_faces=n_faces)
 
     def fill_faces(self, flat: np.ndarray, nb: int) -> None:
         """Write u and v into the faces the records add (``flat``: F raveled; p and q come with the
@@ -255,24 +253,26 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     # move the corners: records of degree above _FAST - 2 (rare) on the general path, first (it may
     # widen the table), the others through the permutation table
     fast = d <= _FAST - 2
+    keep = b < len(rec.v)  # the lists are read again (not after the last records)
     if fast.all():
-        hit, n_mv = _move_fast(inc, v, u, mask, d)
+        hit, n_mv = _move_fast(inc, v, u, mask, d, keep)
         flat[hit] = np.repeat(u, n_mv)
-        p, q = _arc_ends(flat, hit, n_mv, nv + cnt)
+        pq = _arc_ends(flat, hit, n_mv, nv + cnt)
     else:
         n_mv = np.empty(cnt, dtype=np.int64)
-        p = np.empty(cnt, dtype=np.int64)
-        q = np.empty(cnt, dtype=np.int64)
+        pq = np.empty((2, cnt), dtype=np.int64)
         fast, wide = np.flatnonzero(fast), np.flatnonzero(~fast)
         for sel, move in [(wide, _move_wide), (fast, _move_fast)]:
             ug = take(u, sel)
-            hit, n_g = move(inc, take(v, sel), ug, take(mask, sel), take(d, sel))
+            hit, n_g = move(inc, take(v, sel), ug, take(mask, sel), take(d, sel), keep)
             flat[hit] = np.repeat(ug, n_g)
             n_mv[sel] = n_g
-            p[sel], q[sel] = _arc_ends(flat, hit, n_g, nv + cnt)
-    has1, has_q = rec.has1[a:b], rec.has_q[a:b]
+            pq[:, sel] = _arc_ends(flat, hit, n_g, nv + cnt)
+    on = rec.on[:, a:b]  # p's and q's slots: the other's when one is absent
     pq_at = rec.at[4:, a:b].reshape(-1)
-    flat[pq_at] = np.concatenate([np.where(has1, p, q), np.where(has_q, q, p)])
+    flat[pq_at] = np.where(on, pq, pq[::-1]).reshape(-1)
+    if not keep:
+        return
     # the lists: u's and v's new corners (the second ones past the degree with one new face),
     # then one corner at the end of p's and of q's
     n_kp = d - n_mv
@@ -280,8 +280,8 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     at_u = u * C + n_mv
     at_v = v * C + n_kp
     inc.rows.reshape(-1)[np.concatenate([at_u, at_u + 1, at_v, at_v + 1])] = rec.at[:4, a:b].reshape(-1)
-    on = np.concatenate([has1, has_q])
-    pq = np.concatenate([p, q])[on]
+    on = on.reshape(-1)
+    pq = pq.reshape(-1)[on]
     dpq = take(deg, pq)
     inc.fit(int(dpq.max(initial=0)) + 1)
     C = inc.rows.shape[1]
@@ -292,7 +292,8 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     deg[v] = n_kp + n_new
 
 
-def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray,
+               keep: bool) -> tuple[np.ndarray, np.ndarray]:
     """Split the lists of v (degrees <= 14, rows of 16) into u's (the corners whose rank bit is set)
     and v's (the rest); returns the moved corners grouped by record, ascending, and their counts.
 
@@ -308,7 +309,9 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     row = take(rows.reshape(-1), (v * C)[:, None] + take(perm, m, axis=0))
     if len(u) and u[-1] - u[0] == len(u) - 1:
         u = slice(int(u[0]), int(u[-1]) + 1)  # a block of rows: faster
-    if C == _FAST:
+    if not keep:
+        pass
+    elif C == _FAST:
         rows[u] = row
         rows[v] = row[:, ::-1]
     else:  # the table was widened for a few high degrees
@@ -320,7 +323,8 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     return hit.astype(np.int64), n_mv
 
 
-def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray,
+               keep: bool) -> tuple[np.ndarray, np.ndarray]:
     """``_move_fast`` for any degree: rank masks by shifts and cumulative sums (ranks past 63, only in
     corrupt data, read bit 63)."""
     take = np.take
@@ -346,8 +350,9 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     return hit.astype(np.int64), n_mv
 
 
-def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per record, the ends p, q of its moved arc of faces (the moved corners ``hit``, grouped by record).
+def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np.ndarray:
+    """Per record, the ends p, q of its moved arc of faces (the moved corners ``hit``, grouped by
+    record) as (2, cnt) int64.
 
     Around the arc, each face's previous vertex is the next one of its neighbour, so the sums of
     (next - previous) and (next^2 - previous^2) over a record's faces telescope to p - q and
@@ -366,9 +371,10 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> tu
         s2 = np.diff(take(np.cumsum(dn * (nxt + prv)), ends), prepend=0)
         if np.all(s1 != 0):
             both = s2 // s1  # p + q
-            p, q = (both + s1) // 2, (both - s1) // 2
-            if np.all((p.view(np.uint64) < n) & (q.view(np.uint64) < n)):
-                return p, q
+            pq = np.stack([both + s1, both - s1])
+            pq >>= 1
+            if np.all(pq.view(np.uint64) < n):
+                return pq
     cnt = len(n_mv)
     rec = np.repeat(np.arange(cnt), n_mv)
     tag = np.full(int(max(nxt.max(initial=0), prv.max(initial=0))) + 1, -1, dtype=np.int64)
@@ -377,11 +383,10 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> tu
     tag[prv] = -1
     tag[nxt] = rec
     qe = np.flatnonzero(take(tag, prv) != rec)
-    p = np.zeros(cnt, dtype=np.int64)
-    q = np.zeros(cnt, dtype=np.int64)
-    p[take(rec, pe)] = take(nxt, pe)
-    q[take(rec, qe)] = take(prv, qe)
-    return p, q
+    pq = np.zeros((2, cnt), dtype=np.int64)
+    pq[0, take(rec, pe)] = take(nxt, pe)
+    pq[1, take(rec, qe)] = take(prv, qe)
+    return pq
 
 
 # --------------------------------------------------------------------------- encoding
