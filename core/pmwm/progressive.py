@@ -318,9 +318,13 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
         rows[u, :_FAST] = row
         rows[v, :_FAST] = row[:, ::-1]
     n_mv = take(pop, m)
-    starts = np.cumsum(n_mv) - n_mv
-    hit = take(row.reshape(-1), np.repeat(np.arange(0, _FAST * cnt, _FAST) - starts, n_mv) + np.arange(int(n_mv.sum())))
-    return hit.astype(np.int64), n_mv
+    return take(row.reshape(-1), _packed(n_mv, _FAST)).astype(np.int64), n_mv
+
+
+def _packed(n: np.ndarray, width: int) -> np.ndarray:
+    """Flat ids of the first n[i] slots of each row i of a (len(n), width) array."""
+    ends = np.cumsum(n)
+    return np.repeat(np.arange(0, width * len(n), width) - ends + n, n) + np.arange(int(ends[-1]) if len(n) else 0)
 
 
 def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray,
@@ -345,9 +349,7 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     buf.reshape(-1)[rel + np.arange(0, 2 * C * cnt, 2 * C)[:, None]] = G
     inc.rows[u] = buf[:, 0]
     inc.rows[v] = buf[:, 1]
-    starts = np.cumsum(n_mv) - n_mv
-    hit = take(buf.reshape(-1), np.repeat(np.arange(0, 2 * C * cnt, 2 * C) - starts, n_mv) + np.arange(int(n_mv.sum())))
-    return hit.astype(np.int64), n_mv
+    return take(buf.reshape(-1), _packed(n_mv, 2 * C)).astype(np.int64), n_mv
 
 
 def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np.ndarray:
@@ -366,9 +368,10 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
     prv = take(flat, hit + take(_TO_PREV, corner))
     if len(hit) and len(flat) < 2**31:  # (a record without moved corners gets s1 == 0 or garbage)
         dn = nxt - prv
-        ends = np.cumsum(n_mv) - 1
-        s1 = np.diff(take(np.cumsum(dn), ends), prepend=0)  # sums per record (wrapping is fine)
-        s2 = np.diff(take(np.cumsum(dn * (nxt + prv)), ends), prepend=0)
+        s = np.stack([dn, dn * (nxt + prv)])
+        s = take(np.cumsum(s, axis=1), np.cumsum(n_mv) - 1, axis=1)  # sums per record (wrapping is fine)
+        s[:, 1:] -= s[:, :-1].copy()
+        s1, s2 = s
         if np.all(s1 != 0):
             both = s2 // s1  # p + q
             pq = np.stack([both + s1, both - s1])
