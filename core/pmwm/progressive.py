@@ -209,29 +209,61 @@ def _perm_table() -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass
 class _Incidence:
-    """Each vertex's corners (flat ids into F), ascending: ``rows[x, :deg[x]]``; past ``deg``: stale."""
+    """Each vertex's corners (flat ids into F), ascending, in slots: the first _FAST in ``main``, the
+    rest (high degrees, rare) in ``extra``; ``deg`` of them are live, slots past it are stale.
 
-    rows: np.ndarray  # (n, C) corner ids
+    ``extra`` starts empty and widens on demand; ``main`` never changes shape, so that the fast path
+    always moves whole rows.
+    """
+
+    main: np.ndarray  # (n, _FAST) corner ids
+    extra: np.ndarray  # (n, X) corner ids, X a multiple of 8
     deg: np.ndarray  # (n,) int64
 
     @staticmethod
     def of(F: np.ndarray, n: int, dtype) -> "_Incidence":
         flat = F.reshape(-1)
         deg = np.bincount(flat, minlength=n)
-        rows = np.zeros((n, max(_FAST, -(-(int(deg.max(initial=0)) + 2) // 8) * 8)), dtype=dtype)
+        inc = _Incidence(np.zeros((n, _FAST), dtype=dtype), np.zeros((n, 0), dtype=dtype), deg)
+        inc.fit(int(deg.max(initial=0)))
         order = np.argsort(flat, kind="stable")  # corners grouped by vertex, ascending in each group
         vert = np.take(flat, order)
         start = np.cumsum(deg) - deg
-        rows.reshape(-1)[vert * rows.shape[1] + np.arange(len(flat)) - np.take(start, vert)] = order
-        return _Incidence(rows, deg)
+        inc.put(vert, np.arange(len(flat)) - np.take(start, vert), order)
+        return inc
+
+    @property
+    def width(self) -> int:
+        return _FAST + self.extra.shape[1]
 
     def fit(self, need: int) -> None:
         """Make room for ``need`` corners per vertex."""
-        C = self.rows.shape[1]
-        if need > C:
-            wider = np.zeros((len(self.rows), -(-max(need, C + C // 2) // 8) * 8), dtype=self.rows.dtype)
-            wider[:, :C] = self.rows
-            self.rows = wider
+        X = self.extra.shape[1]
+        if need > _FAST + X:
+            wider = np.zeros((len(self.main), -(-max(need - _FAST, X + X // 2) // 8) * 8), dtype=self.main.dtype)
+            wider[:, :X] = self.extra
+            self.extra = wider
+
+    def get(self, x: np.ndarray) -> np.ndarray:
+        """(len(x), width) the slots of vertices x."""
+        rows = np.take(self.main, x, axis=0)
+        return np.concatenate([rows, np.take(self.extra, x, axis=0)], axis=1) if self.extra.shape[1] else rows
+
+    def put_rows(self, x, rows: np.ndarray) -> None:
+        """Slots 0..rows.shape[1]-1 of vertices x (an index array or a slice) = rows."""
+        self.main[x] = rows[:, :_FAST]
+        if rows.shape[1] > _FAST:
+            self.extra[x, : rows.shape[1] - _FAST] = rows[:, _FAST:]
+
+    def put(self, x: np.ndarray, slot: np.ndarray, val: np.ndarray) -> None:
+        """Slot ``slot[i]`` of vertex ``x[i]`` = ``val[i]`` (slots below ``width``)."""
+        big = slot >= _FAST
+        if big.any():
+            s = np.flatnonzero(big)
+            self.extra.reshape(-1)[np.take(x, s) * self.extra.shape[1] + np.take(slot, s) - _FAST] = np.take(val, s)
+            s = np.flatnonzero(~big)
+            x, slot, val = np.take(x, s), np.take(slot, s), np.take(val, s)
+        self.main.reshape(-1)[x * _FAST + slot] = val
 
 
 def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _Incidence) -> None:
@@ -276,16 +308,13 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     # the lists: u's and v's new corners (the second ones past the degree with one new face),
     # then one corner at the end of p's and of q's
     n_kp = d - n_mv
-    C = inc.rows.shape[1]
-    at_u = u * C + n_mv
-    at_v = v * C + n_kp
-    inc.rows.reshape(-1)[np.concatenate([at_u, at_u + 1, at_v, at_v + 1])] = rec.at[:4, a:b].reshape(-1)
+    inc.put(np.concatenate([u, u, v, v]), np.concatenate([n_mv, n_mv + 1, n_kp, n_kp + 1]),
+            rec.at[:4, a:b].reshape(-1))
     on = on.reshape(-1)
     pq = pq.reshape(-1)[on]
     dpq = take(deg, pq)
     inc.fit(int(dpq.max(initial=0)) + 1)
-    C = inc.rows.shape[1]
-    inc.rows.reshape(-1)[pq * C + dpq] = pq_at[on]
+    inc.put(pq, dpq, pq_at[on])
     deg[pq] = dpq + 1
     n_new = rec.n_new[a:b]
     deg[nv : nv + cnt] = n_mv + n_new
@@ -304,19 +333,13 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     cnt = len(v)
     perm, pop = _perm_table()
     m = (mask & take(_LOW, d)).view(np.int64)
-    rows = inc.rows
-    C = rows.shape[1]
-    row = take(rows.reshape(-1), (v * C)[:, None] + take(perm, m, axis=0))
-    if len(u) and u[-1] - u[0] == len(u) - 1:
-        u = slice(int(u[0]), int(u[-1]) + 1)  # a block of rows: faster
-    if not keep:
-        pass
-    elif C == _FAST:
+    rows = inc.main
+    row = take(rows.reshape(-1), (v * _FAST)[:, None] + take(perm, m, axis=0))
+    if keep:
+        if len(u) and u[-1] - u[0] == len(u) - 1:
+            u = slice(int(u[0]), int(u[-1]) + 1)  # a block of rows: faster
         rows[u] = row
         rows[v] = row[:, ::-1]
-    else:  # the table was widened for a few high degrees
-        rows[u, :_FAST] = row
-        rows[v, :_FAST] = row[:, ::-1]
     n_mv = take(pop, m)
     return take(row.reshape(-1), _packed(n_mv, _FAST)).astype(np.int64), n_mv
 
@@ -341,14 +364,14 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     n_mv = np.count_nonzero(moved, axis=1).astype(np.int64)
     # room for the lists read and for the new ones with their new corners
     inc.fit(max(W, int(np.maximum(n_mv, d - n_mv).max(initial=0)) + 2))
-    C = inc.rows.shape[1]
-    G = take(inc.rows, v, axis=0)[:, :W]
+    C = inc.width
+    G = inc.get(v)[:, :W]
     # u's row and v's row side by side in a scratch block; corners past deg(v) land past the new degree
     rel = np.where(moved, below, (col + C) - below)
-    buf = np.zeros((cnt, 2, C), dtype=inc.rows.dtype)  # zeros: slots past the lists stay valid ids
+    buf = np.zeros((cnt, 2, C), dtype=inc.main.dtype)  # zeros: slots past the lists stay valid ids
     buf.reshape(-1)[rel + np.arange(0, 2 * C * cnt, 2 * C)[:, None]] = G
-    inc.rows[u] = buf[:, 0]
-    inc.rows[v] = buf[:, 1]
+    inc.put_rows(u, buf[:, 0])
+    inc.put_rows(v, buf[:, 1])
     return take(buf.reshape(-1), _packed(n_mv, 2 * C)).astype(np.int64), n_mv
 
 
