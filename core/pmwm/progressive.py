@@ -118,13 +118,13 @@ def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
     """
     nb = pm.n_base_vertices
     nf = len(pm.base_faces)
-    rec = _Records.of(pm, k, nf)
+    rec = _Records.of(pm, k, nb, nf)
     V = np.empty((nb + k, 3), dtype=np.float64)
     V[:nb] = pm.base_vertices
     V[nb:] = pm.pos[:k]
     F = np.empty((rec.n_faces, 3), dtype=np.int64)
     F[:nf] = pm.base_faces
-    rec.fill_faces(F.reshape(-1), nb)
+    rec.fill_faces(F.reshape(-1))
     inc = _Incidence.of(F[:nf], nb + k, np.int32 if 3 * rec.n_faces < 2**31 else np.int64)
     bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k]).tolist()
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -140,6 +140,7 @@ class _Records:
     v: np.ndarray  # int64
     mask: np.ndarray  # uint64
     n_new: np.ndarray  # int64: the number of faces it adds
+    uuvv: np.ndarray  # (4, k) int64: u, u, v, v (the vertices of the corners ``at[:4]``)
     on: np.ndarray  # (2, k) bool: p is in a new face (the first is [u, v, p], else [u, q, v]); q is
     at: np.ndarray  # (6, k) corner ids (flat ids in F): the new faces' corners at u, u, v, v (the second
     # pair in the second face, or repeating the first face's u and landing on its p slot with one
@@ -147,7 +148,7 @@ class _Records:
     n_faces: int
 
     @staticmethod
-    def of(pm: ProgressiveMesh, k: int, nf: int) -> "_Records":
+    def of(pm: ProgressiveMesh, k: int, nb: int, nf: int) -> "_Records":
         flags = pm.flags[:k]
         single = (flags & FLAG_SINGLE).astype(bool)
         two = ~single
@@ -165,21 +166,20 @@ class _Records:
         np.add(at[1], 2, out=at[3])
         np.add(c1 + 1, has1, out=at[4], casting="unsafe")
         at[5] = np.where(two, at[3] - 1, at[4])
-        return _Records(v=np.asarray(pm.v[:k], dtype=np.int64), mask=pm.mask[:k],
+        v = np.asarray(pm.v[:k], dtype=np.int64)
+        u = np.arange(nb, nb + k)
+        return _Records(v=v, mask=pm.mask[:k], uuvv=np.stack([u, u, v, v]),
                         n_new=two.astype(np.int64) + 1, on=np.stack([has1, ~has1 | two]), at=at,
                         n_faces=n_faces)
 
-    def fill_faces(self, flat: np.ndarray, nb: int) -> None:
+    def fill_faces(self, flat: np.ndarray) -> None:
         """Write u and v into the faces the records add (``flat``: F raveled; p and q come with the
         decoding)."""
-        u = np.arange(nb, nb + len(self.v))
-        flat[self.at[0]] = u
-        flat[self.at[1]] = u
-        flat[self.at[2]] = self.v
-        flat[self.at[3]] = self.v
+        flat[self.at[:4].reshape(-1)] = self.uuvv.reshape(-1)
 
 
 _FAST = 16  # row width of the incidence table on the fast path (degrees up to _FAST - 2)
+_SECOND = np.array([[0], [1], [0], [1]])  # the slots of u's and v's new corners after their lists
 _LOW = np.array([(1 << i) - 1 for i in range(_FAST - 1)], dtype=np.uint64)  # the low i bits
 _PERM: list = []  # lazily: the fast path's permutation table and popcounts (1.1 MB)
 
@@ -284,15 +284,15 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     flat = F.reshape(-1)
     # move the corners: records of degree above _FAST - 2 (rare) on the general path, first (it may
     # widen the table), the others through the permutation table
-    fast = d <= _FAST - 2
     keep = b < len(rec.v)  # the lists are read again (not after the last records)
-    if fast.all():
-        hit, n_mv = _move_fast(inc, v, u, mask, d, keep)
+    if d.max(initial=0) <= _FAST - 2:
+        hit, n_mv = _move_fast(inc, v, slice(nv, nv + cnt), mask, d, keep)
         flat[hit] = np.repeat(u, n_mv)
         pq = _arc_ends(flat, hit, n_mv, nv + cnt)
     else:
         n_mv = np.empty(cnt, dtype=np.int64)
         pq = np.empty((2, cnt), dtype=np.int64)
+        fast = d <= _FAST - 2
         fast, wide = np.flatnonzero(fast), np.flatnonzero(~fast)
         for sel, move in [(wide, _move_wide), (fast, _move_fast)]:
             ug = take(u, sel)
@@ -308,7 +308,7 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     # the lists: u's and v's new corners (the second ones past the degree with one new face),
     # then one corner at the end of p's and of q's
     n_kp = d - n_mv
-    inc.put(np.concatenate([u, u, v, v]), np.concatenate([n_mv, n_mv + 1, n_kp, n_kp + 1]),
+    inc.put(rec.uuvv[:, a:b].reshape(-1), (np.stack([n_mv, n_mv, n_kp, n_kp]) + _SECOND).reshape(-1),
             rec.at[:4, a:b].reshape(-1))
     on = on.reshape(-1)
     pq = pq.reshape(-1)[on]
@@ -321,10 +321,11 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     deg[v] = n_kp + n_new
 
 
-def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray,
+def _move_fast(inc: _Incidence, v: np.ndarray, u, mask: np.ndarray, d: np.ndarray,
                keep: bool) -> tuple[np.ndarray, np.ndarray]:
     """Split the lists of v (degrees <= 14, rows of 16) into u's (the corners whose rank bit is set)
-    and v's (the rest); returns the moved corners grouped by record, ascending, and their counts.
+    and v's (the rest); u: an index array or a slice. Returns the moved corners grouped by record,
+    ascending, and their counts.
 
     One gather through the permutation table puts the moved corners first and the kept ones last in
     reverse; u's row is that row, v's row the same row reversed (slots past the lists: stale).
@@ -336,8 +337,6 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     rows = inc.main
     row = take(rows.reshape(-1), (v * _FAST)[:, None] + take(perm, m, axis=0))
     if keep:
-        if len(u) and u[-1] - u[0] == len(u) - 1:
-            u = slice(int(u[0]), int(u[-1]) + 1)  # a block of rows: faster
         rows[u] = row
         rows[v] = row[:, ::-1]
     n_mv = take(pop, m)
