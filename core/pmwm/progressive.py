@@ -141,7 +141,7 @@ class _Records:
     mask: np.ndarray  # uint64
     n_new: np.ndarray  # int64: the number of faces it adds
     uuvv: np.ndarray  # (4, k) int64: u, u, v, v (the vertices of the corners ``at[:4]``)
-    on: np.ndarray  # (2, k) bool: p is in a new face (the first is [u, v, p], else [u, q, v]); q is
+    on: np.ndarray  # (2, k) bool: p is in a new face (then the first is [u, v, p], else [u, q, v]); q is
     at: np.ndarray  # (6, k) corner ids (flat ids in F): the new faces' corners at u, u, v, v (the second
     # pair in the second face, or repeating the first face's u and landing on its p slot with one
     # face), then p's and q's slots (the other's when absent)
@@ -181,7 +181,7 @@ class _Records:
 _FAST = 16  # row width of the incidence table on the fast path (degrees up to _FAST - 2)
 _SECOND = np.array([[0], [1], [0], [1]])  # the slots of u's and v's new corners after their lists
 _LOW = np.array([(1 << i) - 1 for i in range(_FAST - 1)], dtype=np.uint64)  # the low i bits
-_PERM: list = []  # lazily: the fast path's permutation table and popcounts (1.1 MB)
+_PERM: list = []  # lazily: the fast path's permutation table and popcounts (0.4 MB)
 
 
 def _perm_table() -> tuple[np.ndarray, np.ndarray]:
@@ -274,12 +274,11 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     (already in F but for p and q) take the ends p, q of the moved arc. The records' closed
     1-rings are disjoint: the chunk is one batch.
     """
-    take = np.take
     cnt = b - a
     v = rec.v[a:b]
     u = np.arange(nv, nv + cnt, dtype=np.int64)
     deg = inc.deg
-    d = take(deg, v)
+    d = deg.take(v)
     mask = rec.mask[a:b]
     flat = F.reshape(-1)
     # move the corners: records of degree above _FAST - 2 (rare) on the general path, first (it may
@@ -287,7 +286,7 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     keep = b < len(rec.v)  # the lists are read again (not after the last records)
     if d.max(initial=0) <= _FAST - 2:
         hit, n_mv = _move_fast(inc, v, slice(nv, nv + cnt), mask, d, keep)
-        flat[hit] = np.repeat(u, n_mv)
+        flat[hit] = u.repeat(n_mv)
         pq = _arc_ends(flat, hit, n_mv, nv + cnt)
     else:
         n_mv = np.empty(cnt, dtype=np.int64)
@@ -295,9 +294,9 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
         fast = d <= _FAST - 2
         fast, wide = np.flatnonzero(fast), np.flatnonzero(~fast)
         for sel, move in [(wide, _move_wide), (fast, _move_fast)]:
-            ug = take(u, sel)
-            hit, n_g = move(inc, take(v, sel), ug, take(mask, sel), take(d, sel), keep)
-            flat[hit] = np.repeat(ug, n_g)
+            ug = u.take(sel)
+            hit, n_g = move(inc, v.take(sel), ug, mask.take(sel), d.take(sel), keep)
+            flat[hit] = ug.repeat(n_g)
             n_mv[sel] = n_g
             pq[:, sel] = _arc_ends(flat, hit, n_g, nv + cnt)
     on = rec.on[:, a:b]  # p's and q's slots: the other's when one is absent
@@ -308,11 +307,12 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     # the lists: u's and v's new corners (the second ones past the degree with one new face),
     # then one corner at the end of p's and of q's
     n_kp = d - n_mv
-    inc.put(rec.uuvv[:, a:b].reshape(-1), (np.stack([n_mv, n_mv, n_kp, n_kp]) + _SECOND).reshape(-1),
-            rec.at[:4, a:b].reshape(-1))
+    slot = np.concatenate([n_mv, n_mv, n_kp, n_kp]).reshape(4, cnt)
+    slot += _SECOND
+    inc.put(rec.uuvv[:, a:b].reshape(-1), slot.reshape(-1), rec.at[:4, a:b].reshape(-1))
     on = on.reshape(-1)
     pq = pq.reshape(-1)[on]
-    dpq = take(deg, pq)
+    dpq = deg.take(pq)
     inc.fit(int(dpq.max(initial=0)) + 1)
     inc.put(pq, dpq, pq_at[on])
     deg[pq] = dpq + 1
@@ -330,23 +330,21 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u, mask: np.ndarray, d: np.ndarra
     One gather through the permutation table puts the moved corners first and the kept ones last in
     reverse; u's row is that row, v's row the same row reversed (slots past the lists: stale).
     """
-    take = np.take
-    cnt = len(v)
     perm, pop = _perm_table()
-    m = (mask & take(_LOW, d)).view(np.int64)
+    m = (mask & _LOW.take(d)).view(np.int64)
     rows = inc.main
-    row = take(rows.reshape(-1), (v * _FAST)[:, None] + take(perm, m, axis=0))
+    row = rows.reshape(-1).take((v * _FAST)[:, None] + perm.take(m, axis=0))
     if keep:
         rows[u] = row
         rows[v] = row[:, ::-1]
-    n_mv = take(pop, m)
-    return take(row.reshape(-1), _packed(n_mv, _FAST)).astype(np.int64), n_mv
+    n_mv = pop.take(m)
+    return row.reshape(-1).take(_packed(n_mv, _FAST)).astype(np.int64), n_mv
 
 
 def _packed(n: np.ndarray, width: int) -> np.ndarray:
     """Flat ids of the first n[i] slots of each row i of a (len(n), width) array."""
-    ends = np.cumsum(n)
-    return np.repeat(np.arange(0, width * len(n), width) - ends + n, n) + np.arange(int(ends[-1]) if len(n) else 0)
+    ends = n.cumsum()
+    return (np.arange(0, width * len(n), width) - ends + n).repeat(n) + np.arange(int(ends[-1]) if len(n) else 0)
 
 
 def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray,
@@ -386,19 +384,20 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
     """
     take = np.take
     corner = hit % 3
-    nxt = take(flat, hit + take(_TO_NEXT, corner))
-    prv = take(flat, hit + take(_TO_PREV, corner))
-    if len(hit) and len(flat) < 2**31:  # (a record without moved corners gets s1 == 0 or garbage)
-        dn = nxt - prv
-        s = np.stack([dn, dn * (nxt + prv)])
-        s = take(np.cumsum(s, axis=1), np.cumsum(n_mv) - 1, axis=1)  # sums per record (wrapping is fine)
+    nxt = flat.take(hit + _TO_NEXT.take(corner))
+    prv = flat.take(hit + _TO_PREV.take(corner))
+    if len(hit) and n < 2**31:  # (a record without moved corners gets s1 == 0 or garbage)
+        s = np.empty((2, len(hit)), dtype=np.int64)
+        np.subtract(nxt, prv, out=s[0])
+        np.multiply(s[0], nxt + prv, out=s[1])
+        s = s.cumsum(axis=1).take(n_mv.cumsum() - 1, axis=1)  # sums per record (wrapping is fine)
         s[:, 1:] -= s[:, :-1].copy()
         s1, s2 = s
-        if np.all(s1 != 0):
+        if (s1 != 0).all():
             both = s2 // s1  # p + q
-            pq = np.stack([both + s1, both - s1])
+            pq = np.concatenate([both + s1, both - s1]).reshape(2, -1)
             pq >>= 1
-            if np.all(pq.view(np.uint64) < n):
+            if (pq.view(np.uint64) < n).all():
                 return pq
     cnt = len(n_mv)
     rec = np.repeat(np.arange(cnt), n_mv)
