@@ -179,7 +179,6 @@ class _Records:
 
 
 _FAST = 16  # row width of the incidence table on the fast path (degrees up to _FAST - 2)
-_SECOND = np.array([[0], [1], [0], [1]])  # the slots of u's and v's new corners after their lists
 _LOW = np.array([(1 << i) - 1 for i in range(_FAST - 1)], dtype=np.uint64)  # the low i bits
 _PERM: list = []  # lazily: the fast path's permutation table and popcounts (0.4 MB)
 
@@ -283,9 +282,10 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     flat = F.reshape(-1)
     # move the corners: records of degree above _FAST - 2 (rare) on the general path, first (it may
     # widen the table), the others through the permutation table
-    keep = b < len(rec.v)  # the lists are read again (not after the last records)
+    # the lists are read again (not after the last records): they get the new faces' corners at u, v
+    new = rec.at[:4, a:b] if b < len(rec.v) else None
     if d.max(initial=0) <= _FAST - 2:
-        hit, n_mv = _move_fast(inc, v, slice(nv, nv + cnt), mask, d, keep)
+        hit, n_mv = _move_fast(inc, v, slice(nv, nv + cnt), mask, d, new)
         flat[hit] = u.repeat(n_mv)
         pq = _arc_ends(flat, hit, n_mv, nv + cnt)
     else:
@@ -295,21 +295,17 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
         fast, wide = np.flatnonzero(fast), np.flatnonzero(~fast)
         for sel, move in [(wide, _move_wide), (fast, _move_fast)]:
             ug = u.take(sel)
-            hit, n_g = move(inc, v.take(sel), ug, mask.take(sel), d.take(sel), keep)
+            hit, n_g = move(inc, v.take(sel), ug, mask.take(sel), d.take(sel), None if new is None else new[:, sel])
             flat[hit] = ug.repeat(n_g)
             n_mv[sel] = n_g
             pq[:, sel] = _arc_ends(flat, hit, n_g, nv + cnt)
     on = rec.on[:, a:b]  # p's and q's slots: the other's when one is absent
     pq_at = rec.at[4:, a:b].reshape(-1)
     flat[pq_at] = np.where(on, pq, pq[::-1]).reshape(-1)
-    if not keep:
+    if new is None:
         return
-    # the lists: u's and v's new corners (the second ones past the degree with one new face),
-    # then one corner at the end of p's and of q's
+    # the lists: one corner at the end of p's and of q's
     n_kp = d - n_mv
-    slot = np.concatenate([n_mv, n_mv, n_kp, n_kp]).reshape(4, cnt)
-    slot += _SECOND
-    inc.put(rec.uuvv[:, a:b].reshape(-1), slot.reshape(-1), rec.at[:4, a:b].reshape(-1))
     on = on.reshape(-1)
     pq = pq.reshape(-1)[on]
     dpq = deg.take(pq)
@@ -322,23 +318,32 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
 
 
 def _move_fast(inc: _Incidence, v: np.ndarray, u, mask: np.ndarray, d: np.ndarray,
-               keep: bool) -> tuple[np.ndarray, np.ndarray]:
+               new: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Split the lists of v (degrees <= 14, rows of 16) into u's (the corners whose rank bit is set)
-    and v's (the rest); u: an index array or a slice. Returns the moved corners grouped by record,
-    ascending, and their counts.
+    and v's (the rest), each followed by its new corners ``new`` (4, cnt): u's two, v's two (the
+    second ones past the degree with one new face; None: the lists are not kept). u: an index array
+    or a slice. Returns the moved corners grouped by record, ascending, and their counts.
 
     One gather through the permutation table puts the moved corners first and the kept ones last in
-    reverse; u's row is that row, v's row the same row reversed (slots past the lists: stale).
+    reverse; u's row is that row, v's row the same row reversed (slots past the lists: stale). The
+    new corners go into the free middle of the row (at least two slots), u's before u's row is
+    stored and v's, which may overwrite them, after.
     """
     perm, pop = _perm_table()
     m = (mask & _LOW.take(d)).view(np.int64)
     rows = inc.main
     row = rows.reshape(-1).take((v * _FAST)[:, None] + perm.take(m, axis=0))
-    if keep:
-        rows[u] = row
-        rows[v] = row[:, ::-1]
     n_mv = pop.take(m)
-    return row.reshape(-1).take(_packed(n_mv, _FAST)).astype(np.int64), n_mv
+    hit = row.reshape(-1).take(_packed(n_mv, _FAST)).astype(np.int64)
+    if new is not None:
+        flat = row.reshape(-1)
+        at = np.arange(0, _FAST * len(v), _FAST) + n_mv
+        flat[np.concatenate([at, at + 1])] = new[:2].reshape(-1)
+        rows[u] = row
+        at += _FAST - 1 - d  # slot n_kp of v's row, counted from the row's end
+        flat[np.concatenate([at, at - 1])] = new[2:].reshape(-1)
+        rows[v] = row[:, ::-1]
+    return hit, n_mv
 
 
 def _packed(n: np.ndarray, width: int) -> np.ndarray:
@@ -348,7 +353,7 @@ def _packed(n: np.ndarray, width: int) -> np.ndarray:
 
 
 def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, d: np.ndarray,
-               keep: bool) -> tuple[np.ndarray, np.ndarray]:
+               new: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """``_move_fast`` for any degree: rank masks by shifts and cumulative sums (ranks past 63, only in
     corrupt data, read bit 63)."""
     take = np.take
@@ -366,9 +371,13 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     # u's row and v's row side by side in a scratch block; corners past deg(v) land past the new degree
     rel = np.where(moved, below, (col + C) - below)
     buf = np.zeros((cnt, 2, C), dtype=inc.main.dtype)  # zeros: slots past the lists stay valid ids
-    buf.reshape(-1)[rel + np.arange(0, 2 * C * cnt, 2 * C)[:, None]] = G
-    inc.put_rows(u, buf[:, 0])
-    inc.put_rows(v, buf[:, 1])
+    base = np.arange(0, 2 * C * cnt, 2 * C)
+    buf.reshape(-1)[rel + base[:, None]] = G
+    if new is not None:
+        at_u, at_v = base + n_mv, base + C + d - n_mv
+        buf.reshape(-1)[np.concatenate([at_u, at_u + 1, at_v, at_v + 1])] = new.reshape(-1)
+        inc.put_rows(u, buf[:, 0])
+        inc.put_rows(v, buf[:, 1])
     return take(buf.reshape(-1), _packed(n_mv, 2 * C)).astype(np.int64), n_mv
 
 
