@@ -34,6 +34,12 @@ that adds one face (on a boundary); bit 1 says which of the two possible faces.
 Any prefix of the records is a valid mesh, and all records give back exactly the
 input mesh (vertex order: ``vertex_order``; face order: ``face_order``). The record
 format is unchanged from .pmwm version 1.
+
+Decoding (``decode``) applies a level's records together, touching only the faces around
+their vertices: each vertex keeps its corners in a row of 16 slots, and one gather through a
+permutation table indexed by the record's mask splits a row into the new vertex's and the old
+one's; the arc ends come from sums that telescope around the arc. Issue 13: 2.0-2.5 M records/s
+before, about twice that now (BENCHMARKS.md, pm-speed).
 """
 
 from __future__ import annotations
@@ -113,8 +119,9 @@ def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
     corners and add faces (``_split_chunk``). What does not depend on the mesh (the new faces'
     rows, their corners at u and v) is computed for all records at once, and the output arrays
     are allocated at their final sizes. The previous decoder rescanned all faces per level (about
-    ten times the final face count in all) and ran at 2.0-2.5 M records/s on igea (BENCHMARKS.md,
-    pm-speed).
+    ten times the final face count in all). The output is byte-identical to that decoder's at every
+    prefix (tests/test_progressive_decode.py checks it against a per-record reference; the .pmwm
+    test file keeps digests of the old decoder's output).
     """
     nb = pm.n_base_vertices
     nf = len(pm.base_faces)
