@@ -187,11 +187,11 @@ class _Records:
 
 _FAST = 16  # row width of the incidence table on the fast path (degrees up to _FAST - 2)
 _LOW = np.array([(1 << i) - 1 for i in range(_FAST - 1)], dtype=np.uint64)  # the low i bits
-_PERM: list = []  # lazily: the fast path's permutation table and popcounts (0.4 MB)
+_PERM: list = []  # lazily: the fast path's permutation table and popcounts (2 MB)
 
 
 def _perm_table() -> tuple[np.ndarray, np.ndarray]:
-    """For every mask m of _FAST - 2 bits: (_FAST,) uint8 source slots, first the set bits of m
+    """For every mask m of _FAST - 2 bits: (_FAST,) source slots, first the set bits of m
     ascending, then the clear bits descending from the last slot (so that the reversed row lists
     them ascending); and the popcount of m. Built once per process (about 1 ms) from the same
     table for bytes: m's row is its low byte's row with the high byte's row (+ 8) inserted after
@@ -209,7 +209,7 @@ def _perm_table() -> tuple[np.ndarray, np.ndarray]:
             perm[:, lo, pl : pl + 8] = (row8[:n_hi] + 8)[:, None, :]
             perm[:, lo, pl + 8 :] = row8[lo, pl:]
         pop = (pop8[:n_hi, None] + pop8[None, :]).reshape(-1)
-        _PERM[:] = [perm.reshape(-1, _FAST), pop.astype(np.int64)]
+        _PERM[:] = [perm.reshape(-1, _FAST).astype(np.int64), pop.astype(np.int64)]  # int64: adds in place
     return _PERM[0], _PERM[1]
 
 
@@ -339,7 +339,9 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u, mask: np.ndarray, d: np.ndarra
     perm, pop = _perm_table()
     m = (mask & _LOW.take(d)).view(np.int64)
     rows = inc.main
-    row = rows.reshape(-1).take((v * _FAST)[:, None] + perm.take(m, axis=0))
+    at = perm.take(m, axis=0)
+    at += (v * _FAST)[:, None]
+    row = rows.reshape(-1).take(at)
     n_mv = pop.take(m)
     hit = row.reshape(-1).take(_packed(n_mv, _FAST)).astype(np.int64)
     if new is not None:
