@@ -19,8 +19,8 @@ platform and Python, as fetched by ``pip download --no-deps --only-binary=:all: 
 --python-version V --implementation cp numba llvmlite -d DIR/V-P``) with their sizes: what the Blender
 extension zip would have to carry.
 
-Run: OMP_NUM_THREADS=1 python benchmarks/bench_pm.py [--old PATH] [--repeat 3] [--numba-python PY]
-[--numba-wheels DIR]
+Run: OMP_NUM_THREADS=1 python benchmarks/bench_pm.py [--old PATH] [--repeat 3] [--decode-repeat 10]
+[--numba-python PY] [--numba-wheels DIR]
 Writes the "pm-speed" section of BENCHMARKS.md.
 """
 
@@ -100,7 +100,7 @@ NEW_CORE = ROOT / "core"
 OLD_CORE = ROOT.parent / "main" / "core"
 
 
-def worker(mesh: str, repeat: int, kernels: bool) -> None:
+def worker(mesh: str, repeat: int, kernels: bool, decode_repeat: int = 10) -> None:
     """Time build_progressive_mesh, a full decode and fast_simplification on ``mesh`` (an .npz)."""
     import numpy as np
 
@@ -119,7 +119,7 @@ def worker(mesh: str, repeat: int, kernels: bool) -> None:
         pm, _ = build_progressive_mesh(V, F, base_vertices=base, adjacency=adj)
         build.append(time.perf_counter() - t)
     dec = []
-    for _ in range(max(repeat, 3)):
+    for _ in range(decode_repeat):  # a decode takes milliseconds: more runs, less noise
         t = time.perf_counter()
         pm.decode()
         dec.append(time.perf_counter() - t)
@@ -186,9 +186,10 @@ def numba_probe(py: str, mesh: str) -> list:
     return out
 
 
-def run_worker(core: Path, mesh: str, repeat: int, kernels: bool = False) -> dict:
+def run_worker(core: Path, mesh: str, repeat: int, kernels: bool = False, decode_repeat: int = 10) -> dict:
     env = dict(os.environ, PYTHONPATH=str(core))
-    cmd = [sys.executable, __file__, "--worker", mesh, "--repeat", str(repeat)] + (["--kernels"] if kernels else [])
+    cmd = [sys.executable, __file__, "--worker", mesh, "--repeat", str(repeat), "--decode-repeat", str(decode_repeat)]
+    cmd += ["--kernels"] if kernels else []
     out = subprocess.run(cmd, env=env,
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
@@ -222,12 +223,13 @@ def main() -> None:
     ap.add_argument("--worker")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--kernels", action="store_true", help="(worker) also time the numba probe's kernels in numpy")
+    ap.add_argument("--decode-repeat", type=int, default=10, help="full decodes per worker (the best counts)")
     ap.add_argument("--old", default=str(OLD_CORE), help="the old code's core/ folder (skipped if absent)")
     ap.add_argument("--numba-python", help="an interpreter with numba, for the numba probe")
     ap.add_argument("--numba-wheels", help="a folder of downloaded numba/llvmlite wheels, to list their sizes")
     a = ap.parse_args()
     if a.worker:
-        worker(a.worker, a.repeat, a.kernels)
+        worker(a.worker, a.repeat, a.kernels, a.decode_repeat)
         return
     import numpy as np
 
@@ -244,11 +246,12 @@ def main() -> None:
             np.savez(path, V=np.asarray(V, np.float64), F=np.asarray(F, np.int64))
             rep = 1 if len(F) > 500_000 else a.repeat
             # alternate new and old, twice, so that both see the same machine load
-            new = run_worker(NEW_CORE, path, rep)
-            was = run_worker(old, path, rep) if old else None
-            new = best(new, run_worker(NEW_CORE, path, rep, kernels=name == "igea"))
+            dr = a.decode_repeat
+            new = run_worker(NEW_CORE, path, rep, decode_repeat=dr)
+            was = run_worker(old, path, rep, decode_repeat=dr) if old else None
+            new = best(new, run_worker(NEW_CORE, path, rep, kernels=name == "igea", decode_repeat=dr))
             if old:
-                was = best(was, run_worker(old, path, rep))
+                was = best(was, run_worker(old, path, rep, decode_repeat=dr))
             rows.append((name, len(V), len(F), new, was))
             if name == "igea" and a.numba_python:
                 probe = numba_probe(a.numba_python, path)
@@ -277,7 +280,8 @@ def main() -> None:
         "best of repeated runs in fresh processes, new and old alternating; compare ratios rather than seconds.",
         "",
         f"PM build = `build_progressive_mesh` to {BASE_RATIO:.0%} of the vertices (the embedders' default), "
-        "adjacency given (the embedders pass theirs). Anchor: `fast_simplification.simplify` to the same "
+        f"adjacency given (the embedders pass theirs). Full decode = `pm.decode()` (every record), best of "
+        f"{a.decode_repeat} per worker, records per second. Anchor: `fast_simplification.simplify` to the same "
         "vertex count on the same arrays. Memory: the growth of the worker's peak RSS over the mesh and its "
         "adjacency, through the PM builds and decodes (before the anchor runs).",
         "",
