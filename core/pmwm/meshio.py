@@ -322,27 +322,43 @@ def _read_plain(data: bytes, ext: str) -> "PlainMesh | None":
     return mesh
 
 
+_OFF_BYTES = np.zeros(256, bool)
+_OFF_BYTES[np.frombuffer(b"0123456789.-+eE \t\r\n", np.uint8)] = True
+
+
 def _read_plain_off(data: bytes) -> "PlainMesh | None":
-    if b"#" in data or not data.startswith(b"OFF"):
-        return None
-    text = data.decode("ascii")
-    lines = [line.strip() for line in text.splitlines()]  # trimesh: str.splitlines, strip, drop empty
-    lines = [line for line in lines if line]
-    if not lines or lines[0] != "OFF" or len(lines) < 2:
-        return None
-    head = lines[1].split()
+    body = data[3:]
+    if not data.startswith(b"OFF") or not body[:1] in (b"\n", b"\r") or not _OFF_BYTES[np.frombuffer(body, np.uint8)].all():
+        return None  # digits, signs, exponents, points and blanks only: no comments, colours, names
+    # trimesh's lines: str.splitlines (here only \n, \r\n and \r), stripped, empty ones dropped
+    lines = [line for line in (raw.strip() for raw in body.replace(b"\r", b"\n").split(b"\n")) if line]
+    head = lines[0].split() if lines else []
     if not 2 <= len(head) <= 3:
         return None
     nv, nf = int(head[0]), int(head[1])
-    if nv <= 0 or nf <= 0 or len(lines) != 2 + nv + nf:
+    if nv <= 0 or nf <= 0 or len(lines) != 1 + nv + nf:
         return None
-    vtok = [line.split() for line in lines[2 : 2 + nv]]
-    ftok = [line.split() for line in lines[2 + nv :]]
-    if any(len(t) != 3 for t in vtok) or any(len(t) != 4 or t[0] != "3" for t in ftok):
+    vblock, fblock = b"\n".join(lines[1 : 1 + nv]), b"\n".join(lines[1 + nv :])
+    if not (_tokens_per_line(vblock, nv) == 3).all() or not (_tokens_per_line(fblock, nf) == 4).all():
         return None
-    vertices = np.array(vtok, dtype=np.float64)  # trimesh's own conversion of the same strings
-    faces = np.array([t[1:] for t in ftok], dtype=np.int64)
-    return PlainMesh(vertices.reshape(nv, 3), faces.reshape(nf, 3))
+    ftok = fblock.decode("ascii").split()
+    if ftok[0::4].count("3") != nf:  # triangles only
+        return None
+    # trimesh's own conversion of the same strings (np.array of str to float64 / int64)
+    vertices = np.array(vblock.decode("ascii").split(), dtype=np.float64).reshape(nv, 3)
+    faces = np.array(ftok, dtype=np.int64).reshape(nf, 4)[:, 1:]
+    return PlainMesh(vertices, np.ascontiguousarray(faces))
+
+
+def _tokens_per_line(block: bytes, n: int) -> np.ndarray:
+    """(n,) int64: the number of blank-separated tokens on each of the n lines of ``block`` (lines
+    joined by \\n, none empty, none with leading or trailing blanks)."""
+    b = np.frombuffer(block, np.uint8)
+    newline = b == 10
+    sep = newline | (b == 32) | (b == 9)
+    start = ~sep
+    start[1:] &= sep[:-1]
+    return np.bincount(np.cumsum(newline)[start], minlength=n)
 
 
 def _read_plain_ply(data: bytes) -> "PlainMesh | None":
