@@ -103,6 +103,9 @@ def _group_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     bits = np.ascontiguousarray(key).view(np.uint64)
     h = _row_hash(bits)
+    sh = np.sort(h)
+    if not (sh[1:] == sh[:-1]).any():  # all hashes differ, so do all rows: nothing to group
+        return np.arange(len(key)), np.ones(len(key), dtype=bool)
     order = np.argsort(h)
     sh = h[order]
     same_row = _same_as_previous(bits[order])
