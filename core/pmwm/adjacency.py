@@ -150,7 +150,7 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
 
     twin = None
     if detect_pinches:  # twin half-edge of every half-edge on a clean two-face edge, else -1
-        twin = np.full(n_he, -1, dtype=np.int64)
+        twin = np.full(n_he, -1, dtype=np.int32 if n_he < 2**31 - 1 else np.int64)
         pair_start = starts[(counts == 2) & ~bad_edge]
         twin[order[pair_start]] = order[pair_start + 1]
         twin[order[pair_start + 1]] = order[pair_start]
@@ -212,19 +212,21 @@ def _pinched(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray, ptr: np.n
         return _fan_count(he_from, twin, order, n) > 1
     fwd = _next_corner(he_from, twin, order)
     it = fwd.dtype.type
-    ident = np.arange(len(fwd), dtype=it)
-    end = fwd == ident
-    owner = segment_owner(ptr)
-    ends = np.bincount(owner[end], minlength=n)
-    has_pred = np.zeros(len(fwd), bool)
-    has_pred[fwd[~end]] = True
-    # the walk's first corner: the one without a predecessor (one end), else the vertex's first
-    head = ptr[:-1].astype(it)
-    no_pred = ~has_pred & (ends[owner] == 1)
-    head[owner[no_pred]] = ident[no_pred]
-    del has_pred, no_pred, end, owner
+    end = np.flatnonzero(fwd == np.arange(len(fwd), dtype=it))  # positions of the ends
+    ends = np.bincount(np.searchsorted(ptr, end, "right") - 1, minlength=n)
+    # the walk's first corner: without an end, the vertex's first; with one, the corner no other
+    # corner of the vertex leads to (looked for among those vertices' corners only)
+    head = ptr[:-1].copy()
+    open_fan = np.flatnonzero(ends == 1)
+    if len(open_fan):
+        corners = ranges(ptr[open_fan], count[open_fan])
+        nxt = fwd[corners]
+        has_pred = np.zeros(len(fwd), bool)
+        has_pred[nxt[nxt != corners]] = True
+        first = corners[~has_pred[corners]]
+        head[np.searchsorted(ptr, first, "right") - 1] = first
     walk = np.flatnonzero((ends <= 1) & (count > 0))
-    start = head[walk]
+    start = head[walk].astype(it)
     cur = start.copy()
     length = np.ones(len(walk), np.int64)
     active = np.arange(len(walk))
@@ -244,17 +246,14 @@ def _next_corner(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray) -> np
     follows each corner around its vertex, its own position where none does (int32 when it fits).
 
     Corner c (the corner where half-edge c starts) is followed by the corner of the twin of the
-    half-edge arriving at c."""
+    half-edge arriving at c (the previous half-edge of c's face)."""
     nc = len(he_from)
     it = np.int32 if nc < 2**31 - 1 else np.int64
-    corner = np.arange(nc, dtype=it)
     order = order.astype(it)
     pos = np.empty(nc, it)
-    pos[order] = corner
-    prev_he = corner - corner % 3 + (corner + 2) % 3
-    step = twin[prev_he]
-    del prev_he
-    nxt = np.where(step >= 0, step, corner).astype(it)
+    pos[order] = np.arange(nc, dtype=it)
+    step = np.roll(twin.reshape(-1, 3), 1, axis=1).ravel()  # twin of the previous half-edge
+    nxt = np.where(step >= 0, step, np.arange(nc, dtype=it)).astype(it, copy=False)
     del step
     return pos[nxt[order]]  # in vertex order: position -> position of the next corner
 
