@@ -331,7 +331,9 @@ _OFF_BYTES[np.frombuffer(b"0123456789.-+eE \t\r\n", np.uint8)] = True
 
 def _read_plain_off(data: bytes) -> "PlainMesh | None":
     body = data[3:]
-    if not data.startswith(b"OFF") or not body[:1] in (b"\n", b"\r") or not _OFF_BYTES[np.frombuffer(body, np.uint8)].all():
+    if not data.startswith(b"OFF") or body[:1] not in (b"\n", b"\r"):
+        return None
+    if not _OFF_BYTES[np.frombuffer(body, np.uint8)].all():
         return None  # digits, signs, exponents, points and blanks only: no comments, colours, names
     # trimesh's lines: str.splitlines (here only \n, \r\n and \r), stripped, empty ones dropped
     lines = [line for line in (raw.strip() for raw in body.replace(b"\r", b"\n").split(b"\n")) if line]
