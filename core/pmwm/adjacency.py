@@ -103,11 +103,19 @@ def stable_order(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     of ``key << s | position`` gives both: the same permutation as ``np.argsort(keys,
     kind="stable")``, several times faster (numpy sorts plain integers with SIMD, index arrays
     not); otherwise that stable argsort."""
-    keys = np.asarray(keys, dtype=np.int64)
+    return _stable_order(np.asarray(keys, dtype=np.int64), False)
+
+
+def _stable_order(keys: np.ndarray, own: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``stable_order`` of int64 keys; ``own``: keys may be overwritten (one array less)."""
     k = len(keys)
     shift = max(int(k - 1).bit_length(), 1)
     if k and int(keys.min()) >= 0 and int(keys.max()).bit_length() + shift <= 63:
-        packed = keys << shift
+        if own:
+            keys <<= shift
+            packed = keys
+        else:
+            packed = keys << shift
         packed |= np.arange(k, dtype=np.int64)
         packed.sort()
         order = packed & ((1 << shift) - 1)
@@ -127,15 +135,15 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     n = int(n_vertices)
     he_from = faces.ravel()
     he_to = np.roll(faces, -1, axis=1).ravel()
-    lo = np.minimum(he_from, he_to)
-    keys = np.maximum(he_from, he_to)
     fwd_he = he_from < he_to
+    lo = np.minimum(he_from, he_to)
+    np.maximum(he_from, he_to, out=he_to)  # hi
+    lo *= n
+    lo += he_to  # the edge key lo * n + hi
     del he_to
-    keys += lo * n  # lo * n + hi
+    n_he = len(lo)
+    order, skeys = _stable_order(lo, True)
     del lo
-    order, skeys = stable_order(keys)
-    n_he = len(keys)
-    del keys
     first = np.r_[True, skeys[1:] != skeys[:-1]] if len(skeys) else np.zeros(0, bool)
     starts = np.flatnonzero(first)
     counts = np.diff(np.r_[starts, len(skeys)])
@@ -157,9 +165,9 @@ def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = T
     del order, first
 
     src = np.concatenate([edges[:, 0], edges[:, 1]])
-    ring_order, _ = stable_order(src)
     ring_ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(src, minlength=n), out=ring_ptr[1:])
+    ring_order, _ = _stable_order(src, True)
     del src
     ring_idx = np.concatenate([edges[:, 1], edges[:, 0]])[ring_order]
     ring_edge = ring_order % max(len(edges), 1)
