@@ -24,11 +24,26 @@ import numpy as np
 from .adjacency import Adjacency, segment_owner
 
 
-def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal."""
+def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m, 3) float64: the cross products (v1 - v0) x (v2 - v0) of the triangles, exactly as
+    ``np.cross`` forms them (a1 b2 - a2 b1, ...), from one coordinate column at a time."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    col = [np.ascontiguousarray(v[:, a]) for a in range(3)]
+    c0, c1, c2 = (np.ascontiguousarray(f[:, k]) for k in range(3))
+    a = [x[c1] - x[c0] for x in col]  # edge v1 - v0, per coordinate
+    b = [x[c2] - x[c0] for x in col]  # edge v2 - v0
+    cross = np.empty((len(f), 3))
+    for i in range(3):  # cp_i = a_j b_k - a_k b_j, (i, j, k) cyclic
+        j, k = (i + 1) % 3, (i + 2) % 3
+        np.multiply(a[j], b[k], out=cross[:, i])
+        cross[:, i] -= a[k] * b[j]
+    return cross
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal."""
+    cross = face_cross(vertices, faces)
     norm = np.linalg.norm(cross, axis=1)
     safe = np.where(norm > 0, norm, 1.0)
     return cross / safe[:, None], 0.5 * norm
@@ -36,10 +51,9 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals (n, 3); zero for a vertex with no face of positive area."""
-    v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    vn = np.stack([np.bincount(f.ravel(), weights=np.repeat(cross[:, a], 3), minlength=len(v))
+    cross = face_cross(vertices, f)
+    vn = np.stack([np.bincount(f.ravel(), weights=np.repeat(cross[:, a], 3), minlength=len(vertices))
                    for a in range(3)], axis=1)
     return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
