@@ -1,13 +1,16 @@
 """Speed and size of the core: embed end to end beside fast-simplification (the anchor), the demo,
 full decode, verify, bytes per record, and the size of each extension zip.
 
-Run: python benchmarks/bench_core.py  (meshes from $PMWM_TEST_DATA or ../shared/data beside the checkout)
-Writes the "core" section of BENCHMARKS.md. The anchor is a whole process, like `pmwm embed`: Python
+Run: python benchmarks/bench_core.py [--print-only] [--no-zips]  (meshes from $PMWM_TEST_DATA or
+../shared/data beside the checkout). Writes the "core" section of BENCHMARKS.md (``--print-only``:
+prints it only; ``--no-zips``: leaves out the extension zips, e.g. to time another checkout's library
+with PYTHONPATH=that/core). The anchor is a whole process, like `pmwm embed`: Python
 start-up, trimesh loading the same file, fast_simplification.simplify to 1 % of the faces.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import subprocess
 import sys
@@ -47,6 +50,10 @@ def best_of(fn, repeat: int = 3) -> float:
 
 
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--print-only", action="store_true", help="print the section, do not write BENCHMARKS.md")
+    ap.add_argument("--no-zips", action="store_true", help="do not build and size the extension zips")
+    a = ap.parse_args()
     rows = []
     lod_rows: list = []
     lod_bits = 0
@@ -90,7 +97,7 @@ def main() -> None:
         t_demo = best_of(lambda: subprocess.run(demo, check=True, stdout=subprocess.DEVNULL), 3)
         demo_out = subprocess.run(demo, check=True, capture_output=True, text=True).stdout
         t_demo_embed = float(demo_out.split(" bits in ")[1].split(" s")[0])
-        zips = zip_sizes(tmp)
+        zips = [] if a.no_zips else zip_sizes(tmp)
     lines = [
         "## Core speed and size",
         "",
@@ -134,7 +141,10 @@ def main() -> None:
         "|---|" + "---|" * len(lod_rows),
         "| BER | " + " | ".join(f"{b:.2f}" for _, _, b in lod_rows) + " |",
     ]
-    write_section("core", "\n".join(lines))
+    if a.print_only:
+        print("\n".join(lines))
+    else:
+        write_section("core", "\n".join(lines))
 
 
 if __name__ == "__main__":

@@ -227,3 +227,85 @@ def test_too_many_bits_on_a_tiny_mesh_raise_payload_error():
     with pytest.raises(PayloadError, match=r"only 0 vertices"):
         select_carriers(v, adj, np.zeros(len(v), bool), 8, seed=0)
     assert select_carriers(v, adj, np.ones(len(v), bool), 0, seed=0).shape == (0,)
+
+
+# ---------------------------------------------------------------- the fast forms pick what the plain forms pick
+
+
+def _select_reference(v, adj, eligible, n, seed):
+    """The farthest-point choice with every distance updated at every pick (the plain form)."""
+    from pmwm.carriers import JITTER_MIN, two_ring
+
+    cand = np.flatnonzero(eligible & adj.manifold_interior)
+    rng = np.random.default_rng(seed)
+    local = np.full(adj.n_vertices, -1)
+    local[cand] = np.arange(len(cand))
+    pos = v[cand].T
+    weight = rng.uniform(JITTER_MIN, 1.0, size=len(cand)) ** 2
+    dist2, score, chosen = np.full(len(cand), np.inf), np.full(len(cand), np.inf), []
+    pick = int(rng.integers(len(cand)))
+    while True:
+        chosen.append(int(cand[pick]))
+        if len(chosen) == n:
+            return np.array(chosen)
+        dist2 = np.minimum(dist2, ((pos - pos[:, [pick]]) ** 2).sum(axis=0))
+        blocked = local[two_ring(adj, cand[pick])]
+        score[blocked[blocked >= 0]] = -np.inf
+        alive = score > -np.inf
+        np.multiply(dist2, weight, out=score, where=alive)
+        if not alive.any():
+            return np.array(chosen)
+        pick = int(np.argmax(score))
+
+
+@pytest.mark.parametrize("mesh", ["bunny", "blob", "cad_part"])
+def test_select_carriers_matches_the_plain_farthest_point_choice(mesh):
+    v, f, adj = with_adjacency(getattr(meshes, mesh)())
+    eligible = eligible_carriers(v, adj, seed=3)
+    for seed in (1, 2):
+        n = min(300, int(eligible.sum()) // 40)
+        assert np.array_equal(select_carriers(v, adj, eligible, n, seed=seed),
+                              _select_reference(v, adj, eligible, n, seed))
+
+
+def test_select_carriers_matches_the_plain_choice_on_a_regular_grid():
+    v, f = grid(30, 30)  # many candidates at equal distances
+    adj = build_adjacency(f, len(v))
+    eligible = adj.manifold_interior.copy()
+    for seed in (0, 1):
+        got = select_carriers(v, adj, eligible, 40, seed=seed)
+        assert np.array_equal(got, _select_reference(v, adj, eligible, 40, seed))
+
+
+def _smoothness_reference(vertices, adj, k=6):
+    """The smoothness feature with whole-row gathers and one (n, k) resampling."""
+    from pmwm.adjacency import segment_owner
+
+    n = adj.n_vertices
+    normals, areas = face_normals(vertices, adj.faces)
+    owner, face = segment_owner(adj.vf_ptr), adj.vf_idx
+    keep = areas[face] > 0
+    owner, face = owner[keep], face[keep]
+    counts = np.bincount(owner, minlength=n)
+    weighted = normals[face] * areas[face, None]
+    mean = np.stack([np.bincount(owner, weights=weighted[:, a], minlength=n) for a in range(3)], 1)
+    mnorm = np.linalg.norm(mean, axis=1)
+    mean /= np.where(mnorm > 0, mnorm, 1.0)[:, None]
+    angle = np.arccos(np.clip(np.einsum("ij,ij->i", normals[face], mean[owner]), -1.0, 1.0))
+    angle = angle[np.argsort(owner * 4.0 + angle, kind="stable")]
+    ptr = np.r_[0, np.cumsum(counts)]
+    out = np.zeros((n, k))
+    has = counts > 0
+    m = counts[has][:, None]
+    num = (m - 1) * np.arange(k)[None, :]
+    lo, w = num // (k - 1), (num % (k - 1)) / (k - 1)
+    hi = np.minimum(lo + 1, m - 1)
+    start = ptr[:-1][has][:, None]
+    out[has] = angle[start + lo] * (1.0 - w) + angle[start + hi] * w
+    return out
+
+
+@pytest.mark.parametrize("mesh", ["bunny", "open_cap", "cad_part", "pinched_torus"])
+def test_smoothness_feature_is_bit_identical_to_the_plain_form(mesh):
+    v, f, adj = with_adjacency(getattr(meshes, mesh)())
+    assert np.array_equal(smoothness_feature(v, adj), _smoothness_reference(v, adj))

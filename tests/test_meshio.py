@@ -384,3 +384,67 @@ def test_data_meshes_read_with_their_documented_counts(path, n_vertices, n_faces
     assert src.vertices.shape == (n_vertices, 3)
     assert src.faces.shape == (n_faces, 3)
     assert src.warnings == []
+
+
+# ---------------------------------------------------------------- plain files read and written without trimesh
+
+
+def _plain_variants(tmp_path):
+    """Plain OFF and PLY files (read without trimesh) and near-plain ones (read by trimesh)."""
+    v, f = meshes.blob()
+    paths = []
+    for name, (V, F) in {"blob": (v, f), "f64": (v + 1e-9 * np.arange(len(v))[:, None], f)}.items():
+        for ext in (".off", ".ply"):
+            paths.append(tmp_path / f"{name}{ext}")
+            write_mesh(paths[-1], V, F)
+    text = (tmp_path / "f64.off").read_text()
+    for name, body in {"crlf": text.replace("\n", "\r\n"), "tabs": text.replace(" ", "\t"),
+                       "blank": text.replace("\n", "\n\n"), "comment": "# c\n" + text,
+                       "quad": text.replace("\n3 ", "\n4 0 ", 1), "coff": "C" + text}.items():
+        paths.append(tmp_path / f"{name}.off")
+        paths[-1].write_text(body)
+    ply = (tmp_path / "blob.ply").read_bytes()
+    for name, body in {"double": ply, "colour": ply.replace(b"property float z\n",
+                                                           b"property float z\nproperty uchar red\n")}.items():
+        paths.append(tmp_path / f"{name}.ply")
+        if name == "double":
+            head, rest = ply.split(b"end_header\n")
+            vb = np.frombuffer(rest, "<f4", 3 * len(v)).astype("<f8").tobytes()
+            body = head.replace(b"float", b"double") + b"end_header\n" + vb + rest[12 * len(v):]
+        else:
+            head, rest = body.split(b"end_header\n")
+            vb = np.frombuffer(rest, "<f4", 3 * len(v)).reshape(-1, 3)
+            rec = np.zeros(len(v), [("p", "<f4", (3,)), ("r", "u1")])
+            rec["p"] = vb
+            body = head + b"end_header\n" + rec.tobytes() + rest[12 * len(v):]
+        paths[-1].write_bytes(body)
+    return paths
+
+
+def test_plain_files_read_and_write_exactly_as_through_trimesh(tmp_path, monkeypatch):
+    paths = _plain_variants(tmp_path)
+    fast = [read_mesh(p) for p in paths]
+    assert sum(isinstance(s.source, meshio.PlainMesh) for s in fast) >= 8  # most went the plain way
+    fast_bytes = []
+    for i, s in enumerate(fast):
+        write_marked(tmp_path / f"fast{i}.ply", s, s.vertices * 1.5)
+        fast_bytes.append((tmp_path / f"fast{i}.ply").read_bytes())
+    monkeypatch.setattr(meshio, "_read_plain", lambda data, ext: None)  # everything through trimesh
+    monkeypatch.setattr(meshio, "_ply_bytes", lambda v, f: meshio._export_trimesh(meshio._trimesh(v, f), ".ply"))
+    for i, (p, s) in enumerate(zip(paths, fast)):
+        t = read_mesh(p)
+        assert np.array_equal(s.vertices, t.vertices) and s.vertices.dtype == t.vertices.dtype
+        assert np.array_equal(s.faces, t.faces) and s.faces.dtype == t.faces.dtype
+        assert np.array_equal(s.source_to_canonical, t.source_to_canonical)
+        assert np.array_equal(np.asarray(s.source.vertices, float), np.asarray(t.source.vertices, float))
+        assert (s.float32, s.warnings) == (t.float32, t.warnings)
+        write_marked(tmp_path / f"slow{i}.ply", t, t.vertices * 1.5)
+        assert (tmp_path / f"slow{i}.ply").read_bytes() == fast_bytes[i]
+
+
+def test_write_mesh_ply_bytes_are_trimeshs(tmp_path):
+    v, f = _mesh(4)
+    write_mesh(tmp_path / "a.ply", v, f)
+    expected = trimesh.exchange.ply.export_ply(trimesh.Trimesh(v, f, process=False), encoding="binary",
+                                               vertex_normal=False)
+    assert (tmp_path / "a.ply").read_bytes() == expected

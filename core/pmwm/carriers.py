@@ -64,33 +64,48 @@ def select_carriers(
         return np.zeros(0, dtype=np.int64)
     cand = np.flatnonzero(eligible)
     rng = np.random.default_rng(seed)
-    local = np.full(adj.n_vertices, -1, dtype=np.int64)
-    local[cand] = np.arange(len(cand))
-    pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, for the distance updates
     jitter = rng.uniform(JITTER_MIN, 1.0, size=len(cand))
     # farthest-point order with a keyed jitter: the next pick maximises distance * jitter, kept squared
-    # (the same order as the distance itself) and -inf where the 2-ring rule blocks a candidate
-    weight = jitter * jitter
+    # (the same order as the distance itself) and -inf where the 2-ring rule blocks a candidate; ties
+    # go to the lowest vertex index. A pick can only lower the distance of the candidates closer than
+    # the largest distance of a live one: with the candidates held sorted by x, a slab around it.
+    by_x = np.argsort(v[cand, 0], kind="stable")
+    cand = cand[by_x]
+    local = np.full(adj.n_vertices, -1, dtype=np.int64)
+    local[cand] = np.arange(len(cand))
+    pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, x ascending
+    weight = (jitter * jitter)[by_x]
+    w_min = float(weight.min()) if len(cand) else 1.0
     dist2 = np.full(len(cand), np.inf)
     score = np.full(len(cand), np.inf)
     chosen: list[int] = []
-    pick = int(rng.integers(len(cand))) if len(cand) else -1
+    pick = int(np.flatnonzero(by_x == rng.integers(len(cand)))[0]) if len(cand) else -1
     while pick >= 0:
         c = int(cand[pick])
         chosen.append(c)
         if len(chosen) == n:
             break
-        d2 = (pos[0] - pos[0, pick]) ** 2
-        d2 += (pos[1] - pos[1, pick]) ** 2
-        d2 += (pos[2] - pos[2, pick]) ** 2
-        np.minimum(dist2, d2, out=dist2)
+        # every live candidate has dist2 <= score / weight <= score[pick] / w_min
+        x = float(pos[0, pick])
+        reach = float(np.sqrt(score[pick] / w_min)) * (1.0 + 1e-6) + abs(x) * 1e-12
+        lo, hi = (0, len(cand)) if not np.isfinite(reach) else (
+            int(np.searchsorted(pos[0], x - reach)), int(np.searchsorted(pos[0], x + reach, "right")))
+        d2 = (pos[0, lo:hi] - pos[0, pick]) ** 2
+        d2 += (pos[1, lo:hi] - pos[1, pick]) ** 2
+        d2 += (pos[2, lo:hi] - pos[2, pick]) ** 2
+        np.minimum(dist2[lo:hi], d2, out=d2)
+        dist2[lo:hi] = d2
         blocked = local[two_ring(adj, c)]
         score[blocked[blocked >= 0]] = -np.inf
-        alive = score > -np.inf
-        np.multiply(dist2, weight, out=score, where=alive)
-        if not alive.any():
-            break
+        alive = score[lo:hi] > -np.inf
+        np.multiply(d2, weight[lo:hi], out=score[lo:hi], where=alive)
         pick = int(np.argmax(score))
+        best = score[pick]
+        if best == -np.inf:  # no live candidate left
+            break
+        if np.count_nonzero(score == best) > 1:  # a tie: the lowest vertex index, as in vertex order
+            tied = np.flatnonzero(score == best)
+            pick = int(tied[np.argmin(cand[tied])])
     if len(chosen) < n:
         raise PayloadError(
             f"only {len(chosen)} vertices of this mesh can carry a bit, {n} requested; "

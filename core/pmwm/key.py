@@ -180,10 +180,13 @@ def face_fingerprint(faces: np.ndarray) -> str:
     F = np.asarray(faces, np.int64).reshape(-1, 3)
     G = np.take_along_axis(F, (np.argmin(F, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
     if len(G) and G.min() >= 0 and G.max() < 1 << 21:  # rows packed in one int64: the same order, one sort
-        order = np.argsort((G[:, 0] << 42) | (G[:, 1] << 21) | G[:, 2])
+        packed = np.sort((G[:, 0] << 42) | (G[:, 1] << 21) | G[:, 2])  # equal keys are equal rows
+        G = np.empty((len(packed), 3), "<i8")
+        G[:, 0] = packed >> 42
+        G[:, 1] = (packed >> 21) & ((1 << 21) - 1)
+        G[:, 2] = packed & ((1 << 21) - 1)
     else:
-        order = np.lexsort(G.T[::-1])
-    G = np.ascontiguousarray(G[order], dtype="<i8")
+        G = np.ascontiguousarray(G[np.lexsort(G.T[::-1])], dtype="<i8")
     return hashlib.sha256(G.tobytes()).hexdigest()
 
 

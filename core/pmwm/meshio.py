@@ -9,6 +9,11 @@ number of decimals); each coordinate is written with ``repr`` so float64 values 
 PLY, STL and GLB store float32 positions (``SourceMesh.float32`` tells whether the input already fits).
 
 Files are written through ``pmwm.atomic``.
+
+trimesh is imported only when a file needs it: the plain files pmwm itself writes and most scanned
+meshes (an OFF of triangles without comments, a binary little-endian PLY of float x, y, z and
+triangles, nothing else) are read and written here directly, giving exactly the arrays and bytes
+trimesh gives (``_read_plain``, ``_ply_bytes``); any other file goes through trimesh.
 """
 
 from __future__ import annotations
@@ -19,7 +24,6 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
-import trimesh
 
 from .atomic import atomic_write_bytes
 from .errors import MeshError, PmwmError
@@ -44,11 +48,21 @@ class SourceMesh:
 
     vertices: np.ndarray  # (n, 3) float64 canonical vertices (exact duplicates merged, first-appearance order)
     faces: np.ndarray  # (m, 3) int64 triangles over canonical vertices (degenerate ones dropped)
-    source: trimesh.Trimesh  # the mesh as loaded (process=False), vertex order of the file
+    source: "trimesh.Trimesh | PlainMesh"  # the mesh as loaded (process=False), vertex order of the file
     source_to_canonical: np.ndarray  # (len(source.vertices),) int64: file vertex -> canonical vertex
     float32: bool  # every coordinate is exactly representable as float32
     warnings: list[str] = field(default_factory=list)
     path: str = ""
+
+
+@dataclass
+class PlainMesh:
+    """A file read without trimesh (``_read_plain``): its vertices (n, 3) float64 and triangles
+    (m, 3) int64 in file order, and no visuals (what trimesh loads from such a file)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    visual: None = None
 
 
 # --------------------------------------------------------------------------------------------
@@ -89,6 +103,9 @@ def _group_rows(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     bits = np.ascontiguousarray(key).view(np.uint64)
     h = _row_hash(bits)
+    sh = np.sort(h)
+    if not (sh[1:] == sh[:-1]).any():  # all hashes differ, so do all rows: nothing to group
+        return np.arange(len(key)), np.ones(len(key), dtype=bool)
     order = np.argsort(h)
     sh = h[order]
     same_row = _same_as_previous(bits[order])
@@ -154,6 +171,8 @@ def _short(exc: BaseException) -> str:
 
 
 def _describe_nonmesh(obj) -> str:
+    import trimesh
+
     if isinstance(obj, trimesh.PointCloud):
         return f"a point cloud of {len(obj.vertices)} points, no faces"
     if type(obj).__name__ in ("Path2D", "Path3D"):
@@ -165,8 +184,9 @@ def _describe_nonmesh(obj) -> str:
     return f"a {type(obj).__name__}, no faces"
 
 
-def _load_trimesh(path: str, ext: str) -> tuple[trimesh.Trimesh, list[str]]:
-    """Load with trimesh (no processing) and reduce the result to one Trimesh."""
+def _load_trimesh(path: str, ext: str) -> tuple["trimesh.Trimesh", list[str]]:
+    """Load without processing (trimesh, or ``_read_plain`` for plain OFF and PLY files) and reduce the
+    result to one mesh."""
     if not os.path.lexists(path):
         raise MeshError(f"{path} does not exist; check the path")
     if os.path.isdir(path):
@@ -178,6 +198,12 @@ def _load_trimesh(path: str, ext: str) -> tuple[trimesh.Trimesh, list[str]]:
         raise MeshError(f"cannot read {path}: {exc.strerror or exc}") from None
     if not data or data.isspace():
         raise MeshError(f"{path} holds no triangle mesh (the file is empty)")
+
+    plain = _read_plain(data, ext)
+    if plain is not None:
+        return plain, []
+
+    import trimesh
 
     kwargs = {}
     if ext == ".obj":
@@ -273,6 +299,116 @@ def read_mesh(path) -> SourceMesh:
 
 
 # --------------------------------------------------------------------------------------------
+# plain files without trimesh
+# --------------------------------------------------------------------------------------------
+
+_PLY_FLOAT = {b"float": "<f4", b"float32": "<f4", b"double": "<f8", b"float64": "<f8"}
+_PLY_HEADER = (b"ply\nformat binary_little_endian 1.0\ncomment https://github.com/mikedh/trimesh\n"
+               b"element vertex %d\nproperty float x\nproperty float y\nproperty float z\n"
+               b"element face %d\nproperty list uchar int vertex_indices\nend_header\n")
+_PLY_FACE = np.dtype([("count", "<u1"), ("index", "<i4", (3,))])
+
+
+def _read_plain(data: bytes, ext: str) -> "PlainMesh | None":
+    """The mesh of a plain OFF or PLY file, read without trimesh, or None for any other file (trimesh
+    reads it). The arrays are exactly trimesh's (``process=False``): the same text-to-number
+    conversion, vertex order and faces. Plain: an ASCII OFF of triangles ("OFF" first line, no
+    comments, three numbers per vertex line, nothing after the faces); a binary little-endian PLY
+    whose vertices are float or double x, y, z and whose faces are uchar-counted int triangles,
+    nothing else. Files with bad indices also go to trimesh (its error message)."""
+    try:
+        mesh = _read_plain_off(data) if ext == ".off" else _read_plain_ply(data) if ext == ".ply" else None
+    except (ValueError, UnicodeDecodeError):
+        return None
+    if mesh is None or len(mesh.faces) == 0 or mesh.faces.min() < 0 or mesh.faces.max() >= len(mesh.vertices):
+        return None
+    return mesh
+
+
+_OFF_BYTES = np.zeros(256, bool)
+_OFF_BYTES[np.frombuffer(b"0123456789.-+eE \t\r\n", np.uint8)] = True
+
+
+def _read_plain_off(data: bytes) -> "PlainMesh | None":
+    body = data[3:]
+    if not data.startswith(b"OFF") or body[:1] not in (b"\n", b"\r"):
+        return None
+    if not _OFF_BYTES[np.frombuffer(body, np.uint8)].all():
+        return None  # digits, signs, exponents, points and blanks only: no comments, colours, names
+    # trimesh's lines: str.splitlines (here only \n, \r\n and \r), stripped, empty ones dropped
+    lines = [line for line in (raw.strip() for raw in body.replace(b"\r", b"\n").split(b"\n")) if line]
+    head = lines[0].split() if lines else []
+    if not 2 <= len(head) <= 3:
+        return None
+    nv, nf = int(head[0]), int(head[1])
+    if nv <= 0 or nf <= 0 or len(lines) != 1 + nv + nf:
+        return None
+    vblock, fblock = b"\n".join(lines[1 : 1 + nv]), b"\n".join(lines[1 + nv :])
+    if not (_tokens_per_line(vblock, nv) == 3).all() or not (_tokens_per_line(fblock, nf) == 4).all():
+        return None
+    ftok = fblock.decode("ascii").split()
+    if ftok[0::4].count("3") != nf:  # triangles only
+        return None
+    # trimesh's own conversion of the same strings (np.array of str to float64 / int64)
+    vertices = np.array(vblock.decode("ascii").split(), dtype=np.float64).reshape(nv, 3)
+    faces = np.array(ftok, dtype=np.int64).reshape(nf, 4)[:, 1:]
+    return PlainMesh(vertices, np.ascontiguousarray(faces))
+
+
+def _tokens_per_line(block: bytes, n: int) -> np.ndarray:
+    """(n,) int64: the number of blank-separated tokens on each of the n lines of ``block`` (lines
+    joined by \\n, none empty, none with leading or trailing blanks)."""
+    b = np.frombuffer(block, np.uint8)
+    newline = b == 10
+    sep = newline | (b == 32) | (b == 9)
+    start = ~sep
+    start[1:] &= sep[:-1]
+    return np.bincount(np.cumsum(newline)[start], minlength=n)
+
+
+def _read_plain_ply(data: bytes) -> "PlainMesh | None":
+    end = data.find(b"end_header\n")
+    if not data.startswith(b"ply\n") or end < 0:
+        return None
+    header = data[:end].split(b"\n")[1:]  # the last is the empty rest before end_header
+    body = [h for h in header[:-1] if not h.startswith(b"comment ") and h != b"comment"]
+    if len(body) != 7 or body[0] != b"format binary_little_endian 1.0":
+        return None
+    ev, px, py, pz, ef, pf = (line.split() for line in body[1:])
+    if len(ev) != 3 or ev[:2] != [b"element", b"vertex"] or len(ef) != 3 or ef[:2] != [b"element", b"face"]:
+        return None
+    types = set()
+    for prop, name in ((px, b"x"), (py, b"y"), (pz, b"z")):
+        if len(prop) != 3 or prop[0] != b"property" or prop[2] != name or prop[1] not in _PLY_FLOAT:
+            return None
+        types.add(_PLY_FLOAT[prop[1]])
+    if len(types) != 1 or pf[:4] != [b"property", b"list", b"uchar", b"int"] or len(pf) != 5 \
+            or pf[4] not in (b"vertex_indices", b"vertex_index"):
+        return None
+    nv, nf = int(ev[2]), int(ef[2])
+    vtype = np.dtype(types.pop())
+    start = end + len(b"end_header\n")
+    if nv <= 0 or nf <= 0 or len(data) != start + nv * 3 * vtype.itemsize + nf * _PLY_FACE.itemsize:
+        return None
+    vertices = np.frombuffer(data, vtype, 3 * nv, start).astype(np.float64).reshape(nv, 3)
+    faces = np.frombuffer(data, _PLY_FACE, nf, start + nv * 3 * vtype.itemsize)
+    if not (faces["count"] == 3).all():
+        return None
+    return PlainMesh(vertices, faces["index"].astype(np.int64))
+
+
+def _ply_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """A binary PLY of vertices (n, 3) as float32 and triangles (m, 3), byte for byte what
+    trimesh's ``export_ply(mesh, encoding="binary", vertex_normal=False)`` writes for a mesh
+    without visuals or attributes."""
+    face = np.zeros(len(faces), _PLY_FACE)
+    face["count"] = 3
+    face["index"] = faces
+    return b"".join([_PLY_HEADER % (len(vertices), len(faces)),
+                     np.ascontiguousarray(vertices, "<f4").tobytes(), face.tobytes()])
+
+
+# --------------------------------------------------------------------------------------------
 # writing
 # --------------------------------------------------------------------------------------------
 
@@ -332,8 +468,10 @@ def _obj_material_header(src: SourceMesh, out_path: str) -> str:
     return f"mtllib {rel}\n" + (f"usemtl {name}\n" if name else "")
 
 
-def _export_trimesh(mesh: trimesh.Trimesh, ext: str) -> bytes:
+def _export_trimesh(mesh: "trimesh.Trimesh", ext: str) -> bytes:
     """Bytes of a binary/float32 format written by trimesh (vertex order and faces kept)."""
+    import trimesh
+
     if ext == ".ply":
         return trimesh.exchange.ply.export_ply(mesh, encoding="binary", vertex_normal=False)
     if ext == ".stl":
@@ -356,6 +494,8 @@ def _visual_copy(visual):
     deferred ImportError; copying or hashing it raises. Such a material is replaced by a plain
     one of the same name, so UVs survive without needing Pillow.
     """
+    import trimesh
+
     if isinstance(visual, trimesh.visual.TextureVisuals):
         material = visual.material
         try:
@@ -375,6 +515,13 @@ def _visual_copy(visual):
         return None
 
 
+def _trimesh(vertices: np.ndarray, faces: np.ndarray, visual=None):
+    """A trimesh.Trimesh of the arrays as they are (no processing)."""
+    import trimesh
+
+    return trimesh.Trimesh(vertices, faces, visual=visual, process=False)
+
+
 def write_mesh(path, vertices, faces, *, force: bool = False) -> None:
     """Write a triangle mesh; the format comes from the extension. Atomic.
 
@@ -389,7 +536,8 @@ def write_mesh(path, vertices, faces, *, force: bool = False) -> None:
     elif ext == ".off":
         data = _off_text(v, f).encode("ascii")
     else:
-        data = _encode(lambda: _export_trimesh(trimesh.Trimesh(v, f, process=False), ext), p)
+        # a mesh without visuals: trimesh's PLY bytes are written here, without loading trimesh
+        data = _encode(lambda: _ply_bytes(v, f) if ext == ".ply" else _export_trimesh(_trimesh(v, f), ext), p)
     atomic_write_bytes(p, data, force=force)
 
 
@@ -429,7 +577,9 @@ def write_marked(path, src: SourceMesh, canonical_vertices, *, force: bool = Fal
     else:
 
         def export() -> bytes:
-            mesh = trimesh.Trimesh(positions, faces, visual=_visual_copy(src.source.visual), process=False)
+            if isinstance(src.source, PlainMesh) and ext == ".ply":
+                return _ply_bytes(positions, faces)  # no visuals: trimesh's bytes without trimesh
+            mesh = _trimesh(positions, faces, visual=_visual_copy(src.source.visual))
             return _export_trimesh(mesh, ext)
 
         data = _encode(export, p)

@@ -3,6 +3,8 @@ cutting off half the shape leaves every bit some sites, and the bits' energies a
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 
 CUT_TESTS = 256  # plane directions the bit assignment is checked against
@@ -76,23 +78,40 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         bit[i], bit[j] = a, b
         return True
 
-    kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites): one cut's sites are contiguous
+    # the draws below read Python structures (one short loop per step, no array scans): the sites of
+    # each bit in ascending order, and for each cut its kept sites in ascending order and a flag per site
+    members = [sorted(np.flatnonzero(bit == b).tolist()) for b in range(n_bits)]
+    kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites)
+    kept_sites = [np.flatnonzero(row).tolist() for row in kept_t]
+    kept_flag = [row.tolist() for row in kept_t]
+    shorts = short_rows.tolist()
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
         # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
         # counts per bit, then the column within that row
-        total = int(short_rows.sum())
+        total = sum(shorts)
         if total == 0:
             break
         k = int(rng.integers(total))
-        ends = np.cumsum(short_rows)
-        b = int(np.searchsorted(ends, k, side="right"))
-        c = int(np.flatnonzero(count[b] < need)[k - (ends[b] - short_rows[b])])
-        in_b = bit == b
-        mine = np.flatnonzero(in_b & ~kept_t[c])
-        other = np.flatnonzero(~in_b & kept_t[c])
-        if len(mine) == 0 or len(other) == 0:
+        b = 0
+        while k >= shorts[b]:
+            k -= shorts[b]
+            b += 1
+        c = int(np.flatnonzero(count[b] < need)[k])
+        flag = kept_flag[c]
+        mine = [i for i in members[b] if not flag[i]]  # sites of bit b the cut drops
+        in_cut = len(members[b]) - len(mine)
+        n_other = len(kept_sites[c]) - in_cut  # sites the cut keeps, of other bits
+        if len(mine) == 0 or n_other == 0:
             continue
-        try_swap(mine[rng.integers(len(mine))], other[rng.integers(len(other))])
+        i = mine[rng.integers(len(mine))]
+        j = _nth_skipping(kept_sites[c], int(rng.integers(n_other)), [m for m in members[b] if flag[m]])
+        if try_swap(i, j):
+            a = int(bit[i])  # j's bit, now i's
+            members[b].remove(i)
+            bisect.insort(members[b], j)
+            members[a].remove(j)
+            bisect.insort(members[a], i)
+            shorts[b], shorts[a] = int(short_rows[b]), int(short_rows[a])
 
     for _ in range(SWAP_ROUNDS):  # rounds pairing the k-th richest bit with the k-th poorest
         total = np.bincount(bit, weights=energy, minlength=n_bits)
@@ -112,3 +131,16 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         if not swapped:
             break
     return bit
+
+
+def _nth_skipping(values: list[int], r: int, skip: list[int]) -> int:
+    """The r-th (0-based) element of the ascending list ``values`` once the elements ``skip`` (a
+    few, all in ``values``) are left out."""
+    if not skip:
+        return values[r]
+    for p in sorted(bisect.bisect_left(values, x) for x in skip):
+        if p <= r:
+            r += 1
+        else:
+            break
+    return values[r]

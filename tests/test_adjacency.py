@@ -1,0 +1,75 @@
+"""Adjacency: the fast sorts and the pinched-vertex walk answer exactly what the plain forms answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pmwm import adjacency
+from pmwm.adjacency import build_adjacency, stable_order
+
+import meshes
+
+
+@pytest.mark.parametrize("case", ["ties", "wide", "negative", "empty", "one"])
+def test_stable_order_is_the_stable_argsort(case):
+    rng = np.random.default_rng(3)
+    keys = {"ties": rng.integers(0, 50, 5000), "wide": rng.integers(0, 2**62, 5000),
+            "negative": rng.integers(-20, 20, 5000), "empty": np.zeros(0, np.int64),
+            "one": np.array([7])}[case]
+    order, sorted_keys = stable_order(keys)
+    expected = np.argsort(keys, kind="stable")
+    assert np.array_equal(order, expected)
+    assert np.array_equal(sorted_keys, keys[expected])
+
+
+def _pinched_variants():
+    """Test meshes with random vertex pairs merged (pinches, non-manifold edges, open fans)."""
+    rng = np.random.default_rng(5)
+    out = []
+    for V, F in (meshes.blob(), meshes.open_cap(), meshes.pinched_torus()):
+        n = len(V)
+        for k in range(3):
+            remap = np.arange(n)
+            remap[rng.integers(0, n, 60)] = rng.integers(0, n, 60)
+            G = remap[F]
+            G = G[(G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 0] != G[:, 2])]
+            if k == 1:
+                G = G[rng.random(len(G)) > 0.05]  # holes: open fans
+            out.append((G, n))
+    return out
+
+
+def _fan_count_reference(F, n):
+    """Fans per vertex by the pointer doubling (``_fan_count``), from the same half-edge twins."""
+    he_from = F.ravel()
+    he_to = np.roll(F, -1, axis=1).ravel()
+    keys = np.minimum(he_from, he_to) * n + np.maximum(he_from, he_to)
+    o = np.argsort(keys, kind="stable")
+    sk = keys[o]
+    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+    counts = np.diff(np.r_[starts, len(sk)])
+    fwd = np.add.reduceat((he_from < he_to)[o].astype(np.int64), starts)
+    clean = (counts == 2) & (fwd == 1)
+    twin = np.full(len(he_from), -1)
+    twin[o[starts[clean]]] = o[starts[clean] + 1]
+    twin[o[starts[clean] + 1]] = o[starts[clean]]
+    return adjacency._fan_count(he_from, twin, np.argsort(he_from, kind="stable"), n)
+
+
+@pytest.mark.parametrize("walk_steps", [adjacency.WALK_STEPS, 2])
+def test_pinched_vertices_match_the_fan_count(monkeypatch, walk_steps):
+    monkeypatch.setattr(adjacency, "WALK_STEPS", walk_steps)  # 2: the pointer doubling answers
+    found = 0
+    for F, n in _pinched_variants():
+        adj = build_adjacency(F, n)
+        plain = build_adjacency(F, n, detect_pinches=False)
+        pinched = _fan_count_reference(F, n) > 1
+        assert np.array_equal(adj.nonmanifold_vertex, plain.nonmanifold_vertex | pinched)
+        found += int((pinched & ~plain.nonmanifold_vertex).sum())
+    assert found > 0  # the variants do have pinches that only the fan count finds
+
+
+def test_pinched_torus_has_exactly_its_one_pinch():
+    V, F = meshes.pinched_torus()
+    assert len(np.flatnonzero(build_adjacency(F, len(V)).nonmanifold_vertex)) == 1
