@@ -50,6 +50,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from .adjacency import Adjacency, build_adjacency
+from .features import face_cross
 from .errors import MeshError
 
 Progress = Optional[Callable[[float, str], None]]
@@ -436,11 +437,10 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
 
 def _face_quadrics(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Area-weighted plane quadrics of the faces as (10, m) coefficients, and (m, 3) unit normals."""
-    p0 = np.take(V, F[:, 0], axis=0)
-    cr = np.cross(np.take(V, F[:, 1], axis=0) - p0, np.take(V, F[:, 2], axis=0) - p0)
+    cr = face_cross(V, F)  # the same bits as np.cross, without (m, 3) gathers of the corners
     area2 = np.sqrt(np.einsum("ij,ij->i", cr, cr))
     n = cr / np.maximum(area2, 1e-300)[:, None]
-    d = -np.einsum("ij,ij->i", n, p0)
+    d = -np.einsum("ij,ij->i", n, np.take(V, F[:, 0], axis=0))
     return _plane_quadric(n, d, 0.5 * area2), n
 
 
@@ -448,7 +448,12 @@ def _plane_quadric(n: np.ndarray, d: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(10, k) coefficients of the planes n . x + d = 0 weighted by w."""
     a, b, c = (np.ascontiguousarray(x) for x in n.T)
     wa, wb, wc = w * a, w * b, w * c
-    return np.stack([wa * a, wa * b, wa * c, wa * d, wb * b, wb * c, wb * d, wc * c, wc * d, w * d * d])
+    Q = np.empty((10, len(w)))  # written in place: no list of rows to stack
+    for row, (x, y) in enumerate(((wa, a), (wa, b), (wa, c), (wa, d), (wb, b), (wb, c), (wb, d), (wc, c), (wc, d))):
+        np.multiply(x, y, out=Q[row])
+    np.multiply(w, d, out=Q[9])
+    Q[9] *= d
+    return Q
 
 
 def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
