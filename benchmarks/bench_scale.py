@@ -41,6 +41,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=1, help="runs of the command; the fastest is kept")
     ap.add_argument("--old-core", default=None, help="also time this library folder (PYTHONPATH), alternating")
+    ap.add_argument("--old-label", default=None, help="how the section names --old-core (e.g. its commit)")
     ap.add_argument("--print-only", action="store_true", help="print the section, do not write BENCHMARKS.md")
     a = ap.parse_args()
     V, F = subdivide(*load("igea"), scheme="midpoint")
@@ -77,7 +78,7 @@ def main() -> None:
     ])
     if runs["old"]:
         o_wall, o_peak = min(runs["old"])[0], max(p for _, p in runs["old"])
-        body += (f"\n\nIn the same run, alternating, the library at `{a.old_core}`: {o_wall:.1f} s, {o_peak:,.0f} MB "
+        body += (f"\n\nIn the same run, alternating, the library {a.old_label or f'at `{a.old_core}`'}: {o_wall:.1f} s, {o_peak:,.0f} MB "
                  f"(this checkout: {elapsed:.1f} s, {peak_mb:,.0f} MB; all runs, s: this "
                  f"{', '.join(f'{w:.1f}' for w, _ in runs['this'])}; old {', '.join(f'{w:.1f}' for w, _ in runs['old'])}).")
     if a.print_only:
