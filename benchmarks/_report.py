@@ -8,6 +8,7 @@ $PMWM_TEST_DATA (or $PMWM_BENCH_DATA), else in ../shared/data beside the checkou
 from __future__ import annotations
 
 import os
+import shlex
 import sys
 from pathlib import Path
 
@@ -44,4 +45,4 @@ def write_section(name: str, body: str) -> None:
 
 def command() -> str:
     """The command line that ran the script, relative to the checkout."""
-    return "python " + " ".join([os.path.relpath(sys.argv[0], ROOT), *sys.argv[1:]])
+    return "python " + shlex.join([os.path.relpath(sys.argv[0], ROOT), *sys.argv[1:]])
