@@ -303,9 +303,10 @@ def read_mesh(path) -> SourceMesh:
 # --------------------------------------------------------------------------------------------
 
 _PLY_FLOAT = {b"float": "<f4", b"float32": "<f4", b"double": "<f8", b"float64": "<f8"}
-_PLY_HEADER = (b"ply\nformat binary_little_endian 1.0\ncomment https://github.com/mikedh/trimesh\n"
+_PLY_HEADER = (b"ply\nformat binary_little_endian 1.0\ncomment %s\n"
                b"element vertex %d\nproperty float x\nproperty float y\nproperty float z\n"
                b"element face %d\nproperty list uchar int vertex_indices\nend_header\n")
+_TRIMESH_COMMENT = b"https://github.com/mikedh/trimesh"
 _PLY_FACE = np.dtype([("count", "<u1"), ("index", "<i4", (3,))])
 
 
@@ -397,15 +398,22 @@ def _read_plain_ply(data: bytes) -> "PlainMesh | None":
     return PlainMesh(vertices, faces["index"].astype(np.int64))
 
 
+def ply_parts(n_vertices: int, faces: np.ndarray, comment: bytes = _TRIMESH_COMMENT) -> tuple[bytes, bytes]:
+    """The two fixed parts of a binary little-endian PLY of ``n_vertices`` float32 vertices and
+    triangles ``faces`` (m, 3): its header and its face block. The file is header + the vertices as
+    ``<f4`` bytes + the face block (copies that differ only in positions share both parts)."""
+    face = np.zeros(len(faces), _PLY_FACE)
+    face["count"] = 3
+    face["index"] = faces
+    return _PLY_HEADER % (comment, n_vertices, len(faces)), face.tobytes()
+
+
 def _ply_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
     """A binary PLY of vertices (n, 3) as float32 and triangles (m, 3), byte for byte what
     trimesh's ``export_ply(mesh, encoding="binary", vertex_normal=False)`` writes for a mesh
     without visuals or attributes."""
-    face = np.zeros(len(faces), _PLY_FACE)
-    face["count"] = 3
-    face["index"] = faces
-    return b"".join([_PLY_HEADER % (len(vertices), len(faces)),
-                     np.ascontiguousarray(vertices, "<f4").tobytes(), face.tobytes()])
+    head, body = ply_parts(len(vertices), faces)
+    return b"".join([head, np.ascontiguousarray(vertices, "<f4").tobytes(), body])
 
 
 # --------------------------------------------------------------------------------------------

@@ -23,6 +23,7 @@ from ..atomic import atomic_output
 from ..base import Progress, check_options, make_key, no_progress
 from ..errors import PayloadError
 from ..key import WatermarkKey, derive_seed, make_secret, mesh_sha256
+from ..meshio import ply_parts
 from ..pmfile import to_bytes
 from ..progressive import ProgressiveMesh
 from ..register import surface_frame
@@ -118,16 +119,6 @@ class AssetAnalysis:
         return out
 
 
-def _ply_parts(n: int, faces: np.ndarray) -> tuple[bytes, bytes]:
-    """A binary little-endian PLY's header for n float32 vertices and its face block."""
-    head = ("ply\nformat binary_little_endian 1.0\ncomment pmwm fingerprinted copy\n"
-            f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
-            f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n").encode("ascii")
-    rec = np.empty(len(faces), np.dtype([("k", "u1"), ("v", "<i4", (3,))]))
-    rec["k"], rec["v"] = 3, faces
-    return head, rec.tobytes()
-
-
 def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None, secret: Optional[str] = None,
                   progress: Progress = None) -> AssetAnalysis:
     """Analyse an asset, vertices (n, 3) float64, faces (m, 3) int64, for fingerprinting with the
@@ -152,7 +143,7 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
                                swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)
     key = make_key(secret, np.zeros(S, np.uint8), "bits", strength, V, F, V, an.adj, pm, np.zeros(0, np.int64),
                    NAME, data=RobustKeyData.from_extra(data.to_extra(), S, len(V)))  # as the key file will read
-    head, body = _ply_parts(len(V), F)
+    head, body = ply_parts(len(V), F, comment=b"pmwm fingerprinted copy")
     report(1.0, "analysed")
     return AssetAnalysis(sites=an, key=key, options=opts, bump=np.where(dead, 0.0, 1.0),
                          swirl=np.where(dead | no_swirl, 0.0, 1.0), pm=pm, asset_sha256=mesh_sha256(V, F, "<f8"),
