@@ -49,10 +49,12 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, n
     return cross / safe[:, None], 0.5 * norm
 
 
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals (n, 3); zero for a vertex with no face of positive area."""
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray, cross: np.ndarray | None = None) -> np.ndarray:
+    """Area-weighted unit vertex normals (n, 3); zero for a vertex with no face of positive area.
+    ``cross``: the faces' ``face_cross`` when the caller has it already."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    cross = face_cross(vertices, f)
+    if cross is None:
+        cross = face_cross(vertices, f)
     vn = np.stack([np.bincount(f.ravel(), weights=np.repeat(cross[:, a], 3), minlength=len(vertices))
                    for a in range(3)], axis=1)
     return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]

@@ -8,7 +8,7 @@ from typing import Optional
 import numpy as np
 
 from .errors import MeshError
-from .features import face_normals, vertex_normals
+from .features import face_cross, vertex_normals
 
 __all__ = ["sample_surface"]
 
@@ -25,8 +25,8 @@ def sample_surface(vertices, faces, n_samples: int, seed: Optional[int] = None,
     F = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if len(F) == 0:
         raise MeshError("the mesh has no faces; surface sampling needs triangles")
-    _, area = face_normals(V, F)
-    cdf = np.cumsum(area)
+    cross = face_cross(V, F)
+    cdf = np.cumsum(0.5 * np.linalg.norm(cross, axis=1))  # face areas, as ``face_normals`` gives them
     if not cdf[-1] > 0:
         raise MeshError("all faces are degenerate (zero area); surface sampling needs a surface")
     rng = np.random.default_rng(seed)
@@ -38,6 +38,6 @@ def sample_surface(vertices, faces, n_samples: int, seed: Optional[int] = None,
     P = np.einsum("ij,ijk->ik", w, V[F[face]])
     if not normals:
         return P, None
-    N = np.einsum("ij,ijk->ik", w, vertex_normals(V, F)[F[face]])
+    N = np.einsum("ij,ijk->ik", w, vertex_normals(V, F, cross)[F[face]])
     N /= np.maximum(np.linalg.norm(N, axis=1), 1e-300)[:, None]
     return P, N
