@@ -241,11 +241,12 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
 
     def search(ids: np.ndarray):
         """The starts ``ids``' points at their current pose (b, m, 3), their closest reference points
-        and squared distances (b, m), and the indices of the kept pairs (b, n_keep), closest first."""
+        and squared distances (b, m), and the indices of the kept pairs (b, n_keep), the farthest
+        last (a partition, not a sort: the pairs' order does not matter)."""
         X = (k[ids, None, None] * S) @ R[ids].transpose(0, 2, 1) + t[ids, None, :]
         bound = trim[ids] + np.linalg.norm(X - np.take(X_last, ids, axis=0), axis=2).max(axis=1)
         j, d2 = _closest(index, tracker, ids, X, bound, n_keep)
-        keep = np.argsort(d2, axis=1)[:, :n_keep]
+        keep = np.argpartition(d2, n_keep - 1, axis=1)[:, :n_keep]
         X_last[ids], trim[ids] = X, np.sqrt(d2[np.arange(len(ids)), keep[:, -1]])
         return X, j, d2, keep
 
@@ -302,10 +303,22 @@ def _closest(index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, 
 
 
 def _lstsq(J: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """``np.linalg.lstsq(J[b], r[b], rcond=None)[0]`` for every b: J (b, m, p), r (b, m) -> (b, p).
-    One small system per start (a handful per step): numpy's public solver, one call each."""
-    b, _, p = J.shape
-    return np.stack([np.linalg.lstsq(J[i], r[i], rcond=None)[0] for i in range(b)]).reshape(b, p)
+    """Least-squares solutions of J[b] x = r[b] for every b at once: J (b, m, p), r (b, m) -> (b, p).
+
+    Normal equations with the columns scaled to unit length (the scale, rotation and translation
+    columns differ by the mesh's size), solved through the eigenvalues of the small (p, p) systems:
+    directions the data do not constrain (eigenvalue below 1e-10 of the largest; a flat patch leaves
+    the in-plane motions free) get no step, as a minimum-norm solution gives none."""
+    JT = J.transpose(0, 2, 1)
+    A = JT @ J  # (b, p, p)
+    norm = np.sqrt(np.diagonal(A, axis1=1, axis2=2))
+    norm = np.where(norm > 0, norm, 1.0)
+    A = A / (norm[:, :, None] * norm[:, None, :])
+    g = (JT @ r[:, :, None])[:, :, 0] / norm
+    w, U = np.linalg.eigh(A)
+    inv = np.where(w > 1e-10 * w[:, -1:], 1.0 / np.where(w > 0, w, 1.0), 0.0)
+    x = (U @ (inv * (U.transpose(0, 2, 1) @ g[:, :, None])[:, :, 0])[:, :, None])[:, :, 0]
+    return x / norm
 
 
 def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
