@@ -28,3 +28,25 @@ def test_lstsq_gives_no_step_along_unconstrained_directions():
     got, want = _lstsq(J, r), _reference(J, r)  # numpy's: the minimum-norm solution
     assert np.all(np.isfinite(got))
     assert np.allclose(got, want, rtol=1e-9, atol=1e-12)
+
+
+def test_abandoning_hopeless_finalists_keeps_the_registration(monkeypatch):
+    """Half the bunny cut off and the rest moved: the cut starts win, the plain start (a wrong pose,
+    sliding slowly) is abandoned early; the pose found is the one found without abandoning any."""
+    from scipy.spatial import cKDTree
+
+    from meshes import bunny
+    from pmwm import attacks, register as reg
+
+    V, F = bunny()
+    frame = reg.surface_frame(V, F, 3000, seed=7)
+    tree = cKDTree(V)
+    for seed in (2, 3):
+        W, G = attacks.similarity(*attacks.crop_plane(V, F, 0.5, seed=seed), seed=seed)
+        X, info = reg.register(W, G, frame)
+        assert np.median(tree.query(X)[0]) < 0.005 * frame.scale  # back on the original surface
+        with monkeypatch.context() as m:
+            m.setattr(reg, "ABANDON_RATIO", np.inf)
+            _, full = reg.register(W, G, frame)
+        assert np.allclose(info.rotation, full.rotation, atol=1e-6)
+        assert np.isclose(info.scale, full.scale, rtol=1e-6) and np.isclose(info.residual, full.residual)
