@@ -1,6 +1,6 @@
 """Register a suspect mesh to the marked mesh's frame before reading a robust watermark.
 
-The key stores a reference frame of the MARKED surface: ~1,000 seeded surface samples with their
+The key stores a reference frame of the MARKED surface: seeded surface samples (3,000) with their
 normals, plus the centroid, PCA axes and scale of the surface (area-weighted, so that re-meshing,
 simplification or subdivision do not move them). ``register`` maps a suspect into that frame:
 
@@ -23,11 +23,15 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
    ``CUT_KEEP`` shares each; the cuts whose PCA shape (eigenvalue ratios) is closest to the suspect's
    give ``CUT_CANDIDATES`` x 4 more starts, screened by ICP on a third of the samples. The best
    ``CUT_FINALISTS`` and the best plain start are refined in full, and the smallest residual wins.
+   A finalist whose residual is still ``ABANDON_RATIO`` times the best plausible one's after
+   ``ABANDON_AFTER`` iterations (typically the plain start, sliding slowly in a wrong pose) is
+   dropped there.
 
 Nearest neighbours come from one KD-tree over the key's samples (``pmwm.spatial.PointIndex``), built
 once per registration; the starts of each step are refined together, one tree query per ICP iteration
-for all of them. In the final refinement, where the poses converge, a point is searched again only
-when its nearest sample can have changed (``pmwm.spatial.MovingNearest``: the same answers).
+for all of them, and their least-squares steps are solved together (``_lstsq``). In the final
+refinement, where the poses converge, a point is searched again only when its nearest sample can have
+changed (``pmwm.spatial.MovingNearest``: the same answers).
 """
 
 from __future__ import annotations
@@ -48,6 +52,9 @@ CUT_DIRECTIONS = 128  # plane directions tried for cropped-and-moved copies (Fib
 CUT_KEEP = (0.5, 0.6, 0.7, 0.8, 0.9)  # shares of the reference kept by each cut
 CUT_CANDIDATES = 16  # cuts whose PCA shape is closest to the suspect's
 CUT_FINALISTS = 4  # screened cut starts refined in full
+# a finalist whose trimmed residual is still this many times the best one's after that many
+# iterations is abandoned (a wrong pose sliding slowly along the surface)
+ABANDON_RATIO, ABANDON_AFTER = 1.8, 5
 SIGNS = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1))  # proper sign flips of PCA axes
 
 
@@ -140,8 +147,9 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
                     COARSE_ITERATIONS)  # every cut start at once: one tree query per iteration
         screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
-    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True)
-    refined = [(not plausible(k), res, i, finalists[i][0], R, k, t)  # plausible fits first
+    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True,
+                abandon=(0.3 * k_pca, 3.0 * k_pca))
+    refined = [(not (plausible(k) and res < np.inf), res, i, finalists[i][0], R, k, t)  # plausible fits first
                for i, (R, k, t, res) in enumerate(fits)]
     _, res, _, name, R, k, t = min(refined)
     return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
@@ -219,11 +227,15 @@ def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_s: float,
-         iterations: int, track: bool = False) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
+         iterations: int, track: bool = False, abandon: tuple[float, float] | None = None
+         ) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
     """Trimmed point-to-plane similarity ICP of the sources S (m, 3) onto the reference points of
     ``index`` (n, 3) with normals ref_N (n, 3), from every start (R (3, 3), k, t (3,)) at once (each
     stops when its own step is negligible, as it would alone). Returns (R, k, t, residual) per
-    start; the residual is the trimmed RMS point-to-point distance / ref_s.
+    start; the residual is the trimmed RMS point-to-point distance / ref_s. With ``abandon`` (a
+    plausible scale range (low, high)), from ``ABANDON_AFTER`` iterations on, a start whose residual
+    is more than ``ABANDON_RATIO`` times the smallest of the starts with a plausible scale stops
+    there, with an infinite residual.
 
     Only the ``TRIM`` share of closest pairs is used, so after the first iteration each start's
     search is bounded by its last trim distance plus the farthest any source point just moved: its
@@ -241,19 +253,30 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
 
     def search(ids: np.ndarray):
         """The starts ``ids``' points at their current pose (b, m, 3), their closest reference points
-        and squared distances (b, m), and the indices of the kept pairs (b, n_keep), closest first."""
+        and squared distances (b, m), and the indices of the kept pairs (b, n_keep), the farthest
+        last (a partition, not a sort: the pairs' order does not matter)."""
         X = (k[ids, None, None] * S) @ R[ids].transpose(0, 2, 1) + t[ids, None, :]
         bound = trim[ids] + np.linalg.norm(X - np.take(X_last, ids, axis=0), axis=2).max(axis=1)
         j, d2 = _closest(index, tracker, ids, X, bound, n_keep)
-        keep = np.argsort(d2, axis=1)[:, :n_keep]
+        keep = np.argpartition(d2, n_keep - 1, axis=1)[:, :n_keep]
         X_last[ids], trim[ids] = X, np.sqrt(d2[np.arange(len(ids)), keep[:, -1]])
         return X, j, d2, keep
 
     active = np.arange(len(k))
-    for _ in range(iterations):
+    rms = np.full(len(k), np.inf)  # each start's trimmed RMS residual at its last search
+    alive = np.ones(len(k), bool)  # not abandoned
+    for it in range(iterations):
+        if abandon is not None and it >= ABANDON_AFTER:
+            fair = alive & (abandon[0] < k) & (k < abandon[1])
+            if fair.any():
+                hopeless = rms > ABANDON_RATIO * rms[fair].min()
+                alive &= ~hopeless
+                active = active[~hopeless[active]]
         if len(active) == 0:
             break
-        X, j, _, keep = search(active)
+        X, j, d2, keep = search(active)
+        if abandon is not None:
+            rms[active] = np.sqrt(np.mean(np.take_along_axis(d2, keep, axis=1), axis=1))
         flat = np.arange(len(active))[:, None] * len(S) + keep  # the kept pairs in X, j (np.take: fast)
         x = np.take(X.reshape(-1, 3), flat, axis=0)
         jj = np.take(j, flat)
@@ -277,8 +300,10 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
         k[active] = k[active] * f
         moving = (np.abs(ds) >= 1e-7) | (angle >= 1e-7) | (np.linalg.norm(dt, axis=1) >= 1e-7 * ref_s)
         active = active[moving]
-    _, _, d2, keep = search(np.arange(len(k)))
-    res = np.sqrt(np.mean(np.take(d2, np.arange(len(k))[:, None] * len(S) + keep), axis=1)) / ref_s  # point-to-point: no sliding
+    done = np.flatnonzero(alive)
+    _, _, d2, keep = search(done)
+    res = np.full(len(k), np.inf)
+    res[done] = np.sqrt(np.mean(np.take(d2, np.arange(len(done))[:, None] * len(S) + keep), axis=1)) / ref_s  # point-to-point: no sliding
     return [(R[b], float(k[b]), t[b], float(res[b])) for b in range(len(k))]
 
 
@@ -302,10 +327,22 @@ def _closest(index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, 
 
 
 def _lstsq(J: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """``np.linalg.lstsq(J[b], r[b], rcond=None)[0]`` for every b: J (b, m, p), r (b, m) -> (b, p).
-    One small system per start (a handful per step): numpy's public solver, one call each."""
-    b, _, p = J.shape
-    return np.stack([np.linalg.lstsq(J[i], r[i], rcond=None)[0] for i in range(b)]).reshape(b, p)
+    """Least-squares solutions of J[b] x = r[b] for every b at once: J (b, m, p), r (b, m) -> (b, p).
+
+    Normal equations with the columns scaled to unit length (the scale, rotation and translation
+    columns differ by the mesh's size), solved through the eigenvalues of the small (p, p) systems:
+    directions the data do not constrain (eigenvalue below 1e-10 of the largest; a flat patch leaves
+    the in-plane motions free) get no step, as a minimum-norm solution gives none."""
+    JT = J.transpose(0, 2, 1)
+    A = JT @ J  # (b, p, p)
+    norm = np.sqrt(np.diagonal(A, axis1=1, axis2=2))
+    norm = np.where(norm > 0, norm, 1.0)
+    A = A / (norm[:, :, None] * norm[:, None, :])
+    g = (JT @ r[:, :, None])[:, :, 0] / norm
+    w, U = np.linalg.eigh(A)
+    inv = np.where(w > 1e-10 * w[:, -1:], 1.0 / np.where(w > 0, w, 1.0), 0.0)
+    x = (U @ (inv * (U.transpose(0, 2, 1) @ g[:, :, None])[:, :, 0])[:, :, None])[:, :, 0]
+    return x / norm
 
 
 def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
