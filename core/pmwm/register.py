@@ -21,8 +21,9 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
 4. A copy cut by a plane AND moved defeats both starts: its PCA is not the reference's. When no start
    reaches twice the sampling noise, the reference samples are cut by ``CUT_DIRECTIONS`` planes at
    ``CUT_KEEP`` shares each; the cuts whose PCA shape (eigenvalue ratios) is closest to the suspect's
-   give ``CUT_CANDIDATES`` x 4 more starts, screened by ICP on a third of the samples. The best
-   ``CUT_FINALISTS`` and the best plain start are refined in full, and the smallest residual wins.
+   give ``CUT_CANDIDATES`` x 4 more starts, screened by ICP on every ``SCREEN_STEP``-th suspect
+   sample against a third of the reference ones. The best ``CUT_FINALISTS`` and the best plain start
+   are refined in full, and the smallest residual wins.
    A finalist whose residual is still ``ABANDON_RATIO`` times the best plausible one's after
    ``ABANDON_AFTER`` iterations (typically the plain start, sliding slowly in a wrong pose) is
    dropped there.
@@ -52,6 +53,7 @@ CUT_DIRECTIONS = 128  # plane directions tried for cropped-and-moved copies (Fib
 CUT_KEEP = (0.5, 0.6, 0.7, 0.8, 0.9)  # shares of the reference kept by each cut
 CUT_CANDIDATES = 16  # cuts whose PCA shape is closest to the suspect's
 CUT_FINALISTS = 4  # screened cut starts refined in full
+SCREEN_STEP = 6  # the cut starts are screened on every 6th suspect sample (and every 3rd reference one)
 # a finalist whose trimmed residual is still this many times the best one's after that many
 # iterations is abandoned (a wrong pose sliding slowly along the surface)
 ABANDON_RATIO, ABANDON_AFTER = 1.8, 5
@@ -143,7 +145,7 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
     if not best[4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
         sub = slice(None, None, 3)
         cuts = _cut_starts(ref_P, S, c, A, s)
-        fits = _icp(S[sub], PointIndex(ref_P[sub]), ref_N[sub], [x[1:] for x in cuts], ref_s,
+        fits = _icp(S[::SCREEN_STEP], PointIndex(ref_P[sub]), ref_N[sub], [x[1:] for x in cuts], ref_s,
                     COARSE_ITERATIONS)  # every cut start at once: one tree query per iteration
         screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
