@@ -152,15 +152,22 @@ def numpy_kernels(V, F, adj) -> "float | None":
         from pmwm.progressive import _best, _Ctx, _Live, _ring_min, _update_costs
     except ImportError:
         return None
+    try:
+        from pmwm.progressive import _monomials
+        extra = {"M": None}
+    except ImportError:  # code before the monomials
+        extra = {}
     n, m = len(V), len(F)
     rng = np.random.default_rng(0)
     Vs = np.zeros((n + 1, 3))
     Vs[:n] = V
     no = np.zeros(n + 1, bool)
-    ctx = _Ctx(V=Vs, order=np.arange(n + 1), Q=rng.random((n + 1, 10)), E=np.zeros(n + 1), go=~no, locked=no,
+    if extra:
+        extra["M"] = _monomials(Vs)
+    ctx = _Ctx(V=Vs, **extra, order=np.arange(n + 1), Q=rng.random((n + 1, 10)), E=np.zeros(n + 1), go=~no, locked=no,
                bvert=no, area_eps=0.0)
     live = _Live(F=F.copy(), fid=np.arange(m), bnd=np.zeros((m, 3), bool), cost=np.empty((m, 3)),
-                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
+                 rcost=np.empty((m, 3)), **({} if extra else {"failed": np.zeros((m, 3), np.uint8)}))
     val = np.r_[rng.permutation(n), n]
     runs = []
     for _ in range(5):

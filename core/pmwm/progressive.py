@@ -467,6 +467,17 @@ def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
     )
 
 
+def _monomials(V: np.ndarray) -> np.ndarray:
+    """(n, 10) per point: the factors of a quadric's coefficients (``_quadric_eval_t``'s order) in
+    its value, so that Q(p) is one dot product of two rows."""
+    x, y, z = (np.ascontiguousarray(c) for c in V.T)
+    M = np.empty((len(V), 10))
+    for j, (s, c) in enumerate(((x, x), (x, 2 * y), (x, 2 * z), (2, x), (y, y), (y, 2 * z), (2, y), (z, z), (2, z))):
+        np.multiply(s, c, out=M[:, j])
+    M[:, 9] = 1.0
+    return M
+
+
 def _vertex_quadrics(V: np.ndarray, F: np.ndarray, bnd: np.ndarray) -> np.ndarray:
     """Sum of face quadrics per vertex, plus boundary-edge constraint planes; (n, 10).
 
@@ -518,6 +529,7 @@ class _Ctx:
     """What stays fixed while encoding: geometry, quadrics (updated in place) and vertex flags."""
 
     V: np.ndarray  # (n + 1, 3) positions (the last row: the sink)
+    M: np.ndarray  # (n + 1, 10) the positions' monomials: a quadric's value at V[i] is Q . M[i]
     order: np.ndarray  # (n,) int64: a fixed permutation, the tiebreak of equal cost buckets
     Q: np.ndarray  # (n + 1, 10) vertex quadrics (a row per vertex: one gather is one cache line); v absorbs u
     E: np.ndarray  # (n,) each vertex's own error Q_v(V_v)
@@ -544,15 +556,22 @@ class _Live:
     F: np.ndarray  # (m, 3) int64 input vertex ids (n: removed face)
     fid: np.ndarray  # (m,) input face ids
     bnd: np.ndarray  # (m, 3) bool: the half-edge is on the boundary
-    cost: np.ndarray  # (m, 3) forward cost, inf where the vertex flags forbid it
-    rcost: np.ndarray  # (m, 3) reverse cost, inf off the boundary or where forbidden
-    failed: np.ndarray  # (m, 3) uint8: bit 1 forward, bit 2 reverse candidate found invalid (until
-    # its neighbourhood changes)
+    cost: np.ndarray  # (m, 3) forward cost, inf where the vertex flags forbid it or the candidate
+    # was found invalid (until its neighbourhood changes)
+    rcost: np.ndarray  # (m, 3) reverse cost, inf off the boundary, where forbidden or found invalid
+    failed: list = field(default_factory=list)  # arrays of flat corners whose candidate was found invalid
     n_dead: int = 0
 
     def keep(self, rows: np.ndarray) -> None:
-        for name in ("F", "fid", "bnd", "cost", "rcost", "failed"):
-            setattr(self, name, getattr(self, name)[rows])
+        """Keep the faces ``rows`` ((m,) bool), in order."""
+        idx = np.flatnonzero(rows)
+        for name in ("F", "fid", "bnd", "cost", "rcost"):
+            setattr(self, name, np.take(getattr(self, name), idx, axis=0))
+        if self.failed:
+            c = np.concatenate(self.failed)
+            new = np.cumsum(rows) - 1
+            c = c[np.take(rows, c // 3)]
+            self.failed = [np.take(new, c // 3) * 3 + c % 3]
 
     def faces(self, n: int) -> np.ndarray:
         """The live faces (rows without the sink)."""
@@ -581,7 +600,7 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     b = take(Fl, corners - corners % 3 + take(_NEXT, corners % 3))
     bnd = take(live.bnd.ravel(), corners)
     allowed = take(ctx.go, a) & ~take(ctx.locked, b) & (bnd == take(ctx.bvert, a))
-    into_b = _quadric_eval_t(take(ctx.Q, a, axis=0).T, take(ctx.V, b, axis=0).T) + take(ctx.E, b)
+    into_b = np.einsum("ij,ij->i", take(ctx.Q, a, axis=0), take(ctx.M, b, axis=0)) + take(ctx.E, b)
     into_b[~allowed] = np.inf
     live.cost.ravel()[corners] = into_b
     rc = live.rcost.ravel()
@@ -589,7 +608,7 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     on = np.flatnonzero(bnd)
     if len(on):
         a, b = a[on], b[on]
-        r = _quadric_eval_t(take(ctx.Q, b, axis=0).T, take(ctx.V, a, axis=0).T) + take(ctx.E, a)
+        r = np.einsum("ij,ij->i", take(ctx.Q, b, axis=0), take(ctx.M, a, axis=0)) + take(ctx.E, a)
         r[~(ctx.go[b] & ~ctx.locked[a])] = np.inf
         rc[corners[on]] = r
 
@@ -694,11 +713,11 @@ def build_progressive_mesh(
     Q[:n] = _vertex_quadrics(V, F0, bnd)
     Vs = np.zeros((n + 1, 3))
     Vs[:n] = V
-    ctx = _Ctx(V=Vs, order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
+    ctx = _Ctx(V=Vs, M=_monomials(Vs), order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
                go=~locked & ~keep, locked=locked, bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
-                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
+                 rcost=np.empty((m, 3)))
     _update_costs(ctx, live, np.arange(3 * m))
 
     alive = np.ones(n, bool)  # by input id
@@ -765,7 +784,7 @@ def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple
     live.n_dead = 0
     live.F = new_id[live.F]
     sel = np.r_[kept, nl]  # the old sink's entries (locked, zero quadric) serve the new sink
-    return _Ctx(V=ctx.V[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
+    return _Ctx(V=ctx.V[sel], M=ctx.M[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
                 locked=ctx.locked[sel], bvert=ctx.bvert[sel], area_eps=ctx.area_eps), ids[kept]
 
 
@@ -775,8 +794,7 @@ _BIG = np.iinfo(np.int64).max
 
 def _best(ctx: _Ctx, live: _Live) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per vertex, the cost of its cheapest live candidate; and the live cost arrays."""
-    fwd = np.where(live.failed & 1, np.inf, live.cost)
-    rev = np.where(live.failed & 2, np.inf, live.rcost)
+    fwd, rev = live.cost, live.rcost
     best = np.full(len(ctx.go), np.inf)
     F = live.F
     for j in range(3):
@@ -858,8 +876,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=True)
         # failed candidates leave the running; their vertices try their next candidate
         bad = ~ok
-        live.failed.ravel()[pcorner[bad & ~rev_pick]] |= 1
-        live.failed.ravel()[pcorner[bad & rev_pick]] |= 2
+        live.failed.append(pcorner[bad])
         fwd.ravel()[pcorner[bad & ~rev_pick]] = np.inf
         rev.ravel()[pcorner[bad & rev_pick]] = np.inf
         best[wu[bad]] = np.inf
@@ -996,14 +1013,20 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     live.rcost[gone] = np.inf
     live.n_dead += len(gone)
     ctx.Q[v] += ctx.Q[u]
-    ctx.E[v] = _quadric_eval_t(ctx.Q[v].T, ctx.V[v].T)
+    ctx.E[v] = np.einsum("ij,ij->i", ctx.Q[v], ctx.M[v])
     # costs change on the half-edges from and to v; failed candidates get another chance nearby
     at_v = np.take(F, all_f, axis=0) == v[all_r][:, None]
     at_v |= at_v[:, [1, 2, 0]]  # corner j ends at v when corner j + 1 is at v
     rr, jj = np.nonzero(at_v)
     _update_costs(ctx, live, all_f[rr] * 3 + jj)
-    live.failed[ch.near] = 0
-    live.failed[fv] = 0
+    if live.failed:
+        c = np.concatenate(live.failed)
+        near = np.zeros(len(F), bool)
+        near[ch.near] = True
+        near[fv] = True
+        again = np.take(near, c // 3)
+        _update_costs(ctx, live, c[again])
+        live.failed = [c[~again]]
     if live.n_dead * 4 > len(F):
         live.keep(F[:, 0] < n)
         live.n_dead = 0
