@@ -838,30 +838,48 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         return _Chosen.join([])
     step = max(1, len(fin) // 20000)  # bucket bounds from a fixed subsample: they need not be exact
     thr = np.quantile(fin[::step], np.arange(1, _BUCKETS) / _BUCKETS)
+    key = (np.searchsorted(thr, best, side="right").astype(np.int64) << 32) | ctx.order  # priority
     parts: list[_Chosen] = []
-    rows = np.arange(len(F))  # faces in play
+    rows = None  # faces in play (None: all)
+    inv = np.empty(int(ctx.order[-1]) + 1, np.int64)  # order -> vertex (the sink's order is the largest)
+    inv[ctx.order] = np.arange(nn)
     for r in range(64):
         if r >= rounds and parts:
             break
         bu = np.flatnonzero(np.isfinite(best))
         if len(bu) == 0:
             break
-        Fr = np.take(F, rows, axis=0)
-        if r > 0:  # keep the faces within one ring of a vertex still in play
+        if r == 0:
+            Fr = F
+        else:  # keep the faces within one ring of a vertex still in play
             in_play = np.zeros(nn, bool)
             in_play[bu] = True
             in_play[Fr[_any3(np.take(in_play, Fr))]] = True
-            rows = rows[_any3(np.take(in_play, Fr))]
-            Fr = np.take(F, rows, axis=0)
+            keep = np.flatnonzero(_any3(np.take(in_play, Fr)))
+            rows = keep if rows is None else np.take(rows, keep)
+            Fr = np.take(Fr, keep, axis=0)
+        salt = _SALTS[r % len(_SALTS)]
         val = np.full(nn, _BIG, np.int64)
-        bucket = np.searchsorted(thr, np.take(best, bu), side="right").astype(np.int64)
-        val[bu] = (bucket << 32) | (np.take(ctx.order, bu) ^ _SALTS[r % len(_SALTS)])
-        m2 = _ring_min(Fr, _ring_min(Fr, val))
-        wu = bu[val[bu] == m2[bu]]
-        # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
-        tag = np.full(nn, -1, np.int64)
+        val[bu] = np.take(key, bu) ^ salt
+        m1 = _ring_min(Fr, val)
+        m2 = _ring_min(Fr, m1)
+        wu = bu[np.take(val, bu) == np.take(m2, bu)]
+        # the winners' closed 1-rings: w is in u's when m1[w] == val[u] (u is the least in its 2-ring)
+        tag = np.full(nn + 1, -1, np.int64)  # (the sink's entry: no winner)
         tag[wu] = np.arange(len(wu))
-        cu, ru = _corners_of(F, tag, rows)
+        near = np.flatnonzero(m1 < _BIG)
+        ring = np.full(nn, -1, np.int64)
+        ring[near] = np.take(tag, np.take(inv, (np.take(m1, near) & 0xFFFFFFFF) ^ salt))
+        # one scan: the corners at the rings' vertices
+        t = np.take(ring, Fr.reshape(-1))
+        c = np.flatnonzero(t >= 0)
+        r2 = np.take(t, c)
+        at = np.take(Fr.reshape(-1), c)  # their vertices
+        if rows is not None:
+            c = np.take(rows, c // 3) * 3 + c % 3
+        is_u = at == np.take(wu, r2)
+        cu, ru = c[is_u], r2[is_u]
+        # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
         fr, j = cu // 3, cu % 3
         pc = fr * 3 + _PREV[j]  # the corner of the half-edge arriving at u
         cf, cr = fwd.ravel()[cu], rev.ravel()[pc]
@@ -872,7 +890,9 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         rev_pick = (pick & 1).astype(bool)
         pcorner = pick >> 1
         wv = np.where(rev_pick, Fl[pcorner], Fl[(pcorner // 3) * 3 + _NEXT[pcorner % 3]])
-        cv, rv, near_f, near_r, ring = _around(live, nn, wv, cu, ru, rows)
+        at_v = at == np.take(wv, r2)
+        cv, rv = c[at_v], r2[at_v]
+        near_f, near_r = c // 3, r2
         ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=True)
         # failed candidates leave the running; their vertices try their next candidate
         bad = ~ok
@@ -883,6 +903,8 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         sel = bad[ru]
         if sel.any():
             np.minimum.at(best, wu[ru[sel]], np.minimum(fwd.ravel()[cu[sel]], rev.ravel()[pc[sel]]))
+            wb = wu[bad]
+            key[wb] = (np.searchsorted(thr, best[wb], side="right").astype(np.int64) << 32) | ctx.order[wb]
         if ok.any():
             acc = ok[near_r]
             # block the 2-rings of the accepted u: every vertex of a face touching their 1-rings
