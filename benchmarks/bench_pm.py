@@ -163,7 +163,7 @@ def numpy_kernels(V, F, adj) -> "float | None":
     Vs[:n] = V
     no = np.zeros(n + 1, bool)
     if extra:
-        extra["M"] = _monomials(Vs)
+        extra.update(M=_monomials(Vs), VT=np.ascontiguousarray(Vs.T))
     ctx = _Ctx(V=Vs, **extra, order=np.arange(n + 1), Q=rng.random((n + 1, 10)), E=np.zeros(n + 1), go=~no, locked=no,
                bvert=no, area_eps=0.0)
     live = _Live(F=F.copy(), fid=np.arange(m), bnd=np.zeros((m, 3), bool), cost=np.empty((m, 3)),

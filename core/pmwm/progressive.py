@@ -529,6 +529,7 @@ class _Ctx:
     """What stays fixed while encoding: geometry, quadrics (updated in place) and vertex flags."""
 
     V: np.ndarray  # (n + 1, 3) positions (the last row: the sink)
+    VT: np.ndarray  # (3, n + 1) the same, by coordinate
     M: np.ndarray  # (n + 1, 10) the positions' monomials: a quadric's value at V[i] is Q . M[i]
     order: np.ndarray  # (n,) int64: a fixed permutation, the tiebreak of equal cost buckets
     Q: np.ndarray  # (n + 1, 10) vertex quadrics (a row per vertex: one gather is one cache line); v absorbs u
@@ -713,7 +714,7 @@ def build_progressive_mesh(
     Q[:n] = _vertex_quadrics(V, F0, bnd)
     Vs = np.zeros((n + 1, 3))
     Vs[:n] = V
-    ctx = _Ctx(V=Vs, M=_monomials(Vs), order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
+    ctx = _Ctx(V=Vs, VT=np.ascontiguousarray(Vs.T), M=_monomials(Vs), order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
                go=~locked & ~keep, locked=locked, bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
@@ -784,7 +785,7 @@ def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple
     live.n_dead = 0
     live.F = new_id[live.F]
     sel = np.r_[kept, nl]  # the old sink's entries (locked, zero quadric) serve the new sink
-    return _Ctx(V=ctx.V[sel], M=ctx.M[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
+    return _Ctx(V=ctx.V[sel], VT=np.take(ctx.VT, sel, axis=1), M=ctx.M[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
                 locked=ctx.locked[sel], bvert=ctx.bvert[sel], area_eps=ctx.area_eps), ids[kept]
 
 
@@ -985,17 +986,30 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
                       minlength=k)
     ok &= nbd == bedge
     if check_flips:
-        mv = ~has_v
-        tri = np.take(live.F, fu[mv], axis=0)
-        r = ru[mv]
-        p = np.take(ctx.V, tri, axis=0)
-        before = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        p[np.arange(len(tri)), ju[mv]] = ctx.V[v[r]]
-        after = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        nb = np.linalg.norm(before, axis=1)
-        na = np.linalg.norm(after, axis=1)
-        cosang = np.einsum("ij,ij->i", before, after) / np.maximum(nb * na, 1e-300)
-        bad = (cosang < 0.2) | (na < ctx.area_eps)
+        # a face (u, b, c) that stays becomes (v, b, c): its normal (b - u) x (c - b) turns into
+        # (b - v) x (c - b); no flip (cosine of the turn at least 0.2) and no sliver
+        mv = np.flatnonzero(~has_v)
+        f3, j = take(fu, mv) * 3, take(ju, mv)
+        r = take(ru, mv)
+        b = take(Fl, f3 + take(_NEXT, j))
+        c = take(Fl, f3 + take(_PREV, j))
+        ui, vi = take(u, r), take(v, r)
+        e, du, dv = [], [], []
+        for X in ctx.VT:
+            xb = take(X, b)
+            e.append(take(X, c) - xb)
+            du.append(xb - take(X, ui))
+            dv.append(xb - take(X, vi))
+        dot = nb2 = na2 = 0.0
+        for i in range(3):
+            j1, j2 = (i + 1) % 3, (i + 2) % 3
+            nb_i = du[j1] * e[j2] - du[j2] * e[j1]
+            na_i = dv[j1] * e[j2] - dv[j2] * e[j1]
+            dot = dot + nb_i * na_i
+            nb2 = nb2 + nb_i * nb_i
+            na2 = na2 + na_i * na_i
+        prod = np.sqrt(nb2 * na2)
+        bad = (dot < 0.2 * prod) | (prod == 0) | (na2 < ctx.area_eps * ctx.area_eps)
         ok &= np.bincount(r, weights=bad, minlength=k) == 0
     return ok
 
