@@ -49,7 +49,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .adjacency import Adjacency, build_adjacency
+from .adjacency import Adjacency, build_adjacency, stable_order
 from .features import face_cross
 from .errors import MeshError
 
@@ -850,7 +850,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         bu = np.flatnonzero(np.isfinite(best))
         if len(bu) == 0:
             break
-        if r == 0:
+        if r < 2:  # (filtering for round 1 costs more than it saves: most faces are still in play)
             Fr = F
         else:  # keep the faces within one ring of a vertex still in play
             in_play = np.zeros(nn, bool)
@@ -1032,29 +1032,34 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     flags = np.where(single, FLAG_SINGLE | np.where(dead[:, 0] < 0, FLAG_SECOND, 0), 0).astype(np.uint8)
     arc = ~(d1 | d2)
     fv = cv // 3
-    vkeep = (F[fv, 0] != u[rv]) & (F[fv, 1] != u[rv]) & (F[fv, 2] != u[rv])
+    gone = fu[~arc]
+    is_gone = np.zeros(len(F), bool)
+    is_gone[gone] = True
+    vkeep = ~np.take(is_gone, fv)
+    # the faces around v after the collapse: u's arc, then v's own; their corners at v
+    at = np.concatenate([cu[arc], cv[vkeep]])
     all_r = np.concatenate([ru[arc], rv[vkeep]])
-    all_f = np.concatenate([fu[arc], fv[vkeep]])
+    all_f = at // 3
     all_arc = np.concatenate([np.ones(int(arc.sum()), bool), np.zeros(int(vkeep.sum()), bool)])
-    order = np.argsort(all_r, kind="stable")
+    order, _ = stable_order(all_r)
     fan_ptr = np.zeros(k + 1, np.int64)
     np.cumsum(np.bincount(all_r, minlength=k), out=fan_ptr[1:])
     p = _Pass(u=u.copy(), v=v.copy(), flags=flags, dead=dead, fan_ptr=fan_ptr,
               fan=live.fid[all_f[order]], arc=all_arc[order])
     # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
     Fl[cu[arc]] = v[ru[arc]]
-    gone = fu[~arc]
     F[gone] = n
-    live.cost[gone] = np.inf
-    live.rcost[gone] = np.inf
+    g3 = (gone * 3)[:, None] + np.arange(3)
+    live.cost.reshape(-1)[g3] = np.inf
+    live.rcost.reshape(-1)[g3] = np.inf
     live.n_dead += len(gone)
-    ctx.Q[v] += ctx.Q[u]
-    ctx.E[v] = np.einsum("ij,ij->i", ctx.Q[v], ctx.M[v])
-    # costs change on the half-edges from and to v; failed candidates get another chance nearby
-    at_v = np.take(F, all_f, axis=0) == v[all_r][:, None]
-    at_v |= at_v[:, [1, 2, 0]]  # corner j ends at v when corner j + 1 is at v
-    rr, jj = np.nonzero(at_v)
-    _update_costs(ctx, live, all_f[rr] * 3 + jj)
+    Qv = np.take(ctx.Q, v, axis=0)
+    Qv += np.take(ctx.Q, u, axis=0)
+    ctx.Q[v] = Qv
+    ctx.E[v] = np.einsum("ij,ij->i", Qv, np.take(ctx.M, v, axis=0))
+    # costs change on the half-edges from and to v (the corners at v and the previous ones); failed
+    # candidates get another chance nearby
+    _update_costs(ctx, live, np.concatenate([at, at + np.take(_TO_PREV, at % 3)]))
     if live.failed:
         c = np.concatenate(live.failed)
         near = np.zeros(len(F), bool)
