@@ -1056,10 +1056,20 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     Qv = np.take(ctx.Q, v, axis=0)
     Qv += np.take(ctx.Q, u, axis=0)
     ctx.Q[v] = Qv
-    ctx.E[v] = np.einsum("ij,ij->i", Qv, np.take(ctx.M, v, axis=0))
-    # costs change on the half-edges from and to v (the corners at v and the previous ones); failed
-    # candidates get another chance nearby
-    _update_costs(ctx, live, np.concatenate([at, at + np.take(_TO_PREV, at % 3)]))
+    Ev = np.einsum("ij,ij->i", Qv, np.take(ctx.M, v, axis=0))
+    dE = Ev - np.take(ctx.E, v)
+    ctx.E[v] = Ev
+    # costs change on the half-edges from and to v (the corners at v and the previous ones). Into v
+    # from its own faces, Q_a(V_v) stays: the cost moves by v's own error's change (off the boundary,
+    # where no reverse candidate needs Q_v; the full updates that follow overwrite any corner from
+    # another record's v). Failed candidates get another chance nearby.
+    into = at + np.take(_TO_PREV, at % 3)
+    n_arc = int(np.count_nonzero(arc))
+    own = into[n_arc:]
+    on_b = np.take(live.bnd.reshape(-1), own)
+    shift = np.flatnonzero(~on_b)
+    live.cost.reshape(-1)[np.take(own, shift)] += np.take(dE, np.take(all_r[n_arc:], shift))
+    _update_costs(ctx, live, np.concatenate([at, into[:n_arc], own[on_b]]))
     if live.failed:
         c = np.concatenate(live.failed)
         near = np.zeros(len(F), bool)
