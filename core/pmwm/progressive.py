@@ -866,15 +866,15 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         m2 = _ring_min(Fr, m1)
         wu = bu[np.take(val, bu) == np.take(m2, bu)]
         # the winners' closed 1-rings: w is in u's when m1[w] == val[u] (u is the least in its 2-ring)
-        tag = np.full(nn + 1, -1, np.int64)  # (the sink's entry: no winner)
-        tag[wu] = np.arange(len(wu))
+        tag = np.full(nn + 1, -1, np.int32)  # (the sink's entry: no winner)
+        tag[wu] = np.arange(len(wu), dtype=np.int32)
         near = np.flatnonzero(m1 < _BIG)
-        ring = np.full(nn, -1, np.int64)
+        ring = np.full(nn, -1, np.int32)
         ring[near] = np.take(tag, np.take(inv, (np.take(m1, near) & 0xFFFFFFFF) ^ salt))
         # one scan: the corners at the rings' vertices
         t = np.take(ring, Fr.reshape(-1))
         c = np.flatnonzero(t >= 0)
-        r2 = np.take(t, c)
+        r2 = np.take(t, c).astype(np.int64)
         at = np.take(Fr.reshape(-1), c)  # their vertices
         if rows is not None:
             c = np.take(rows, c // 3) * 3 + c % 3
