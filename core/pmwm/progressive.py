@@ -9,13 +9,20 @@ be applied (and undone) at once with numpy. One pass is one level of detail.
 
 How it stays fast in numpy (issue 13): nothing is rebuilt per pass. The live faces
 carry their candidates per corner (corner j of face f: collapse F[f, j] into F[f, j+1],
-and the reverse on boundary half-edges) with their costs, recomputed only on the
-half-edges from and to each pass's survivors (cost of a -> b = Q_a(V_b) + E_b, E the
-vertices' own errors); the 2-ring minima come from face-wise minima, the corners of a
-vertex set from one gather over the faces in play; removed faces point to a sink vertex
-until a quarter of the rows are dead, and the vertices are renumbered whenever half of
-them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with
-32-bit indices, which it first copies to 64 bits).
+and the reverse on boundary half-edges) with their costs. The cost of a -> b is
+Q_a(V_b) + E_b (E the vertices' own errors), one dot product of Q_a with the fixed
+monomials of V_b; after a pass it is recomputed on the half-edges from v and into v from
+u's former faces, and shifted by v's change of E into v from v's own faces. A candidate
+found invalid gets an infinite cost and waits in a list until a collapse comes near it.
+Per selection round, the 2-ring minima of the priorities come from two face-wise
+minimum scatters (``np.minimum.at``, faster here than sorted segment reductions); the
+first of them also names the winners' closed 1-rings (w is in u's when its 1-ring
+minimum is u's priority), so one scan over the faces in play finds every corner the
+round needs (at u, at v, around the ring). Rounds after the second scan only the faces
+within one ring of a vertex still in play. Removed faces point to a sink vertex until a
+quarter of the rows are dead, and the vertices are renumbered whenever half of them are
+gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with 32-bit
+indices, which it first copies to 64 bits).
 
 Why not a compiled dependency: numba 0.68.1 (numpy 1.26.4, Python 3.11; it also imports
 with numpy 2.5.5 on Python 3.13) ran two kernels of one igea pass (all corners' costs with
