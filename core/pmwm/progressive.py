@@ -442,25 +442,22 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
 # --------------------------------------------------------------------------- encoding
 
 
-def _face_quadrics(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted plane quadrics of the faces as (10, m) coefficients, and (m, 3) unit normals."""
-    cr = face_cross(V, F)  # the same bits as np.cross, without (m, 3) gathers of the corners
-    area2 = np.sqrt(np.einsum("ij,ij->i", cr, cr))
-    n = cr / np.maximum(area2, 1e-300)[:, None]
-    d = -np.einsum("ij,ij->i", n, np.take(V, F[:, 0], axis=0))
-    return _plane_quadric(n, d, 0.5 * area2), n
+def _plane_rows(n: np.ndarray, d: np.ndarray, w: np.ndarray):
+    """The 10 coefficient rows (k,) of the planes n . x + d = 0 weighted by w, one at a time (``out``:
+    one (k,) buffer reused, so that a row is only valid until the next is made)."""
+    a, b, c = (np.ascontiguousarray(x) for x in n.T)
+    wa, wb, wc = w * a, w * b, w * c
+    out = np.empty(len(w))
+    for x, y in ((wa, a), (wa, b), (wa, c), (wa, d), (wb, b), (wb, c), (wb, d), (wc, c), (wc, d)):
+        yield np.multiply(x, y, out=out)
+    np.multiply(w, d, out=out)
+    out *= d
+    yield out
 
 
 def _plane_quadric(n: np.ndarray, d: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(10, k) coefficients of the planes n . x + d = 0 weighted by w."""
-    a, b, c = (np.ascontiguousarray(x) for x in n.T)
-    wa, wb, wc = w * a, w * b, w * c
-    Q = np.empty((10, len(w)))  # written in place: no list of rows to stack
-    for row, (x, y) in enumerate(((wa, a), (wa, b), (wa, c), (wa, d), (wb, b), (wb, c), (wb, d), (wc, c), (wc, d))):
-        np.multiply(x, y, out=Q[row])
-    np.multiply(w, d, out=Q[9])
-    Q[9] *= d
-    return Q
+    return np.stack([row.copy() for row in _plane_rows(n, d, w)])
 
 
 def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -491,11 +488,17 @@ def _vertex_quadrics(V: np.ndarray, F: np.ndarray, bnd: np.ndarray) -> np.ndarra
     ``bnd`` (m, 3) bool marks the boundary half-edges F[f, j] -> F[f, j+1].
     """
     n = len(V)
-    Qf, normals = _face_quadrics(V, F)
+    cr = face_cross(V, F)  # the same bits as np.cross, without (m, 3) gathers of the corners
+    area2 = np.sqrt(np.einsum("ij,ij->i", cr, cr))
+    normals = cr / np.maximum(area2, 1e-300)[:, None]
+    d = -np.einsum("ij,ij->i", normals, np.take(V, F[:, 0], axis=0))
+    cols = [np.ascontiguousarray(F[:, j]) for j in range(3)]
     QT = np.empty((10, n))
-    idx = F.T.ravel()  # corner by corner: the face's weights repeat three times
-    for j in range(10):
-        QT[j] = np.bincount(idx, weights=np.tile(Qf[j], 3), minlength=n)
+    # the faces' area-weighted plane quadrics, a coefficient at a time (no (10, m) array)
+    for j, q in enumerate(_plane_rows(normals, d, 0.5 * area2)):
+        QT[j] = np.bincount(cols[0], weights=q, minlength=n)
+        QT[j] += np.bincount(cols[1], weights=q, minlength=n)
+        QT[j] += np.bincount(cols[2], weights=q, minlength=n)
     fb, jb = np.nonzero(bnd)
     if len(fb):
         e0, e1 = F[fb, jb], F[fb, _NEXT[jb]]
