@@ -987,7 +987,7 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
     ok = (ndead >= 1) & (n_common == np.where(bedge, 1, 2))
     # the opposite vertices must keep enough edges (no two faces folded onto each other)
     valence = take(cnt, w) + take(ctx.bvert, w)
-    ok &= np.bincount(crec, weights=valence < take(np.where(bedge, 3, 4), crec), minlength=k) == 0
+    ok[crec[valence < take(np.where(bedge, 3, 4), crec)]] = False
     ok &= cnt[u] > ndead  # an arc of faces remains to hand back
     ok &= cnt[u] + cnt[v] - 2 * ndead <= MAX_FAN
     # the removed faces hold no boundary edge but the collapsed one (the boundary stays as it is)
@@ -1003,13 +1003,12 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
         r = take(ru, mv)
         b = take(Fl, f3 + take(_NEXT, j))
         c = take(Fl, f3 + take(_PREV, j))
-        ui, vi = take(u, r), take(v, r)
         e, du, dv = [], [], []
         for X in ctx.VT:
             xb = take(X, b)
             e.append(take(X, c) - xb)
-            du.append(xb - take(X, ui))
-            dv.append(xb - take(X, vi))
+            du.append(xb - take(take(X, u), r))
+            dv.append(xb - take(take(X, v), r))
         dot = nb2 = na2 = 0.0
         for i in range(3):
             j1, j2 = (i + 1) % 3, (i + 2) % 3
@@ -1020,7 +1019,7 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
             na2 = na2 + na_i * na_i
         prod = np.sqrt(nb2 * na2)
         bad = (dot < 0.2 * prod) | (prod == 0) | (na2 < ctx.area_eps * ctx.area_eps)
-        ok &= np.bincount(r, weights=bad, minlength=k) == 0
+        ok[r[bad]] = False
     return ok
 
 
