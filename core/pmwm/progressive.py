@@ -1122,7 +1122,7 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
         k = len(p.u)
         sizes = np.diff(p.fan_ptr)
         rec = np.repeat(np.arange(k, dtype=np.int64), sizes)
-        order = np.argsort(rec * len(face_order) + fpm_of[p.fan])
+        order, _ = stable_order(rec * len(face_order) + np.take(fpm_of, p.fan))  # (unique keys)
         rank = (np.arange(len(rec)) - p.fan_ptr[rec]).astype(np.uint64)  # rec is sorted already
         bits = np.where(p.arc[order], np.left_shift(np.uint64(1), rank), np.uint64(0))
         nonempty = np.flatnonzero(sizes > 0)
