@@ -624,6 +624,13 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
         rc[corners[on]] = r
 
 
+def _pick(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``a[mask]`` for each array (1-D, same length as the bool ``mask``), through one flatnonzero and
+    gathers: several times faster than boolean indexing when the mask is irregular."""
+    i = np.flatnonzero(mask)
+    return tuple(np.take(a, i) for a in arrays)
+
+
 def _any3(m: np.ndarray) -> np.ndarray:
     """Row-wise any of an (m, 3) bool array (faster than .any(axis=1))."""
     return m[:, 0] | m[:, 1] | m[:, 2]
@@ -680,9 +687,11 @@ class _Chosen:
     def subset(self, keep: np.ndarray) -> "_Chosen":
         """The records ``keep`` (bool per record), renumbered."""
         new = np.cumsum(keep) - 1
-        ku, kv = keep[self.ru], keep[self.rv]
-        return _Chosen(self.u[keep], self.v[keep], self.cu[ku], new[self.ru[ku]], self.cv[kv],
-                       new[self.rv[kv]], self.near)
+        ku, kv = np.take(keep, self.ru), np.take(keep, self.rv)
+        u, v = _pick(keep, self.u, self.v)
+        cu, ru = _pick(ku, self.cu, self.ru)
+        cv, rv = _pick(kv, self.cv, self.rv)
+        return _Chosen(u, v, cu, np.take(new, ru), cv, np.take(new, rv), self.near)
 
 
 def build_progressive_mesh(
@@ -889,7 +898,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         if rows is not None:
             c = np.take(rows, c // 3) * 3 + c % 3
         is_u = at == np.take(wu, r2)
-        cu, ru = c[is_u], r2[is_u]
+        cu, ru = _pick(is_u, c, r2)
         # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
         fr, j = cu // 3, cu % 3
         pc = fr * 3 + _PREV[j]  # the corner of the half-edge arriving at u
@@ -902,7 +911,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         pcorner = pick >> 1
         wv = np.where(rev_pick, Fl[pcorner], Fl[(pcorner // 3) * 3 + _NEXT[pcorner % 3]])
         at_v = at == np.take(wv, r2)
-        cv, rv = c[at_v], r2[at_v]
+        cv, rv = _pick(at_v, c, r2)
         near_f, near_r = c // 3, r2
         ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=True)
         # failed candidates leave the running; their vertices try their next candidate
@@ -917,10 +926,10 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
             wb = wu[bad]
             key[wb] = (np.searchsorted(thr, best[wb], side="right").astype(np.int64) << 32) | ctx.order[wb]
         if ok.any():
-            acc = ok[near_r]
+            (near_acc,) = _pick(np.take(ok, near_r), near_f)
             # block the 2-rings of the accepted u: every vertex of a face touching their 1-rings
-            best[np.take(F, near_f[acc], axis=0)] = np.inf
-            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_f[acc]).subset(ok))
+            best[np.take(F, near_acc, axis=0)] = np.inf
+            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_acc).subset(ok))
     return _Chosen.join(parts)
 
 
@@ -971,17 +980,19 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
     fu, ju = cu // 3, cu % 3
     vu = take(v, ru)
     has_v = (take(Fl, fu * 3 + take(_NEXT, ju)) == vu) | (take(Fl, fu * 3 + take(_PREV, ju)) == vu)
-    ndead = np.bincount(ru[has_v], minlength=k)
+    rd, fd = _pick(has_v, ru, fu)
+    ndead = np.bincount(rd, minlength=k)
     # common neighbours of u and v: v's neighbours (each once: the next vertex of every face at v,
     # and the previous one across a boundary half-edge) that lie in u's 1-ring
     fv, jv = cv // 3, cv % 3
     w = take(Fl, fv * 3 + take(_NEXT, jv))
     pb = fv * 3 + take(_PREV, jv)
     on_b = take(bl, pb)
-    w = np.concatenate([w, take(Fl, pb[on_b])])
-    wr = np.concatenate([rv, rv[on_b]])
+    pbb, rvb = _pick(on_b, pb, rv)
+    w = np.concatenate([w, take(Fl, pbb)])
+    wr = np.concatenate([rv, rvb])
     com = (take(ring, w) == wr) & (w != take(u, wr))
-    w, crec = w[com], wr[com]
+    w, crec = _pick(com, w, wr)
     n_common = np.bincount(crec, minlength=k)
     bedge = ndead == 1
     ok = (ndead >= 1) & (n_common == np.where(bedge, 1, 2))
@@ -991,8 +1002,7 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
     ok &= cnt[u] > ndead  # an arc of faces remains to hand back
     ok &= cnt[u] + cnt[v] - 2 * ndead <= MAX_FAN
     # the removed faces hold no boundary edge but the collapsed one (the boundary stays as it is)
-    fd = fu[has_v]
-    nbd = np.bincount(ru[has_v], weights=take(bl, fd * 3) + take(bl, fd * 3 + 1) + take(bl, fd * 3 + 2),
+    nbd = np.bincount(rd, weights=take(bl, fd * 3) + take(bl, fd * 3 + 1) + take(bl, fd * 3 + 2),
                       minlength=k)
     ok &= nbd == bedge
     if check_flips:
@@ -1032,31 +1042,35 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     Fl = F.ravel()
     cu, ru, cv, rv = ch.cu, ch.ru, ch.cv, ch.rv
     fu, ju = cu // 3, cu % 3
-    d1 = Fl[fu * 3 + _NEXT[ju]] == v[ru]  # f1 holds the half-edge u -> v
-    d2 = Fl[fu * 3 + _PREV[ju]] == v[ru]  # f2 holds v -> u
+    vu = np.take(v, ru)
+    d1 = np.take(Fl, fu * 3 + np.take(_NEXT, ju)) == vu  # f1 holds the half-edge u -> v
+    d2 = np.take(Fl, fu * 3 + np.take(_PREV, ju)) == vu  # f2 holds v -> u
     dead = np.full((k, 2), -1, np.int64)
-    dead[ru[d1], 0] = live.fid[fu[d1]]
-    dead[ru[d2], 1] = live.fid[fu[d2]]
+    for col, d in enumerate((d1, d2)):
+        r_d, f_d = _pick(d, ru, fu)
+        dead[r_d, col] = np.take(live.fid, f_d)
     single = (dead < 0).any(axis=1)
     flags = np.where(single, FLAG_SINGLE | np.where(dead[:, 0] < 0, FLAG_SECOND, 0), 0).astype(np.uint8)
     arc = ~(d1 | d2)
     fv = cv // 3
-    gone = fu[~arc]
+    (gone,) = _pick(~arc, fu)
     is_gone = np.zeros(len(F), bool)
     is_gone[gone] = True
     vkeep = ~np.take(is_gone, fv)
     # the faces around v after the collapse: u's arc, then v's own; their corners at v
-    at = np.concatenate([cu[arc], cv[vkeep]])
-    all_r = np.concatenate([ru[arc], rv[vkeep]])
+    cu_a, ru_a = _pick(arc, cu, ru)
+    cv_k, rv_k = _pick(vkeep, cv, rv)
+    at = np.concatenate([cu_a, cv_k])
+    all_r = np.concatenate([ru_a, rv_k])
     all_f = at // 3
-    all_arc = np.concatenate([np.ones(int(arc.sum()), bool), np.zeros(int(vkeep.sum()), bool)])
+    all_arc = np.concatenate([np.ones(len(cu_a), bool), np.zeros(len(cv_k), bool)])
     order, _ = stable_order(all_r)
     fan_ptr = np.zeros(k + 1, np.int64)
     np.cumsum(np.bincount(all_r, minlength=k), out=fan_ptr[1:])
     p = _Pass(u=u.copy(), v=v.copy(), flags=flags, dead=dead, fan_ptr=fan_ptr,
               fan=live.fid[all_f[order]], arc=all_arc[order])
     # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
-    Fl[cu[arc]] = v[ru[arc]]
+    Fl[cu_a] = np.take(v, ru_a)
     F[gone] = n
     g3 = (gone * 3)[:, None] + np.arange(3)
     live.cost.reshape(-1)[g3] = np.inf
@@ -1073,20 +1087,20 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     # where no reverse candidate needs Q_v; the full updates that follow overwrite any corner from
     # another record's v). Failed candidates get another chance nearby.
     into = at + np.take(_TO_PREV, at % 3)
-    n_arc = int(np.count_nonzero(arc))
+    n_arc = len(cu_a)
     own = into[n_arc:]
     on_b = np.take(live.bnd.reshape(-1), own)
     shift = np.flatnonzero(~on_b)
     live.cost.reshape(-1)[np.take(own, shift)] += np.take(dE, np.take(all_r[n_arc:], shift))
-    _update_costs(ctx, live, np.concatenate([at, into[:n_arc], own[on_b]]))
+    _update_costs(ctx, live, np.concatenate([at, into[:n_arc], *_pick(on_b, own)]))
     if live.failed:
         c = np.concatenate(live.failed)
         near = np.zeros(len(F), bool)
         near[ch.near] = True
         near[fv] = True
         again = np.take(near, c // 3)
-        _update_costs(ctx, live, c[again])
-        live.failed = [c[~again]]
+        _update_costs(ctx, live, *_pick(again, c))
+        live.failed = list(_pick(~again, c))
     if live.n_dead * 4 > len(F):
         live.keep(F[:, 0] < n)
         live.n_dead = 0
