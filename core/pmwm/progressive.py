@@ -874,7 +874,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         else:  # keep the faces within one ring of a vertex still in play
             in_play = np.zeros(nn, bool)
             in_play[bu] = True
-            in_play[Fr[_any3(np.take(in_play, Fr))]] = True
+            in_play[np.take(Fr, np.flatnonzero(_any3(np.take(in_play, Fr))), axis=0)] = True
             keep = np.flatnonzero(_any3(np.take(in_play, Fr)))
             rows = keep if rows is None else np.take(rows, keep)
             Fr = np.take(Fr, keep, axis=0)
@@ -883,7 +883,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         val[bu] = np.take(key, bu) ^ salt
         m1 = _ring_min(Fr, val)
         m2 = _ring_min(Fr, m1)
-        wu = bu[np.take(val, bu) == np.take(m2, bu)]
+        (wu,) = _pick(np.take(val, bu) == np.take(m2, bu), bu)
         # the winners' closed 1-rings: w is in u's when m1[w] == val[u] (u is the least in its 2-ring)
         tag = np.full(nn + 1, -1, np.int32)  # (the sink's entry: no winner)
         tag[wu] = np.arange(len(wu), dtype=np.int32)
@@ -900,16 +900,15 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
         is_u = at == np.take(wu, r2)
         cu, ru = _pick(is_u, c, r2)
         # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
-        fr, j = cu // 3, cu % 3
-        pc = fr * 3 + _PREV[j]  # the corner of the half-edge arriving at u
-        cf, cr = fwd.ravel()[cu], rev.ravel()[pc]
-        bw = best[wu][ru]
+        pc = cu + np.take(_TO_PREV, cu % 3)  # the corner of the half-edge arriving at u
+        cf, cr = np.take(fwd, cu), np.take(rev, pc)
+        bw = np.take(np.take(best, wu), ru)
         cand = np.concatenate([np.where(cf == bw, 2 * cu, _BIG), np.where(cr == bw, 2 * pc + 1, _BIG)])
         pick = np.full(len(wu), _BIG, np.int64)
         np.minimum.at(pick, np.concatenate([ru, ru]), cand)
         rev_pick = (pick & 1).astype(bool)
         pcorner = pick >> 1
-        wv = np.where(rev_pick, Fl[pcorner], Fl[(pcorner // 3) * 3 + _NEXT[pcorner % 3]])
+        wv = np.take(Fl, np.where(rev_pick, pcorner, pcorner + np.take(_TO_NEXT, pcorner % 3)))
         at_v = at == np.take(wv, r2)
         cv, rv = _pick(at_v, c, r2)
         near_f, near_r = c // 3, r2
@@ -1068,11 +1067,11 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     fan_ptr = np.zeros(k + 1, np.int64)
     np.cumsum(np.bincount(all_r, minlength=k), out=fan_ptr[1:])
     p = _Pass(u=u.copy(), v=v.copy(), flags=flags, dead=dead, fan_ptr=fan_ptr,
-              fan=live.fid[all_f[order]], arc=all_arc[order])
+              fan=np.take(live.fid, np.take(all_f, order)), arc=np.take(all_arc, order))
     # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
     Fl[cu_a] = np.take(v, ru_a)
-    F[gone] = n
     g3 = (gone * 3)[:, None] + np.arange(3)
+    Fl[g3] = n
     live.cost.reshape(-1)[g3] = np.inf
     live.rcost.reshape(-1)[g3] = np.inf
     live.n_dead += len(gone)
