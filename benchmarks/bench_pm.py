@@ -4,8 +4,10 @@ Meshes: the catalogue's bunny and igea, and igea after one midpoint subdivision 
 mesh of bench_scale.py). Each measurement runs in a fresh subprocess of this script (``--worker``):
 this checkout's code, and the old code with PYTHONPATH=<--old> (default ../main/core beside the
 checkout), alternately, best of ``--repeat``. The anchor is fast_simplification.simplify decimating
-the same arrays to the same vertex count, timed in the same worker. A last table times whole
-processes on igea: ``pmwm embed`` (read, embed, write mesh, key and .pmwm) against a script that reads
+the same arrays to the same vertex count, timed in the same worker. On bunny and igea the first worker
+of each code also measures the levels of detail: the surface distance to the input of the base mesh and
+of the level ending nearest half the records (``metrics.surface_distance``, seed 0). A last table times
+whole processes on igea: ``pmwm embed`` (read, embed, write mesh, key and .pmwm) against a script that reads
 the file with trimesh, decimates it to 1 % with fast_simplification and writes a PLY.
 
 With ``--numba-python PY`` (an interpreter with numba and numpy installed, e.g. a scratch venv), the
