@@ -866,7 +866,8 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
     if len(fin) == 0:
         return _Chosen.join([])
     step = max(1, len(fin) // 20000)  # bucket bounds from a fixed subsample: they need not be exact
-    thr = np.quantile(fin[::step], np.arange(1, _BUCKETS) / _BUCKETS)
+    # (sorted first: numpy's SIMD sort and a selection in sorted data beat the selection alone)
+    thr = np.quantile(np.sort(fin[::step]), np.arange(1, _BUCKETS) / _BUCKETS)
     key = (_bucket(thr, best).astype(np.int64) << 32) | ctx.order  # priority
     parts: list[_Chosen] = []
     rows = None  # faces in play (None: all)
