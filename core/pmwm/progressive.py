@@ -26,7 +26,7 @@ indices, which it first copies to 64 bits).
 
 Why not a compiled dependency: numba 0.68.1 (numpy 1.26.4, Python 3.11; it also imports
 with numpy 2.5.5 on Python 3.13) ran two kernels of one igea pass (all corners' costs with
-each vertex's cheapest, one 2-ring minimum step) in 9 ms against 22 ms for this numpy, but
+each vertex's cheapest, one 2-ring minimum step) in 10 ms against 25 ms for this numpy, but
 every fresh process pays about 0.4 s to import numba and 0.2 s to load the cached kernels
 (2.2-2.6 s to compile them without a cache, e.g. on a read-only install), and the extension
 would carry numba + llvmlite wheels for four platforms and two Pythons: 377 MB. Figures:
