@@ -4,8 +4,10 @@ Meshes: the catalogue's bunny and igea, and igea after one midpoint subdivision 
 mesh of bench_scale.py). Each measurement runs in a fresh subprocess of this script (``--worker``):
 this checkout's code, and the old code with PYTHONPATH=<--old> (default ../main/core beside the
 checkout), alternately, best of ``--repeat``. The anchor is fast_simplification.simplify decimating
-the same arrays to the same vertex count, timed in the same worker. A last table times whole
-processes on igea: ``pmwm embed`` (read, embed, write mesh, key and .pmwm) against a script that reads
+the same arrays to the same vertex count, timed in the same worker. On bunny and igea the first worker
+of each code also measures the levels of detail: the surface distance to the input of the base mesh and
+of the level ending nearest half the records (``metrics.surface_distance``, seed 0). A last table times
+whole processes on igea: ``pmwm embed`` (read, embed, write mesh, key and .pmwm) against a script that reads
 the file with trimesh, decimates it to 1 % with fast_simplification and writes a PLY.
 
 With ``--numba-python PY`` (an interpreter with numba and numpy installed, e.g. a scratch venv), the
@@ -40,6 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import ROOT, command, commit, load, machine, mesh_path, write_section  # noqa: E402
 
 BASE_RATIO = 0.03  # the embedders' default base ratio
+LOD_SAMPLES = 20000  # surface samples each way for the levels' distances
 NUMBA_PROBE = r'''
 import json, sys, time
 t0 = time.perf_counter()
@@ -100,8 +103,9 @@ NEW_CORE = ROOT / "core"
 OLD_CORE = ROOT.parent / "main" / "core"
 
 
-def worker(mesh: str, repeat: int, kernels: bool, decode_repeat: int = 10) -> None:
-    """Time build_progressive_mesh, a full decode and fast_simplification on ``mesh`` (an .npz)."""
+def worker(mesh: str, repeat: int, kernels: bool, decode_repeat: int = 10, lod: bool = False) -> None:
+    """Time build_progressive_mesh, a full decode and fast_simplification on ``mesh`` (an .npz); with
+    ``lod``, also the surface distance of the base mesh and of a middle level to the input."""
     import numpy as np
 
     import pmwm
@@ -140,7 +144,24 @@ def worker(mesh: str, repeat: int, kernels: bool, decode_repeat: int = 10) -> No
         "peak_mb": peak_mb, "base_mb": base_mb,
     }
     out["kernels_s"] = numpy_kernels(V, F, adj) if kernels else None  # after the peak memory was read
+    out["lod"] = lod_distances(V, F, pm) if lod else None
     print(json.dumps(out))
+
+
+def lod_distances(V, F, pm) -> list:
+    """[vertices, MRMS %, Hausdorff %] of the base mesh and of the level ending nearest half the
+    records, against the input (``metrics.surface_distance``, LOD_SAMPLES points each way, seed 0)."""
+    import numpy as np
+
+    from pmwm.metrics import surface_distance
+
+    lr = pm.level_records
+    mid = int(lr[np.argmin(np.abs(lr - pm.n_records / 2))])
+    out = []
+    for k in (0, mid):
+        Vd, Fd = pm.decode(k)
+        out.append([len(Vd), *surface_distance(V, F, Vd, Fd, n_samples=LOD_SAMPLES, seed=0)])
+    return out
 
 
 def numpy_kernels(V, F, adj) -> "float | None":
@@ -152,15 +173,22 @@ def numpy_kernels(V, F, adj) -> "float | None":
         from pmwm.progressive import _best, _Ctx, _Live, _ring_min, _update_costs
     except ImportError:
         return None
+    try:
+        from pmwm.progressive import _monomials
+        extra = {"M": None}
+    except ImportError:  # code before the monomials
+        extra = {}
     n, m = len(V), len(F)
     rng = np.random.default_rng(0)
     Vs = np.zeros((n + 1, 3))
     Vs[:n] = V
     no = np.zeros(n + 1, bool)
-    ctx = _Ctx(V=Vs, order=np.arange(n + 1), Q=rng.random((n + 1, 10)), E=np.zeros(n + 1), go=~no, locked=no,
+    if extra:
+        extra.update(M=_monomials(Vs), VT=np.ascontiguousarray(Vs.T))
+    ctx = _Ctx(V=Vs, **extra, order=np.arange(n + 1), Q=rng.random((n + 1, 10)), E=np.zeros(n + 1), go=~no, locked=no,
                bvert=no, area_eps=0.0)
     live = _Live(F=F.copy(), fid=np.arange(m), bnd=np.zeros((m, 3), bool), cost=np.empty((m, 3)),
-                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
+                 rcost=np.empty((m, 3)), **({} if extra else {"failed": np.zeros((m, 3), np.uint8)}))
     val = np.r_[rng.permutation(n), n]
     runs = []
     for _ in range(5):
@@ -186,10 +214,12 @@ def numba_probe(py: str, mesh: str) -> list:
     return out
 
 
-def run_worker(core: Path, mesh: str, repeat: int, kernels: bool = False, decode_repeat: int = 10) -> dict:
+def run_worker(core: Path, mesh: str, repeat: int, kernels: bool = False, decode_repeat: int = 10,
+               lod: bool = False) -> dict:
     env = dict(os.environ, PYTHONPATH=str(core))
     cmd = [sys.executable, __file__, "--worker", mesh, "--repeat", str(repeat), "--decode-repeat", str(decode_repeat)]
     cmd += ["--kernels"] if kernels else []
+    cmd += ["--lod"] if lod else []
     out = subprocess.run(cmd, env=env,
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
@@ -224,12 +254,13 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--kernels", action="store_true", help="(worker) also time the numba probe's kernels in numpy")
     ap.add_argument("--decode-repeat", type=int, default=10, help="full decodes per worker (the best counts)")
+    ap.add_argument("--lod", action="store_true", help="(worker) also measure the levels' surface distances")
     ap.add_argument("--old", default=str(OLD_CORE), help="the old code's core/ folder (skipped if absent)")
     ap.add_argument("--numba-python", help="an interpreter with numba, for the numba probe")
     ap.add_argument("--numba-wheels", help="a folder of downloaded numba/llvmlite wheels, to list their sizes")
     a = ap.parse_args()
     if a.worker:
-        worker(a.worker, a.repeat, a.kernels, a.decode_repeat)
+        worker(a.worker, a.repeat, a.kernels, a.decode_repeat, a.lod)
         return
     import numpy as np
 
@@ -247,8 +278,9 @@ def main() -> None:
             rep = 1 if len(F) > 500_000 else a.repeat
             # alternate new and old, twice, so that both see the same machine load
             dr = a.decode_repeat
-            new = run_worker(NEW_CORE, path, rep, decode_repeat=dr)
-            was = run_worker(old, path, rep, decode_repeat=dr) if old else None
+            lod = len(F) <= 500_000  # the levels' distances on bunny and igea (deterministic: one run each)
+            new = run_worker(NEW_CORE, path, rep, decode_repeat=dr, lod=lod)
+            was = run_worker(old, path, rep, decode_repeat=dr, lod=lod) if old else None
             new = best(new, run_worker(NEW_CORE, path, rep, kernels=name == "igea", decode_repeat=dr))
             if old:
                 was = best(was, run_worker(old, path, rep, decode_repeat=dr))
@@ -300,6 +332,25 @@ def main() -> None:
             f"| {name} | {nv:,} | {nf:,} | {ms(new['build_s'])} | {ms(was['build_s'] if was else None)} | {sp} "
             f"| {ms(new['fs_s'])} | {anchor} | {new['levels']} ({lv_old}) | {dec_new:.2f} M/s | {dec_old} "
             f"| +{new['peak_mb'] - new['base_mb']:,.0f} MB (+{mem_old} MB) |")
+    lod_rows = [(name, new, was) for name, _, _, new, was in rows if new.get("lod")]
+    if lod_rows:
+        lines += [
+            "",
+            f"Levels of detail against the input (`metrics.surface_distance`, {LOD_SAMPLES:,} samples each way, "
+            "seed 0): MRMS % / Hausdorff % of the bounding-box diagonal, for the base mesh and for the level "
+            "ending nearest half the records (its vertex count beside it).",
+            "",
+            "| mesh | base new | base old | middle level new | middle level old |",
+            "|---|---|---|---|---|",
+        ]
+
+        def dist(x):
+            return f"{x[1]:.4f} / {x[2]:.3f} ({x[0]:,} v)"
+
+        for name, new, was in lod_rows:
+            old_lod = was.get("lod") if was else None
+            lines.append(f"| {name} | {dist(new['lod'][0])} | {dist(old_lod[0]) if old_lod else '–'} "
+                         f"| {dist(new['lod'][1])} | {dist(old_lod[1]) if old_lod else '–'} |")
     lines += [
         "",
         "Whole processes on igea (wall time, best of 3; old best of 2):",

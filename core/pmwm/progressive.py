@@ -9,17 +9,24 @@ be applied (and undone) at once with numpy. One pass is one level of detail.
 
 How it stays fast in numpy (issue 13): nothing is rebuilt per pass. The live faces
 carry their candidates per corner (corner j of face f: collapse F[f, j] into F[f, j+1],
-and the reverse on boundary half-edges) with their costs, recomputed only on the
-half-edges from and to each pass's survivors (cost of a -> b = Q_a(V_b) + E_b, E the
-vertices' own errors); the 2-ring minima come from face-wise minima, the corners of a
-vertex set from one gather over the faces in play; removed faces point to a sink vertex
-until a quarter of the rows are dead, and the vertices are renumbered whenever half of
-them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with
-32-bit indices, which it first copies to 64 bits).
+and the reverse on boundary half-edges) with their costs. The cost of a -> b is
+Q_a(V_b) + E_b (E the vertices' own errors), one dot product of Q_a with the fixed
+monomials of V_b; after a pass it is recomputed on the half-edges from v and into v from
+u's former faces, and shifted by v's change of E into v from v's own faces. A candidate
+found invalid gets an infinite cost and waits in a list until a collapse comes near it.
+Per selection round, the 2-ring minima of the priorities come from two face-wise
+minimum scatters (``np.minimum.at``, faster here than sorted segment reductions); the
+first of them also names the winners' closed 1-rings (w is in u's when its 1-ring
+minimum is u's priority), so one scan over the faces in play finds every corner the
+round needs (at u, at v, around the ring). Rounds after the second scan only the faces
+within one ring of a vertex still in play. Removed faces point to a sink vertex until a
+quarter of the rows are dead, and the vertices are renumbered whenever half of them are
+gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with 32-bit
+indices, which it first copies to 64 bits).
 
 Why not a compiled dependency: numba 0.68.1 (numpy 1.26.4, Python 3.11; it also imports
 with numpy 2.5.5 on Python 3.13) ran two kernels of one igea pass (all corners' costs with
-each vertex's cheapest, one 2-ring minimum step) in 9 ms against 30 ms for this numpy, but
+each vertex's cheapest, one 2-ring minimum step) in 10 ms against 25 ms for this numpy, but
 every fresh process pays about 0.4 s to import numba and 0.2 s to load the cached kernels
 (2.2-2.6 s to compile them without a cache, e.g. on a read-only install), and the extension
 would carry numba + llvmlite wheels for four platforms and two Pythons: 377 MB. Figures:
@@ -49,7 +56,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .adjacency import Adjacency, build_adjacency
+from .adjacency import Adjacency, build_adjacency, stable_order
 from .features import face_cross
 from .errors import MeshError
 
@@ -435,25 +442,22 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
 # --------------------------------------------------------------------------- encoding
 
 
-def _face_quadrics(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted plane quadrics of the faces as (10, m) coefficients, and (m, 3) unit normals."""
-    cr = face_cross(V, F)  # the same bits as np.cross, without (m, 3) gathers of the corners
-    area2 = np.sqrt(np.einsum("ij,ij->i", cr, cr))
-    n = cr / np.maximum(area2, 1e-300)[:, None]
-    d = -np.einsum("ij,ij->i", n, np.take(V, F[:, 0], axis=0))
-    return _plane_quadric(n, d, 0.5 * area2), n
+def _plane_rows(n: np.ndarray, d: np.ndarray, w: np.ndarray):
+    """The 10 coefficient rows (k,) of the planes n . x + d = 0 weighted by w, one at a time (``out``:
+    one (k,) buffer reused, so that a row is only valid until the next is made)."""
+    a, b, c = (np.ascontiguousarray(x) for x in n.T)
+    wa, wb, wc = w * a, w * b, w * c
+    out = np.empty(len(w))
+    for x, y in ((wa, a), (wa, b), (wa, c), (wa, d), (wb, b), (wb, c), (wb, d), (wc, c), (wc, d)):
+        yield np.multiply(x, y, out=out)
+    np.multiply(w, d, out=out)
+    out *= d
+    yield out
 
 
 def _plane_quadric(n: np.ndarray, d: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(10, k) coefficients of the planes n . x + d = 0 weighted by w."""
-    a, b, c = (np.ascontiguousarray(x) for x in n.T)
-    wa, wb, wc = w * a, w * b, w * c
-    Q = np.empty((10, len(w)))  # written in place: no list of rows to stack
-    for row, (x, y) in enumerate(((wa, a), (wa, b), (wa, c), (wa, d), (wb, b), (wb, c), (wb, d), (wc, c), (wc, d))):
-        np.multiply(x, y, out=Q[row])
-    np.multiply(w, d, out=Q[9])
-    Q[9] *= d
-    return Q
+    return np.stack([row.copy() for row in _plane_rows(n, d, w)])
 
 
 def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -467,17 +471,34 @@ def _quadric_eval_t(Q: np.ndarray, p: np.ndarray) -> np.ndarray:
     )
 
 
+def _monomials(V: np.ndarray) -> np.ndarray:
+    """(n, 10) per point: the factors of a quadric's coefficients (``_quadric_eval_t``'s order) in
+    its value, so that Q(p) is one dot product of two rows."""
+    x, y, z = (np.ascontiguousarray(c) for c in V.T)
+    M = np.empty((len(V), 10))
+    for j, (s, c) in enumerate(((x, x), (x, 2 * y), (x, 2 * z), (2, x), (y, y), (y, 2 * z), (2, y), (z, z), (2, z))):
+        np.multiply(s, c, out=M[:, j])
+    M[:, 9] = 1.0
+    return M
+
+
 def _vertex_quadrics(V: np.ndarray, F: np.ndarray, bnd: np.ndarray) -> np.ndarray:
     """Sum of face quadrics per vertex, plus boundary-edge constraint planes; (n, 10).
 
     ``bnd`` (m, 3) bool marks the boundary half-edges F[f, j] -> F[f, j+1].
     """
     n = len(V)
-    Qf, normals = _face_quadrics(V, F)
+    cr = face_cross(V, F)  # the same bits as np.cross, without (m, 3) gathers of the corners
+    area2 = np.sqrt(np.einsum("ij,ij->i", cr, cr))
+    normals = cr / np.maximum(area2, 1e-300)[:, None]
+    d = -np.einsum("ij,ij->i", normals, np.take(V, F[:, 0], axis=0))
+    cols = [np.ascontiguousarray(F[:, j]) for j in range(3)]
     QT = np.empty((10, n))
-    idx = F.T.ravel()  # corner by corner: the face's weights repeat three times
-    for j in range(10):
-        QT[j] = np.bincount(idx, weights=np.tile(Qf[j], 3), minlength=n)
+    # the faces' area-weighted plane quadrics, a coefficient at a time (no (10, m) array)
+    for j, q in enumerate(_plane_rows(normals, d, 0.5 * area2)):
+        QT[j] = np.bincount(cols[0], weights=q, minlength=n)
+        QT[j] += np.bincount(cols[1], weights=q, minlength=n)
+        QT[j] += np.bincount(cols[2], weights=q, minlength=n)
     fb, jb = np.nonzero(bnd)
     if len(fb):
         e0, e1 = F[fb, jb], F[fb, _NEXT[jb]]
@@ -518,6 +539,8 @@ class _Ctx:
     """What stays fixed while encoding: geometry, quadrics (updated in place) and vertex flags."""
 
     V: np.ndarray  # (n + 1, 3) positions (the last row: the sink)
+    VT: np.ndarray  # (3, n + 1) the same, by coordinate
+    M: np.ndarray  # (n + 1, 10) the positions' monomials: a quadric's value at V[i] is Q . M[i]
     order: np.ndarray  # (n,) int64: a fixed permutation, the tiebreak of equal cost buckets
     Q: np.ndarray  # (n + 1, 10) vertex quadrics (a row per vertex: one gather is one cache line); v absorbs u
     E: np.ndarray  # (n,) each vertex's own error Q_v(V_v)
@@ -544,15 +567,22 @@ class _Live:
     F: np.ndarray  # (m, 3) int64 input vertex ids (n: removed face)
     fid: np.ndarray  # (m,) input face ids
     bnd: np.ndarray  # (m, 3) bool: the half-edge is on the boundary
-    cost: np.ndarray  # (m, 3) forward cost, inf where the vertex flags forbid it
-    rcost: np.ndarray  # (m, 3) reverse cost, inf off the boundary or where forbidden
-    failed: np.ndarray  # (m, 3) uint8: bit 1 forward, bit 2 reverse candidate found invalid (until
-    # its neighbourhood changes)
+    cost: np.ndarray  # (m, 3) forward cost, inf where the vertex flags forbid it or the candidate
+    # was found invalid (until its neighbourhood changes)
+    rcost: np.ndarray  # (m, 3) reverse cost, inf off the boundary, where forbidden or found invalid
+    failed: list = field(default_factory=list)  # arrays of flat corners whose candidate was found invalid
     n_dead: int = 0
 
     def keep(self, rows: np.ndarray) -> None:
-        for name in ("F", "fid", "bnd", "cost", "rcost", "failed"):
-            setattr(self, name, getattr(self, name)[rows])
+        """Keep the faces ``rows`` ((m,) bool), in order."""
+        idx = np.flatnonzero(rows)
+        for name in ("F", "fid", "bnd", "cost", "rcost"):
+            setattr(self, name, np.take(getattr(self, name), idx, axis=0))
+        if self.failed:
+            c = np.concatenate(self.failed)
+            new = np.cumsum(rows) - 1
+            c = c[np.take(rows, c // 3)]
+            self.failed = [np.take(new, c // 3) * 3 + c % 3]
 
     def faces(self, n: int) -> np.ndarray:
         """The live faces (rows without the sink)."""
@@ -581,7 +611,7 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     b = take(Fl, corners - corners % 3 + take(_NEXT, corners % 3))
     bnd = take(live.bnd.ravel(), corners)
     allowed = take(ctx.go, a) & ~take(ctx.locked, b) & (bnd == take(ctx.bvert, a))
-    into_b = _quadric_eval_t(take(ctx.Q, a, axis=0).T, take(ctx.V, b, axis=0).T) + take(ctx.E, b)
+    into_b = np.einsum("ij,ij->i", take(ctx.Q, a, axis=0), take(ctx.M, b, axis=0)) + take(ctx.E, b)
     into_b[~allowed] = np.inf
     live.cost.ravel()[corners] = into_b
     rc = live.rcost.ravel()
@@ -589,9 +619,25 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     on = np.flatnonzero(bnd)
     if len(on):
         a, b = a[on], b[on]
-        r = _quadric_eval_t(take(ctx.Q, b, axis=0).T, take(ctx.V, a, axis=0).T) + take(ctx.E, a)
+        r = np.einsum("ij,ij->i", take(ctx.Q, b, axis=0), take(ctx.M, a, axis=0)) + take(ctx.E, a)
         r[~(ctx.go[b] & ~ctx.locked[a])] = np.inf
         rc[corners[on]] = r
+
+
+def _pick(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``a[mask]`` for each array (1-D, same length as the bool ``mask``), through one flatnonzero and
+    gathers: several times faster than boolean indexing when the mask is irregular."""
+    i = np.flatnonzero(mask)
+    return tuple(np.take(a, i) for a in arrays)
+
+
+def _bucket(thr: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``np.searchsorted(thr, x, side="right")`` for a few sorted bounds (uint8): one comparison per
+    bound, branch-free (a binary search per element mispredicts on unsorted x, ten times slower)."""
+    out = np.zeros(len(x), np.uint8)
+    for t in thr:
+        out += x >= t
+    return out
 
 
 def _any3(m: np.ndarray) -> np.ndarray:
@@ -650,9 +696,11 @@ class _Chosen:
     def subset(self, keep: np.ndarray) -> "_Chosen":
         """The records ``keep`` (bool per record), renumbered."""
         new = np.cumsum(keep) - 1
-        ku, kv = keep[self.ru], keep[self.rv]
-        return _Chosen(self.u[keep], self.v[keep], self.cu[ku], new[self.ru[ku]], self.cv[kv],
-                       new[self.rv[kv]], self.near)
+        ku, kv = np.take(keep, self.ru), np.take(keep, self.rv)
+        u, v = _pick(keep, self.u, self.v)
+        cu, ru = _pick(ku, self.cu, self.ru)
+        cv, rv = _pick(kv, self.cv, self.rv)
+        return _Chosen(u, v, cu, np.take(new, ru), cv, np.take(new, rv), self.near)
 
 
 def build_progressive_mesh(
@@ -694,11 +742,11 @@ def build_progressive_mesh(
     Q[:n] = _vertex_quadrics(V, F0, bnd)
     Vs = np.zeros((n + 1, 3))
     Vs[:n] = V
-    ctx = _Ctx(V=Vs, order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
+    ctx = _Ctx(V=Vs, VT=np.ascontiguousarray(Vs.T), M=_monomials(Vs), order=np.r_[np.random.default_rng(n).permutation(n), n], Q=Q, E=_quadric_eval_t(Q.T, Vs.T),
                go=~locked & ~keep, locked=locked, bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
-                 rcost=np.empty((m, 3)), failed=np.zeros((m, 3), np.uint8))
+                 rcost=np.empty((m, 3)))
     _update_costs(ctx, live, np.arange(3 * m))
 
     alive = np.ones(n, bool)  # by input id
@@ -765,7 +813,7 @@ def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple
     live.n_dead = 0
     live.F = new_id[live.F]
     sel = np.r_[kept, nl]  # the old sink's entries (locked, zero quadric) serve the new sink
-    return _Ctx(V=ctx.V[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
+    return _Ctx(V=ctx.V[sel], VT=np.take(ctx.VT, sel, axis=1), M=ctx.M[sel], order=ctx.order[sel], Q=ctx.Q[sel], E=ctx.E[sel], go=ctx.go[sel],
                 locked=ctx.locked[sel], bvert=ctx.bvert[sel], area_eps=ctx.area_eps), ids[kept]
 
 
@@ -775,8 +823,7 @@ _BIG = np.iinfo(np.int64).max
 
 def _best(ctx: _Ctx, live: _Live) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per vertex, the cost of its cheapest live candidate; and the live cost arrays."""
-    fwd = np.where(live.failed & 1, np.inf, live.cost)
-    rev = np.where(live.failed & 2, np.inf, live.rcost)
+    fwd, rev = live.cost, live.rcost
     best = np.full(len(ctx.go), np.inf)
     F = live.F
     for j in range(3):
@@ -819,58 +866,79 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen
     if len(fin) == 0:
         return _Chosen.join([])
     step = max(1, len(fin) // 20000)  # bucket bounds from a fixed subsample: they need not be exact
-    thr = np.quantile(fin[::step], np.arange(1, _BUCKETS) / _BUCKETS)
+    # (sorted first: numpy's SIMD sort and a selection in sorted data beat the selection alone)
+    thr = np.quantile(np.sort(fin[::step]), np.arange(1, _BUCKETS) / _BUCKETS)
+    key = (_bucket(thr, best).astype(np.int64) << 32) | ctx.order  # priority
     parts: list[_Chosen] = []
-    rows = np.arange(len(F))  # faces in play
+    rows = None  # faces in play (None: all)
+    inv = np.empty(int(ctx.order[-1]) + 1, np.int64)  # order -> vertex (the sink's order is the largest)
+    inv[ctx.order] = np.arange(nn)
     for r in range(64):
         if r >= rounds and parts:
             break
         bu = np.flatnonzero(np.isfinite(best))
         if len(bu) == 0:
             break
-        Fr = np.take(F, rows, axis=0)
-        if r > 0:  # keep the faces within one ring of a vertex still in play
+        if r < 2:  # (filtering for round 1 costs more than it saves: most faces are still in play)
+            Fr = F
+        else:  # keep the faces within one ring of a vertex still in play
             in_play = np.zeros(nn, bool)
             in_play[bu] = True
-            in_play[Fr[_any3(np.take(in_play, Fr))]] = True
-            rows = rows[_any3(np.take(in_play, Fr))]
-            Fr = np.take(F, rows, axis=0)
+            in_play[np.take(Fr, np.flatnonzero(_any3(np.take(in_play, Fr))), axis=0)] = True
+            keep = np.flatnonzero(_any3(np.take(in_play, Fr)))
+            rows = keep if rows is None else np.take(rows, keep)
+            Fr = np.take(Fr, keep, axis=0)
+        salt = _SALTS[r % len(_SALTS)]
         val = np.full(nn, _BIG, np.int64)
-        bucket = np.searchsorted(thr, np.take(best, bu), side="right").astype(np.int64)
-        val[bu] = (bucket << 32) | (np.take(ctx.order, bu) ^ _SALTS[r % len(_SALTS)])
-        m2 = _ring_min(Fr, _ring_min(Fr, val))
-        wu = bu[val[bu] == m2[bu]]
+        val[bu] = np.take(key, bu) ^ salt
+        m1 = _ring_min(Fr, val)
+        m2 = _ring_min(Fr, m1)
+        (wu,) = _pick(np.take(val, bu) == np.take(m2, bu), bu)
+        # the winners' closed 1-rings: w is in u's when m1[w] == val[u] (u is the least in its 2-ring)
+        tag = np.full(nn + 1, -1, np.int32)  # (the sink's entry: no winner)
+        tag[wu] = np.arange(len(wu), dtype=np.int32)
+        near = np.flatnonzero(m1 < _BIG)
+        ring = np.full(nn, -1, np.int32)
+        ring[near] = np.take(tag, np.take(inv, (np.take(m1, near) & 0xFFFFFFFF) ^ salt))
+        # one scan: the corners at the rings' vertices
+        t = np.take(ring, Fr.reshape(-1))
+        c = np.flatnonzero(t >= 0)
+        r2 = np.take(t, c).astype(np.int64)
+        at = np.take(Fr.reshape(-1), c)  # their vertices
+        if rows is not None:
+            c = np.take(rows, c // 3) * 3 + c % 3
+        is_u = at == np.take(wu, r2)
+        cu, ru = _pick(is_u, c, r2)
         # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
-        tag = np.full(nn, -1, np.int64)
-        tag[wu] = np.arange(len(wu))
-        cu, ru = _corners_of(F, tag, rows)
-        fr, j = cu // 3, cu % 3
-        pc = fr * 3 + _PREV[j]  # the corner of the half-edge arriving at u
-        cf, cr = fwd.ravel()[cu], rev.ravel()[pc]
-        bw = best[wu][ru]
+        pc = cu + np.take(_TO_PREV, cu % 3)  # the corner of the half-edge arriving at u
+        cf, cr = np.take(fwd, cu), np.take(rev, pc)
+        bw = np.take(np.take(best, wu), ru)
         cand = np.concatenate([np.where(cf == bw, 2 * cu, _BIG), np.where(cr == bw, 2 * pc + 1, _BIG)])
         pick = np.full(len(wu), _BIG, np.int64)
         np.minimum.at(pick, np.concatenate([ru, ru]), cand)
         rev_pick = (pick & 1).astype(bool)
         pcorner = pick >> 1
-        wv = np.where(rev_pick, Fl[pcorner], Fl[(pcorner // 3) * 3 + _NEXT[pcorner % 3]])
-        cv, rv, near_f, near_r, ring = _around(live, nn, wv, cu, ru, rows)
+        wv = np.take(Fl, np.where(rev_pick, pcorner, pcorner + np.take(_TO_NEXT, pcorner % 3)))
+        at_v = at == np.take(wv, r2)
+        cv, rv = _pick(at_v, c, r2)
+        near_f, near_r = c // 3, r2
         ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=True)
         # failed candidates leave the running; their vertices try their next candidate
         bad = ~ok
-        live.failed.ravel()[pcorner[bad & ~rev_pick]] |= 1
-        live.failed.ravel()[pcorner[bad & rev_pick]] |= 2
+        live.failed.append(pcorner[bad])
         fwd.ravel()[pcorner[bad & ~rev_pick]] = np.inf
         rev.ravel()[pcorner[bad & rev_pick]] = np.inf
         best[wu[bad]] = np.inf
         sel = bad[ru]
         if sel.any():
             np.minimum.at(best, wu[ru[sel]], np.minimum(fwd.ravel()[cu[sel]], rev.ravel()[pc[sel]]))
+            wb = wu[bad]
+            key[wb] = (_bucket(thr, best[wb]).astype(np.int64) << 32) | ctx.order[wb]
         if ok.any():
-            acc = ok[near_r]
+            (near_acc,) = _pick(np.take(ok, near_r), near_f)
             # block the 2-rings of the accepted u: every vertex of a face touching their 1-rings
-            best[np.take(F, near_f[acc], axis=0)] = np.inf
-            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_f[acc]).subset(ok))
+            best[np.take(F, near_acc, axis=0)] = np.inf
+            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_acc).subset(ok))
     return _Chosen.join(parts)
 
 
@@ -921,43 +989,56 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
     fu, ju = cu // 3, cu % 3
     vu = take(v, ru)
     has_v = (take(Fl, fu * 3 + take(_NEXT, ju)) == vu) | (take(Fl, fu * 3 + take(_PREV, ju)) == vu)
-    ndead = np.bincount(ru[has_v], minlength=k)
+    rd, fd = _pick(has_v, ru, fu)
+    ndead = np.bincount(rd, minlength=k)
     # common neighbours of u and v: v's neighbours (each once: the next vertex of every face at v,
     # and the previous one across a boundary half-edge) that lie in u's 1-ring
     fv, jv = cv // 3, cv % 3
     w = take(Fl, fv * 3 + take(_NEXT, jv))
     pb = fv * 3 + take(_PREV, jv)
     on_b = take(bl, pb)
-    w = np.concatenate([w, take(Fl, pb[on_b])])
-    wr = np.concatenate([rv, rv[on_b]])
+    pbb, rvb = _pick(on_b, pb, rv)
+    w = np.concatenate([w, take(Fl, pbb)])
+    wr = np.concatenate([rv, rvb])
     com = (take(ring, w) == wr) & (w != take(u, wr))
-    w, crec = w[com], wr[com]
+    w, crec = _pick(com, w, wr)
     n_common = np.bincount(crec, minlength=k)
     bedge = ndead == 1
     ok = (ndead >= 1) & (n_common == np.where(bedge, 1, 2))
     # the opposite vertices must keep enough edges (no two faces folded onto each other)
     valence = take(cnt, w) + take(ctx.bvert, w)
-    ok &= np.bincount(crec, weights=valence < take(np.where(bedge, 3, 4), crec), minlength=k) == 0
+    ok[crec[valence < take(np.where(bedge, 3, 4), crec)]] = False
     ok &= cnt[u] > ndead  # an arc of faces remains to hand back
     ok &= cnt[u] + cnt[v] - 2 * ndead <= MAX_FAN
     # the removed faces hold no boundary edge but the collapsed one (the boundary stays as it is)
-    fd = fu[has_v]
-    nbd = np.bincount(ru[has_v], weights=take(bl, fd * 3) + take(bl, fd * 3 + 1) + take(bl, fd * 3 + 2),
+    nbd = np.bincount(rd, weights=take(bl, fd * 3) + take(bl, fd * 3 + 1) + take(bl, fd * 3 + 2),
                       minlength=k)
     ok &= nbd == bedge
     if check_flips:
-        mv = ~has_v
-        tri = np.take(live.F, fu[mv], axis=0)
-        r = ru[mv]
-        p = np.take(ctx.V, tri, axis=0)
-        before = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        p[np.arange(len(tri)), ju[mv]] = ctx.V[v[r]]
-        after = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        nb = np.linalg.norm(before, axis=1)
-        na = np.linalg.norm(after, axis=1)
-        cosang = np.einsum("ij,ij->i", before, after) / np.maximum(nb * na, 1e-300)
-        bad = (cosang < 0.2) | (na < ctx.area_eps)
-        ok &= np.bincount(r, weights=bad, minlength=k) == 0
+        # a face (u, b, c) that stays becomes (v, b, c): its normal (b - u) x (c - b) turns into
+        # (b - v) x (c - b); no flip (cosine of the turn at least 0.2) and no sliver
+        mv = np.flatnonzero(~has_v)
+        f3, j = take(fu, mv) * 3, take(ju, mv)
+        r = take(ru, mv)
+        b = take(Fl, f3 + take(_NEXT, j))
+        c = take(Fl, f3 + take(_PREV, j))
+        e, du, dv = [], [], []
+        for X in ctx.VT:
+            xb = take(X, b)
+            e.append(take(X, c) - xb)
+            du.append(xb - take(take(X, u), r))
+            dv.append(xb - take(take(X, v), r))
+        dot = nb2 = na2 = 0.0
+        for i in range(3):
+            j1, j2 = (i + 1) % 3, (i + 2) % 3
+            nb_i = du[j1] * e[j2] - du[j2] * e[j1]
+            na_i = dv[j1] * e[j2] - dv[j2] * e[j1]
+            dot = dot + nb_i * na_i
+            nb2 = nb2 + nb_i * nb_i
+            na2 = na2 + na_i * na_i
+        prod = np.sqrt(nb2 * na2)
+        bad = (dot < 0.2 * prod) | (prod == 0) | (na2 < ctx.area_eps * ctx.area_eps)
+        ok[r[bad]] = False
     return ok
 
 
@@ -970,40 +1051,65 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     Fl = F.ravel()
     cu, ru, cv, rv = ch.cu, ch.ru, ch.cv, ch.rv
     fu, ju = cu // 3, cu % 3
-    d1 = Fl[fu * 3 + _NEXT[ju]] == v[ru]  # f1 holds the half-edge u -> v
-    d2 = Fl[fu * 3 + _PREV[ju]] == v[ru]  # f2 holds v -> u
+    vu = np.take(v, ru)
+    d1 = np.take(Fl, fu * 3 + np.take(_NEXT, ju)) == vu  # f1 holds the half-edge u -> v
+    d2 = np.take(Fl, fu * 3 + np.take(_PREV, ju)) == vu  # f2 holds v -> u
     dead = np.full((k, 2), -1, np.int64)
-    dead[ru[d1], 0] = live.fid[fu[d1]]
-    dead[ru[d2], 1] = live.fid[fu[d2]]
+    for col, d in enumerate((d1, d2)):
+        r_d, f_d = _pick(d, ru, fu)
+        dead[r_d, col] = np.take(live.fid, f_d)
     single = (dead < 0).any(axis=1)
     flags = np.where(single, FLAG_SINGLE | np.where(dead[:, 0] < 0, FLAG_SECOND, 0), 0).astype(np.uint8)
     arc = ~(d1 | d2)
     fv = cv // 3
-    vkeep = (F[fv, 0] != u[rv]) & (F[fv, 1] != u[rv]) & (F[fv, 2] != u[rv])
-    all_r = np.concatenate([ru[arc], rv[vkeep]])
-    all_f = np.concatenate([fu[arc], fv[vkeep]])
-    all_arc = np.concatenate([np.ones(int(arc.sum()), bool), np.zeros(int(vkeep.sum()), bool)])
-    order = np.argsort(all_r, kind="stable")
+    (gone,) = _pick(~arc, fu)
+    is_gone = np.zeros(len(F), bool)
+    is_gone[gone] = True
+    vkeep = ~np.take(is_gone, fv)
+    # the faces around v after the collapse: u's arc, then v's own; their corners at v
+    cu_a, ru_a = _pick(arc, cu, ru)
+    cv_k, rv_k = _pick(vkeep, cv, rv)
+    at = np.concatenate([cu_a, cv_k])
+    all_r = np.concatenate([ru_a, rv_k])
+    all_f = at // 3
+    all_arc = np.concatenate([np.ones(len(cu_a), bool), np.zeros(len(cv_k), bool)])
+    order, _ = stable_order(all_r)
     fan_ptr = np.zeros(k + 1, np.int64)
     np.cumsum(np.bincount(all_r, minlength=k), out=fan_ptr[1:])
     p = _Pass(u=u.copy(), v=v.copy(), flags=flags, dead=dead, fan_ptr=fan_ptr,
-              fan=live.fid[all_f[order]], arc=all_arc[order])
+              fan=np.take(live.fid, np.take(all_f, order)), arc=np.take(all_arc, order))
     # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
-    Fl[cu[arc]] = v[ru[arc]]
-    gone = fu[~arc]
-    F[gone] = n
-    live.cost[gone] = np.inf
-    live.rcost[gone] = np.inf
+    Fl[cu_a] = np.take(v, ru_a)
+    g3 = (gone * 3)[:, None] + np.arange(3)
+    Fl[g3] = n
+    live.cost.reshape(-1)[g3] = np.inf
+    live.rcost.reshape(-1)[g3] = np.inf
     live.n_dead += len(gone)
-    ctx.Q[v] += ctx.Q[u]
-    ctx.E[v] = _quadric_eval_t(ctx.Q[v].T, ctx.V[v].T)
-    # costs change on the half-edges from and to v; failed candidates get another chance nearby
-    at_v = np.take(F, all_f, axis=0) == v[all_r][:, None]
-    at_v |= at_v[:, [1, 2, 0]]  # corner j ends at v when corner j + 1 is at v
-    rr, jj = np.nonzero(at_v)
-    _update_costs(ctx, live, all_f[rr] * 3 + jj)
-    live.failed[ch.near] = 0
-    live.failed[fv] = 0
+    Qv = np.take(ctx.Q, v, axis=0)
+    Qv += np.take(ctx.Q, u, axis=0)
+    ctx.Q[v] = Qv
+    Ev = np.einsum("ij,ij->i", Qv, np.take(ctx.M, v, axis=0))
+    dE = Ev - np.take(ctx.E, v)
+    ctx.E[v] = Ev
+    # costs change on the half-edges from and to v (the corners at v and the previous ones). Into v
+    # from its own faces, Q_a(V_v) stays: the cost moves by v's own error's change (off the boundary,
+    # where no reverse candidate needs Q_v; the full updates that follow overwrite any corner from
+    # another record's v). Failed candidates get another chance nearby.
+    into = at + np.take(_TO_PREV, at % 3)
+    n_arc = len(cu_a)
+    own = into[n_arc:]
+    on_b = np.take(live.bnd.reshape(-1), own)
+    shift = np.flatnonzero(~on_b)
+    live.cost.reshape(-1)[np.take(own, shift)] += np.take(dE, np.take(all_r[n_arc:], shift))
+    _update_costs(ctx, live, np.concatenate([at, into[:n_arc], *_pick(on_b, own)]))
+    if live.failed:
+        c = np.concatenate(live.failed)
+        near = np.zeros(len(F), bool)
+        near[ch.near] = True
+        near[fv] = True
+        again = np.take(near, c // 3)
+        _update_costs(ctx, live, *_pick(again, c))
+        live.failed = list(_pick(~again, c))
     if live.n_dead * 4 > len(F):
         live.keep(F[:, 0] < n)
         live.n_dead = 0
@@ -1039,7 +1145,7 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
         k = len(p.u)
         sizes = np.diff(p.fan_ptr)
         rec = np.repeat(np.arange(k, dtype=np.int64), sizes)
-        order = np.argsort(rec * len(face_order) + fpm_of[p.fan])
+        order, _ = stable_order(rec * len(face_order) + np.take(fpm_of, p.fan))  # (unique keys)
         rank = (np.arange(len(rec)) - p.fan_ptr[rec]).astype(np.uint64)  # rec is sorted already
         bits = np.where(p.arc[order], np.left_shift(np.uint64(1), rank), np.uint64(0))
         nonempty = np.flatnonzero(sizes > 0)
