@@ -2,7 +2,8 @@
 
 - ``word``: the pass phrase (scrypt), the payload and its keyed check, the keyed layout.
 - ``radial``: the carrier, the distribution of the vertices' distances to the surface centroid in
-  equal bins (Cho et al.'s method I, over an area-quantile range instead of the extreme vertices).
+  equal bins (Cho et al.'s method I, over an area-quantile range instead of the extreme vertices, with
+  an edge-preserving push in each bin).
 - ``keydata``: the record in the in-memory key (no key file is written; nothing from the mesh).
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed
@@ -22,8 +23,8 @@ simplification of the dragon gives BER 0 against 0.14 in its own frame.
 
 Strength: without an explicit ``strength`` the margin is calibrated per mesh to the distortion budget
 (``TARGET_MRMS``; ``_calibrated``): 0.07 everywhere gave MRMS 0.012 % on the Venus head and Igea
-against 0.019 % on the bunny and dragon; calibrated, the margin is about 0.07 on the bunny and dragon,
-0.10-0.12 on the heads.
+against 0.019 % on the bunny and dragon; calibrated, the margin is about 0.06 on the bunny and dragon,
+0.09-0.10 on the heads.
 
 Cropping is not helped: a 10 % plane crop moves the area centroid by 5-16 bin widths and lo/hi by up
 to 8 (measured on the four benchmark models), far outside this search (BENCHMARKS.md: 0/12 copies
