@@ -21,7 +21,7 @@ with the fewest wrong, then weak, bins.
 
 Why this push: at the same MRMS it reads more whole payloads than r**k after simplification,
 smoothing, quantization and subdivision, and as many after noise, similarity and re-ordering
-(BENCHMARKS.md, section ``blind``, against the previous run of the same protocol).
+(BENCHMARKS.md, section ``blind-push``: the same protocol run before and after).
 
 Reading (``read_statistics_frames``): the statistics in the suspect's own frame and in the frame
 near it (1.5 bin widths at most) where the mark's energy is largest (``refine_frame``, a compass
@@ -113,12 +113,16 @@ def bin_vertices(V: np.ndarray, fr: Frame) -> Binned:
     d = V - fr.centre
     rho = np.linalg.norm(d, axis=1)
     unit = np.divide(d, rho[:, None], out=np.zeros_like(d), where=rho[:, None] > 0)
-    t = (rho - fr.lo) / fr.width
-    b = np.floor(t).astype(np.int64)
-    inside = (b >= 0) & (b < fr.n_bins)
-    b = np.where(inside, b, -1)
-    r = np.where(inside, t - np.floor(t), 0.0)
+    b, r = _bins((rho - fr.lo) / fr.width, fr.n_bins)
     return Binned(rho, unit, b, r)
+
+
+def _bins(t: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
+    """Positions t (n,) in bin widths from lo -> bin (n,) int64 (-1 outside the n_bins) and r (n,),
+    the place inside the bin in [0, 1) (0 outside)."""
+    b = np.floor(t).astype(np.int64)
+    inside = (b >= 0) & (b < n_bins)
+    return np.where(inside, b, -1), np.where(inside, t - np.floor(t), 0.0)
 
 
 def bin_statistics(r: np.ndarray, b: np.ndarray, a: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
@@ -141,25 +145,35 @@ def read_statistics_many(V: np.ndarray, F: np.ndarray, bin_counts) -> list[tuple
     return statistics_in(V, a, fr, bin_counts)
 
 
+def _least_step(reached, j_max: np.ndarray) -> np.ndarray:
+    """Per bin, the smallest step j in 0 .. j_max (M,) int64 for which ``reached(j)`` ((M,) -> (M,)
+    bool, monotone in j) holds; j_max where none does. Bisection, all bins at once."""
+    lo = np.zeros_like(j_max)
+    hi = j_max.copy()
+    while np.any(lo < hi):
+        mid = (lo + hi) // 2
+        sat = reached(mid)
+        hi = np.where(sat & (lo < hi), mid, hi)
+        lo = np.where(~sat & (lo < hi), mid + 1, lo)
+    return lo
+
+
+def _meets(r_new, b, a, n_bins, one, targets) -> np.ndarray:
+    """Per bin (M,) bool: its mean of the moved radii r_new (n,) is past its target (above for the
+    bins ``one``, below for the others), or the bin is empty."""
+    mean, _ = bin_statistics(np.where(b >= 0, r_new, 0.0), b, a, n_bins)
+    return np.where(one, mean > targets, mean < targets) | np.isnan(mean)
+
+
 def _solve_k(r, b, a, n_bins, one, targets) -> np.ndarray:
-    """Per bin, the exponent on the grid 1 -+ j*K_GRID nearest 1 meeting its target (bisection)."""
-    j_max = np.where(one, int(np.floor((1.0 - K_GRID) / K_GRID)), int(round(50.0 / K_GRID)))
-    lo = np.zeros(n_bins, np.int64)
-    hi = j_max.astype(np.int64)
-    ok_b = b >= 0
-    bb = np.where(ok_b, b, 0)
+    """Per bin, the exponent on the grid 1 -+ j*K_GRID nearest 1 meeting its target."""
+    j_max = np.where(one, int(np.floor((1.0 - K_GRID) / K_GRID)), int(round(50.0 / K_GRID))).astype(np.int64)
+    bb = np.where(b >= 0, b, 0)
 
     def k_of(j):
         return np.where(one, 1.0 - j * K_GRID, 1.0 + j * K_GRID)
 
-    while np.any(lo < hi):
-        mid = (lo + hi) // 2
-        k = k_of(mid)
-        mean, _ = bin_statistics(np.where(ok_b, r ** k[bb], 0.0), b, a, n_bins)
-        sat = np.where(one, mean > targets, mean < targets) | np.isnan(mean)
-        hi = np.where(sat & (lo < hi), mid, hi)
-        lo = np.where(~sat & (lo < hi), mid + 1, lo)
-    return k_of(lo)
+    return k_of(_least_step(lambda j: _meets(r ** k_of(j)[bb], b, a, n_bins, one, targets), j_max))
 
 
 def _push(r: np.ndarray, beta: np.ndarray) -> np.ndarray:
@@ -168,26 +182,16 @@ def _push(r: np.ndarray, beta: np.ndarray) -> np.ndarray:
 
 
 def _solve_beta(r, b, a, n_bins, one, targets) -> tuple[np.ndarray, np.ndarray]:
-    """Per bin, the push on the grid +- j * BETA_GRID nearest 0 meeting its target (bisection), and
-    whether it does (M,) bool: at BETA_MAX a bin mean moves by about 0.155 at most."""
-    j_max = int(np.floor(BETA_MAX / BETA_GRID))
-    lo = np.zeros(n_bins, np.int64)
-    hi = np.full(n_bins, j_max, np.int64)
-    ok_b = b >= 0
-    bb = np.where(ok_b, b, 0)
+    """Per bin, the push on the grid +- j * BETA_GRID nearest 0 meeting its target, and whether it
+    does (M,) bool: at BETA_MAX a bin mean moves by about 0.155 at most."""
+    bb = np.where(b >= 0, b, 0)
     sign = np.where(one, 1.0, -1.0)
-    s2 = np.sin(np.pi * r) ** 2
 
     def reached(j: np.ndarray) -> np.ndarray:
-        mean, _ = bin_statistics(np.where(ok_b, r + (sign * j * BETA_GRID)[bb] * s2, 0.0), b, a, n_bins)
-        return np.where(one, mean > targets, mean < targets) | np.isnan(mean)
+        return _meets(_push(r, (sign * j * BETA_GRID)[bb]), b, a, n_bins, one, targets)
 
-    while np.any(lo < hi):
-        mid = (lo + hi) // 2
-        sat = reached(mid)
-        hi = np.where(sat & (lo < hi), mid, hi)
-        lo = np.where(~sat & (lo < hi), mid + 1, lo)
-    return sign * lo * BETA_GRID, reached(lo)
+    j = _least_step(reached, np.full(n_bins, int(np.floor(BETA_MAX / BETA_GRID)), np.int64))
+    return sign * j * BETA_GRID, reached(j)
 
 
 def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, rounds: int = 8) -> np.ndarray:
@@ -305,11 +309,7 @@ def statistics_in(V: np.ndarray, a: np.ndarray, fr: Frame, bin_counts) -> list[t
     t0 = (np.sqrt(np.einsum("ij,ij->i", d, d)) - fr.lo) / (fr.hi - fr.lo)
     out = []
     for n_bins in bin_counts:
-        t = t0 * n_bins
-        b = np.floor(t).astype(np.int64)
-        inside = (b >= 0) & (b < n_bins)
-        b = np.where(inside, b, -1)
-        r = np.where(inside, t - np.floor(t), 0.0)
+        b, r = _bins(t0 * n_bins, n_bins)
         mean, wsum = bin_statistics(r, b, a, n_bins)
         out.append((mean - 0.5, wsum / a.sum()))
     return out
