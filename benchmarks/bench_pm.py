@@ -6,9 +6,8 @@ this checkout's code, and the old code with PYTHONPATH=<--old> (default ../main/
 checkout), alternately, best of ``--repeat``. The anchor is fast_simplification.simplify decimating
 the same arrays to the same vertex count, timed in the same worker. On bunny and igea the first worker
 of each code also measures the levels of detail: the surface distance to the input of the base mesh and
-of the level ending nearest half the records (``metrics.surface_distance``, seed 0). A last table times
-whole processes on igea: ``pmwm embed`` (read, embed, write mesh, key and .pmwm) against a script that reads
-the file with trimesh, decimates it to 1 % with fast_simplification and writes a PLY.
+of the level ending nearest half the records (``metrics.surface_distance``, seed 0). Whole processes
+(``pmwm embed`` against fast-simplification, the issue's anchor) are timed by bench_core.py only.
 
 With ``--numba-python PY`` (an interpreter with numba and numpy installed, e.g. a scratch venv), the
 section adds the numba probe behind the choice of pure numpy: two kernels of one encoder pass on igea
@@ -39,7 +38,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, command, commit, load, machine, mesh_path, write_section  # noqa: E402
+from _report import ROOT, command, commit, load, machine, write_section  # noqa: E402
 
 BASE_RATIO = 0.03  # the embedders' default base ratio
 LOD_SAMPLES = 20000  # surface samples each way for the levels' distances
@@ -239,15 +238,6 @@ def best(a: dict, b: dict) -> dict:
     return out
 
 
-def wall(cmd: list, env: dict, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        subprocess.run(cmd, env=env, check=True, capture_output=True)
-        times.append(time.perf_counter() - t)
-    return min(times)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--worker")
@@ -287,19 +277,6 @@ def main() -> None:
             rows.append((name, len(V), len(F), new, was))
             if name == "igea" and a.numba_python:
                 probe = numba_probe(a.numba_python, path)
-        # whole processes on igea: pmwm embed vs fast_simplification to 1 %
-        igea = str(mesh_path("igea"))
-        env_new = dict(os.environ, PYTHONPATH=str(NEW_CORE))
-        embed = [sys.executable, "-m", "pmwm", "embed", igea, "-o", os.path.join(tmp, "o.ply"), "--key",
-                 os.path.join(tmp, "k.json"), "--pm", os.path.join(tmp, "o.pmwm"), "--seed", "1", "--force", "-q"]
-        fs_script = ("import sys, trimesh, fast_simplification;"
-                     "m = trimesh.load(sys.argv[1], process=False);"
-                     "V, F = fast_simplification.simplify(m.vertices, m.faces, target_reduction=0.99);"
-                     "trimesh.Trimesh(V, F, process=False).export(sys.argv[2])")
-        fs_cmd = [sys.executable, "-c", fs_script, igea, os.path.join(tmp, "fs.ply")]
-        t_embed_new = wall(embed, env_new, 3)
-        t_fs = wall(fs_cmd, env_new, 3)
-        t_embed_old = wall(embed, dict(os.environ, PYTHONPATH=str(old)), 2) if old else None
 
     def ms(x):
         return "–" if x is None else f"{x * 1000:,.0f} ms"
@@ -351,16 +328,6 @@ def main() -> None:
             old_lod = was.get("lod") if was else None
             lines.append(f"| {name} | {dist(new['lod'][0])} | {dist(old_lod[0]) if old_lod else '–'} "
                          f"| {dist(new['lod'][1])} | {dist(old_lod[1]) if old_lod else '–'} |")
-    lines += [
-        "",
-        "Whole processes on igea (wall time, best of 3; old best of 2):",
-        "",
-        "| `pmwm embed` new | `pmwm embed` old | fast_simplification to 1 % (read, decimate, write) "
-        "| new / anchor |",
-        "|---|---|---|---|",
-        f"| {t_embed_new:.2f} s | {'–' if t_embed_old is None else f'{t_embed_old:.2f} s'} | {t_fs:.2f} s "
-        f"| {t_embed_new / t_fs:.2f}x |",
-    ]
     if probe:
         cold, first, warm = probe
         igea_new = next(r[3] for r in rows if r[0] == "igea")
