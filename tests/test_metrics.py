@@ -171,6 +171,36 @@ def test_one_sided_hole_shows_in_hausdorff_not_only_mrms():
     assert 0 < mrms < haus
 
 
+def test_displaced_copy_distance_is_the_surface_distance_on_the_same_samples():
+    # a small smooth displacement of the bunny (as an embedding moves it): the nearest point of every
+    # sample lies on the faces around its own, so both measures agree to the last bit
+    m = trimesh.load(BUNNY, process=False)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    diag = float(np.linalg.norm(v.max(0) - v.min(0)))
+    moved = v + 2e-4 * diag * np.sin(40 * v[:, [1, 2, 0]] / diag)
+    want = M.surface_distance(v, f, moved, f, n_samples=3000, seed=4)
+    got = M.displaced_surface_distance(v, moved, f, n_samples=3000, seed=4)
+    assert want[0] > 0.005
+    assert got == want
+
+
+def test_displaced_copy_distance_is_an_upper_bound_after_a_large_move():
+    # a square slid along itself by three cells: most samples lie on the other square (distance 0),
+    # but the faces around a sample's own face no longer reach there, so the displaced measure only
+    # bounds the distance from above
+    v, f = square(n=12, size=1.0)
+    slid = v + np.array([3.0 / 11, 0.0, 0.0])
+    exact = M.surface_distance(v, f, slid, f, n_samples=2000, seed=3)
+    bound = M.displaced_surface_distance(v, slid, f, n_samples=2000, seed=3)
+    assert bound[0] > 1.5 * exact[0] and bound[1] >= exact[1]
+
+
+def test_displaced_copy_distance_needs_the_same_vertices():
+    v, f = square(n=5)
+    with pytest.raises(MeshError, match="same vertices"):
+        M.displaced_surface_distance(v, v[:-1], f)
+
+
 # ---------------------------------------------------------------------------------------------
 # the limit
 

@@ -2,7 +2,9 @@
 
 Bits:        ``ber``, ``correlation`` (the paper's eq. 6).
 Distortion:  ``vertex_rmse``, ``vsnr`` (centred or not), ``psnr``, ``surface_distance`` (MRMS and
-             Hausdorff from surface samples, both directions, % of the first mesh's bbox diagonal).
+             Hausdorff from surface samples, both directions, % of the first mesh's bbox diagonal);
+             ``displaced_surface_distance``, the same for a displaced copy (same faces) without a
+             spatial index.
 The limit:   ``matched_filter_bound`` (best correlation any detector can reach for a given
              embedding energy per bit against noise of a given std).
 
@@ -22,7 +24,8 @@ import numpy as np
 
 from . import spatial
 from .errors import MeshError, PayloadError
-from .sampling import sample_surface
+from .adjacency import ranges, stable_order
+from .sampling import sample_faces, sample_surface
 from .spatial import closest_point_on_triangles
 from .validate import parse_bits
 
@@ -193,6 +196,52 @@ def surface_distance(
     return 100.0 * rms / diag, 100.0 * haus / diag
 
 
+def displaced_surface_distance(v1, v2, faces, n_samples: int = 20000, seed: int | None = None) -> tuple[float, float]:
+    """(MRMS %, Hausdorff %) between a mesh (v1, faces) and a displaced copy of it (v2, the same faces),
+    as ``surface_distance(v1, faces, v2, faces, n_samples, seed)`` measures them, on the same sample
+    points, without a spatial index: each sample's nearest point on the other surface is searched on
+    the faces that share a vertex with the sample's own face. That is exact while the nearest point
+    lies on those faces, as it does when the vertices move by much less than an edge (an
+    embedding's displacement; the embedders calibrate their strength with it); otherwise the
+    distance found is an upper bound. v1, v2 : (n, 3) float64; faces : (m, 3) int64.
+    """
+    a = np.asarray(v1, dtype=np.float64)
+    b = np.asarray(v2, dtype=np.float64)
+    F = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if a.shape != b.shape:
+        raise MeshError(f"a displaced copy has the same vertices; got {len(a)} and {len(b)}. Use surface_distance")
+    rng = np.random.default_rng(seed)
+    s1, s2 = rng.integers(0, 2**63 - 1, size=2)
+    d12 = _distance_near_own_face(a, b, F, *sample_faces(a, F, n_samples, int(s1)))
+    d21 = _distance_near_own_face(b, a, F, *sample_faces(b, F, n_samples, int(s2)))
+    diag = bbox_diagonal(a)
+    if diag == 0:
+        raise MeshError("the first mesh has a zero-size bounding box; nothing to measure against")
+    rms = max(float(np.sqrt(np.mean(d12**2))), float(np.sqrt(np.mean(d21**2))))
+    return 100.0 * rms / diag, 100.0 * max(float(d12.max()), float(d21.max())) / diag
+
+
+def _distance_near_own_face(src: np.ndarray, dst: np.ndarray, F: np.ndarray, face: np.ndarray,
+                            w: np.ndarray) -> np.ndarray:
+    """Distance (k,) from the points with barycentric weights w (k, 3) in faces ``face`` (k,) of
+    (src, F) to the faces of (dst, F) sharing a vertex with their own face."""
+    p = np.einsum("ij,ijk->ik", w, src[F[face]])
+    need = np.zeros(len(src), bool)
+    need[F[face]] = True
+    corners = np.flatnonzero(need[F.ravel()])  # corners at a vertex of a sampled face
+    order, vert = stable_order(F.ravel()[corners])
+    around = corners[order] // 3  # their faces, grouped by vertex
+    start = np.searchsorted(vert, F[face])  # (k, 3): each sample's vertices' groups
+    count = np.searchsorted(vert, F[face], side="right") - start
+    cand = around[ranges(start.ravel(), count.ravel())]
+    owner = np.repeat(np.arange(len(face)), count.sum(axis=1))
+    tri = dst[F[cand]]
+    d = np.linalg.norm(closest_point_on_triangles(p[owner], tri[:, 0], tri[:, 1], tri[:, 2]) - p[owner], axis=1)
+    out = np.full(len(face), np.inf)
+    np.minimum.at(out, owner, d)
+    return out
+
+
 __all__ = [
     "ber",
     "correlation",
@@ -207,4 +256,5 @@ __all__ = [
     "closest_point_on_triangles",
     "point_surface_distance",
     "surface_distance",
+    "displaced_surface_distance",
 ]
