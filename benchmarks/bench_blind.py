@@ -74,13 +74,13 @@ def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False):
     # the BER of the reading the verdict kept when it is marked; otherwise of the suspect's own frame
     # (an unmarked verdict keeps whichever frame's candidate happened to match best: no measure)
     fi = 1 if v.marked and v.extra.get("frame") == "refined" else 0
-    got, _ = blind.word_read(stats[N_WORD][fi], secret, N_WORD)
+    got, _ = blind.word_read(stats.words[N_WORD][fi], secret, N_WORD)
     want = "".join(map(str, payload.tolist()))
     ok = v.marked and v.bits == want
     ber = float(np.mean(got != true_word(secret, payload)))
     if not own_too:
         return ber, ok
-    v0 = blind.decide({n: s[:1] for n, s in stats.items()}, secret)
+    v0 = blind.decide(stats.own_frame(), secret)
     return ber, ok, bool(v0.marked and v0.bits == want)
 
 

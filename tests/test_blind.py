@@ -43,8 +43,9 @@ def bitstring(n: int, seed: int) -> str:
 def test_text_payload_read_with_the_pass_phrase_alone(marked):
     v = pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.mode == "blind"
-    # all 32 check bits; the union bound over 2048 candidates per frame read (own, and refined if it moved)
-    assert v.extra["frames"] in (1, 2) and v.p_value == pytest.approx(v.extra["frames"] * 8 * 256 * 2.0**-32)
+    # all 32 check bits; the union bound over 2 kinds x 1024 Chase candidates per frame read (own, and
+    # refined if it moved), of the one length the mark's energy names
+    assert v.extra["frames"] in (1, 2) and v.p_value == pytest.approx(v.extra["frames"] * 2 * 1024 * 2.0**-32)
     assert v.p_value < 1e-6
     assert v.extra["payload_kind"] == "text" and v.extra["payload_bits"] == 32
 
@@ -85,7 +86,7 @@ def test_refined_frame_reads_what_the_own_frame_loses(marked, attack):
     payload is lost, the key-free frame refinement finds it, with p still below 1e-6."""
     V, F = attack(marked.vertices, marked.faces)
     stats = blind.bin_statistics(V, F)
-    own_only = blind.decide({n: s[:1] for n, s in stats.items()}, marked.key.secret)
+    own_only = blind.decide(stats.own_frame(), marked.key.secret)
     assert not (own_only.marked and own_only.payload == "Acme")
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["frame"] == "refined" and v.p_value < 1e-6
@@ -99,8 +100,26 @@ def test_the_edge_preserving_push_reads_what_r_to_the_k_lost(marked):
     assert v.marked and v.payload == "Acme"
     V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.005, seed=1)
     stats = blind.bin_statistics(V, F)
-    own_only = blind.decide({n: s[:1] for n, s in stats.items()}, marked.key.secret)
+    own_only = blind.decide(stats.own_frame(), marked.key.secret)
     assert own_only.marked and own_only.payload == "Acme"
+
+
+def test_chase_search_corrects_errors_among_the_ten_least_reliable_bits(marked):
+    """Two wrong bits, the 9th and 10th least reliable, are corrected with p < 1e-6 (the 8-bit
+    search of four lengths could not: reading the one length with the most energy pays for 2 bits)."""
+    stats = blind.bin_statistics(marked.vertices, marked.faces).own_frame()
+    n = stats.n_word
+    assert n == 32 + word.CHECK_BITS  # "Acme": 32 payload bits, the length the energy names
+    stat = stats.words[n][0].copy()
+    _, score = blind.word_read(stat, marked.key.secret, n)
+    bit_of_bin, _ = word.layout(marked.key.secret, n, len(stat))
+    weak = np.argsort(np.abs(score), kind="stable")[[8, 9]]
+    stat[np.isin(bit_of_bin, weak)] *= -1  # the same reliabilities, the two bits read wrong
+    words = dict(stats.words)
+    words[n] = stat[None]
+    v = blind.decide(blind.Statistics(words, n), marked.key.secret)
+    assert v.extra["word_read"] != v.extra["word"]
+    assert v.marked and v.payload == "Acme" and v.p_value == pytest.approx(2 * 1024 * 2.0**-32)
 
 
 def test_the_push_keeps_every_vertex_in_its_bin():
@@ -114,7 +133,7 @@ def test_the_push_keeps_every_vertex_in_its_bin():
 def test_frame_refinement_does_not_use_the_pass_phrase(marked):
     V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.005, seed=1)
     stats = blind.bin_statistics(V, F)
-    assert all(s.shape == (2, n) for n, s in stats.items())
+    assert all(s.shape == (2, n) for n, s in stats.words.items())
     right = blind.decide(stats, marked.key.secret)
     wrong = blind.decide(stats, word.derive_secret(PHRASE + "!"))
     assert right.marked and not wrong.marked and wrong.p_value > 1e-3

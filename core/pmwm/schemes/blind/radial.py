@@ -315,10 +315,12 @@ def statistics_in(V: np.ndarray, a: np.ndarray, fr: Frame, bin_counts) -> list[t
     return out
 
 
-def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> list[list[tuple[np.ndarray, np.ndarray]]]:
-    """``read_statistics_many`` in the suspect's own frame, then in the refined frame (``refine_frame``
-    for the bin count whose reading has the most ``excess_energy``): [own, refined], each a list
-    over ``bin_counts``. The refined one is left out when the search did not move the frame."""
+def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> tuple[int, list[list[tuple[np.ndarray, np.ndarray]]]]:
+    """(the bin count whose reading in the suspect's own frame has the most ``excess_energy``, and
+    ``read_statistics_many`` in the own frame, then in the frame refined for that count
+    (``refine_frame``): [own, refined], each a list over ``bin_counts``). The refined one is left out
+    when the search did not move the frame. The count is chosen without the pass phrase: the mark's
+    own length shows the most energy (the reader reads that length only, see the scheme's docstring)."""
     fr, a = frame_of(V, F, 1)
     own = statistics_in(V, a, fr, bin_counts)
     total = float(a.sum())
@@ -326,5 +328,5 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> list[lis
     m_best = list(bin_counts)[int(np.argmax(z))]
     ref = refine_frame(V, a, fr, m_best)
     if np.array_equal(ref.centre, fr.centre) and ref.lo == fr.lo and ref.hi == fr.hi:
-        return [own]
-    return [own, statistics_in(V, a, ref, bin_counts)]
+        return m_best, [own]
+    return m_best, [own, statistics_in(V, a, ref, bin_counts)]

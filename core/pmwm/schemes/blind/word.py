@@ -6,16 +6,18 @@ Everything secret derives from the pass phrase through scrypt with a fixed publi
 The word. ``PAYLOAD_BITS`` lists the payload lengths a word can have (32, 64, 96 or 224 bits: 4, 8,
 12 or 28 bytes of text); behind the payload come ``CHECK_BITS`` = 32 check bits, a keyed hash of the
 secret, the payload kind (text or bits) and the payload. The reader knows neither the length nor the
-kind: it tries the 4 * 2 = 8 readings, and in each the 2^8 words that flip any of the
-``CHASE_BITS`` = 8 least reliable bits (Chase decoding: a few weak bits are corrected). Under the
-null (an unmarked mesh, or the wrong pass phrase) the expected check bits of a candidate are fair
-coins independent of the bits read (a keyed hash of what was read), so P(m or more of the 32 match)
-= P(Binomial(32, 1/2) >= m) exactly per candidate, and the p-value reported is the union bound over
-the 8 * 256 = 2048 candidates: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 < 1e-6.
+kind: it reads the length whose bins show the most mark energy (chosen without the pass phrase),
+as either kind, and in each of the 2 readings the 2^10 words that flip any of the ``CHASE_BITS`` =
+10 least reliable bits (Chase decoding: a few weak bits are corrected). Under the null (an unmarked
+mesh, or the wrong pass phrase) the expected check bits of a candidate are fair coins independent of
+the bits read (a keyed hash of what was read), so P(m or more of the 32 match) = P(Binomial(32, 1/2)
+>= m) exactly per candidate, and the p-value reported is the union bound over the 2 * 1024 = 2048
+candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame (9.5e-7 with the
+refined frame) < 1e-6.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
 search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
-the bunny after 8-bit quantisation); 32 check bits pay for the 2^8 Chase candidates. A reading is
+the bunny after 8-bit quantisation); 32 check bits pay for the 2^10 Chase candidates. A reading is
 "marked" only with all its check bits right, so a payload reported as marked is the embedded one up
 to a hash collision (2^-32 per candidate).
 """
@@ -34,7 +36,7 @@ from ...validate import parse_bits
 
 PAYLOAD_BITS = (32, 64, 96, 224)
 CHECK_BITS = 32
-CHASE_BITS = 8  # the reader tries every flip of the 8 least reliable bits of a word
+CHASE_BITS = 10  # the reader tries every flip of the 10 least reliable bits of a word
 KINDS = ("bits", "text")
 SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
 SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
@@ -78,7 +80,7 @@ def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[
 
 def check_bits(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
     """The keyed check (CHECK_BITS,) uint8 of a payload (L,) uint8 of a kind: the first bits of
-    SHA-256(secret, kind, payload) (a MAC; hashlib directly, as the reader computes 2048 of them)."""
+    SHA-256(secret, kind, payload) (a MAC; hashlib directly, as the reader computes thousands of them)."""
     tag = hashlib.sha256(f"{secret}:blind-check:{kind}:".encode() + np.packbits(payload).tobytes()
                          + len(payload).to_bytes(2, "little")).digest()
     return np.unpackbits(np.frombuffer(tag[:CHECK_BITS // 8], np.uint8))
