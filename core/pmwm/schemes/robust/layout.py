@@ -4,6 +4,7 @@ cutting off half the shape leaves every bit some sites, and the bits' energies a
 from __future__ import annotations
 
 import bisect
+import itertools
 
 import numpy as np
 
@@ -58,25 +59,8 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     d /= np.linalg.norm(d, axis=1)[:, None]
     proj = P @ d.T  # (sites, directions)
     kept = np.concatenate([proj <= np.quantile(proj, q, axis=0) for q in (0.5, 0.4)], axis=1)
-    count = np.zeros((n_bits, kept.shape[1]), np.int64)
-    np.add.at(count, bit, kept.astype(np.int64))
-    need = min(CUT_KEEP_MIN, int(np.bincount(bit).min()))
-    bit = bit.copy()
-    kept_n = kept.astype(np.int64)
-    short_rows = np.count_nonzero(count < need, axis=1)  # (bit, cut) pairs short of sites, per bit
-
-    def try_swap(i: int, j: int) -> bool:
-        """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
-        b, a = bit[i], bit[j]
-        delta = kept_n[j] - kept_n[i]
-        new_b, new_a = count[b] + delta, count[a] - delta
-        short_b, short_a = np.count_nonzero(new_b < need), np.count_nonzero(new_a < need)
-        if short_b + short_a > short_rows[b] + short_rows[a]:
-            return False
-        count[b], count[a] = new_b, new_a
-        short_rows[b], short_rows[a] = short_b, short_a
-        bit[i], bit[j] = a, b
-        return True
+    book = _CutBook(kept, bit, n_bits)
+    bit = book.bit
 
     # the draws below read Python structures (one short loop per step, no array scans): the sites of
     # each bit in ascending order, and for each cut its kept sites in ascending order and a flag per site
@@ -84,19 +68,15 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites)
     kept_sites = [np.flatnonzero(row).tolist() for row in kept_t]
     kept_flag = [row.tolist() for row in kept_t]
-    shorts = short_rows.tolist()
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
         # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
         # counts per bit, then the column within that row
-        total = sum(shorts)
-        if total == 0:
+        acc = book.short_acc
+        if acc[-1] == 0:
             break
-        k = int(rng.integers(total))
-        b = 0
-        while k >= shorts[b]:
-            k -= shorts[b]
-            b += 1
-        c = int(np.flatnonzero(count[b] < need)[k])
+        k = int(rng.integers(acc[-1]))
+        b = bisect.bisect_right(acc, k)
+        c = book.short_cols[b][k - (acc[b - 1] if b else 0)]
         flag = kept_flag[c]
         mine = [i for i in members[b] if not flag[i]]  # sites of bit b the cut drops
         in_cut = len(members[b]) - len(mine)
@@ -105,13 +85,12 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
             continue
         i = mine[rng.integers(len(mine))]
         j = _nth_skipping(kept_sites[c], int(rng.integers(n_other)), [m for m in members[b] if flag[m]])
-        if try_swap(i, j):
+        if book.try_swap(i, j):
             a = int(bit[i])  # j's bit, now i's
             members[b].remove(i)
             bisect.insort(members[b], j)
             members[a].remove(j)
             bisect.insort(members[a], i)
-            shorts[b], shorts[a] = int(short_rows[b]), int(short_rows[a])
 
     for _ in range(SWAP_ROUNDS):  # rounds pairing the k-th richest bit with the k-th poorest
         total = np.bincount(bit, weights=energy, minlength=n_bits)
@@ -122,15 +101,71 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
             mine, other = np.flatnonzero(bit == hi), np.flatnonzero(bit == lo)
             d = energy[mine][:, None] - energy[other][None, :]
             cost = np.where((d > 0) & (d < gap), np.abs(d - gap / 2), np.inf).ravel()
-            for k in np.argsort(cost, kind="stable"):
-                if not np.isfinite(cost[k]):
-                    break
-                if try_swap(mine[k // len(other)], other[k % len(other)]):
+            n_finite = np.count_nonzero(np.isfinite(cost))
+            for k in np.argsort(cost, kind="stable")[:n_finite].tolist():
+                if book.try_swap(int(mine[k // len(other)]), int(other[k % len(other)])):
                     swapped = True
                     break
         if not swapped:
             break
     return bit
+
+
+class _CutBook:
+    """The sites each bit keeps under each tested cut, kept up to date through site swaps.
+
+    kept (sites, cuts) bool, bit (sites,) int64 each site's bit (copied: ``self.bit`` is updated by
+    the swaps). A bit's row of counts is mirrored in Python integers used as bit sets over the cuts
+    (the cuts where it keeps exactly ``need`` sites, and exactly ``need - 1``), so that testing a
+    swap is a few AND and popcount operations on 512-bit integers; only an accepted swap (a few
+    hundred) touches numpy rows."""
+
+    def __init__(self, kept: np.ndarray, bit: np.ndarray, n_bits: int):
+        self.bit = bit.copy()
+        self.kept_n = kept.astype(np.int64)
+        self.count = np.zeros((n_bits, kept.shape[1]), np.int64)
+        np.add.at(self.count, self.bit, self.kept_n)
+        self.need = min(CUT_KEEP_MIN, int(np.bincount(self.bit).min()))
+        self.site_cuts = _bit_sets(kept)  # per site: the cuts that keep it
+        self.at_need = [0] * n_bits  # per bit: the cuts where it keeps exactly ``need`` sites
+        self.below = [0] * n_bits  # ... exactly ``need - 1`` (one more lost: still short; one gained: not)
+        self.short_cols: list[list[int]] = [[] for _ in range(n_bits)]  # the cuts it is short under
+        self.shorts = [0] * n_bits
+        for b in range(n_bits):
+            self._refresh(b)
+        self.short_acc = list(itertools.accumulate(self.shorts))  # running (bit, cut) short counts
+
+    def _refresh(self, b: int) -> None:
+        row = self.count[b]
+        self.at_need[b] = _bit_sets(row == self.need)[0]
+        self.below[b] = _bit_sets(row == self.need - 1)[0]
+        self.short_cols[b] = np.flatnonzero(row < self.need).tolist()
+        self.shorts[b] = len(self.short_cols[b])
+
+    def try_swap(self, i: int, j: int) -> bool:
+        """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
+        b, a = int(self.bit[i]), int(self.bit[j])
+        ki, kj = self.site_cuts[i], self.site_cuts[j]
+        lose, gain = ki & ~kj, kj & ~ki  # the cuts where b loses a kept site (a gains one), and gains
+        short_b = self.shorts[b] + (lose & self.at_need[b]).bit_count() - (gain & self.below[b]).bit_count()
+        short_a = self.shorts[a] + (gain & self.at_need[a]).bit_count() - (lose & self.below[a]).bit_count()
+        if short_b + short_a > self.shorts[b] + self.shorts[a]:
+            return False
+        delta = self.kept_n[j] - self.kept_n[i]
+        self.count[b] += delta
+        self.count[a] -= delta
+        self._refresh(b)
+        self._refresh(a)
+        self.short_acc = list(itertools.accumulate(self.shorts))
+        self.bit[i], self.bit[j] = a, b
+        return True
+
+
+def _bit_sets(rows: np.ndarray) -> list[int]:
+    """Each row of rows (r, c) bool (or one row (c,)) as a Python integer whose bit k is rows[., k]."""
+    rows = np.atleast_2d(rows)
+    packed = np.packbits(rows, axis=1, bitorder="little")
+    return [int.from_bytes(p.tobytes(), "little") for p in packed]
 
 
 def _nth_skipping(values: list[int], r: int, skip: list[int]) -> int:
