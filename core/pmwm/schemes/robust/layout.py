@@ -68,13 +68,14 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites)
     kept_sites = [np.flatnonzero(row).tolist() for row in kept_t]
     kept_flag = [row.tolist() for row in kept_t]
+    below = _Below(rng)  # rng.integers(n), the same draws, without numpy's per-call cost
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
         # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
         # counts per bit, then the column within that row
         acc = book.short_acc
         if acc[-1] == 0:
             break
-        k = int(rng.integers(acc[-1]))
+        k = below(acc[-1])
         b = bisect.bisect_right(acc, k)
         c = book.short_cols[b][k - (acc[b - 1] if b else 0)]
         flag = kept_flag[c]
@@ -83,14 +84,15 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         n_other = len(kept_sites[c]) - in_cut  # sites the cut keeps, of other bits
         if len(mine) == 0 or n_other == 0:
             continue
-        i = mine[rng.integers(len(mine))]
-        j = _nth_skipping(kept_sites[c], int(rng.integers(n_other)), [m for m in members[b] if flag[m]])
+        i = mine[below(len(mine))]
+        j = _nth_skipping(kept_sites[c], below(n_other), [m for m in members[b] if flag[m]])
         if book.try_swap(i, j):
             a = int(bit[i])  # j's bit, now i's
             members[b].remove(i)
             bisect.insort(members[b], j)
             members[a].remove(j)
             bisect.insort(members[a], i)
+    below.close()
 
     for _ in range(SWAP_ROUNDS):  # rounds pairing the k-th richest bit with the k-th poorest
         total = np.bincount(bit, weights=energy, minlength=n_bits)
@@ -159,6 +161,54 @@ class _CutBook:
         self.short_acc = list(itertools.accumulate(self.shorts))
         self.bit[i], self.bit[j] = a, b
         return True
+
+
+class _Below:
+    """``rng.integers(n)`` (an int in [0, n), 1 <= n < 2**32) for the Generator ``rng``, drawn in
+    Python from its PCG64 bit generator exactly as numpy draws it (Lemire's bounded method on the
+    generator's 32-bit outputs, each 64-bit output giving its low half, then its high half), at a
+    third of the cost of a ``rng.integers`` call; ``close()`` hands the state back (any other bit
+    generator: ``rng.integers`` itself). tests/test_robust_layout.py checks the draws against numpy's."""
+
+    def __init__(self, rng: np.random.Generator):
+        self.rng = rng
+        self.own = type(rng.bit_generator) is np.random.PCG64
+        if self.own:
+            state = rng.bit_generator.state
+            self.has_half, self.half = bool(state["has_uint32"]), int(state["uinteger"])
+            self.raw = rng.bit_generator.random_raw
+
+    def _next32(self) -> int:
+        if self.has_half:
+            self.has_half = False
+            return self.half
+        x = self.raw()
+        self.has_half, self.half = True, x >> 32
+        return x & 0xFFFFFFFF
+
+    def __call__(self, n: int) -> int:
+        if not self.own:
+            return int(self.rng.integers(n))
+        if not 1 <= n < 1 << 32:  # numpy's own path (or its error), from the same state
+            self.close()
+            value = int(self.rng.integers(n))
+            self.__init__(self.rng)
+            return value
+        if n == 1:
+            return 0  # numpy draws nothing
+        m = self._next32() * n
+        if (m & 0xFFFFFFFF) < n:
+            threshold = ((1 << 32) - n) % n
+            while (m & 0xFFFFFFFF) < threshold:
+                m = self._next32() * n
+        return m >> 32
+
+    def close(self) -> None:
+        if self.own:
+            bg = self.rng.bit_generator
+            state = bg.state  # the 128-bit state, advanced by ``random_raw``
+            state["has_uint32"], state["uinteger"] = int(self.has_half), self.half
+            bg.state = state
 
 
 def _bit_sets(rows: np.ndarray) -> list[int]:
