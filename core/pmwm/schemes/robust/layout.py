@@ -87,7 +87,7 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         i = mine[below(len(mine))]
         j = _nth_skipping(kept_sites[c], below(n_other), [m for m in members[b] if flag[m]])
         if book.try_swap(i, j):
-            a = int(bit[i])  # j's bit, now i's
+            a = book.bits[i]  # j's bit, now i's
             members[b].remove(i)
             bisect.insort(members[b], j)
             members[a].remove(j)
@@ -124,6 +124,7 @@ class _CutBook:
 
     def __init__(self, kept: np.ndarray, bit: np.ndarray, n_bits: int):
         self.bit = bit.copy()
+        self.bits = self.bit.tolist()  # the same, as a Python list (read per step)
         self.kept_n = kept.astype(np.int64)
         self.count = np.zeros((n_bits, kept.shape[1]), np.int64)
         np.add.at(self.count, self.bit, self.kept_n)
@@ -146,12 +147,13 @@ class _CutBook:
 
     def try_swap(self, i: int, j: int) -> bool:
         """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
-        b, a = int(self.bit[i]), int(self.bit[j])
+        bits, at_need, below = self.bits, self.at_need, self.below
+        b, a = bits[i], bits[j]
         ki, kj = self.site_cuts[i], self.site_cuts[j]
         lose, gain = ki & ~kj, kj & ~ki  # the cuts where b loses a kept site (a gains one), and gains
-        short_b = self.shorts[b] + (lose & self.at_need[b]).bit_count() - (gain & self.below[b]).bit_count()
-        short_a = self.shorts[a] + (gain & self.at_need[a]).bit_count() - (lose & self.below[a]).bit_count()
-        if short_b + short_a > self.shorts[b] + self.shorts[a]:
+        # the change in b's and a's short cuts: must not be positive
+        if ((lose & at_need[b]).bit_count() - (gain & below[b]).bit_count()
+                + (gain & at_need[a]).bit_count() - (lose & below[a]).bit_count()) > 0:
             return False
         delta = self.kept_n[j] - self.kept_n[i]
         self.count[b] += delta
@@ -160,6 +162,7 @@ class _CutBook:
         self._refresh(a)
         self.short_acc = list(itertools.accumulate(self.shorts))
         self.bit[i], self.bit[j] = a, b
+        bits[i], bits[j] = a, b
         return True
 
 
@@ -189,14 +192,20 @@ class _Below:
     def __call__(self, n: int) -> int:
         if not self.own:
             return int(self.rng.integers(n))
-        if not 1 <= n < 1 << 32:  # numpy's own path (or its error), from the same state
-            self.close()
+        if not 1 < n < 1 << 32:
+            if n == 1:
+                return 0  # numpy draws nothing
+            self.close()  # numpy's own path (or its error), from the same state
             value = int(self.rng.integers(n))
             self.__init__(self.rng)
             return value
-        if n == 1:
-            return 0  # numpy draws nothing
-        m = self._next32() * n
+        if self.has_half:  # self._next32(), inline
+            self.has_half = False
+            m = self.half * n
+        else:
+            x = self.raw()
+            self.has_half, self.half = True, x >> 32
+            m = (x & 0xFFFFFFFF) * n
         if (m & 0xFFFFFFFF) < n:
             threshold = ((1 << 32) - n) % n
             while (m & 0xFFFFFFFF) < threshold:
