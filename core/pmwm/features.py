@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .adjacency import Adjacency, segment_owner
+from .adjacency import Adjacency, segment_owner, stable_order
 
 
 def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -93,19 +93,24 @@ def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6) -> np.n
     ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(counts, out=ptr[1:])
 
-    # resample: position t_j = j (m - 1) / (k - 1) in each vertex's sorted list, one column j at a
-    # time; exact integer arithmetic: t_j = j (m - 1) / (k - 1) = lo + w
+    # resample: position t_j = j (m - 1) / (k - 1) in each vertex's sorted list of m angles; exact
+    # integer arithmetic: t_j = lo + w, w = (j (m - 1) mod (k - 1)) / (k - 1). The vertices of one m
+    # (a few distinct ones) share lo, hi and w: one gather per (m, j); where w = 0 the value is the
+    # angle at lo itself (a * 1.0 + b * 0.0 == a for the finite, non-negative angles of arccos)
     out = np.zeros((n, k))
-    has = counts > 0
-    m = counts[has]
-    start = ptr[:-1][has]
+    has = np.flatnonzero(counts > 0)
+    by_m, m_sorted = stable_order(counts[has])
+    bounds = np.flatnonzero(np.diff(m_sorted)) + 1
     den = max(k - 1, 1)
-    for j in range(k):  # k (6) columns
-        num = (m - 1) * j
-        lo = num // den
-        w = (num % den) / den
-        hi = np.minimum(lo + 1, m - 1)
-        out[has, j] = angle[start + lo] * (1.0 - w) + angle[start + hi] * w
+    for rows, m in zip(np.split(has[by_m], bounds), m_sorted[np.r_[0, bounds]].tolist() if len(has) else []):
+        start = ptr[rows]
+        for j in range(k):  # k (6) columns
+            num = (m - 1) * j
+            lo, w = num // den, (num % den) / den
+            if w == 0.0:
+                out[rows, j] = angle[start + lo]
+            else:
+                out[rows, j] = angle[start + lo] * (1.0 - w) + angle[start + min(lo + 1, m - 1)] * w
     return out
 
 
