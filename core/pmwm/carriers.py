@@ -24,8 +24,10 @@ from .som import SUITABLE, classify_smoothness
 JITTER_MIN = 0.75
 
 
-def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int) -> np.ndarray:
-    """Bool mask (n,): SOM-suitable, manifold interior, valence >= 4.
+def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int,
+                      cross: np.ndarray | None = None) -> np.ndarray:
+    """Bool mask (n,): SOM-suitable, manifold interior, valence >= 4. ``cross``: the faces'
+    ``features.face_cross`` (m, 3) when the caller has it already.
 
     The SOM is trained on the manifold-interior vertices only: boundary fans are
     half-fans and isolated vertices have no feature, both would skew the clusters.
@@ -35,7 +37,7 @@ def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int) -> np.nda
     idx = np.flatnonzero(adj.manifold_interior)
     if len(idx) == 0:
         return mask
-    feats = smoothness_feature(vertices, adj)[idx]
+    feats = smoothness_feature(vertices, adj, cross=cross)[idx]
     labels = classify_smoothness(feats, seed=seed)
     mask[idx] = labels == SUITABLE
     return mask & ok

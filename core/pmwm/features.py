@@ -41,9 +41,12 @@ def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return cross
 
 
-def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal."""
-    cross = face_cross(vertices, faces)
+def face_normals(vertices: np.ndarray, faces: np.ndarray,
+                 cross: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal.
+    ``cross``: the faces' ``face_cross`` when the caller has it already."""
+    if cross is None:
+        cross = face_cross(vertices, faces)
     norm = np.linalg.norm(cross, axis=1)
     safe = np.where(norm > 0, norm, 1.0)
     return cross / safe[:, None], 0.5 * norm
@@ -60,12 +63,14 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray, cross: np.ndarray | 
     return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
 
-def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6) -> np.ndarray:
-    """Sorted 1-ring normal angles (radians) resampled to k values: (n, k) float64."""
+def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6,
+                       cross: np.ndarray | None = None) -> np.ndarray:
+    """Sorted 1-ring normal angles (radians) resampled to k values: (n, k) float64. ``cross``: the
+    faces' ``face_cross`` (m, 3) when the caller has it already."""
     if k < 1:
         raise ValueError("k must be at least 1")
     n = adj.n_vertices
-    normals, areas = face_normals(vertices, adj.faces)
+    normals, areas = face_normals(vertices, adj.faces, cross)
     owner = segment_owner(adj.vf_ptr)
     face = adj.vf_idx
     keep = areas[face] > 0

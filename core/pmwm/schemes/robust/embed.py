@@ -18,7 +18,7 @@ from ...adjacency import Adjacency, build_adjacency
 from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, no_progress, start_embed
 from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
-from ...features import mean_edge_length, vertex_normals
+from ...features import face_cross, mean_edge_length, vertex_normals
 from ...key import derive_seed, keyed_bits
 from ...progressive import ProgressiveMesh, build_progressive_mesh
 from ...register import surface_frame
@@ -132,7 +132,8 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
     nb = n_bits
     report(0.0, "analysing the mesh")
     adj = build_adjacency(F, len(V))
-    eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"))
+    cross = face_cross(V, F)  # the faces' cross products: their normals and the vertex normals
+    eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"), cross=cross)
     while True:  # fewer sites per bit on small meshes, down to 2
         try:
             sites = select_carriers(V, adj, eligible, nb * per_bit, seed=derive_seed(secret, "robust-sites"))
@@ -151,7 +152,7 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
     A = strength * AMPLITUDE_PER_STRENGTH * edge
     At = strength * SWIRL_PER_STRENGTH * edge
 
-    vn = vertex_normals(V, F)
+    vn = vertex_normals(V, F, cross)
     si, vi, d = pairs_within(P, V, np.full(len(P), OUTER * r))
     # site normal: mean vertex normal over the disc (same side as the site's own normal)
     disc = (np.einsum("ij,ij->i", vn[vi], vn[sites][si]) > 0.3) & (d < r)
