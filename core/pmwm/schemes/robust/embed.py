@@ -195,13 +195,16 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
     dt = np.hypot(u, v)
     ring_ok = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.8) & (dt > 1.05 * r)
     ring = np.full((len(P), RING), -1, np.int64)
+    # each site's samples are consecutive (pairs_within orders its pairs by site): its pick is its
+    # first sample of least score
+    new_site = np.r_[True, si[1:] != si[:-1]] if len(si) else np.zeros(0, bool)
+    starts, group = np.flatnonzero(new_site), np.cumsum(new_site) - 1
     for k in range(RING):  # RING (3) iterations
         target = theta0 + 2 * np.pi * k / RING
         dphi = np.abs(np.angle(np.exp(1j * (phi - target[si]))))
         score = dphi + np.abs(dt / r - RING_DISTANCE)
         score[~ring_ok] = np.inf
-        o = np.lexsort((score, si))
-        first = o[np.r_[True, si[o][1:] != si[o][:-1]]]
+        first = _first_least(score, starts, group)
         good = np.isfinite(score[first])
         ring[si[first][good], k] = vi[first][good]
     none = np.zeros(len(P), bool)
@@ -209,6 +212,15 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
                          origin=P, normal=N, radius=r, amplitude=A, swirl=At, samples=samples, frame=None)
     return SiteAnalysis(vertices=V, faces=F, adj=adj, sites=sites, site=site, n_bits=nb, sample_site=si,
                         sample_vertex=vi, bump_field=(A * prof)[:, None] * N[si], swirl_field=At * e, ring=ring)
+
+
+def _first_least(score: np.ndarray, starts: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """For runs of consecutive entries (group (K,) int64 each entry's run, non-decreasing; starts the
+    runs' first entries): the index of each run's first entry of least ``score`` (K,) float64."""
+    if len(score) == 0:
+        return starts
+    least = np.flatnonzero(score == np.minimum.reduceat(score, starts)[group])
+    return least[np.r_[True, group[least[1:]] != group[least[:-1]]]]
 
 
 def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
