@@ -58,7 +58,9 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     d = rng.standard_normal((CUT_TESTS, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
     proj = P @ d.T  # (sites, directions)
-    kept = np.concatenate([proj <= np.quantile(proj, q, axis=0) for q in (0.5, 0.4)], axis=1)
+    # (each direction's quantile along the rows of the transposed copy: the same values, faster)
+    proj_t = np.ascontiguousarray(proj.T)
+    kept = np.concatenate([proj <= np.quantile(proj_t, q, axis=1) for q in (0.5, 0.4)], axis=1)
     book = _CutBook(kept, bit, n_bits)
     bit = book.bit
 
@@ -229,10 +231,10 @@ def _bit_sets(rows: np.ndarray) -> list[int]:
 
 def _nth_skipping(values: list[int], r: int, skip: list[int]) -> int:
     """The r-th (0-based) element of the ascending list ``values`` once the elements ``skip`` (a
-    few, all in ``values``) are left out."""
+    few, all in ``values``, ascending) are left out."""
     if not skip:
         return values[r]
-    for p in sorted(bisect.bisect_left(values, x) for x in skip):
+    for p in [bisect.bisect_left(values, x) for x in skip]:  # ascending, as skip
         if p <= r:
             r += 1
         else:
