@@ -71,27 +71,28 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     kept_sites = [np.flatnonzero(row).tolist() for row in kept_t]
     kept_flag = [row.tolist() for row in kept_t]
     below = _Below(rng)  # rng.integers(n), the same draws, without numpy's per-call cost
+    short_cols, try_swap, bisect_right = book.short_cols, book.try_swap, bisect.bisect_right  # (locals)
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
         # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
         # counts per bit, then the column within that row
         acc = book.short_acc
-        if acc[-1] == 0:
+        total = acc[-1]
+        if total == 0:
             break
-        k = below(acc[-1])
-        b = bisect.bisect_right(acc, k)
-        c = book.short_cols[b][k - (acc[b - 1] if b else 0)]
-        flag = kept_flag[c]
-        mine = [i for i in members[b] if not flag[i]]  # sites of bit b the cut drops
-        in_cut = len(members[b]) - len(mine)
-        n_other = len(kept_sites[c]) - in_cut  # sites the cut keeps, of other bits
-        if len(mine) == 0 or n_other == 0:
+        k = below(total)
+        b = bisect_right(acc, k)
+        c = short_cols[b][k - acc[b - 1] if b else k]
+        flag, mb = kept_flag[c], members[b]
+        mine = [i for i in mb if not flag[i]]  # sites of bit b the cut drops
+        n_other = len(kept_sites[c]) - (len(mb) - len(mine))  # sites the cut keeps, of other bits
+        if not mine or n_other == 0:
             continue
         i = mine[below(len(mine))]
-        j = _nth_skipping(kept_sites[c], below(n_other), [m for m in members[b] if flag[m]])
-        if book.try_swap(i, j):
+        j = _nth_skipping(kept_sites[c], below(n_other), [m for m in mb if flag[m]])
+        if try_swap(i, j):
             a = book.bits[i]  # j's bit, now i's
-            members[b].remove(i)
-            bisect.insort(members[b], j)
+            mb.remove(i)
+            bisect.insort(mb, j)
             members[a].remove(j)
             bisect.insort(members[a], i)
     below.close()
