@@ -70,13 +70,15 @@ def select_carriers(
     # farthest-point order with a keyed jitter: the next pick maximises distance * jitter, kept squared
     # (the same order as the distance itself) and -inf where the 2-ring rule blocks a candidate; ties
     # go to the lowest vertex index. A pick can only lower the distance of the candidates closer than
-    # the largest distance of a live one: with the candidates held sorted by x, a slab around it.
+    # the largest distance of a live one: with the candidates held sorted along the longest side of
+    # their bounding box, a slab around it.
     # A blocked candidate's squared distance is -inf too, so that its score stays -inf without a mask.
-    by_x = np.argsort(v[cand, 0], kind="stable")
+    axis = int(np.argmax(np.ptp(v[cand], axis=0))) if len(cand) else 0
+    by_x = np.argsort(v[cand, axis], kind="stable")
     cand = cand[by_x]
     local = np.full(adj.n_vertices, -1, dtype=np.int64)
     local[cand] = np.arange(len(cand))
-    pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, x ascending
+    pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, pos[axis] ascending
     weight = (jitter * jitter)[by_x]
     w_min = float(weight.min()) if len(cand) else 1.0
     dist2 = np.full(len(cand), np.inf)
@@ -90,16 +92,16 @@ def select_carriers(
         if len(chosen) == n:
             break
         # every live candidate has dist2 <= score / weight <= score[pick] / w_min
-        x = float(pos[0, pick])
+        x = float(pos[axis, pick])
         reach = float(np.sqrt(score[pick] / w_min)) * (1.0 + 1e-6) + abs(x) * 1e-12
         lo, hi = (0, len(cand)) if not np.isfinite(reach) else (
-            int(np.searchsorted(pos[0], x - reach)), int(np.searchsorted(pos[0], x + reach, "right")))
+            int(np.searchsorted(pos[axis], x - reach)), int(np.searchsorted(pos[axis], x + reach, "right")))
         # d2 = ((x - x0)^2 + (y - y0)^2) + (z - z0)^2, in two reused buffers
         t, d2 = buf[: hi - lo], d2_buf[: hi - lo]
         np.subtract(pos[0, lo:hi], pos[0, pick], out=t)
         np.multiply(t, t, out=d2)
-        for axis in (1, 2):
-            np.subtract(pos[axis, lo:hi], pos[axis, pick], out=t)
+        for row in (1, 2):
+            np.subtract(pos[row, lo:hi], pos[row, pick], out=t)
             np.multiply(t, t, out=t)
             d2 += t
         np.minimum(dist2[lo:hi], d2, out=dist2[lo:hi])
