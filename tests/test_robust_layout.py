@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from pmwm.schemes.robust.layout import _Below
+from pmwm.schemes.robust.layout import _Integers
 
 
 @pytest.mark.parametrize("seed", [0, 1, 12345])
-def test_below_draws_what_rng_integers_draws(seed):
+def test_integers_draws_what_rng_integers_draws(seed):
     # the same integers and the same generator state afterwards, whatever the bounds (1, small,
     # large, and past 2**32: numpy's own path) and whatever draws came before (a permutation leaves
     # half of a 64-bit output waiting)
@@ -17,14 +17,14 @@ def test_below_draws_what_rng_integers_draws(seed):
     for rng in (ours, numpy_rng):
         rng.permutation(11)
         rng.standard_normal(3)
-    below = _Below(ours)
-    got = [below(n) for n in bounds]
-    below.close()
+    integers = _Integers(ours)
+    got = [integers(n) for n in bounds]
+    integers.close()
     assert got == [int(numpy_rng.integers(n)) for n in bounds]
     assert ours.bit_generator.state == numpy_rng.bit_generator.state
     assert ours.random() == numpy_rng.random()
 
 
-def test_below_refuses_what_rng_integers_refuses():
+def test_integers_refuses_what_rng_integers_refuses():
     with pytest.raises(ValueError):
-        _Below(np.random.default_rng(0))(0)
+        _Integers(np.random.default_rng(0))(0)

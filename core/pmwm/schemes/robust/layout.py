@@ -70,7 +70,7 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites)
     kept_sites = [np.flatnonzero(row).tolist() for row in kept_t]
     kept_flag = [row.tolist() for row in kept_t]
-    below = _Below(rng)  # rng.integers(n), the same draws, without numpy's per-call cost
+    integers = _Integers(rng)  # rng.integers(n): the same draws, without numpy's per-call cost
     short_cols, try_swap, bisect_right = book.short_cols, book.try_swap, bisect.bisect_right  # (locals)
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
         # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
@@ -79,7 +79,7 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         total = acc[-1]
         if total == 0:
             break
-        k = below(total)
+        k = integers(total)
         b = bisect_right(acc, k)
         c = short_cols[b][k - acc[b - 1] if b else k]
         flag, mb = kept_flag[c], members[b]
@@ -87,15 +87,15 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         n_other = len(kept_sites[c]) - (len(mb) - len(mine))  # sites the cut keeps, of other bits
         if not mine or n_other == 0:
             continue
-        i = mine[below(len(mine))]
-        j = _nth_skipping(kept_sites[c], below(n_other), [m for m in mb if flag[m]])
+        i = mine[integers(len(mine))]
+        j = _nth_skipping(kept_sites[c], integers(n_other), [m for m in mb if flag[m]])
         if try_swap(i, j):
             a = book.bits[i]  # j's bit, now i's
             mb.remove(i)
             bisect.insort(mb, j)
             members[a].remove(j)
             bisect.insort(members[a], i)
-    below.close()
+    integers.close()
 
     for _ in range(SWAP_ROUNDS):  # rounds pairing the k-th richest bit with the k-th poorest
         total = np.bincount(bit, weights=energy, minlength=n_bits)
@@ -134,7 +134,7 @@ class _CutBook:
         self.need = min(CUT_KEEP_MIN, int(np.bincount(self.bit).min()))
         self.site_cuts = _bit_sets(kept)  # per site: the cuts that keep it
         self.at_need = [0] * n_bits  # per bit: the cuts where it keeps exactly ``need`` sites
-        self.below = [0] * n_bits  # ... exactly ``need - 1`` (one more lost: still short; one gained: not)
+        self.one_short = [0] * n_bits  # ... exactly ``need - 1`` (one lost: still short; one gained: not)
         self.short_cols: list[list[int]] = [[] for _ in range(n_bits)]  # the cuts it is short under
         self.shorts = [0] * n_bits
         for b in range(n_bits):
@@ -144,19 +144,19 @@ class _CutBook:
     def _refresh(self, b: int) -> None:
         row = self.count[b]
         self.at_need[b] = _bit_sets(row == self.need)[0]
-        self.below[b] = _bit_sets(row == self.need - 1)[0]
+        self.one_short[b] = _bit_sets(row == self.need - 1)[0]
         self.short_cols[b] = np.flatnonzero(row < self.need).tolist()
         self.shorts[b] = len(self.short_cols[b])
 
     def try_swap(self, i: int, j: int) -> bool:
         """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
-        bits, at_need, below = self.bits, self.at_need, self.below
+        bits, at_need, one_short = self.bits, self.at_need, self.one_short
         b, a = bits[i], bits[j]
         ki, kj = self.site_cuts[i], self.site_cuts[j]
         lose, gain = ki & ~kj, kj & ~ki  # the cuts where b loses a kept site (a gains one), and gains
         # the change in b's and a's short cuts: must not be positive
-        if ((lose & at_need[b]).bit_count() - (gain & below[b]).bit_count()
-                + (gain & at_need[a]).bit_count() - (lose & below[a]).bit_count()) > 0:
+        if ((lose & at_need[b]).bit_count() - (gain & one_short[b]).bit_count()
+                + (gain & at_need[a]).bit_count() - (lose & one_short[a]).bit_count()) > 0:
             return False
         delta = self.kept_n[j] - self.kept_n[i]
         self.count[b] += delta
@@ -169,7 +169,7 @@ class _CutBook:
         return True
 
 
-class _Below:
+class _Integers:
     """``rng.integers(n)`` (an int in [0, n), 1 <= n < 2**32) for the Generator ``rng``, drawn in
     Python from its PCG64 bit generator exactly as numpy draws it (Lemire's bounded method on the
     generator's 32-bit outputs, each 64-bit output giving its low half, then its high half), at a
@@ -180,9 +180,13 @@ class _Below:
         self.rng = rng
         self.own = type(rng.bit_generator) is np.random.PCG64
         if self.own:
-            state = rng.bit_generator.state
-            self.has_half, self.half = bool(state["has_uint32"]), int(state["uinteger"])
-            self.raw = rng.bit_generator.random_raw
+            self._load()
+
+    def _load(self) -> None:
+        """Take the generator's state: its waiting 32-bit half, and its outputs from here on."""
+        state = self.rng.bit_generator.state
+        self.has_half, self.half = bool(state["has_uint32"]), int(state["uinteger"])
+        self.raw = self.rng.bit_generator.random_raw
 
     def _next32(self) -> int:
         if self.has_half:
@@ -200,7 +204,7 @@ class _Below:
                 return 0  # numpy draws nothing
             self.close()  # numpy's own path (or its error), from the same state
             value = int(self.rng.integers(n))
-            self.__init__(self.rng)
+            self._load()
             return value
         if self.has_half:  # self._next32(), inline
             self.has_half = False
@@ -216,6 +220,7 @@ class _Below:
         return m >> 32
 
     def close(self) -> None:
+        """Hand the state back to the generator (its 128-bit state is already where it should be)."""
         if self.own:
             bg = self.rng.bit_generator
             state = bg.state  # the 128-bit state, advanced by ``random_raw``
