@@ -74,18 +74,18 @@ def select_carriers(
     # their bounding box, a slab around it.
     # A blocked candidate's squared distance is -inf too, so that its score stays -inf without a mask.
     axis = int(np.argmax(np.ptp(v[cand], axis=0))) if len(cand) else 0
-    by_x = np.argsort(v[cand, axis], kind="stable")
-    cand = cand[by_x]
+    by_axis = np.argsort(v[cand, axis], kind="stable")
+    cand = cand[by_axis]
     local = np.full(adj.n_vertices, -1, dtype=np.int64)
     local[cand] = np.arange(len(cand))
     pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, pos[axis] ascending
-    weight = (jitter * jitter)[by_x]
+    weight = (jitter * jitter)[by_axis]
     w_min = float(weight.min()) if len(cand) else 1.0
     dist2 = np.full(len(cand), np.inf)
     score = np.full(len(cand), np.inf)
     buf, d2_buf = np.empty(len(cand)), np.empty(len(cand))
     chosen: list[int] = []
-    pick = int(np.flatnonzero(by_x == rng.integers(len(cand)))[0]) if len(cand) else -1
+    pick = int(np.flatnonzero(by_axis == rng.integers(len(cand)))[0]) if len(cand) else -1
     while pick >= 0:
         c = int(cand[pick])
         chosen.append(c)

@@ -107,7 +107,8 @@ def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6,
     by_m, m_sorted = stable_order(counts[has])
     bounds = np.flatnonzero(np.diff(m_sorted)) + 1
     den = max(k - 1, 1)
-    for rows, m in zip(np.split(has[by_m], bounds), m_sorted[np.r_[0, bounds]].tolist() if len(has) else []):
+    valences = m_sorted[np.r_[0, bounds]].tolist() if len(has) else []
+    for rows, m in zip(np.split(has[by_m], bounds), valences):  # a few distinct valences
         start = ptr[rows]
         for j in range(k):  # k (6) columns
             num = (m - 1) * j
