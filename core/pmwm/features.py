@@ -73,10 +73,13 @@ def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6,
     normals, areas = face_normals(vertices, adj.faces, cross)
     owner = segment_owner(adj.vf_ptr)
     face = adj.vf_idx
-    keep = areas[face] > 0
-    owner, face = owner[keep], face[keep]
-    del keep
-    counts = np.bincount(owner, minlength=n)
+    if (areas > 0).all():  # no degenerate face (the usual case): every incidence counts
+        counts = np.diff(adj.vf_ptr)
+    else:
+        keep = areas[face] > 0
+        owner, face = owner[keep], face[keep]
+        del keep
+        counts = np.bincount(owner, minlength=n)
 
     # area-weighted mean normal per vertex = normalised sum of the cross products; one column at
     # a time (1-D gathers of the faces' values, the same products as gathering the rows)
