@@ -206,7 +206,7 @@ WALK_STEPS = 64  # corners walked around one vertex before the pointer doubling 
 def _pinched(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray, ptr: np.ndarray) -> np.ndarray:
     """(n,) bool: vertices whose faces form more than one fan (``_fan_count(...) > 1``).
 
-    Around a vertex the corners, linked by ``_next_corner``, form disjoint paths (open fans, each
+    Around a vertex the corners, linked by ``_corner_next``, form disjoint paths (open fans, each
     with one end, a corner without a next one) and cycles (closed fans). A vertex is one fan when it
     has at most one end and the walk from the path's first corner (or, without an end, from any
     corner) visits all its corners. All vertices walk together, one corner per step, for as many
@@ -218,35 +218,52 @@ def _pinched(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray, ptr: np.n
         return np.zeros(n, bool)
     if int(count.max()) > WALK_STEPS:
         return _fan_count(he_from, twin, order, n) > 1
-    fwd = _next_corner(he_from, twin, order)
-    it = fwd.dtype.type
-    end = np.flatnonzero(fwd == np.arange(len(fwd), dtype=it))  # positions of the ends
-    ends = np.bincount(np.searchsorted(ptr, end, "right") - 1, minlength=n)
-    # the walk's first corner: without an end, the vertex's first; with one, the corner no other
-    # corner of the vertex leads to (looked for among those vertices' corners only)
-    head = ptr[:-1].copy()
+    # the walk follows corners by their own numbers (half-edge c starts at corner c): no reordering
+    nc = len(he_from)
+    it = np.int32 if nc < 2**31 - 1 else np.int64
+    fwd = _corner_next(twin, it)
+    end = np.flatnonzero(fwd == np.arange(nc, dtype=it))  # the ends
+    ends = np.bincount(he_from[end], minlength=n)
+    # the walk's first corner: without an end, any (the cycle's length is the same from all of them),
+    # here the vertex's first in vertex order; with one, the corner no other corner of the vertex
+    # leads to (looked for among those vertices' corners only)
+    walk = np.flatnonzero((ends <= 1) & (count > 0))
+    head = np.zeros(n, it)
+    head[walk] = order[ptr[walk]]
     open_fan = np.flatnonzero(ends == 1)
     if len(open_fan):
-        corners = ranges(ptr[open_fan], count[open_fan])
+        corners = order[ranges(ptr[open_fan], count[open_fan])]
         nxt = fwd[corners]
-        has_pred = np.zeros(len(fwd), bool)
+        has_pred = np.zeros(nc, bool)
         has_pred[nxt[nxt != corners]] = True
         first = corners[~has_pred[corners]]
-        head[np.searchsorted(ptr, first, "right") - 1] = first
-    walk = np.flatnonzero((ends <= 1) & (count > 0))
-    start = head[walk].astype(it)
+        head[he_from[first]] = first
+    # a vertex of c corners is one fan when its walk takes c - 1 steps without stopping (at an end,
+    # or back at its first corner). The vertices in decreasing order of corners: those still walking
+    # at a step are a prefix.
+    by_count, steps = _stable_order(WALK_STEPS - count[walk], True)
+    walk = walk[by_count]
+    steps -= WALK_STEPS  # -count[walk], non-decreasing
+    start = head[walk]
     cur = start.copy()
-    length = np.ones(len(walk), np.int64)
-    active = np.arange(len(walk))
-    while len(active):
-        nxt = fwd[cur[active]]
-        going = (nxt != cur[active]) & (nxt != start[active])
-        active = active[going]
-        cur[active] = nxt[going]
-        length[active] += 1
+    stopped = np.zeros(len(walk), bool)
+    for k in range(1, -int(steps[0]) if len(walk) else 0):  # at most WALK_STEPS steps
+        m = int(np.searchsorted(steps, -k))  # the vertices of more than k corners
+        nxt = fwd[cur[:m]]
+        stopped[:m] |= (nxt == cur[:m]) | (nxt == start[:m])
+        cur[:m] = nxt
     pinched = ends > 1
-    pinched[walk] = length != count[walk]
+    pinched[walk] = stopped
     return pinched
+
+
+def _corner_next(twin: np.ndarray, it) -> np.ndarray:
+    """(3 m,) ``it``: the corner that follows each corner around its vertex, itself where none does.
+
+    Corner c (the corner where half-edge c starts) is followed by the corner of the twin of the
+    half-edge arriving at c (the previous half-edge of c's face)."""
+    step = np.roll(twin.reshape(-1, 3), 1, axis=1).ravel()  # twin of the previous half-edge
+    return np.where(step >= 0, step, np.arange(len(step), dtype=it)).astype(it, copy=False)
 
 
 def _next_corner(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray) -> np.ndarray:
@@ -260,10 +277,7 @@ def _next_corner(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray) -> np
     order = order.astype(it)
     pos = np.empty(nc, it)
     pos[order] = np.arange(nc, dtype=it)
-    step = np.roll(twin.reshape(-1, 3), 1, axis=1).ravel()  # twin of the previous half-edge
-    nxt = np.where(step >= 0, step, np.arange(nc, dtype=it)).astype(it, copy=False)
-    del step
-    return pos[nxt[order]]  # in vertex order: position -> position of the next corner
+    return pos[_corner_next(twin, it)[order]]  # in vertex order: position -> position of the next corner
 
 
 def _fan_count(he_from: np.ndarray, twin: np.ndarray, order: np.ndarray, n: int) -> np.ndarray:

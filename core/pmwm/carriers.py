@@ -24,8 +24,10 @@ from .som import SUITABLE, classify_smoothness
 JITTER_MIN = 0.75
 
 
-def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int) -> np.ndarray:
-    """Bool mask (n,): SOM-suitable, manifold interior, valence >= 4.
+def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int,
+                      cross: np.ndarray | None = None) -> np.ndarray:
+    """Bool mask (n,): SOM-suitable, manifold interior, valence >= 4. ``cross``: the faces'
+    ``features.face_cross`` (m, 3) when the caller has it already.
 
     The SOM is trained on the manifold-interior vertices only: boundary fans are
     half-fans and isolated vertices have no feature, both would skew the clusters.
@@ -35,7 +37,7 @@ def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int) -> np.nda
     idx = np.flatnonzero(adj.manifold_interior)
     if len(idx) == 0:
         return mask
-    feats = smoothness_feature(vertices, adj)[idx]
+    feats = smoothness_feature(vertices, adj, cross=cross)[idx]
     labels = classify_smoothness(feats, seed=seed)
     mask[idx] = labels == SUITABLE
     return mask & ok
@@ -43,7 +45,7 @@ def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int) -> np.nda
 
 def two_ring(adj: Adjacency, c: int) -> np.ndarray:
     """Vertices within graph distance 2 of c, c included (may repeat)."""
-    ring = gather_rows(adj.ring_ptr, adj.ring_idx, np.array([c], dtype=np.int64))
+    ring = adj.ring_idx[adj.ring_ptr[c] : adj.ring_ptr[c + 1]]
     return np.concatenate([[c], ring, gather_rows(adj.ring_ptr, adj.ring_idx, ring)])
 
 
@@ -68,42 +70,51 @@ def select_carriers(
     # farthest-point order with a keyed jitter: the next pick maximises distance * jitter, kept squared
     # (the same order as the distance itself) and -inf where the 2-ring rule blocks a candidate; ties
     # go to the lowest vertex index. A pick can only lower the distance of the candidates closer than
-    # the largest distance of a live one: with the candidates held sorted by x, a slab around it.
-    by_x = np.argsort(v[cand, 0], kind="stable")
-    cand = cand[by_x]
+    # the largest distance of a live one: with the candidates held sorted along the longest side of
+    # their bounding box, a slab around it.
+    # A blocked candidate's squared distance is -inf too, so that its score stays -inf without a mask.
+    axis = int(np.argmax(np.ptp(v[cand], axis=0))) if len(cand) else 0
+    by_axis = np.argsort(v[cand, axis], kind="stable")
+    cand = cand[by_axis]
     local = np.full(adj.n_vertices, -1, dtype=np.int64)
     local[cand] = np.arange(len(cand))
-    pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, x ascending
-    weight = (jitter * jitter)[by_x]
+    pos = np.ascontiguousarray(v[cand].T)  # (3, k): one coordinate per row, pos[axis] ascending
+    weight = (jitter * jitter)[by_axis]
     w_min = float(weight.min()) if len(cand) else 1.0
     dist2 = np.full(len(cand), np.inf)
     score = np.full(len(cand), np.inf)
+    buf, d2_buf = np.empty(len(cand)), np.empty(len(cand))
     chosen: list[int] = []
-    pick = int(np.flatnonzero(by_x == rng.integers(len(cand)))[0]) if len(cand) else -1
+    pick = int(np.flatnonzero(by_axis == rng.integers(len(cand)))[0]) if len(cand) else -1
     while pick >= 0:
         c = int(cand[pick])
         chosen.append(c)
         if len(chosen) == n:
             break
         # every live candidate has dist2 <= score / weight <= score[pick] / w_min
-        x = float(pos[0, pick])
+        x = float(pos[axis, pick])
         reach = float(np.sqrt(score[pick] / w_min)) * (1.0 + 1e-6) + abs(x) * 1e-12
         lo, hi = (0, len(cand)) if not np.isfinite(reach) else (
-            int(np.searchsorted(pos[0], x - reach)), int(np.searchsorted(pos[0], x + reach, "right")))
-        d2 = (pos[0, lo:hi] - pos[0, pick]) ** 2
-        d2 += (pos[1, lo:hi] - pos[1, pick]) ** 2
-        d2 += (pos[2, lo:hi] - pos[2, pick]) ** 2
-        np.minimum(dist2[lo:hi], d2, out=d2)
-        dist2[lo:hi] = d2
+            int(np.searchsorted(pos[axis], x - reach)), int(np.searchsorted(pos[axis], x + reach, "right")))
+        # d2 = ((x - x0)^2 + (y - y0)^2) + (z - z0)^2, in two reused buffers
+        t, d2 = buf[: hi - lo], d2_buf[: hi - lo]
+        np.subtract(pos[0, lo:hi], pos[0, pick], out=t)
+        np.multiply(t, t, out=d2)
+        for row in (1, 2):
+            np.subtract(pos[row, lo:hi], pos[row, pick], out=t)
+            np.multiply(t, t, out=t)
+            d2 += t
+        np.minimum(dist2[lo:hi], d2, out=dist2[lo:hi])
         blocked = local[two_ring(adj, c)]
-        score[blocked[blocked >= 0]] = -np.inf
-        alive = score[lo:hi] > -np.inf
-        np.multiply(d2, weight[lo:hi], out=score[lo:hi], where=alive)
+        blocked = blocked[blocked >= 0]
+        dist2[blocked] = -np.inf
+        score[blocked] = -np.inf
+        np.multiply(dist2[lo:hi], weight[lo:hi], out=score[lo:hi])
         pick = int(np.argmax(score))
         best = score[pick]
         if best == -np.inf:  # no live candidate left
             break
-        if np.count_nonzero(score == best) > 1:  # a tie: the lowest vertex index, as in vertex order
+        if score[pick + 1 :].max(initial=-np.inf) == best:  # a tie: the lowest vertex index
             tied = np.flatnonzero(score == best)
             pick = int(tied[np.argmin(cand[tied])])
     if len(chosen) < n:

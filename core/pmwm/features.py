@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .adjacency import Adjacency, segment_owner
+from .adjacency import Adjacency, segment_owner, stable_order
 
 
 def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -41,9 +41,12 @@ def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return cross
 
 
-def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal."""
-    cross = face_cross(vertices, faces)
+def face_normals(vertices: np.ndarray, faces: np.ndarray,
+                 cross: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal.
+    ``cross``: the faces' ``face_cross`` when the caller has it already."""
+    if cross is None:
+        cross = face_cross(vertices, faces)
     norm = np.linalg.norm(cross, axis=1)
     safe = np.where(norm > 0, norm, 1.0)
     return cross / safe[:, None], 0.5 * norm
@@ -60,18 +63,23 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray, cross: np.ndarray | 
     return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
 
-def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6) -> np.ndarray:
-    """Sorted 1-ring normal angles (radians) resampled to k values: (n, k) float64."""
+def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6,
+                       cross: np.ndarray | None = None) -> np.ndarray:
+    """Sorted 1-ring normal angles (radians) resampled to k values: (n, k) float64. ``cross``: the
+    faces' ``face_cross`` (m, 3) when the caller has it already."""
     if k < 1:
         raise ValueError("k must be at least 1")
     n = adj.n_vertices
-    normals, areas = face_normals(vertices, adj.faces)
+    normals, areas = face_normals(vertices, adj.faces, cross)
     owner = segment_owner(adj.vf_ptr)
     face = adj.vf_idx
-    keep = areas[face] > 0
-    owner, face = owner[keep], face[keep]
-    del keep
-    counts = np.bincount(owner, minlength=n)
+    if (areas > 0).all():  # no degenerate face (the usual case): every incidence counts
+        counts = np.diff(adj.vf_ptr)
+    else:
+        keep = areas[face] > 0
+        owner, face = owner[keep], face[keep]
+        del keep
+        counts = np.bincount(owner, minlength=n)
 
     # area-weighted mean normal per vertex = normalised sum of the cross products; one column at
     # a time (1-D gathers of the faces' values, the same products as gathering the rows)
@@ -93,19 +101,25 @@ def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6) -> np.n
     ptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(counts, out=ptr[1:])
 
-    # resample: position t_j = j (m - 1) / (k - 1) in each vertex's sorted list, one column j at a
-    # time; exact integer arithmetic: t_j = j (m - 1) / (k - 1) = lo + w
+    # resample: position t_j = j (m - 1) / (k - 1) in each vertex's sorted list of m angles; exact
+    # integer arithmetic: t_j = lo + w, w = (j (m - 1) mod (k - 1)) / (k - 1). The vertices of one m
+    # (a few distinct ones) share lo, hi and w: one gather per (m, j); where w = 0 the value is the
+    # angle at lo itself (a * 1.0 + b * 0.0 == a for the finite, non-negative angles of arccos)
     out = np.zeros((n, k))
-    has = counts > 0
-    m = counts[has]
-    start = ptr[:-1][has]
+    has = np.flatnonzero(counts > 0)
+    by_m, m_sorted = stable_order(counts[has])
+    bounds = np.flatnonzero(np.diff(m_sorted)) + 1
     den = max(k - 1, 1)
-    for j in range(k):  # k (6) columns
-        num = (m - 1) * j
-        lo = num // den
-        w = (num % den) / den
-        hi = np.minimum(lo + 1, m - 1)
-        out[has, j] = angle[start + lo] * (1.0 - w) + angle[start + hi] * w
+    valences = m_sorted[np.r_[0, bounds]].tolist() if len(has) else []
+    for rows, m in zip(np.split(has[by_m], bounds), valences):  # a few distinct valences
+        start = ptr[rows]
+        for j in range(k):  # k (6) columns
+            num = (m - 1) * j
+            lo, w = num // den, (num % den) / den
+            if w == 0.0:
+                out[rows, j] = angle[start + lo]
+            else:
+                out[rows, j] = angle[start + lo] * (1.0 - w) + angle[start + min(lo + 1, m - 1)] * w
     return out
 
 

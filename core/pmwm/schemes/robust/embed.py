@@ -18,7 +18,7 @@ from ...adjacency import Adjacency, build_adjacency
 from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, no_progress, start_embed
 from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
-from ...features import mean_edge_length, vertex_normals
+from ...features import face_cross, mean_edge_length, vertex_normals
 from ...key import derive_seed, keyed_bits
 from ...progressive import ProgressiveMesh, build_progressive_mesh
 from ...register import surface_frame
@@ -132,7 +132,8 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
     nb = n_bits
     report(0.0, "analysing the mesh")
     adj = build_adjacency(F, len(V))
-    eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"))
+    cross = face_cross(V, F)  # the faces' cross products: their normals and the vertex normals
+    eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"), cross=cross)
     while True:  # fewer sites per bit on small meshes, down to 2
         try:
             sites = select_carriers(V, adj, eligible, nb * per_bit, seed=derive_seed(secret, "robust-sites"))
@@ -151,7 +152,7 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
     A = strength * AMPLITUDE_PER_STRENGTH * edge
     At = strength * SWIRL_PER_STRENGTH * edge
 
-    vn = vertex_normals(V, F)
+    vn = vertex_normals(V, F, cross)
     si, vi, d = pairs_within(P, V, np.full(len(P), OUTER * r))
     # site normal: mean vertex normal over the disc (same side as the site's own normal)
     disc = (np.einsum("ij,ij->i", vn[vi], vn[sites][si]) > 0.3) & (d < r)
@@ -194,13 +195,16 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
     dt = np.hypot(u, v)
     ring_ok = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.8) & (dt > 1.05 * r)
     ring = np.full((len(P), RING), -1, np.int64)
+    # each site's samples are consecutive (pairs_within orders its pairs by site): its pick is its
+    # first sample of least score
+    new_site = np.r_[True, si[1:] != si[:-1]] if len(si) else np.zeros(0, bool)
+    starts, group = np.flatnonzero(new_site), np.cumsum(new_site) - 1
     for k in range(RING):  # RING (3) iterations
         target = theta0 + 2 * np.pi * k / RING
         dphi = np.abs(np.angle(np.exp(1j * (phi - target[si]))))
         score = dphi + np.abs(dt / r - RING_DISTANCE)
         score[~ring_ok] = np.inf
-        o = np.lexsort((score, si))
-        first = o[np.r_[True, si[o][1:] != si[o][:-1]]]
+        first = _first_least(score, starts, group)
         good = np.isfinite(score[first])
         ring[si[first][good], k] = vi[first][good]
     none = np.zeros(len(P), bool)
@@ -208,6 +212,15 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
                          origin=P, normal=N, radius=r, amplitude=A, swirl=At, samples=samples, frame=None)
     return SiteAnalysis(vertices=V, faces=F, adj=adj, sites=sites, site=site, n_bits=nb, sample_site=si,
                         sample_vertex=vi, bump_field=(A * prof)[:, None] * N[si], swirl_field=At * e, ring=ring)
+
+
+def _first_least(score: np.ndarray, starts: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """For runs of consecutive entries (group (K,) int64 each entry's run, non-decreasing; starts the
+    runs' first entries): the index of each run's first entry of least ``score`` (K,) float64."""
+    if len(score) == 0:
+        return starts
+    least = np.flatnonzero(score == np.minimum.reduceat(score, starts)[group])
+    return least[np.r_[True, group[least[1:]] != group[least[:-1]]]]
 
 
 def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,

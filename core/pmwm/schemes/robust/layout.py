@@ -4,6 +4,7 @@ cutting off half the shape leaves every bit some sites, and the bits' energies a
 from __future__ import annotations
 
 import bisect
+import itertools
 
 import numpy as np
 
@@ -57,26 +58,11 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     d = rng.standard_normal((CUT_TESTS, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
     proj = P @ d.T  # (sites, directions)
-    kept = np.concatenate([proj <= np.quantile(proj, q, axis=0) for q in (0.5, 0.4)], axis=1)
-    count = np.zeros((n_bits, kept.shape[1]), np.int64)
-    np.add.at(count, bit, kept.astype(np.int64))
-    need = min(CUT_KEEP_MIN, int(np.bincount(bit).min()))
-    bit = bit.copy()
-    kept_n = kept.astype(np.int64)
-    short_rows = np.count_nonzero(count < need, axis=1)  # (bit, cut) pairs short of sites, per bit
-
-    def try_swap(i: int, j: int) -> bool:
-        """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
-        b, a = bit[i], bit[j]
-        delta = kept_n[j] - kept_n[i]
-        new_b, new_a = count[b] + delta, count[a] - delta
-        short_b, short_a = np.count_nonzero(new_b < need), np.count_nonzero(new_a < need)
-        if short_b + short_a > short_rows[b] + short_rows[a]:
-            return False
-        count[b], count[a] = new_b, new_a
-        short_rows[b], short_rows[a] = short_b, short_a
-        bit[i], bit[j] = a, b
-        return True
+    # (each direction's quantile along the rows of the transposed copy: the same values, faster)
+    proj_t = np.ascontiguousarray(proj.T)
+    kept = np.concatenate([proj <= np.quantile(proj_t, q, axis=1) for q in (0.5, 0.4)], axis=1)
+    book = _CutBook(kept, bit, n_bits)
+    bit = book.bit
 
     # the draws below read Python structures (one short loop per step, no array scans): the sites of
     # each bit in ascending order, and for each cut its kept sites in ascending order and a flag per site
@@ -84,34 +70,32 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites)
     kept_sites = [np.flatnonzero(row).tolist() for row in kept_t]
     kept_flag = [row.tolist() for row in kept_t]
-    shorts = short_rows.tolist()
+    integers = _Integers(rng)  # rng.integers(n): the same draws, without numpy's per-call cost
+    short_cols, try_swap, bisect_right = book.short_cols, book.try_swap, bisect.bisect_right  # (locals)
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
         # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
         # counts per bit, then the column within that row
-        total = sum(shorts)
+        acc = book.short_acc
+        total = acc[-1]
         if total == 0:
             break
-        k = int(rng.integers(total))
-        b = 0
-        while k >= shorts[b]:
-            k -= shorts[b]
-            b += 1
-        c = int(np.flatnonzero(count[b] < need)[k])
-        flag = kept_flag[c]
-        mine = [i for i in members[b] if not flag[i]]  # sites of bit b the cut drops
-        in_cut = len(members[b]) - len(mine)
-        n_other = len(kept_sites[c]) - in_cut  # sites the cut keeps, of other bits
-        if len(mine) == 0 or n_other == 0:
+        k = integers(total)
+        b = bisect_right(acc, k)
+        c = short_cols[b][k - acc[b - 1] if b else k]
+        flag, mb = kept_flag[c], members[b]
+        mine = [i for i in mb if not flag[i]]  # sites of bit b the cut drops
+        n_other = len(kept_sites[c]) - (len(mb) - len(mine))  # sites the cut keeps, of other bits
+        if not mine or n_other == 0:
             continue
-        i = mine[rng.integers(len(mine))]
-        j = _nth_skipping(kept_sites[c], int(rng.integers(n_other)), [m for m in members[b] if flag[m]])
+        i = mine[integers(len(mine))]
+        j = _nth_skipping(kept_sites[c], integers(n_other), [m for m in mb if flag[m]])
         if try_swap(i, j):
-            a = int(bit[i])  # j's bit, now i's
-            members[b].remove(i)
-            bisect.insort(members[b], j)
+            a = book.bits[i]  # j's bit, now i's
+            mb.remove(i)
+            bisect.insort(mb, j)
             members[a].remove(j)
             bisect.insort(members[a], i)
-            shorts[b], shorts[a] = int(short_rows[b]), int(short_rows[a])
+    integers.close()
 
     for _ in range(SWAP_ROUNDS):  # rounds pairing the k-th richest bit with the k-th poorest
         total = np.bincount(bit, weights=energy, minlength=n_bits)
@@ -122,10 +106,9 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
             mine, other = np.flatnonzero(bit == hi), np.flatnonzero(bit == lo)
             d = energy[mine][:, None] - energy[other][None, :]
             cost = np.where((d > 0) & (d < gap), np.abs(d - gap / 2), np.inf).ravel()
-            for k in np.argsort(cost, kind="stable"):
-                if not np.isfinite(cost[k]):
-                    break
-                if try_swap(mine[k // len(other)], other[k % len(other)]):
+            n_finite = np.count_nonzero(np.isfinite(cost))
+            for k in np.argsort(cost, kind="stable")[:n_finite].tolist():
+                if book.try_swap(int(mine[k // len(other)]), int(other[k % len(other)])):
                     swapped = True
                     break
         if not swapped:
@@ -133,12 +116,131 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     return bit
 
 
+class _CutBook:
+    """The sites each bit keeps under each tested cut, kept up to date through site swaps.
+
+    kept (sites, cuts) bool, bit (sites,) int64 each site's bit (copied: ``self.bit`` is updated by
+    the swaps). A bit's row of counts is mirrored in Python integers used as bit sets over the cuts
+    (the cuts where it keeps exactly ``need`` sites, and exactly ``need - 1``), so that testing a
+    swap is a few AND and popcount operations on 512-bit integers; only an accepted swap (a few
+    hundred) touches numpy rows."""
+
+    def __init__(self, kept: np.ndarray, bit: np.ndarray, n_bits: int):
+        self.bit = bit.copy()
+        self.bits = self.bit.tolist()  # the same, as a Python list (read per step)
+        self.kept_n = kept.astype(np.int64)
+        self.count = np.zeros((n_bits, kept.shape[1]), np.int64)
+        np.add.at(self.count, self.bit, self.kept_n)
+        self.need = min(CUT_KEEP_MIN, int(np.bincount(self.bit).min()))
+        self.site_cuts = _bit_sets(kept)  # per site: the cuts that keep it
+        self.at_need = [0] * n_bits  # per bit: the cuts where it keeps exactly ``need`` sites
+        self.one_short = [0] * n_bits  # ... exactly ``need - 1`` (one lost: still short; one gained: not)
+        self.short_cols: list[list[int]] = [[] for _ in range(n_bits)]  # the cuts it is short under
+        self.shorts = [0] * n_bits
+        for b in range(n_bits):
+            self._refresh(b)
+        self.short_acc = list(itertools.accumulate(self.shorts))  # running (bit, cut) short counts
+
+    def _refresh(self, b: int) -> None:
+        row = self.count[b]
+        self.at_need[b] = _bit_sets(row == self.need)[0]
+        self.one_short[b] = _bit_sets(row == self.need - 1)[0]
+        self.short_cols[b] = np.flatnonzero(row < self.need).tolist()
+        self.shorts[b] = len(self.short_cols[b])
+
+    def try_swap(self, i: int, j: int) -> bool:
+        """Swap sites i and j (of different bits) unless more (bit, cut) pairs would fall short."""
+        bits, at_need, one_short = self.bits, self.at_need, self.one_short
+        b, a = bits[i], bits[j]
+        ki, kj = self.site_cuts[i], self.site_cuts[j]
+        lose, gain = ki & ~kj, kj & ~ki  # the cuts where b loses a kept site (a gains one), and gains
+        # the change in b's and a's short cuts: must not be positive
+        if ((lose & at_need[b]).bit_count() - (gain & one_short[b]).bit_count()
+                + (gain & at_need[a]).bit_count() - (lose & one_short[a]).bit_count()) > 0:
+            return False
+        delta = self.kept_n[j] - self.kept_n[i]
+        self.count[b] += delta
+        self.count[a] -= delta
+        self._refresh(b)
+        self._refresh(a)
+        self.short_acc = list(itertools.accumulate(self.shorts))
+        self.bit[i], self.bit[j] = a, b
+        bits[i], bits[j] = a, b
+        return True
+
+
+class _Integers:
+    """``rng.integers(n)`` (an int in [0, n), 1 <= n < 2**32) for the Generator ``rng``, drawn in
+    Python from its PCG64 bit generator exactly as numpy draws it (Lemire's bounded method on the
+    generator's 32-bit outputs, each 64-bit output giving its low half, then its high half), at a
+    third of the cost of a ``rng.integers`` call; ``close()`` hands the state back (any other bit
+    generator: ``rng.integers`` itself). tests/test_robust_layout.py checks the draws against numpy's."""
+
+    def __init__(self, rng: np.random.Generator):
+        self.rng = rng
+        self.own = type(rng.bit_generator) is np.random.PCG64
+        if self.own:
+            self._load()
+
+    def _load(self) -> None:
+        """Take the generator's state: its waiting 32-bit half, and its outputs from here on."""
+        state = self.rng.bit_generator.state
+        self.has_half, self.half = bool(state["has_uint32"]), int(state["uinteger"])
+        self.raw = self.rng.bit_generator.random_raw
+
+    def _next32(self) -> int:
+        if self.has_half:
+            self.has_half = False
+            return self.half
+        x = self.raw()
+        self.has_half, self.half = True, x >> 32
+        return x & 0xFFFFFFFF
+
+    def __call__(self, n: int) -> int:
+        if not self.own:
+            return int(self.rng.integers(n))
+        if not 1 < n < 1 << 32:
+            if n == 1:
+                return 0  # numpy draws nothing
+            self.close()  # numpy's own path (or its error), from the same state
+            value = int(self.rng.integers(n))
+            self._load()
+            return value
+        if self.has_half:  # self._next32(), inline
+            self.has_half = False
+            m = self.half * n
+        else:
+            x = self.raw()
+            self.has_half, self.half = True, x >> 32
+            m = (x & 0xFFFFFFFF) * n
+        if (m & 0xFFFFFFFF) < n:
+            threshold = ((1 << 32) - n) % n
+            while (m & 0xFFFFFFFF) < threshold:
+                m = self._next32() * n
+        return m >> 32
+
+    def close(self) -> None:
+        """Hand the state back to the generator (its 128-bit state is already where it should be)."""
+        if self.own:
+            bg = self.rng.bit_generator
+            state = bg.state  # the 128-bit state, advanced by ``random_raw``
+            state["has_uint32"], state["uinteger"] = int(self.has_half), self.half
+            bg.state = state
+
+
+def _bit_sets(rows: np.ndarray) -> list[int]:
+    """Each row of rows (r, c) bool (or one row (c,)) as a Python integer whose bit k is rows[., k]."""
+    rows = np.atleast_2d(rows)
+    packed = np.packbits(rows, axis=1, bitorder="little")
+    return [int.from_bytes(p.tobytes(), "little") for p in packed]
+
+
 def _nth_skipping(values: list[int], r: int, skip: list[int]) -> int:
     """The r-th (0-based) element of the ascending list ``values`` once the elements ``skip`` (a
-    few, all in ``values``) are left out."""
+    few, all in ``values``, ascending) are left out."""
     if not skip:
         return values[r]
-    for p in sorted(bisect.bisect_left(values, x) for x in skip):
+    for p in [bisect.bisect_left(values, x) for x in skip]:  # ascending, as skip
         if p <= r:
             r += 1
         else:
