@@ -81,7 +81,7 @@ class WatermarkKey:
             ],
             "extra": self.data.to_extra() if hasattr(self.data, "to_extra") else self.extra,
         }
-        return dumps_indent1(doc) + "\n"
+        return json.dumps(doc, indent=1) + "\n"
 
     @classmethod
     def from_json(cls, text: str, name: str = "the key") -> "WatermarkKey":
@@ -166,67 +166,6 @@ def make_secret(seed: Optional[int]) -> str:
     if seed is None:
         return os.urandom(32).hex()
     return hashlib.sha256(f"pmwm-seed:{int(seed)}".encode()).hexdigest()
-
-
-def dumps_indent1(doc) -> str:
-    """``json.dumps(doc, indent=1)``, the same text, several times faster on a key: json formats an
-    indented document in Python, item by item; here every list of plain numbers, and every list of
-    such lists (points, normals), goes through the C encoder in one call and is re-indented by
-    replacing its ", " and "], [" separators (which no number contains). A dict key that is not a
-    str: json.dumps itself (it converts such keys)."""
-    out: list[str] = []
-    try:
-        _indent1(doc, 0, out)
-    except _NotPlain:
-        return json.dumps(doc, indent=1)
-    return "".join(out)
-
-
-class _NotPlain(Exception):
-    """A document ``dumps_indent1`` leaves to json.dumps."""
-
-
-def _numbers(o) -> bool:
-    return all(type(x) is int or type(x) is float for x in o)
-
-
-def _indent1(o, level: int, out: list) -> None:
-    """Append the text of ``o`` at nesting ``level`` as json.dumps(..., indent=1) writes it."""
-    end = "\n" + " " * level
-    pad = end + " "  # one level deeper
-    if isinstance(o, dict):
-        if not o:
-            out.append("{}")
-            return
-        sep = "{" + pad
-        for k, v in o.items():
-            if type(k) is not str:
-                raise _NotPlain
-            out.append(sep)
-            out.append(json.dumps(k))
-            out.append(": ")
-            _indent1(v, level + 1, out)
-            sep = "," + pad
-        out.append(end + "}")
-    elif isinstance(o, (list, tuple)):
-        if not o:
-            out.append("[]")
-        elif _numbers(o):  # [a, b] -> [<pad>a,<pad>b<end>]
-            out.append("[" + pad + json.dumps(o)[1:-1].replace(", ", "," + pad) + end + "]")
-        elif all(type(r) in (list, tuple) and r and _numbers(r) for r in o):  # [[a, b], [c]]
-            inner = pad + " "
-            text = json.dumps(o)[2:-2].replace("], [", "\0").replace(", ", "," + inner)
-            text = text.replace("\0", pad + "]," + pad + "[" + inner)
-            out.append("[" + pad + "[" + inner + text + pad + "]" + end + "]")
-        else:
-            sep = "[" + pad
-            for v in o:
-                out.append(sep)
-                _indent1(v, level + 1, out)
-                sep = "," + pad
-            out.append(end + "]")
-    else:
-        out.append(json.dumps(o))
 
 
 def write_key(path, key: WatermarkKey, *, overwrite: bool = False) -> None:
