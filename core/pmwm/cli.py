@@ -464,7 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, help="seed of every random choice (default: a fresh secret)")
     e.add_argument("--strength", type=float,
                    help="robust and paper: a factor (default 2); cho1, cho2: Cho's alpha (default 0.05); "
-                        "blind: the bin-mean margin (default 0.07)")
+                        "blind: the bin-mean margin in a bin of median count (default: calibrated per mesh)")
     e.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
     e.add_argument("--scheme", choices=tuple(SCHEMES), default="robust",
                    help="; ".join(f"{s.name}: {s.description}" for s in SCHEMES.values()))

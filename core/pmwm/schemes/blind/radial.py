@@ -10,13 +10,14 @@ Everything here is computed from the mesh alone, so the reader needs no original
   radius r in [0, 1] and the bin's statistic, the mean of r over its vertices (unit weights).
 
 Embedding (Cho et al.'s method I, with another push): within every bin r -> r + beta sin^2(pi r) moves
-the mean above 1/2 + alpha (bit 1, beta > 0) or below 1/2 - alpha (bit 0, beta < 0); vertices move
-along their radius. The push is monotone for |beta| < 1/pi and leaves r = 0 and r = 1 in place with
+the mean above 1/2 + alpha_j (bit 1, beta > 0) or below 1/2 - alpha_j (bit 0, beta < 0); vertices move
+along their radius. The margin alpha_j is alpha * sqrt(median count / count of bin j) (clipped,
+``bin_margins``): the same signal-to-noise ratio in every bin at the distortion of one margin for all. The push is monotone for |beta| < 1/pi and leaves r = 0 and r = 1 in place with
 slope 1 there, so no vertex changes bin and the density at the bin edges, where noise and remeshing
 move vertices across, is left as it was (Cho's r -> r**k empties one edge and crowds the other). It
 moves a bin mean by at most about 0.155; a bin asked for more gets Cho's r**k. Reading: the sign of
 (bin mean - 1/2). The embedder re-reads its own output (float32, frame recomputed from the marked
-mesh) and raises the margin of any bin that came out wrong or weak (below alpha / 2), keeping the round
+mesh) and raises the margin of any bin that came out wrong or weak (below alpha_j / 2), keeping the round
 with the fewest wrong, then weak, bins.
 
 Why this push: at the same MRMS it reads more whole payloads than r**k after simplification,
@@ -52,6 +53,7 @@ QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as area-weighted qu
 K_GRID = 1e-3  # the step of the exponent k (Cho's)
 BETA_GRID = 1e-4  # the step of the push beta
 BETA_MAX = 0.999 / np.pi  # |beta| below 1/pi: the push stays monotone
+MARGIN_SPREAD = (0.5, 3.0)  # a bin's margin is alpha * sqrt(median count / its count), clipped to this
 
 
 @dataclass
@@ -194,13 +196,31 @@ def _solve_beta(r, b, a, n_bins, one, targets) -> tuple[np.ndarray, np.ndarray]:
     return sign * j * BETA_GRID, reached(j)
 
 
+def bin_margins(counts: np.ndarray) -> np.ndarray:
+    """Each bin's margin in units of alpha (M,): sqrt(median count / its count), clipped to
+    ``MARGIN_SPREAD``, from the bins' vertex counts (M,). A bin mean read through an attack errs by
+    about sigma / sqrt(n_j), so this gives every bin the same signal-to-noise ratio, at the same
+    distortion as equal margins (the squared displacement grows as n_j margin_j^2, summed: the same
+    total). Measured (4 keys, the same MRMS 0.019 %, errors of the 64 bins summed over Loop, sqrt3
+    and midpoint subdivision, 8-bit quantization, 10 smoothing iterations, 50 and 70 %
+    simplification, 0.3 and 0.5 % noise): bunny 11.5 -> 6.5, dragon 6.3 -> 4.8, Venus head 41.0 ->
+    38.0 against equal margins; the exponents 0.25, 0.75 and 1 were between or worse overall."""
+    c = np.asarray(counts, dtype=np.float64)
+    filled = c[c > 0]
+    med = float(np.median(filled)) if len(filled) else 1.0
+    return np.clip(np.sqrt(med / np.maximum(c, 1e-300)), *MARGIN_SPREAD)
+
+
 def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, rounds: int = 8) -> np.ndarray:
     """Marked vertices (n, 3) float64 (float32-exact) whose bins read ``signs`` (M,) (+1 / -1; 0 =
-    leave the bin alone) with margin ``alpha`` on the bin mean of r. MeshError when a bin is empty."""
+    leave the bin alone) with margin ``alpha`` on the bin mean of r in a bin of the median count of
+    vertices (``bin_margins``). MeshError when a bin is empty."""
     n_bins = len(signs)
     fr, a = frame_of(V, F, n_bins)
     one = signs > 0
-    margin = np.full(n_bins, float(alpha))
+    bv = bin_vertices(V, fr)
+    base = float(alpha) * bin_margins(bin_statistics(bv.r, bv.bin, a, n_bins)[1])
+    margin = base.copy()
     marked = V
     best = None  # ((wrong bins, weak bins), marked): on small meshes the rounds can oscillate
     for _ in range(rounds):
@@ -220,13 +240,13 @@ def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, r
         marked = marked.astype(np.float32).astype(np.float64)
         stat, _ = read_statistics(marked, F, n_bins)
         wrong = (signs != 0) & ~(np.sign(np.nan_to_num(stat)) == signs)
-        weak = (signs != 0) & (np.abs(np.nan_to_num(stat)) < 0.5 * alpha)
+        weak = (signs != 0) & (np.abs(np.nan_to_num(stat)) < 0.5 * base)
         score = (int(wrong.sum()), int(weak.sum()))
         if best is None or score < best[0]:
             best = (score, marked)
         if not (wrong | weak).any():
             break
-        margin = np.where(wrong | weak, margin + 0.5 * alpha, margin)
+        margin = np.where(wrong | weak, margin + 0.5 * base, margin)
         fr, _ = frame_of(marked, F, n_bins)  # the frame the reader will see
         fr.n_bins = n_bins
     return best[1] if best is not None else marked
