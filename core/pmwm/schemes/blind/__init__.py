@@ -32,8 +32,8 @@ simplification of the dragon gives BER 0 against 0.14 in its own frame.
 
 Strength: without an explicit ``strength`` the margin is calibrated per mesh to the distortion budget
 (``TARGET_MRMS``; ``_calibrated``): 0.07 everywhere gave MRMS 0.012 % on the Venus head and Igea
-against 0.019 % on the bunny and dragon; calibrated, the margin is about 0.06 on the bunny and dragon,
-0.09-0.10 on the heads.
+against 0.019 % on the bunny and dragon; calibrated, the margin (of a bin of median count,
+``radial.bin_margins``) is about 0.07 on the bunny and dragon, 0.09-0.10 on the heads.
 
 Cropping is not helped: a 10 % plane crop moves the area centroid by 5-16 bin widths and lo/hi by up
 to 8 (measured on the four benchmark models), far outside this search (BENCHMARKS.md: 0/12 copies
