@@ -202,7 +202,7 @@ def displaced_surface_distance(v1, v2, faces, n_samples: int = 20000, seed: int 
     points, without a spatial index: each sample's nearest point on the other surface is searched on
     the faces that share a vertex with the sample's own face. That is exact while the nearest point
     lies on those faces, as it does when the vertices move by much less than an edge (an
-    embedding's displacement; the embedders calibrate their strength with it); otherwise the
+    embedding's displacement; the blind scheme calibrates its margin with it); otherwise the
     distance found is an upper bound. v1, v2 : (n, 3) float64; faces : (m, 3) int64.
     """
     a = np.asarray(v1, dtype=np.float64)
