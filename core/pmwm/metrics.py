@@ -182,18 +182,10 @@ def surface_distance(
     root mean square, as in the benchmark); Hausdorff = max of the two one-sided maxima (an estimate
     from the samples, so a lower bound of the true Hausdorff distance).
     """
-    rng = np.random.default_rng(seed)
-    s1, s2 = rng.integers(0, 2**63 - 1, size=2)
-    p1, _ = sample_surface(v1, f1, n_samples, int(s1))
-    p2, _ = sample_surface(v2, f2, n_samples, int(s2))
-    d12 = point_surface_distance(p1, v2, f2)
-    d21 = point_surface_distance(p2, v1, f1)
-    diag = bbox_diagonal(v1)
-    if diag == 0:
-        raise MeshError("the first mesh has a zero-size bounding box; nothing to measure against")
-    rms = max(float(np.sqrt(np.mean(d12**2))), float(np.sqrt(np.mean(d21**2))))
-    haus = max(float(d12.max()), float(d21.max()))
-    return 100.0 * rms / diag, 100.0 * haus / diag
+    s1, s2 = _sample_seeds(seed)
+    p1, _ = sample_surface(v1, f1, n_samples, s1)
+    p2, _ = sample_surface(v2, f2, n_samples, s2)
+    return _mrms_hausdorff(point_surface_distance(p1, v2, f2), point_surface_distance(p2, v1, f1), v1)
 
 
 def displaced_surface_distance(v1, v2, faces, n_samples: int = 20000, seed: int | None = None) -> tuple[float, float]:
@@ -210,21 +202,34 @@ def displaced_surface_distance(v1, v2, faces, n_samples: int = 20000, seed: int 
     F = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if a.shape != b.shape:
         raise MeshError(f"a displaced copy has the same vertices; got {len(a)} and {len(b)}. Use surface_distance")
-    rng = np.random.default_rng(seed)
-    s1, s2 = rng.integers(0, 2**63 - 1, size=2)
-    d12 = _distance_near_own_face(a, b, F, *sample_faces(a, F, n_samples, int(s1)))
-    d21 = _distance_near_own_face(b, a, F, *sample_faces(b, F, n_samples, int(s2)))
-    diag = bbox_diagonal(a)
+    s1, s2 = _sample_seeds(seed)
+    d12 = _distance_near_own_face(a, b, F, *sample_faces(a, F, n_samples, s1))
+    d21 = _distance_near_own_face(b, a, F, *sample_faces(b, F, n_samples, s2))
+    return _mrms_hausdorff(d12, d21, a)
+
+
+def _sample_seeds(seed: int | None) -> tuple[int, int]:
+    """The seeds of the two surfaces' samples, from the measure's seed."""
+    s1, s2 = np.random.default_rng(seed).integers(0, 2**63 - 1, size=2)
+    return int(s1), int(s2)
+
+
+def _mrms_hausdorff(d12: np.ndarray, d21: np.ndarray, v1) -> tuple[float, float]:
+    """(MRMS %, Hausdorff %) from the one-sided sample distances (k,), % of v1's bbox diagonal."""
+    diag = bbox_diagonal(v1)
     if diag == 0:
         raise MeshError("the first mesh has a zero-size bounding box; nothing to measure against")
     rms = max(float(np.sqrt(np.mean(d12**2))), float(np.sqrt(np.mean(d21**2))))
-    return 100.0 * rms / diag, 100.0 * max(float(d12.max()), float(d21.max())) / diag
+    haus = max(float(d12.max()), float(d21.max()))
+    return 100.0 * rms / diag, 100.0 * haus / diag
 
 
 def _distance_near_own_face(src: np.ndarray, dst: np.ndarray, F: np.ndarray, face: np.ndarray,
                             w: np.ndarray) -> np.ndarray:
     """Distance (k,) from the points with barycentric weights w (k, 3) in faces ``face`` (k,) of
-    (src, F) to the faces of (dst, F) sharing a vertex with their own face."""
+    (src, F) to the faces of (dst, F) sharing a vertex with their own face. Only the sampled faces'
+    vertices have their faces grouped (one sort of their corners): a whole ``Adjacency`` would cost
+    more than the measure (about 90 ms on Igea)."""
     p = np.einsum("ij,ijk->ik", w, src[F[face]])
     need = np.zeros(len(src), bool)
     need[F[face]] = True

@@ -150,8 +150,7 @@ def bin_statistics(vertices, faces) -> Statistics:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
     chosen, frames = radial.read_statistics_frames(V, F, [_n_bins(n) for n in words])
-    return Statistics({n: np.stack([many[i][0] for many in frames]) for i, n in enumerate(words)},
-                      words[[_n_bins(n) for n in words].index(chosen)])
+    return Statistics({n: np.stack([many[i][0] for many in frames]) for i, n in enumerate(words)}, words[chosen])
 
 
 def word_read(stat: np.ndarray, secret: str, n_word: int) -> tuple[np.ndarray, np.ndarray]:

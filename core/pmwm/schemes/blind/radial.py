@@ -12,13 +12,14 @@ Everything here is computed from the mesh alone, so the reader needs no original
 Embedding (Cho et al.'s method I, with another push): within every bin r -> r + beta sin^2(pi r) moves
 the mean above 1/2 + alpha_j (bit 1, beta > 0) or below 1/2 - alpha_j (bit 0, beta < 0); vertices move
 along their radius. The margin alpha_j is alpha * sqrt(median count / count of bin j) (clipped,
-``bin_margins``): the same signal-to-noise ratio in every bin at the distortion of one margin for all. The push is monotone for |beta| < 1/pi and leaves r = 0 and r = 1 in place with
-slope 1 there, so no vertex changes bin and the density at the bin edges, where noise and remeshing
-move vertices across, is left as it was (Cho's r -> r**k empties one edge and crowds the other). It
-moves a bin mean by at most about 0.155; a bin asked for more gets Cho's r**k. Reading: the sign of
-(bin mean - 1/2). The embedder re-reads its own output (float32, frame recomputed from the marked
-mesh) and raises the margin of any bin that came out wrong or weak (below alpha_j / 2), keeping the round
-with the fewest wrong, then weak, bins.
+``bin_margins``): the same signal-to-noise ratio in every bin at the distortion of one margin for
+all. The push is monotone for |beta| < 1/pi and leaves r = 0 and r = 1 in place with slope 1 there,
+so no vertex changes bin and the density at the bin edges, where noise and remeshing move vertices
+across, is left as it was (Cho's r -> r**k empties one edge and crowds the other). It moves a bin
+mean by at most about 0.155; a bin asked for more gets Cho's r**k. Reading: the sign of (bin mean -
+1/2). The embedder re-reads its own output (float32, frame recomputed from the marked mesh) and
+raises the margin of any bin that came out wrong or weak (below alpha_j / 2), keeping the round with
+the fewest wrong, then weak, bins.
 
 Why this push: at the same MRMS it reads more whole payloads than r**k after simplification,
 smoothing, quantization and subdivision, and as many after noise, similarity and re-ordering
@@ -214,7 +215,7 @@ def bin_margins(counts: np.ndarray) -> np.ndarray:
 def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, rounds: int = 8) -> np.ndarray:
     """Marked vertices (n, 3) float64 (float32-exact) whose bins read ``signs`` (M,) (+1 / -1; 0 =
     leave the bin alone) with margin ``alpha`` on the bin mean of r in a bin of the median count of
-    vertices (``bin_margins``). MeshError when a bin is empty."""
+    vertices (``bin_margins``). An empty bin carries nothing (the reader sees an erasure)."""
     n_bins = len(signs)
     fr, a = frame_of(V, F, n_bins)
     one = signs > 0
@@ -224,7 +225,6 @@ def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, r
     marked = V
     best = None  # ((wrong bins, weak bins), marked): on small meshes the rounds can oscillate
     for _ in range(rounds):
-        bv = bin_vertices(V, fr)
         targets = np.where(one, 0.5 + margin, 0.5 - margin)
         beta, pushed = _solve_beta(bv.r, bv.bin, a, n_bins, one, targets)
         use_k = ~pushed & (signs != 0)  # beyond the push's reach: Cho's r**k alone
@@ -249,6 +249,7 @@ def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, r
         margin = np.where(wrong | weak, margin + 0.5 * base, margin)
         fr, _ = frame_of(marked, F, n_bins)  # the frame the reader will see
         fr.n_bins = n_bins
+        bv = bin_vertices(V, fr)
     return best[1] if best is not None else marked
 
 
@@ -336,17 +337,18 @@ def statistics_in(V: np.ndarray, a: np.ndarray, fr: Frame, bin_counts) -> list[t
 
 
 def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> tuple[int, list[list[tuple[np.ndarray, np.ndarray]]]]:
-    """(the bin count whose reading in the suspect's own frame has the most ``excess_energy``, and
-    ``read_statistics_many`` in the own frame, then in the frame refined for that count
-    (``refine_frame``): [own, refined], each a list over ``bin_counts``). The refined one is left out
-    when the search did not move the frame. The count is chosen without the pass phrase: the mark's
-    own length shows the most energy (the reader reads that length only, see the scheme's docstring)."""
+    """(i, frames): i, the index in ``bin_counts`` of the count whose reading in the suspect's own
+    frame has the most ``excess_energy``; frames, ``read_statistics_many`` in the own frame, then in
+    the frame refined for that count (``refine_frame``): [own, refined], each a list over
+    ``bin_counts``. The refined one is left out when the search did not move the frame. The count is
+    chosen without the pass phrase: the mark's own length shows the most energy (the reader reads
+    that length only, see the scheme's docstring)."""
     fr, a = frame_of(V, F, 1)
     own = statistics_in(V, a, fr, bin_counts)
     total = float(a.sum())
     z = [excess_energy(stat, share, total) for stat, share in own]
-    m_best = list(bin_counts)[int(np.argmax(z))]
-    ref = refine_frame(V, a, fr, m_best)
+    i_best = int(np.argmax(z))
+    ref = refine_frame(V, a, fr, list(bin_counts)[i_best])
     if np.array_equal(ref.centre, fr.centre) and ref.lo == fr.lo and ref.hi == fr.hi:
-        return m_best, [own]
-    return m_best, [own, statistics_in(V, a, ref, bin_counts)]
+        return i_best, [own]
+    return i_best, [own, statistics_in(V, a, ref, bin_counts)]

@@ -70,7 +70,6 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
     kept_t = np.ascontiguousarray(kept.T)  # (cuts, sites)
     kept_sites = [np.flatnonzero(row).tolist() for row in kept_t]
     kept_flag = [row.tolist() for row in kept_t]
-    integers = _Integers(rng)  # rng.integers(n): the same draws, without numpy's per-call cost
     short_cols, try_swap, bisect_right = book.short_cols, book.try_swap, bisect.bisect_right  # (locals)
     for _ in range(SWAP_ROUNDS * len(P)):  # a few thousand cheap steps over sites, not vertices
         # a keyed draw among the short (bit, cut) pairs, in row-major order: the row from the running
@@ -79,7 +78,7 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         total = acc[-1]
         if total == 0:
             break
-        k = integers(total)
+        k = int(rng.integers(total))
         b = bisect_right(acc, k)
         c = short_cols[b][k - acc[b - 1] if b else k]
         flag, mb = kept_flag[c], members[b]
@@ -87,15 +86,14 @@ def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: 
         n_other = len(kept_sites[c]) - (len(mb) - len(mine))  # sites the cut keeps, of other bits
         if not mine or n_other == 0:
             continue
-        i = mine[integers(len(mine))]
-        j = _nth_skipping(kept_sites[c], integers(n_other), [m for m in mb if flag[m]])
+        i = mine[int(rng.integers(len(mine)))]
+        j = _nth_skipping(kept_sites[c], int(rng.integers(n_other)), [m for m in mb if flag[m]])
         if try_swap(i, j):
             a = book.bits[i]  # j's bit, now i's
             mb.remove(i)
             bisect.insort(mb, j)
             members[a].remove(j)
             bisect.insort(members[a], i)
-    integers.close()
 
     for _ in range(SWAP_ROUNDS):  # rounds pairing the k-th richest bit with the k-th poorest
         total = np.bincount(bit, weights=energy, minlength=n_bits)
@@ -167,65 +165,6 @@ class _CutBook:
         self.bit[i], self.bit[j] = a, b
         bits[i], bits[j] = a, b
         return True
-
-
-class _Integers:
-    """``rng.integers(n)`` (an int in [0, n), 1 <= n < 2**32) for the Generator ``rng``, drawn in
-    Python from its PCG64 bit generator exactly as numpy draws it (Lemire's bounded method on the
-    generator's 32-bit outputs, each 64-bit output giving its low half, then its high half), at a
-    third of the cost of a ``rng.integers`` call; ``close()`` hands the state back (any other bit
-    generator: ``rng.integers`` itself). tests/test_robust_layout.py checks the draws against numpy's."""
-
-    def __init__(self, rng: np.random.Generator):
-        self.rng = rng
-        self.own = type(rng.bit_generator) is np.random.PCG64
-        if self.own:
-            self._load()
-
-    def _load(self) -> None:
-        """Take the generator's state: its waiting 32-bit half, and its outputs from here on."""
-        state = self.rng.bit_generator.state
-        self.has_half, self.half = bool(state["has_uint32"]), int(state["uinteger"])
-        self.raw = self.rng.bit_generator.random_raw
-
-    def _next32(self) -> int:
-        if self.has_half:
-            self.has_half = False
-            return self.half
-        x = self.raw()
-        self.has_half, self.half = True, x >> 32
-        return x & 0xFFFFFFFF
-
-    def __call__(self, n: int) -> int:
-        if not self.own:
-            return int(self.rng.integers(n))
-        if not 1 < n < 1 << 32:
-            if n == 1:
-                return 0  # numpy draws nothing
-            self.close()  # numpy's own path (or its error), from the same state
-            value = int(self.rng.integers(n))
-            self._load()
-            return value
-        if self.has_half:  # self._next32(), inline
-            self.has_half = False
-            m = self.half * n
-        else:
-            x = self.raw()
-            self.has_half, self.half = True, x >> 32
-            m = (x & 0xFFFFFFFF) * n
-        if (m & 0xFFFFFFFF) < n:
-            threshold = ((1 << 32) - n) % n
-            while (m & 0xFFFFFFFF) < threshold:
-                m = self._next32() * n
-        return m >> 32
-
-    def close(self) -> None:
-        """Hand the state back to the generator (its 128-bit state is already where it should be)."""
-        if self.own:
-            bg = self.rng.bit_generator
-            state = bg.state  # the 128-bit state, advanced by ``random_raw``
-            state["has_uint32"], state["uinteger"] = int(self.has_half), self.half
-            bg.state = state
 
 
 def _bit_sets(rows: np.ndarray) -> list[int]:
