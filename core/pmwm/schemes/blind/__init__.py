@@ -55,7 +55,7 @@ from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import build_progressive_mesh
 from ...validate import check_mesh
-from . import radial, word
+from . import frames, radial, word
 from .keydata import BlindKeyData
 
 __all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "bin_statistics", "decide", "Statistics",
@@ -132,25 +132,27 @@ def _calibrated(V, F, signs, alpha, marked) -> tuple[float, np.ndarray]:
 class Statistics:
     """What the reader measures on a suspect, independent of the pass phrase: per word length N the
     bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1
-    or 2 frames (the suspect's own, then the refined one), and the length ``n_word`` the reader reads:
-    the one whose bins show the most mark energy in the own frame."""
+    or 2 frames (``frame_names``: the suspect's own, then a refined one or a cropped copy's; see
+    ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads."""
 
     words: dict[int, np.ndarray]
     n_word: int
+    frame_names: tuple[str, ...] = ("own", "refined")
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
-        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word)
+        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1])
 
 
 def bin_statistics(vertices, faces) -> Statistics:
-    """The ``Statistics`` of a suspect, vertices (n, 3), faces (m, 3) (``radial.read_statistics_frames``)."""
+    """The ``Statistics`` of a suspect, vertices (n, 3), faces (m, 3) (``frames.read_statistics_frames``)."""
     V, F = check_mesh(vertices, faces)
     if len(F) == 0:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
-    chosen, frames = radial.read_statistics_frames(V, F, [_n_bins(n) for n in words])
-    return Statistics({n: np.stack([many[i][0] for many in frames]) for i, n in enumerate(words)}, words[chosen])
+    got = frames.read_statistics_frames(V, F, [_n_bins(n) for n in words])
+    return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
+                      words[got.index], got.names)
 
 
 def word_read(stat: np.ndarray, secret: str, n_word: int) -> tuple[np.ndarray, np.ndarray]:
@@ -206,7 +208,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
         carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
         p_threshold=p_threshold,
         extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
-               "frame": ("own", "refined")[fi], "frames": n_frames,
+               "frame": stats.frame_names[fi], "frames": n_frames,
                "word": "".join(map(str, cand.tolist())),  # after the Chase search
                "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it
         scores=score,  # (N,) sign = the scrambled bit read, as every scheme's scores

@@ -25,10 +25,10 @@ Why this push: at the same MRMS it reads more whole payloads than r**k after sim
 smoothing, quantization and subdivision, and as many after noise, similarity and re-ordering
 (BENCHMARKS.md, section ``blind-push``: the same protocol run before and after).
 
-Reading (``read_statistics_frames``): the statistics in the suspect's own frame and in the frame
-near it (1.5 bin widths at most) where the mark's energy is largest (``refine_frame``, a compass
-search; the energy involves no pass phrase, so the choice costs the p-value nothing but the second
-frame's readings, which the union bound counts).
+Reading: the statistics in the suspect's own frame and in the frame near it (1.5 bin widths at most)
+where the mark's energy is largest (``refine_frame``, a compass search; the energy involves no pass
+phrase, so the choice costs the p-value nothing but the second frame's readings, which the union bound
+counts). Which frames the reader reads in, a cropped copy's included: ``frames``.
 
 Weights, measured (3 keys, 64 bins, alpha 0.07, BER summed over noise 0.3/0.5 %, smoothing 5/10
 it., quantization 8/7 bits, simplification 50 %, loop and midpoint subdivision; bunny, Venus head,
@@ -279,6 +279,44 @@ def energies(V: np.ndarray, a: np.ndarray, centres: np.ndarray, lo: np.ndarray, 
     return e.reshape(K, n_bins).sum(1)
 
 
+SCALE_CELLS = 16  # scale_energies: cells per bin width of the cumulative histograms
+
+
+def scale_energies(rho: np.ndarray, a: np.ndarray, lo: np.ndarray, widths: np.ndarray, phases: np.ndarray,
+                   n_bins: int) -> np.ndarray:
+    """The mark's energy (as ``energies``) of many frames around B centres at once, (B, W, P) float64:
+    around centre b, n_bins bins of width ``widths[w]`` from ``lo[b] + phases[p] * widths[w]``.
+
+    rho (B, n) float64: the distances of the same n vertices to each centre; a (n,) their weights; lo (B,);
+    widths (W,) > 0; phases (P,) in bin widths. Instead of binning the vertices once per frame (W * P
+    passes over them), each centre's distances are counted once in cells of 1/SCALE_CELLS of the smallest
+    width (a cumulative count and a cumulative sum of rho per cell), and every bin's count and sum of
+    (t - j - 1/2) come from the cells at its edges, rounded to the nearest cell edge (1/32 of a bin at most)."""
+    B = len(rho)
+    cell = float(widths.min()) / SCALE_CELLS
+    origin = lo + float(min(phases.min(), 0.0)) * float(widths.max()) - cell
+    end = lo + (float(phases.max()) + n_bins) * float(widths.max())
+    n_cells = int(np.ceil(float(np.max(end - origin)) / cell)) + 2
+    x = np.floor((rho - origin[:, None]) / cell).astype(np.int64)
+    ok = (x >= 0) & (x < n_cells)
+    flat = (x + n_cells * np.arange(B)[:, None])[ok]
+    w = np.broadcast_to(a, rho.shape)[ok]
+    cum_n = np.zeros((B, n_cells + 1))
+    cum_r = np.zeros((B, n_cells + 1))
+    cum_n[:, 1:] = np.bincount(flat, weights=w, minlength=B * n_cells).reshape(B, n_cells)
+    cum_r[:, 1:] = np.bincount(flat, weights=w * rho[ok], minlength=B * n_cells).reshape(B, n_cells)
+    np.cumsum(cum_n, axis=1, out=cum_n)
+    np.cumsum(cum_r, axis=1, out=cum_r)
+    W = widths[None, :, None, None]
+    start = lo[:, None, None, None] + phases[None, None, :, None] * W  # (B, W, P, 1)
+    edges = start + np.arange(n_bins + 1) * W
+    e = np.clip(np.rint((edges - origin[:, None, None, None]) / cell).astype(np.int64), 0, n_cells)
+    e += (n_cells + 1) * np.arange(B)[:, None, None, None]
+    n = np.diff(np.take(cum_n, e), axis=-1)
+    s = (np.diff(np.take(cum_r, e), axis=-1) - n * start) / W - (np.arange(n_bins) + 0.5) * n
+    return np.divide(s * s, n, out=np.zeros_like(s), where=n > 0).sum(-1)
+
+
 def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
     """The frame near ``fr`` (centre, lo, hi within ``REFINE_BOUND`` bin widths of n_bins bins) that
     maximises the mark's ``energies``: a compass search over the 5 parameters on a subsample of the
@@ -334,21 +372,3 @@ def statistics_in(V: np.ndarray, a: np.ndarray, fr: Frame, bin_counts) -> list[t
         mean, wsum = bin_statistics(r, b, a, n_bins)
         out.append((mean - 0.5, wsum / a.sum()))
     return out
-
-
-def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> tuple[int, list[list[tuple[np.ndarray, np.ndarray]]]]:
-    """(i, frames): i, the index in ``bin_counts`` of the count whose reading in the suspect's own
-    frame has the most ``excess_energy``; frames, ``read_statistics_many`` in the own frame, then in
-    the frame refined for that count (``refine_frame``): [own, refined], each a list over
-    ``bin_counts``. The refined one is left out when the search did not move the frame. The count is
-    chosen without the pass phrase: the mark's own length shows the most energy (the reader reads
-    that length only, see the scheme's docstring)."""
-    fr, a = frame_of(V, F, 1)
-    own = statistics_in(V, a, fr, bin_counts)
-    total = float(a.sum())
-    z = [excess_energy(stat, share, total) for stat, share in own]
-    i_best = int(np.argmax(z))
-    ref = refine_frame(V, a, fr, list(bin_counts)[i_best])
-    if np.array_equal(ref.centre, fr.centre) and ref.lo == fr.lo and ref.hi == fr.hi:
-        return i_best, [own]
-    return i_best, [own, statistics_in(V, a, ref, bin_counts)]
