@@ -3,7 +3,8 @@
 - ``word``: the pass phrase (scrypt), the payload and its keyed check, the keyed layout.
 - ``radial``: the carrier, the distribution of the vertices' distances to the surface centroid in
   equal bins (Cho et al.'s method I, over an area-quantile range instead of the extreme vertices, with
-  an edge-preserving push in each bin).
+  an edge-preserving push in each bin), and the frame refinement.
+- ``crop``: the frame of a plane-cropped copy; ``frames``: the frames the reader reads in.
 - ``keydata``: the record in the in-memory key (no key file is written; nothing from the mesh).
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed
@@ -35,10 +36,12 @@ Strength: without an explicit ``strength`` the margin is calibrated per mesh to 
 against 0.019 % on the bunny and dragon; calibrated, the margin (of a bin of median count,
 ``radial.bin_margins``) is about 0.07 on the bunny and dragon, 0.09-0.10 on the heads.
 
-Cropping is not helped: a 10 % plane crop moves the area centroid by 5-16 bin widths and lo/hi by up
-to 8 (measured on the four benchmark models), far outside this search (BENCHMARKS.md: 0/12 copies
-read after a 10 % crop). The mark is global (no places); it is rotation-, scale-, translation- and
-order-invariant by construction.
+Cropping: a 10 % plane crop moves the area centroid by 5-21 bin widths and lo/hi by up to 9, far
+outside the refinement's reach (no cropped copy read before). When the suspect has a planar cut, the
+reader also searches the frame the cut took away (``crop``: the original centroid lies near a
+two-parameter family given by the cut plane; ``frames``), key-free as well, and reads there the length
+whose frame shows the most energy. The mark is global (no places); it is rotation-, scale-,
+translation- and order-invariant by construction.
 """
 
 from __future__ import annotations
