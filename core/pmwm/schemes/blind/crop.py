@@ -55,6 +55,8 @@ TOP = 6  # candidates searched finely
 OFF_PLANE = np.linspace(-1.5, 1.5, 11)  # offsets of a candidate off its family's plane, in bin widths
 FIT_ROUNDS = 2  # rounds of scale fit and refinement per candidate
 MIN_EDGES = 12  # a boundary loop of fewer edges is not a cut
+MAX_LOOPS = 32  # the largest loops are looked at, no more (a mesh may have thousands of holes)
+MAX_PLANES = 4  # the cut planes searched, those of the largest loops first
 THICKNESS = 2.0  # a loop is planar when it lies within this many mean edge lengths (RMS) of a plane
 _BATCH = 32  # candidate centres scored together
 
@@ -65,7 +67,8 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
     ``centre``. A boundary loop of at least MIN_EDGES edges is a cut when its edges' midpoints lie within
     THICKNESS of its mean edge length from a plane (RMS; a crop deletes the faces of the vertices beyond
     the plane, so the loop zigzags within about an edge of it); loops in the same plane (the largest
-    first) count together, and the plane is fitted to all of them."""
+    first) count together, and the plane is fitted to all of them. The MAX_LOOPS largest loops are looked
+    at, and the planes of the MAX_PLANES largest are returned."""
     if _closed(F, len(V)):
         return []
     adj = build_adjacency(F, len(V), detect_pinches=False)
@@ -82,10 +85,12 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
     length = np.linalg.norm(V[E[:, 1]] - V[E[:, 0]], axis=1)
     loops, size = np.unique(loop, return_counts=True)
     flat = []
-    for k in loops[np.argsort(-size, kind="stable")]:
+    for k in loops[np.argsort(-size, kind="stable")][:MAX_LOOPS]:
         on = loop == k
-        if on.sum() < MIN_EDGES or not length[on].sum() > 0:
+        if on.sum() < MIN_EDGES:
             break
+        if not length[on].sum() > 0:
+            continue
         h, n = _plane(mid[on], length[on])
         if _thickness(mid[on], length[on], h, n) <= THICKNESS:
             flat.append((h, n, on))
@@ -101,7 +106,7 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
                 used[j] = True
         h, n = _plane(mid[group], length[group])
         planes.append((h, n if (h - centre) @ n >= 0 else -n))
-    return planes
+    return planes[:MAX_PLANES]
 
 
 def _closed(F: np.ndarray, n: int) -> bool:
