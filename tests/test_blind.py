@@ -200,6 +200,14 @@ def test_cut_planes_find_the_plane_of_a_crop():
     assert abs(h @ d - (Vc @ d).max()) < 0.02 * np.ptp(V @ d)  # on the cut
 
 
+def test_the_crop_search_quantile_is_the_weighted_quantile():
+    rng = np.random.default_rng(1)
+    rho, w, q = rng.random((3, 500)), rng.random(500), np.array([0.02, 0.05, 0.3])
+    w[np.argsort(rho[0])[:100]] = 1e-9  # the lowest values of a row weigh nothing: the whole row is sorted
+    want = [radial._weighted_quantiles(rho[b], w, [q[b]])[0] for b in range(3)]
+    assert crop._low_quantile(rho, w, q) == pytest.approx(want)
+
+
 def test_scale_energies_match_the_energy_of_each_frame():
     """The cumulative-histogram energies equal a direct binning wherever the bins' edges fall on cells."""
     rng = np.random.default_rng(0)
