@@ -8,8 +8,9 @@ copy's.
    leave the bins' bias in place; this finds the frame that shows it again.
 3. When the suspect has a planar cut (``crop.cut_planes``: a boundary loop in a plane): the frame of a
    cropped copy (``crop.crop_frame``), for every word length up to CROP_MAX_BINS bins (payloads up to
-   64 bits: 8 bytes of text). The length whose frame shows the most energy is read, in that frame, when it shows more
-   than the refined frame. Every length is searched: a frame searched for another length than the
+   64 bits: 8 bytes of text). The length whose frame shows the most energy is read, in that frame,
+   when it shows more than the refined frame. Every length is searched: a frame searched for another
+   length than the
    mark's can show much of its energy too (a third to nine tenths, measured on the bunny and dragon),
    so the first strong one may be the wrong length. The search runs whenever there is a cut: no level
    of the refined frame's energy tells a crop from an intact copy on every shape (excess energy on
