@@ -1,4 +1,5 @@
-"""Adjacency: the fast sorts and the pinched-vertex walk answer exactly what the plain forms answer."""
+"""Adjacency: the fast sorts, the pinched-vertex walk and the closed-mesh test answer exactly what the
+plain forms answer."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from pmwm import adjacency
-from pmwm.adjacency import build_adjacency, stable_order
+from pmwm.adjacency import build_adjacency, is_closed, stable_order
 
 import meshes
 
@@ -73,3 +74,13 @@ def test_pinched_vertices_match_the_fan_count(monkeypatch, walk_steps):
 def test_pinched_torus_has_exactly_its_one_pinch():
     V, F = meshes.pinched_torus()
     assert len(np.flatnonzero(build_adjacency(F, len(V)).nonmanifold_vertex)) == 1
+
+
+@pytest.mark.parametrize("name", ["blob", "open_cap", "cad_part", "pinched_torus"])
+def test_is_closed_agrees_with_the_boundary_edges(name):
+    V, F = getattr(meshes, name)()
+    has_boundary = bool(np.any(build_adjacency(F, len(V)).edge_face_count == 1))
+    assert is_closed(F, len(V)) == (not has_boundary)
+    if not has_boundary:  # one face removed opens it; one face flipped breaks the twins too
+        assert not is_closed(F[1:], len(V))
+        assert not is_closed(np.vstack([F[:1, ::-1], F[1:]]), len(V))

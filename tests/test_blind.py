@@ -117,7 +117,7 @@ def test_chase_search_corrects_errors_among_the_ten_least_reliable_bits(marked):
     stat[np.isin(bit_of_bin, weak)] *= -1  # the same reliabilities, the two bits read wrong
     words = dict(stats.words)
     words[n] = stat[None]
-    v = blind.decide(blind.Statistics(words, n), marked.key.secret)
+    v = blind.decide(blind.Statistics(words, n, ("own",)), marked.key.secret)
     assert v.extra["word_read"] != v.extra["word"]
     assert v.marked and v.payload == "Acme" and v.p_value == pytest.approx(2 * 1024 * 2.0**-32)
 
@@ -200,12 +200,18 @@ def test_cut_planes_find_the_plane_of_a_crop():
     assert abs(h @ d - (Vc @ d).max()) < 0.02 * np.ptp(V @ d)  # on the cut
 
 
-def test_the_crop_search_quantile_is_the_weighted_quantile():
+def test_weighted_quantiles_of_many_rows():
+    """The smallest value whose cumulative weight reaches q of the total, also where only the lowest
+    values of a row are sorted and where those weigh too little (then the whole row is)."""
     rng = np.random.default_rng(1)
-    rho, w, q = rng.random((3, 500)), rng.random(500), np.array([0.02, 0.05, 0.3])
-    w[np.argsort(rho[0])[:100]] = 1e-9  # the lowest values of a row weigh nothing: the whole row is sorted
-    want = [radial._weighted_quantiles(rho[b], w, [q[b]])[0] for b in range(3)]
-    assert crop._low_quantile(rho, w, q) == pytest.approx(want)
+    rho, w, q = rng.random((3, 500)), rng.random(500), np.array([[0.02], [0.05], [0.3]])
+    w[np.argsort(rho[0])[:100]] = 1e-9  # the lowest values of row 0 weigh nothing
+    got = radial.weighted_quantiles(rho, w, q)[:, 0]
+    for b in range(3):
+        order = np.argsort(rho[b])
+        cw = np.cumsum(w[order])
+        assert got[b] == rho[b][order][np.flatnonzero(cw >= q[b, 0] * w.sum())[0]]
+    assert radial.weighted_quantiles(rho[:1], w, [[0.0, 1.0]])[0].tolist() == [rho[0].min(), rho[0].max()]
 
 
 def test_scale_energies_match_the_energy_of_each_frame():

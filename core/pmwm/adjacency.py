@@ -125,6 +125,17 @@ def _stable_order(keys: np.ndarray, own: bool) -> tuple[np.ndarray, np.ndarray]:
     return order, keys[order]
 
 
+def is_closed(faces: np.ndarray, n_vertices: int) -> bool:
+    """Whether every half-edge (a, b) of the faces (m, 3) has its twin (b, a), so that no edge is on a
+    boundary, without building the adjacency: the sums of x_a y_b and of x_b y_a over the half-edges
+    agree (random 64-bit x, y from a fixed seed, arithmetic modulo 2^64; a boundary makes them differ
+    but with probability 2^-64). Igea: 13 ms against about 50 for ``build_adjacency``. A mesh whose
+    faces disagree on orientation is reported open."""
+    x, y = np.random.default_rng(0).integers(1, 2**63, size=(2, n_vertices), dtype=np.uint64)
+    a, b = faces.ravel(), faces[:, [1, 2, 0]].ravel()
+    return bool(np.sum(x[a] * y[b], dtype=np.uint64) == np.sum(x[b] * y[a], dtype=np.uint64))
+
+
 def build_adjacency(faces: np.ndarray, n_vertices: int, detect_pinches: bool = True) -> Adjacency:
     """Build all adjacency of a triangle mesh in one vectorised pass.
 

@@ -140,7 +140,7 @@ class Statistics:
 
     words: dict[int, np.ndarray]
     n_word: int
-    frame_names: tuple[str, ...] = ("own", "refined")
+    frame_names: tuple[str, ...]
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""

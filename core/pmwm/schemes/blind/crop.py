@@ -6,9 +6,9 @@ models), far beyond ``radial.refine_frame``'s reach. But the original centroid c
 mean of what is left (centroid c) and of the cap: c0 = c + lam (c_cap - c), lam the cap's share of the
 area; and the cap lies beyond the cut, around the hole it left: c_cap ~ h + t n, h the centroid of the
 cut's boundary edges, n the cut plane's normal pointing away from c. Measured on the bunny, dragon, Venus
-head and Igea, 6 crops of 10 % each: c0 lies within 0.7 bin widths of this two-parameter family in 22
-of 24 crops (1.8 at most), the rest of the way mostly off the family's plane (the plane through c
-spanned by h - c and n). The reader searches it (``crop_frame``):
+head and Igea, 6 crops of 10 % each: c0 lies within 0.7 bin widths of this two-parameter family in 20
+of 24 crops and within 1 in 23 (1.8 at most), the rest of the way mostly off the family's plane (the
+plane through c spanned by h - c and n). The reader searches it (``crop_frames``, for each word length):
 
 1. the cut planes (``cut_planes``): boundary loops that lie in a plane, coplanar loops together (a
    plane that cuts two ears leaves two loops);
@@ -28,19 +28,17 @@ so the search costs the p-value nothing. Measured (scratch, 40 crops of 10 %: th
 test key on 8 crops, then 2 keys x 4 crops on each benchmark model, the 64-bin word): the frame found
 reads with at most 3 bit errors in 33 of 40 (packaged bunny 6 of 8, bunny 7, dragon 5, Venus head 8,
 Igea 7; whole payloads: BENCHMARKS.md, section ``blind``); with coarse samples of 2000 vertices
-instead of 6000: 25; with t >= 0 only and no offsets: 30; fitting again all 6 finalists instead of
+instead of 6000: 24; with t >= 0 only and no offsets: 30; fitting again all 6 finalists instead of
 the best 3: 33, a sixth slower. A 30 % crop mostly moves the width beyond the range searched.
 """
 
 from __future__ import annotations
 
-from typing import Optional
-
 import numpy as np
 
-from ...adjacency import build_adjacency
+from ...adjacency import build_adjacency, is_closed
 from .radial import (QUANTILES, REFINE_SAMPLE, Frame, excess_energy, refine_frame, scale_energies,
-                     statistics_in, vertex_areas)
+                     statistics_in, weighted_quantiles)
 
 LAMBDA_MAX = 0.4  # the largest share of the area a crop may have taken
 T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in bounding-box diagonals
@@ -69,7 +67,7 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
     the plane, so the loop zigzags within about an edge of it); loops in the same plane (the largest
     first) count together, and the plane is fitted to all of them. The MAX_LOOPS largest loops are looked
     at, and the planes of the MAX_PLANES largest are returned."""
-    if _closed(F, len(V)):
+    if is_closed(F, len(V)):
         return []
     adj = build_adjacency(F, len(V), detect_pinches=False)
     E = adj.edges[adj.edge_face_count == 1]
@@ -109,16 +107,6 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
     return planes[:MAX_PLANES]
 
 
-def _closed(F: np.ndarray, n: int) -> bool:
-    """Whether every half-edge (a, b) of the faces F (m, 3) has its twin (b, a), so that no edge is on a
-    boundary: the sums of x_a y_b and of x_b y_a over the half-edges agree (random 64-bit x, y from a
-    fixed seed, arithmetic modulo 2^64), a test without sorting the edges (Igea: 13 ms against about 50
-    for the adjacency). A mesh that fails it is looked at edge by edge."""
-    x, y = np.random.default_rng(0).integers(1, 2**63, size=(2, n), dtype=np.uint64)
-    a, b = F.ravel(), F[:, [1, 2, 0]].ravel()
-    return bool(np.sum(x[a] * y[b], dtype=np.uint64) == np.sum(x[b] * y[a], dtype=np.uint64))
-
-
 def _plane(P: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Weighted least-squares plane of points P (k, 3), weights w (k,): centroid (3,), unit normal (3,)."""
     h = (P * w[:, None]).sum(0) / w.sum()
@@ -130,23 +118,6 @@ def _thickness(P: np.ndarray, w: np.ndarray, h: np.ndarray, n: np.ndarray) -> fl
     """RMS distance of the edge midpoints P (k, 3) (weights w, the edges' lengths) to the plane (h, n), in
     mean edge lengths."""
     return float(np.sqrt(np.average(((P - h) @ n) ** 2, weights=w)) / np.mean(w))
-
-
-def _low_quantile(rho: np.ndarray, w: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Per row of rho (B, n), the w-weighted quantile q (B,). Small q: the lowest values are sorted
-    alone, unless their weight falls short of the quantile (then the whole rows)."""
-    n = rho.shape[1]
-    k = min(n, max(8, int(np.ceil(3 * float(q.max()) * n)) + 8))
-    target = q * w.sum()
-    while True:
-        part = np.argpartition(rho, k - 1, axis=1)[:, :k] if k < n else np.broadcast_to(np.arange(n), rho.shape)
-        low = np.take_along_axis(rho, part, 1)
-        order = np.argsort(low, axis=1)
-        low = np.take_along_axis(low, order, 1)
-        cw = np.cumsum(w[np.take_along_axis(part, order, 1)], axis=1)
-        if k == n or np.all(cw[:, -1] >= target):
-            return low[np.arange(len(rho)), np.argmax(cw >= target[:, None], axis=1)]
-        k = n
 
 
 def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -180,51 +151,49 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
     for s in range(0, len(C), _BATCH):
         Cb = C[s:s + _BATCH]
         rho = np.sqrt(np.maximum(p2 + np.einsum("ij,ij->i", Cb, Cb)[:, None] - 2.0 * (Cb @ P.T), 0.0))
-        lo = _low_quantile(rho, area, QUANTILES[0] / (1.0 - lam[s:s + _BATCH]))
+        lo = weighted_quantiles(rho, area, QUANTILES[0] / (1.0 - lam[s:s + _BATCH]))[:, 0]
         e = scale_energies(rho, np.ones(len(P)), lo, width * COARSE_WIDTHS, COARSE_PHASES, n_bins)
         score[s:s + _BATCH] = e.reshape(len(rho), -1).max(1)
     return score
 
 
-def crop_frame(V: np.ndarray, F: np.ndarray, a: np.ndarray, own: Frame, n_bins: int,
-               planes: Optional[list] = None) -> Optional[tuple[Frame, float]]:
-    """The frame of n_bins bins where a cropped copy shows the most mark energy, and that energy's
-    ``excess_energy``; None when the mesh has no cut plane. V (n, 3), F (m, 3), a (n,) the reader's
-    vertex weights, ``own`` the suspect's own frame (its centre and range). ``planes``: ``cut_planes``
-    when the caller has them."""
-    if planes is None:
-        planes = cut_planes(V, F, own.centre)
-    if not planes:
-        return None
-    width = (own.hi - own.lo) / n_bins
-    area = vertex_areas(V, F)
+def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, planes: list,
+                bin_counts) -> list[tuple[Frame, float]]:
+    """For each count in ``bin_counts``, the frame of that many bins where a cropped copy shows the most
+    mark energy near the families of the cut ``planes`` (``cut_planes``, not empty), and that frame's
+    ``excess_energy``. V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``;
+    ``own`` the suspect's own frame (its centre and range)."""
     keep = np.flatnonzero(a > 0)
-    rho_own = np.linalg.norm(V[keep] - own.centre, axis=1)
-    by_rho = keep[np.argsort(rho_own, kind="stable")]
+    by_rho = keep[np.argsort(np.linalg.norm(V[keep] - own.centre, axis=1), kind="stable")]
     sub = by_rho[:: max(1, -(-len(by_rho) // COARSE_SAMPLE))]
-    C, L, N = _candidates(own.centre, planes, width, float(np.linalg.norm(V.max(0) - V.min(0))))
-    Pc, Cc = V[sub] - own.centre, C - own.centre
-    score = _coarse(Pc, area[sub], Cc, L, width, n_bins)
     fine = by_rho[:: max(1, -(-len(by_rho) // REFINE_SAMPLE))]
+    Pc, area_sub = V[sub] - own.centre, area[sub]
+    Pf, af, area_f = V[fine], a[fine], area[fine]
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     total = float(a.sum())
+    found = []
+    for n_bins in bin_counts:
+        width = (own.hi - own.lo) / n_bins
+        C, L, N = _candidates(own.centre, planes, width, diag)
+        Cc = C - own.centre
+        score = _coarse(Pc, area_sub, Cc, L, width, n_bins)
 
-    def fit(centre: np.ndarray, lam: float) -> tuple[float, Frame]:
-        fr = refine_frame(V, a, _fit_scale(V[fine], a[fine], area[fine], centre, lam, width, n_bins), n_bins)
-        return excess_energy(*statistics_in(V, a, fr, [n_bins])[0], total), fr
+        def fit(centre: np.ndarray, lam: float) -> tuple[float, Frame]:
+            fr = refine_frame(V, a, _fit_scale(Pf, af, area_f, centre, lam, width, n_bins), n_bins)
+            return excess_energy(*statistics_in(V, a, fr, [n_bins])[0], total), fr
 
-    fits = []
-    for i in np.argsort(-score, kind="stable")[:TOP]:
-        # off the family's plane (the cap's centroid off the hole's axis), then the scale and the frame
-        off = Cc[i] + np.outer(OFF_PLANE * width, N[i])
-        best_off = off[int(np.argmax(_coarse(Pc, area[sub], off, np.full(len(off), L[i]), width, n_bins)))]
-        fits.append((*fit(own.centre + best_off, L[i]), L[i]))
-    fits.sort(key=lambda f: -f[0])
-    best = None
-    for z, fr, lam in fits[:FINAL]:  # the scale again at the refined centre, and the frame nearby
-        z, fr = max((z, fr), fit(fr.centre, lam), key=lambda f: f[0])
-        if best is None or z > best[1]:
-            best = (fr, z)
-    return best
+        fits = []
+        for i in np.argsort(-score, kind="stable")[:TOP]:
+            # off the family's plane (the cap's centroid off the hole's axis), then the scale and the frame
+            off = Cc[i] + np.outer(OFF_PLANE * width, N[i])
+            best_off = off[int(np.argmax(_coarse(Pc, area_sub, off, np.full(len(off), L[i]), width, n_bins)))]
+            fits.append((*fit(own.centre + best_off, L[i]), L[i]))
+        fits.sort(key=lambda f: -f[0])
+        # the FINAL best, and each fitted again at its refined centre: the one of most energy
+        finals = [f for z, fr, lam in fits[:FINAL] for f in ((z, fr), fit(fr.centre, lam))]
+        z, fr = max(finals, key=lambda f: f[0])
+        found.append((fr, z))
+    return found
 
 
 def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarray, lam: float, width: float,
@@ -233,7 +202,7 @@ def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarra
     ``lam`` its share taken) and bin width (FINE_WIDTHS times ``width``) show the most mark energy on the
     vertices P (k, 3) with reader weights a (k,) and areas (k,)."""
     rho = np.linalg.norm(P - centre, axis=1)[None]
-    lo = _low_quantile(rho, area, np.array([QUANTILES[0] / (1.0 - lam)]))
+    lo = weighted_quantiles(rho, area, [QUANTILES[0] / (1.0 - lam)])[:, 0]
     e = scale_energies(rho, a, lo, width * FINE_WIDTHS, FINE_PHASES, n_bins)[0]
     wi, pi = np.unravel_index(int(np.argmax(e)), e.shape)
     w = width * FINE_WIDTHS[wi]

@@ -1,17 +1,17 @@
 """The frames the blind reader reads in: the suspect's own, then the best of a refined one and a cropped
 copy's.
 
-1. The own frame (``radial.frame_of``): centre and range recomputed on the suspect. The word length read
+1. The own frame (``radial.frame_of_areas``): centre and range recomputed on the suspect. The word length read
    is the one whose bins show the most mark energy there.
 2. The refined frame (``radial.refine_frame``): within 1.5 bin widths of the own, where the mark's energy
    is largest. Attacks that move the frame by a fraction of a bin (noise, smoothing, simplification)
    leave the bins' bias in place; this finds the frame that shows it again.
 3. When the suspect has a planar cut (``crop.cut_planes``: a boundary loop in a plane): the frame of a
-   cropped copy (``crop.crop_frame``), for every word length up to CROP_MAX_BINS bins (payloads up to
+   cropped copy (``crop.crop_frames``), for every word length up to CROP_MAX_BINS bins (payloads up to
    64 bits: 8 bytes of text). The length whose frame shows the most energy is read, in that frame,
    when it shows more than the refined frame. Every length is searched: a frame searched for another
    length than the
-   mark's can show much of its energy too (a third to nine tenths, measured on the bunny and dragon),
+   mark's can show much of its energy too (up to four fifths of the right length's, measured on the bunny and dragon),
    so the first strong one may be the wrong length. The search runs whenever there is a cut: no level
    of the refined frame's energy tells a crop from an intact copy on every shape (excess energy on
    unmarked shapes reaches 26 on the dragon and 60 on a cropped Igea, against 16-30 for marked Venus
@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .crop import crop_frame, cut_planes
-from .radial import excess_energy, frame_of, refine_frame, statistics_in
+from .crop import crop_frames, cut_planes
+from .radial import excess_energy, frame_of_areas, refine_frame, statistics_in, vertex_areas
 
 CROP_MAX_BINS = 96  # the crop search reads words of up to this many bins (payloads up to 64 bits)
 
@@ -48,7 +48,8 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
     frames of the module docstring."""
     counts = list(bin_counts)
-    fr, a = frame_of(V, F, 1)
+    area = vertex_areas(V, F)
+    fr, a = frame_of_areas(V, area, 1)
     total = float(a.sum())
     own = statistics_in(V, a, fr, counts)
     z_own = [excess_energy(stat, share, total) for stat, share in own]
@@ -59,11 +60,12 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
         second, name = ref, "refined"
         z = excess_energy(*statistics_in(V, a, ref, [counts[index]])[0], total)
     planes = cut_planes(V, F, fr.centre)
-    found = [(*crop_frame(V, F, a, fr, n, planes), j) for j, n in enumerate(counts) if planes and n <= CROP_MAX_BINS]
-    if found:
-        frame, z_crop, j = max(found, key=lambda f: f[1])
-        if z_crop > z:
-            second, name, index = frame, "crop", j
+    searched = [j for j, n in enumerate(counts) if n <= CROP_MAX_BINS] if planes else []
+    if searched:
+        found = crop_frames(V, a, area, fr, planes, [counts[j] for j in searched])
+        k = max(range(len(found)), key=lambda k: found[k][1])
+        if found[k][1] > z:
+            second, name, index = found[k][0], "crop", searched[k]
     if second is None:
         return Frames(index, ("own",), [own])
     return Frames(index, ("own", name), [own, statistics_in(V, a, second, counts)])
