@@ -229,6 +229,27 @@ def test_scale_energies_match_the_energy_of_each_frame():
         assert got[b, w, p] == pytest.approx(want[0], rel=1e-9)
 
 
+def test_crop_search_scores_are_the_energy_of_the_best_frame():
+    """Each candidate centre's coarse score is the largest energy of the frames it tries, lo the cell of
+    the area quantile 2 % / (1 - lam): equal to a direct binning where the bins' edges fall on cells."""
+    rng = np.random.default_rng(2)
+    P = rng.normal(size=(3000, 3))
+    area = rng.random(3000)
+    C, lam = rng.normal(size=(3, 3)) * 0.1, np.array([0.0, 0.2, 0.35])
+    width, n_bins, cells = 0.04, 32, 16
+    widths, phases = np.array([1.0, 1.5]), np.array([0.0, 0.25, 0.5])  # edges on cells of width / 16
+    got = crop._coarse(P, area, C, lam, width, n_bins, widths, phases, cells)
+    cell = width / cells
+    for b in range(3):
+        rho = np.linalg.norm(P - C[b], axis=1)
+        q = radial.weighted_quantiles(rho[None], area, [[radial.QUANTILES[0] / (1 - lam[b])]])[0, 0]
+        lo = rho.min() + np.floor((q - rho.min()) / cell) * cell
+        want = max(radial.energies(P, np.ones(3000), C[b][None], np.array([lo + p * w * width]),
+                                   np.array([lo + (p + n_bins) * w * width]), n_bins)[0]
+                   for w in widths for p in phases)
+        assert got[b] == pytest.approx(want, rel=1e-9)
+
+
 @pytest.mark.parametrize("ext", [".obj", ".ply", ".stl", ".glb"])
 def test_whole_payload_survives_re_export(marked, tmp_path, ext):
     path = tmp_path / f"copy{ext}"

@@ -16,20 +16,27 @@ plane through c spanned by h - c and n). The reader searches it (``crop_frames``
    a lattice of LATTICE bin widths;
 3. for each candidate, lo from the area quantile of what is left that is the original's 2 % quantile if
    the cap held none of the innermost vertices (2 % / (1 - lam)), and the bin width over -20 % .. +25 %
-   (a crop moves hi by several bins), scored by the mark's energy (``radial.scale_energies``) on
-   COARSE_SAMPLE vertices;
+   (a crop moves hi by several bins), scored by the mark's energy on COARSE_SAMPLE vertices: first
+   every candidate over a few widths and phases (SCREEN_*), then the best SCREEN_KEEP of them over
+   more (COARSE_*);
 4. the TOP best candidates: the best of OFF_PLANE offsets off the family's plane, then the width and lo
-   again, finely, on up to REFINE_SAMPLE vertices, and ``radial.refine_frame``; the FINAL best of those
-   once more from their refined centre; the frame whose reading shows the most energy wins.
+   again, finely, on up to REFINE_SAMPLE vertices; the REFINED best of those through
+   ``radial.refine_frame_on``, and the FINAL best of these once more from their refined centre; the
+   frame whose reading shows the most energy wins.
 
 The integer part of lo comes from the quantile alone: a frame one bin off shows nearly the same energy
 (the same bins, one end swapped) but reads the word shifted. Nothing here involves the pass phrase,
-so the search costs the p-value nothing. Measured (scratch, 40 crops of 10 %: the packaged bunny's
-test key on 8 crops, then 2 keys x 4 crops on each benchmark model, the 64-bin word): the frame found
-reads with at most 3 bit errors in 33 of 40 (packaged bunny 6 of 8, bunny 7, dragon 5, Venus head 8,
-Igea 7; whole payloads: BENCHMARKS.md, section ``blind``); with coarse samples of 2000 vertices
-instead of 6000: 24; with t >= 0 only and no offsets: 30; fitting again all 6 finalists instead of
-the best 3: 33, a sixth slower. A 30 % crop mostly moves the width beyond the range searched.
+so the search costs the p-value nothing.
+
+Measured (scratch; 160 crops of 10 %: 16 of the packaged bunny with its test key, 144 of the four
+benchmark models with 8 keys; the 64-bin word): the whole payload is read in 126 of 160 copies, against
+127 with the search before the screening (every candidate over 23 widths x 5 phases, and all 6 finalists
+refined, then the best 3 fitted again), in about a third of the time (verifying a 10 % crop of the
+bunny or Igea: 0.85-0.95 s against 2.6-2.8 s, best of 3, one thread). With coarse samples of 2000 vertices instead of 6000 the earlier
+search read 24 of the first 40 against 33 (with 2000 in the screening alone the candidates that win at
+6000 rank in the hundreds); with t >= 0 only and no offsets: 30; the fine width scan in steps of 1 %
+or 0.25 % instead of 0.125 % loses copies (the energy's peak in the width is a few tenths of a percent
+wide at 64 bins). A 30 % crop mostly moves the width beyond the range searched.
 """
 
 from __future__ import annotations
@@ -37,21 +44,28 @@ from __future__ import annotations
 import numpy as np
 
 from ...adjacency import build_adjacency, is_closed
-from .radial import (QUANTILES, REFINE_SAMPLE, Frame, excess_energy, refine_frame, scale_energies,
-                     statistics_in, weighted_quantiles)
+from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, distances, excess_energy,
+                     refine_frame_on, scale_energies, statistics_in, thinned, weighted_quantiles)
 
 LAMBDA_MAX = 0.4  # the largest share of the area a crop may have taken
 T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in bounding-box diagonals
 REACH = 30.0  # candidate centres within this many bin widths of the suspect's centroid
 LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows within about 0.5)
-COARSE_SAMPLE = 6000  # vertices scoring every candidate centre
-COARSE_WIDTHS = np.linspace(0.8, 1.25, 23)  # bin widths tried, relative to the suspect's own
-COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # lo offsets tried, in bin widths
-FINE_WIDTHS = np.linspace(0.8, 1.25, 361)
-FINE_PHASES = np.linspace(-0.5, 0.5, 33)  # within half a bin: a whole bin off reads the word shifted
+COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
+SCREEN_WIDTHS = np.linspace(0.8, 1.25, 12)  # every candidate: bin widths, relative to the suspect's own
+SCREEN_PHASES = np.arange(3) / 3  # and lo offsets, in bin widths (one bin's worth)
+SCREEN_CELLS = 8  # cells per bin width of the screening's histograms
+SCREEN_KEEP = 0.1  # the share of the candidates (SCREEN_MIN at least) scored again, over
+SCREEN_MIN = 64
+COARSE_WIDTHS = np.linspace(0.8, 1.25, 23)  # these widths
+COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # and these lo offsets
 TOP = 6  # candidates searched finely
 OFF_PLANE = np.linspace(-1.5, 1.5, 11)  # offsets of a candidate off its family's plane, in bin widths
-FINAL = 3  # of those, the best fitted again at their refined centre
+FINE_WIDTHS = np.linspace(0.8, 1.25, 361)  # the fine fit's relative widths (steps of 0.125 %)
+FINE_PHASES = np.linspace(-0.5, 0.5, 33)  # within half a bin: a whole bin off reads the word shifted
+FINE_KEEP = 8  # widths of most energy at the phases FINE_PHASES[::4], tried at every phase
+REFINED = 3  # of the TOP, the best (by the fine fit's energy) refined
+FINAL = 2  # of those, the best fitted again at their refined centre
 MIN_EDGES = 12  # a boundary loop of fewer edges is not a cut
 MAX_LOOPS = 32  # the largest loops are looked at, no more (a mesh may have thousands of holes)
 MAX_PLANES = 4  # the cut planes searched, those of the largest loops first
@@ -140,20 +154,52 @@ def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.nd
     return C[first], L[first], N[first]
 
 
-def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, width: float, n_bins: int) -> np.ndarray:
+def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, width: float, n_bins: int,
+            widths: np.ndarray = COARSE_WIDTHS, phases: np.ndarray = COARSE_PHASES,
+            cells: int = SCALE_CELLS) -> np.ndarray:
     """The coarse score of candidate centres C (K, 3) with their lam (K,): the most mark energy over
-    COARSE_WIDTHS x COARSE_PHASES, lo from the area quantile, on the vertices P (k, 3) of areas (k,).
-    P and C relative to a point near them (the suspect's centroid): the distances come from a matrix
-    product, |p|^2 + |c|^2 - 2 c.p (a third of the time of the differences; the error, about 1e-16 of
-    the squared radius, is far below a bin)."""
+    ``widths`` (times ``width``) x ``phases`` (in bin widths) from lo, on the vertices P (k, 3) of areas
+    (k,); P and C relative to a point near them (``radial.distances``), float32 is enough.
+
+    lo is the area quantile that the original's 2 % would be if the cap held none of the area. Each
+    centre's distances are counted once in cells of 1/``cells`` of the smallest width, from its nearest
+    vertex out (cumulative area, count and sum of positions); lo is a cell, and every frame's bins come
+    from the cells at their edges, rounded to the nearest cell edge (as in ``radial.scale_energies``)."""
+    cell = width * float(widths.min()) / cells
+    wc = width * widths / cell  # bin widths in cells (W,)
+    j = np.arange(n_bins + 1)
+    start = phases[None, :, None] * wc[:, None, None]  # (W, P, 1) from lo, in cells
+    offs = np.rint(start + j * wc[:, None, None]).astype(np.int64)  # (W, P, J + 1) the edges from lo
+    mid = start + (j[:-1] + 0.5) * wc[:, None, None]  # (W, P, J) the bins' centres from lo
+    shift = int(max(0, -offs.min()))  # empty cells below the nearest vertex, for negative phases
+    reach = int(offs.max()) + 1
     score = np.empty(len(C))
-    p2 = np.einsum("ij,ij->i", P, P)
-    for s in range(0, len(C), _BATCH):
-        Cb = C[s:s + _BATCH]
-        rho = np.sqrt(np.maximum(p2 + np.einsum("ij,ij->i", Cb, Cb)[:, None] - 2.0 * (Cb @ P.T), 0.0))
-        lo = weighted_quantiles(rho, area, QUANTILES[0] / (1.0 - lam[s:s + _BATCH]))[:, 0]
-        e = scale_energies(rho, np.ones(len(P)), lo, width * COARSE_WIDTHS, COARSE_PHASES, n_bins)
-        score[s:s + _BATCH] = e.reshape(len(rho), -1).max(1)
+    for s0 in range(0, len(C), _BATCH):
+        rho = distances(P, C[s0:s0 + _BATCH])
+        B = len(rho)
+        x = (rho - rho.min(1)[:, None]) / cell + shift
+        xi = x.astype(np.int64)
+        n_cells = int(xi.max()) + reach + 1  # room for the outermost edge beyond the farthest vertex
+        rows = (n_cells + 1) * np.arange(B)
+        flat = (xi + (rows - np.arange(B))[:, None]).ravel()
+        cum_n = np.zeros((B, n_cells + 1))
+        cum_x = np.zeros((B, n_cells + 1))
+        cum_n[:, 1:] = np.bincount(flat, minlength=B * n_cells).reshape(B, n_cells)
+        cum_x[:, 1:] = np.bincount(flat, weights=x.ravel(), minlength=B * n_cells).reshape(B, n_cells)
+        np.cumsum(cum_n, axis=1, out=cum_n)
+        np.cumsum(cum_x, axis=1, out=cum_x)
+        cum_a = np.cumsum(np.bincount(flat, weights=np.broadcast_to(area, rho.shape).ravel(),
+                                      minlength=B * n_cells).reshape(B, n_cells), axis=1)
+        # the cell of the area quantile the original's 2 % would be if the cap held none of the area
+        lo = (cum_a < (QUANTILES[0] / (1.0 - lam[s0:s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
+        e = (lo + rows)[:, None, None, None] + offs[None]
+        n = np.diff(np.take(cum_n, e), axis=-1)
+        ssum = np.diff(np.take(cum_x, e), axis=-1)
+        ssum -= n * (lo[:, None, None, None] + mid[None])  # sum of positions from the bins' centres, in cells
+        ssum *= ssum
+        ssum /= np.maximum(n, 1.0)
+        en = ssum.sum(-1) / (wc * wc)[None, :, None]
+        score[s0:s0 + B] = en.reshape(B, -1).max(1)
     return score
 
 
@@ -163,11 +209,10 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     mark energy near the families of the cut ``planes`` (``cut_planes``, not empty), and that frame's
     ``excess_energy``. V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``;
     ``own`` the suspect's own frame (its centre and range)."""
-    keep = np.flatnonzero(a > 0)
-    by_rho = keep[np.argsort(np.linalg.norm(V[keep] - own.centre, axis=1), kind="stable")]
-    sub = by_rho[:: max(1, -(-len(by_rho) // COARSE_SAMPLE))]
-    fine = by_rho[:: max(1, -(-len(by_rho) // REFINE_SAMPLE))]
-    Pc, area_sub = V[sub] - own.centre, area[sub]
+    by_rho = by_distance(V, a, own.centre)
+    sub, fine = thinned(by_rho, COARSE_SAMPLE), thinned(by_rho, REFINE_SAMPLE)
+    # the coarse stages in float32: distances of a few hundred bin widths, accurate to 1e-5 bins
+    Pc, area_c = (V[sub] - own.centre).astype(np.float32), area[sub]
     Pf, af, area_f = V[fine], a[fine], area[fine]
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     total = float(a.sum())
@@ -175,36 +220,45 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     for n_bins in bin_counts:
         width = (own.hi - own.lo) / n_bins
         C, L, N = _candidates(own.centre, planes, width, diag)
-        Cc = C - own.centre
-        score = _coarse(Pc, area_sub, Cc, L, width, n_bins)
+        Cc = (C - own.centre).astype(np.float32)
+        first = _coarse(Pc, area_c, Cc, L, width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES, SCREEN_CELLS)
+        kept = np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_KEEP * len(C)))]
+        score = np.full(len(C), -np.inf)
+        score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], width, n_bins)
 
-        def fit(centre: np.ndarray, lam: float) -> tuple[float, Frame]:
-            fr = refine_frame(V, a, _fit_scale(Pf, af, area_f, centre, lam, width, n_bins), n_bins)
+        def refined(fr: Frame) -> tuple[float, Frame]:
+            fr = refine_frame_on(Pf, af, fr, n_bins)
             return excess_energy(*statistics_in(V, a, fr, [n_bins])[0], total), fr
 
-        fits = []
+        scaled = []
         for i in np.argsort(-score, kind="stable")[:TOP]:
-            # off the family's plane (the cap's centroid off the hole's axis), then the scale and the frame
-            off = Cc[i] + np.outer(OFF_PLANE * width, N[i])
-            best_off = off[int(np.argmax(_coarse(Pc, area_sub, off, np.full(len(off), L[i]), width, n_bins)))]
-            fits.append((*fit(own.centre + best_off, L[i]), L[i]))
-        fits.sort(key=lambda f: -f[0])
+            # off the family's plane (the cap's centroid off the hole's axis), then the scale
+            off = C[i] - own.centre + np.outer(OFF_PLANE * width, N[i])
+            e = _coarse(Pc, area_c, off.astype(np.float32), np.full(len(off), L[i]), width, n_bins)
+            best_off = off[int(np.argmax(e))]
+            scaled.append((*_fit_scale(Pf, af, area_f, own.centre + best_off, L[i], width, n_bins), L[i]))
+        scaled.sort(key=lambda f: -f[0])
+        fits = sorted(((*refined(fr), lam) for _, fr, lam in scaled[:REFINED]), key=lambda f: -f[0])
         # the FINAL best, and each fitted again at its refined centre: the one of most energy
-        finals = [f for z, fr, lam in fits[:FINAL] for f in ((z, fr), fit(fr.centre, lam))]
+        finals = [f for z, fr, lam in fits[:FINAL]
+                  for f in ((z, fr), refined(_fit_scale(Pf, af, area_f, fr.centre, lam, width, n_bins)[1]))]
         z, fr = max(finals, key=lambda f: f[0])
         found.append((fr, z))
     return found
 
 
 def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarray, lam: float, width: float,
-               n_bins: int) -> Frame:
+               n_bins: int) -> tuple[float, Frame]:
     """The frame around ``centre`` whose lo (near the area quantile the crop left of the original's,
-    ``lam`` its share taken) and bin width (FINE_WIDTHS times ``width``) show the most mark energy on the
-    vertices P (k, 3) with reader weights a (k,) and areas (k,)."""
+    ``lam`` its share taken) and bin width (``width`` times FINE_WIDTHS) show the most mark energy on
+    the vertices P (k, 3) with reader weights a (k,) and areas (k,); and that energy."""
     rho = np.linalg.norm(P - centre, axis=1)[None]
     lo = weighted_quantiles(rho, area, [QUANTILES[0] / (1.0 - lam)])[:, 0]
-    e = scale_energies(rho, a, lo, width * FINE_WIDTHS, FINE_PHASES, n_bins)[0]
+    # every width at a few phases; then the widths of most energy at every phase
+    e = scale_energies(rho, a, lo, width * FINE_WIDTHS, FINE_PHASES[::4], n_bins)[0].max(1)
+    rel = FINE_WIDTHS[np.sort(np.argsort(-e, kind="stable")[:FINE_KEEP])]
+    e = scale_energies(rho, a, lo, width * rel, FINE_PHASES, n_bins)[0]
     wi, pi = np.unravel_index(int(np.argmax(e)), e.shape)
-    w = width * FINE_WIDTHS[wi]
+    w = width * float(rel[wi])
     start = float(lo[0] + FINE_PHASES[pi] * w)
-    return Frame(centre, start, start + n_bins * w, n_bins)
+    return float(e.max()), Frame(centre, start, start + n_bins * w, n_bins)

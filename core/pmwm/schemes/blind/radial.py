@@ -285,16 +285,25 @@ def energies(V: np.ndarray, a: np.ndarray, centres: np.ndarray, lo: np.ndarray, 
     i.e. S_j^2 / n_j with S_j the bin's sum of (r - 1/2). V (n, 3), a (n,) weights, centres (K, 3),
     lo, hi (K,). Under no mark it is about n_bins / 12 whatever the frame; the pass phrase plays no part."""
     K = len(centres)
-    d = V[None, :, :] - centres[:, None, :]
-    t = (np.sqrt(np.einsum("kij,kij->ki", d, d)) - lo[:, None]) * (n_bins / (hi - lo))[:, None]
+    rho = distances(V - centres[0], centres - centres[0])
+    t = (rho - lo[:, None]) * (n_bins / (hi - lo))[:, None]
     b = np.floor(t)
     ok = (b >= 0) & (b < n_bins)
-    idx = (b + n_bins * np.arange(K)[:, None])[ok].astype(np.int64)
-    aa = np.broadcast_to(a, t.shape)[ok]
-    n = np.bincount(idx, weights=aa, minlength=K * n_bins)
-    s = np.bincount(idx, weights=aa * (t - b - 0.5)[ok], minlength=K * n_bins)
+    # out-of-range vertices go to one extra cell, dropped: cheaper than compressing (K, n) arrays
+    idx = np.where(ok, b + n_bins * np.arange(K)[:, None], K * n_bins).astype(np.int64).ravel()
+    aa = np.broadcast_to(a, t.shape).ravel()
+    n = np.bincount(idx, weights=aa, minlength=K * n_bins + 1)[:-1]
+    s = np.bincount(idx, weights=(aa * (t - b - 0.5).ravel()), minlength=K * n_bins + 1)[:-1]
     e = np.divide(s * s, n, out=np.zeros(K * n_bins), where=n > 0)
     return e.reshape(K, n_bins).sum(1)
+
+
+def distances(P: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """The distances of points P (n, 3) to centres C (K, 3), (K, n) float64, from a matrix product:
+    |p|^2 + |c|^2 - 2 c.p (a third of the time of the differences). P and C should be relative to a
+    point near the centres: the error is then about 1e-16 of the squared distance, far below a bin."""
+    return np.sqrt(np.maximum(np.einsum("ij,ij->i", P, P)[None] + np.einsum("ij,ij->i", C, C)[:, None]
+                              - 2.0 * (C @ P.T), 0.0))
 
 
 SCALE_CELLS = 16  # scale_energies: cells per bin width of the cumulative histograms
@@ -341,13 +350,24 @@ def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
     vertices. Attacks that move the frame by a fraction of a bin (simplification, noise,
     quantisation) leave the marked bins' bias in place; this finds the frame that shows it again.
     Key-independent: the reader may use it without counting it as a choice made with the secret."""
-    d = V - fr.centre
-    rho = np.sqrt(np.einsum("ij,ij->i", d, d))
+    sub = thinned(by_distance(V, a, fr.centre), REFINE_SAMPLE)
+    return refine_frame_on(V[sub], a[sub], fr, n_bins)
+
+
+def by_distance(V: np.ndarray, a: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The vertices of positive weight a (n,), nearest ``centre`` first (ties in index order), (k,) int64."""
     keep = np.flatnonzero(a > 0)
-    keep = keep[np.argsort(rho[keep], kind="stable")]
-    step = max(1, -(-len(keep) // REFINE_SAMPLE))
-    sub = keep[::step]
-    Vs, As = V[sub], a[sub]
+    return keep[np.argsort(np.linalg.norm(V[keep] - centre, axis=1), kind="stable")]
+
+
+def thinned(order: np.ndarray, k: int) -> np.ndarray:
+    """Every j-th of ``order`` (at most k of them): a sample that does not depend on the vertex order
+    when ``order`` does not (``by_distance``)."""
+    return order[::max(1, -(-len(order) // k))]
+
+
+def refine_frame_on(Vs: np.ndarray, As: np.ndarray, fr: Frame, n_bins: int) -> Frame:
+    """``refine_frame`` on the sample Vs (k, 3) with weights As (k,) (``thinned``)."""
     w = (fr.hi - fr.lo) / n_bins
     dirs = np.concatenate([np.eye(5), -np.eye(5)])
 
