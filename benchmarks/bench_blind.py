@@ -64,7 +64,7 @@ def true_word(secret: str, payload: np.ndarray) -> np.ndarray:
 
 def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False):
     """(BER of the 64-bit word read, whole payload recovered with p < 1e-6) of a suspect; the BER in
-    the frame whose reading the verdict kept (own, refined or crop) when marked, else in the own frame. With ``own_too``, a third item: the
+    the frame whose reading the verdict kept (own, refined, crop or a neighbour of it) when marked, else in the own frame. With ``own_too``, a third item: the
     whole payload recovered from the suspect's own frame alone (the reader before the refinement)."""
     try:
         stats = blind.bin_statistics(V, F)
@@ -73,7 +73,7 @@ def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False):
     v = blind.decide(stats, secret)
     # the BER of the reading the verdict kept when it is marked; otherwise of the suspect's own frame
     # (an unmarked verdict keeps whichever frame's candidate happened to match best: no measure)
-    fi = 1 if v.marked and v.extra.get("frame") != "own" else 0
+    fi = v.extra["frame_index"] if v.marked else 0
     got, _ = blind.word_read(stats.words[N_WORD][fi], secret, N_WORD)
     want = "".join(map(str, payload.tolist()))
     ok = v.marked and v.bits == want

@@ -14,7 +14,8 @@ where the mark's energy (sum of n_j (bin mean - 1/2)^2, no pass phrase involved)
 (``radial.refine_frame``). It reads one length, the one whose bins show the most energy in the own
 frame (no pass phrase involved either), and keeps the reading whose check bits match best; its
 p-value is exact per reading and a union bound over all (2 frames x 2 kinds x 1024 Chase flips =
-4096 candidates: all 32 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``).
+4096 candidates: all 32 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``; a cropped
+copy's 4 frames x 2 kinds x 512 flips: the same).
 
 Why one length, chosen by energy: choices made without the pass phrase cost the p-value nothing, so
 reading one length instead of four pays for 2 more Chase bits (10 instead of 8) at the same p-value.
@@ -169,24 +170,28 @@ def word_read(stat: np.ndarray, secret: str, n_word: int) -> tuple[np.ndarray, n
     return got ^ scramble, score
 
 
-_FLIPS = ((np.arange(2**word.CHASE_BITS)[:, None] >> np.arange(word.CHASE_BITS)) & 1).astype(np.uint8)
+def _flips(bits: int) -> np.ndarray:
+    """Every combination of ``bits`` flips, (2^bits, bits) uint8; row 0 flips nothing."""
+    return ((np.arange(2**bits)[:, None] >> np.arange(bits)) & 1).astype(np.uint8)
 
 
 def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict:
     """The verdict from the ``Statistics`` of ``bin_statistics`` and a secret (module docstring): the
     chosen length in every frame, both kinds, every Chase flip; the p-value is the union bound over
-    all of these candidates (R frames * 2 kinds * 2^CHASE_BITS flips), so it stays exact when the
-    reader keeps the best of them."""
+    all of these candidates (R frames * 2 kinds * 2^C flips, C = ``word.chase_bits(R)``), so it stays
+    exact when the reader keeps the best of them."""
     readings = []
     n_word = stats.n_word
     L = n_word - word.CHECK_BITS
     per_frame = np.atleast_2d(stats.words[n_word])
     n_frames = len(per_frame)
+    chase = word.chase_bits(n_frames)
+    flips = _flips(chase)
     for fi, stat in enumerate(per_frame):
         got, score = word_read(stat, secret, n_word)
-        weak = np.argsort(np.abs(score), kind="stable")[:word.CHASE_BITS]
-        candidates = np.repeat(got[None], len(_FLIPS), axis=0)
-        candidates[:, weak] ^= _FLIPS  # row 0: the word as read
+        weak = np.argsort(np.abs(score), kind="stable")[:chase]
+        candidates = np.repeat(got[None], len(flips), axis=0)
+        candidates[:, weak] ^= flips  # row 0: the word as read
         for kind in word.KINDS:
             best = None
             for cand in candidates:
@@ -198,7 +203,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
             m, cand = best
             readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, fi, L, kind, cand, score, got))
     p1, neg_m, fi, L, kind, cand, score, raw = min(readings, key=lambda r: (r[0], r[1], r[2]))
-    p = float(min(1.0, len(readings) * len(_FLIPS) * p1))
+    p = float(min(1.0, len(readings) * len(flips) * p1))
     m = -neg_m
     payload = cand[:L]
     text = word.text_of(payload) if kind == "text" else None
@@ -211,7 +216,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
         carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
         p_threshold=p_threshold,
         extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
-               "frame": stats.frame_names[fi], "frames": n_frames,
+               "frame": stats.frame_names[fi], "frame_index": fi, "frames": n_frames, "chase_bits": chase,
                "word": "".join(map(str, cand.tolist())),  # after the Chase search
                "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it
         scores=score,  # (N,) sign = the scrambled bit read, as every scheme's scores

@@ -13,7 +13,8 @@ mesh, or the wrong pass phrase) the expected check bits of a candidate are fair 
 the bits read (a keyed hash of what was read), so P(m or more of the 32 match) = P(Binomial(32, 1/2)
 >= m) exactly per candidate, and the p-value reported is the union bound over the 2 * 1024 = 2048
 candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame (9.5e-7 with the
-refined frame) < 1e-6.
+refined frame) < 1e-6. A cropped copy is read in 4 frames (``frames``): then the 2^9 flips of the 9
+least reliable bits (``chase_bits``), 9.5e-7 at best again.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
 search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
@@ -36,7 +37,16 @@ from ...validate import parse_bits
 
 PAYLOAD_BITS = (32, 64, 96, 224)
 CHECK_BITS = 32
-CHASE_BITS = 10  # the reader tries every flip of the 10 least reliable bits of a word
+CHASE_BITS = 10  # the reader tries every flip of (at most) the 10 least reliable bits of a word
+P_BEST = 1e-6  # the p-value of a reading with every check bit right stays below this
+
+
+def chase_bits(n_frames: int) -> int:
+    """How many of a word's least reliable bits the reader flips when it reads ``n_frames`` frames: the
+    most, up to CHASE_BITS, for which n_frames * 2 kinds * 2^bits candidates keep the p-value of a
+    reading with all CHECK_BITS right below P_BEST (1 or 2 frames: 10; 3 or 4: 9)."""
+    budget = P_BEST * 2.0**CHECK_BITS / (len(KINDS) * max(1, n_frames))  # candidates allowed per reading
+    return int(min(CHASE_BITS, np.floor(np.log2(budget))))
 KINDS = ("bits", "text")
 SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
 SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
