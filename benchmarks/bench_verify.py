@@ -200,7 +200,8 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
         f"{a.rounds} rounds that alternate with the baseline"
         + ((f" (commit {a.baseline}: the crop search scoring every candidate centre over 23 widths x 5 phases)"
             if blind else f" (commit {a.baseline}: brute-force nearest-point and radius queries, one start at a "
-                          "time)") if old else "") + "; one thread (OMP_NUM_THREADS=1). Wall-clock time and CPU time of the "
+                          "time)") if old else "")
+        + "; one thread (OMP_NUM_THREADS=1). Wall-clock time and CPU time of the "
         "process: the machine is shared (2 cores, other jobs running), so the wall-clock figures include "
         "waiting for a core; the CPU time is what the call costs on an idle machine (one thread).",
         "",

@@ -44,8 +44,9 @@ CROP_SHIFTS = (-1, 1)  # the crop frame is also read with lo and hi moved by the
 @dataclass
 class Frames:
     """What ``read_statistics_frames`` measured: for each frame read (``names``: "own", then "refined",
-    or "crop" and the crop frame moved by CROP_SHIFTS bins: "crop-1", "crop+1"), per bin count, each bin's mean of r - 1/2 (M,) and its share of the vertices (M,); and
-    ``index``, the bin count to read (an index into the counts asked for)."""
+    or "crop" and the crop frame moved by CROP_SHIFTS bins: "crop-1", "crop+1"), per bin count, each
+    bin's mean of r - 1/2 (M,) and its share of the vertices (M,); and ``index``, the bin count to read
+    (an index into the counts asked for)."""
 
     index: int
     names: tuple[str, ...]

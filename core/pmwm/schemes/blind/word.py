@@ -39,6 +39,9 @@ PAYLOAD_BITS = (32, 64, 96, 224)
 CHECK_BITS = 32
 CHASE_BITS = 10  # the reader tries every flip of (at most) the 10 least reliable bits of a word
 P_BEST = 1e-6  # the p-value of a reading with every check bit right stays below this
+KINDS = ("bits", "text")
+SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
+SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
 
 
 def chase_bits(n_frames: int) -> int:
@@ -47,9 +50,6 @@ def chase_bits(n_frames: int) -> int:
     reading with all CHECK_BITS right below P_BEST (1 or 2 frames: 10; 3 or 4: 9)."""
     budget = P_BEST * 2.0**CHECK_BITS / (len(KINDS) * max(1, n_frames))  # candidates allowed per reading
     return int(min(CHASE_BITS, np.floor(np.log2(budget))))
-KINDS = ("bits", "text")
-SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
-SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
 
 
 def derive_secret(passphrase: str) -> str:
