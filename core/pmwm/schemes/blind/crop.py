@@ -15,7 +15,7 @@ plane through c spanned by h - c and n). The reader searches it (``crop_frames``
 2. candidate centres on the family (lam <= LAMBDA_MAX, t in T_RANGE, within REACH bin widths of c), on
    a lattice of LATTICE bin widths;
 3. for each candidate, lo from the area quantile of what is left that is the original's 2 % quantile if
-   the cap held none of the innermost vertices (2 % / (1 - lam)), and the bin width over -20 % .. +25 %
+   the cap held none of the innermost vertices (2 % / (1 - lam)), and the bin width over -40 % .. +60 %
    (a crop moves hi by several bins), scored by the mark's energy on COARSE_SAMPLE vertices: first
    every candidate over a few widths and phases (SCREEN_*), then the best SCREEN_KEEP of them over
    more (COARSE_*);
@@ -36,9 +36,12 @@ of the bunny or Igea: 0.85-0.95 s against 2.6-2.8 s, best of 3, one thread). Wit
 2000 vertices instead of 6000 the earlier search read 24 of the first 40 against 33 (with 2000 in the
 screening alone the candidates that win at 6000 rank in the hundreds); with t >= 0 only and no
 offsets: 30; the fine width scan in steps of 1 % or 0.25 % instead of 0.125 % loses copies (the
-energy's peak in the width is a few tenths of a percent wide at 64 bins). A 30 % crop mostly moves the
-width beyond the range searched. The reader also reads the frame found one bin off either way
-(``frames``).
+energy's peak in the width is a few tenths of a percent wide at 64 bins). A 30 % crop moves the width
+further: with the widths -20 % .. +25 % (as above) 11 of 64 crops of 30 % in a random pose read, with
+-30 % .. +40 % 19, with -40 % .. +60 % (now) 24, and of the 160 10 % crops 129 with the first and 131
+with the last; a cap share up to 0.5 instead of 0.4 read 14 of the 64 instead of 19 (with -30 % ..
++40 %: more candidates, more false peaks).
+The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
 
 from __future__ import annotations
@@ -54,16 +57,16 @@ T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in b
 REACH = 30.0  # candidate centres within this many bin widths of the suspect's centroid
 LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows within about 0.5)
 COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
-SCREEN_WIDTHS = np.linspace(0.8, 1.25, 12)  # every candidate: bin widths, relative to the suspect's own
+SCREEN_WIDTHS = np.linspace(0.6, 1.6, 21)  # every candidate: bin widths, relative to the suspect's own
 SCREEN_PHASES = np.arange(3) / 3  # and lo offsets, in bin widths (one bin's worth)
 SCREEN_CELLS = 8  # cells per bin width of the screening's histograms
 SCREEN_KEEP = 0.1  # the share of the candidates (SCREEN_MIN at least) scored again, over
 SCREEN_MIN = 64
-COARSE_WIDTHS = np.linspace(0.8, 1.25, 23)  # these widths
+COARSE_WIDTHS = np.linspace(0.6, 1.6, 51)  # these widths
 COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # and these lo offsets
 TOP = 6  # candidates searched finely
 OFF_PLANE = np.linspace(-1.5, 1.5, 11)  # offsets of a candidate off its family's plane, in bin widths
-FINE_WIDTHS = np.linspace(0.8, 1.25, 361)  # the fine fit's relative widths (steps of 0.125 %)
+FINE_WIDTHS = np.linspace(0.6, 1.6, 801)  # the fine fit's relative widths (steps of 0.125 %)
 FINE_PHASES = np.linspace(-0.5, 0.5, 33)  # within half a bin: a whole bin off reads the word shifted
 FINE_KEEP = 8  # widths of most energy at the phases FINE_PHASES[::4], tried at every phase
 REFINED = 3  # of the TOP, the best (by the fine fit's energy) refined
