@@ -31,8 +31,9 @@ so the search costs the p-value nothing.
 Measured (scratch; 160 crops of 10 %: 16 of the packaged bunny with its test key, 144 of the four
 benchmark models with 8 keys; the 64-bin word): the whole payload is read in 126 of 160 copies, against
 127 with the search before the screening (every candidate over 23 widths x 5 phases, and all 6
-finalists refined, then the best 3 fitted again), in about a third of the time (verifying a 10 % crop
-of the bunny or Igea: 0.85-0.95 s against 2.6-2.8 s, best of 3, one thread). With coarse samples of
+finalists refined, then the best 3 fitted again), in about a third of the time (with the wider widths
+below, verifying a cut bunny or Igea takes 0.9-1.5 s against 2.3-4.4 s: BENCHMARKS.md,
+``verify-speed-blind``). With coarse samples of
 2000 vertices instead of 6000 the earlier search read 24 of the first 40 against 33 (with 2000 in the
 screening alone the candidates that win at 6000 rank in the hundreds); with t >= 0 only and no
 offsets: 30; the fine width scan in steps of 1 % or 0.25 % instead of 0.125 % loses copies (the
