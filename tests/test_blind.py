@@ -222,8 +222,8 @@ def test_cut_planes_find_the_plane_of_a_crop():
 
 
 def test_weighted_quantiles_of_many_rows():
-    """The smallest value whose cumulative weight reaches q of the total, also where only the lowest
-    values of a row are sorted and where those weigh too little (then the whole row is)."""
+    """The smallest value whose cumulative weight reaches q of the total, per row, also where the lowest
+    values of a row weigh nothing."""
     rng = np.random.default_rng(1)
     rho, w, q = rng.random((3, 500)), rng.random(500), np.array([[0.02], [0.05], [0.3]])
     w[np.argsort(rho[0])[:100]] = 1e-9  # the lowest values of row 0 weigh nothing

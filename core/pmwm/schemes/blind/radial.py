@@ -79,23 +79,12 @@ def vertex_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def weighted_quantiles(x: np.ndarray, w: np.ndarray, q) -> np.ndarray:
     """Per row of x (B, n), the w-weighted quantiles q (B, Q) (w (n,) >= 0): the smallest value whose
-    cumulative weight, in increasing order, reaches q of the total; (B, Q). Low quantiles (the crop
-    search asks for 2 % of thousands of rows) sort only the lowest values of each row, unless those
-    weigh too little; the whole rows otherwise."""
-    B, n = x.shape
-    q = np.asarray(q, dtype=np.float64).reshape(B, -1)
-    target = q * w.sum()
-    k = min(n, int(np.ceil(3 * float(q.max()) * n)) + 8)
-    while True:
-        part = np.argpartition(x, k - 1, axis=1)[:, :k] if k < n else np.broadcast_to(np.arange(n), (B, n))
-        low = np.take_along_axis(x, part, 1)
-        order = np.argsort(low, axis=1, kind="stable")
-        low = np.take_along_axis(low, order, 1)
-        cw = np.cumsum(w[np.take_along_axis(part, order, 1)], axis=1)
-        if k == n or np.all(cw[:, -1:] >= target):
-            idx = np.minimum((cw[:, :, None] < target[:, None, :]).sum(1), k - 1)
-            return np.take_along_axis(low, idx, 1)
-        k = n
+    cumulative weight, in increasing order, reaches q of the total; (B, Q)."""
+    q = np.asarray(q, dtype=np.float64).reshape(len(x), -1)
+    order = np.argsort(x, axis=1, kind="stable")
+    cw = np.cumsum(w[order], axis=1)
+    idx = np.minimum((cw[:, :, None] < q[:, None, :] * w.sum()).sum(1), x.shape[1] - 1)
+    return np.take_along_axis(np.take_along_axis(x, order, 1), idx, 1)
 
 
 def frame_of(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[Frame, np.ndarray]:
