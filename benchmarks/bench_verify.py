@@ -44,7 +44,10 @@ CASES = ("marked", "re-ordered", "cut in half, posed", "simplified 50 %", "unmar
          "unmarked, other secret", "paper: re-ordered", "cho1: marked")
 BLIND_CASES = ("marked", "re-ordered", "cut in half, posed", "cut 10 %", "simplified 50 %",
                "unmarked, the phrase", "marked, another phrase", "unmarked, cut in half")
-BLIND_BASELINE = "c28a68c"  # the crop search before its screening
+BLIND_BASELINE = "8ddfaa7"  # the crop search screening every candidate 0.3 bin widths apart
+BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start at a time",
+             "c28a68c": "the crop search scoring every candidate centre over 23 widths x 5 phases",
+             BLIND_BASELINE: "the crop search screening every candidate centre 0.3 bin widths apart"}
 TARGET = 0.5  # seconds, issue 13
 
 
@@ -198,9 +201,8 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
         f"`pmwm.verify` alone (the meshes and keys already in memory), median of {n_calls} calls in "
         f"{a.rounds} rounds that alternate with the baseline"
-        + ((f" (commit {a.baseline}: the crop search scoring every candidate centre over 23 widths x 5 phases)"
-            if blind else f" (commit {a.baseline}: brute-force nearest-point and radius queries, one start at a "
-                          "time)") if old else "")
+        + ((f" (commit {a.baseline}: {BASELINES[a.baseline]})" if a.baseline in BASELINES
+            else f" (commit {a.baseline})") if old else "")
         + "; one thread (OMP_NUM_THREADS=1). Wall-clock time and CPU time of the "
         "process: the machine is shared (2 cores, other jobs running), so the wall-clock figures include "
         "waiting for a core; the CPU time is what the call costs on an idle machine (one thread).",

@@ -16,9 +16,9 @@ plane through c spanned by h - c and n). The reader searches it (``crop_frames``
    a lattice of LATTICE bin widths;
 3. for each candidate, lo from the area quantile of what is left that is the original's 2 % quantile if
    the cap held none of the innermost vertices (2 % / (1 - lam)), and the bin width over -40 % .. +60 %
-   (a crop moves hi by several bins), scored by the mark's energy on COARSE_SAMPLE vertices: first
-   every candidate over a few widths and phases (SCREEN_*), then the best SCREEN_KEEP of them over
-   more (COARSE_*);
+   (a crop moves hi by several bins), scored by the mark's energy on COARSE_SAMPLE vertices over a few
+   widths and phases (SCREEN_*): first candidates SCREEN_LATTICE apart, then those LATTICE apart near
+   the best of them; then the best SCREEN_KEEP of these over more widths and phases (COARSE_*);
 4. the TOP best candidates: the best of OFF_PLANE offsets off the family's plane, then the width and lo
    again, finely, on up to REFINE_SAMPLE vertices; the REFINED best of those through
    ``radial.refine_frame_on``, and the FINAL best of these once more from their refined centre; the
@@ -28,20 +28,14 @@ The integer part of lo comes from the quantile alone: a frame one bin off shows 
 (the same bins, one end swapped) but reads the word shifted. Nothing here involves the pass phrase,
 so the search costs the p-value nothing.
 
-Measured (scratch; 160 crops of 10 %: 16 of the packaged bunny with its test key, 144 of the four
-benchmark models with 8 keys; the 64-bin word): the whole payload is read in 126 of 160 copies, against
-127 with the search before the screening (every candidate over 23 widths x 5 phases, and all 6
-finalists refined, then the best 3 fitted again), in about a third of the time (with the wider widths
-below, verifying a cut bunny or Igea takes 0.9-1.5 s against 2.3-4.4 s: BENCHMARKS.md,
-``verify-speed-blind``). With coarse samples of
-2000 vertices instead of 6000 the earlier search read 24 of the first 40 against 33 (with 2000 in the
-screening alone the candidates that win at 6000 rank in the hundreds); with t >= 0 only and no
-offsets: 30; the fine width scan in steps of 1 % or 0.25 % instead of 0.125 % loses copies (the
-energy's peak in the width is a few tenths of a percent wide at 64 bins). A 30 % crop moves the width
-further: with the widths -20 % .. +25 % (as above) 11 of 64 crops of 30 % in a random pose read, with
--30 % .. +40 % 19, with -40 % .. +60 % (now) 24, and of the 160 10 % crops 129 with the first and 131
-with the last; a cap share up to 0.5 instead of 0.4 read 14 of the 64 instead of 19 (with -30 % ..
-+40 %: more candidates, more false peaks).
+Why these constants (scratch sets of 160 crops of 10 % and 64 of 30 % in a random pose; the runs are
+in BENCHMARKS.md, ``blind-crop``): with coarse samples of 2000 vertices instead of 6000 the candidates
+that win at 6000 rank in the hundreds; with t >= 0 only, or without the offsets, fewer copies read; a
+fine width step of 1 % or 0.25 % instead of 0.125 % loses copies (the energy's peak in the width is a
+few tenths of a percent wide at 64 bins); a 30 % crop moves the width further, and the widths -40 % ..
++60 % read about twice as many of those as -20 % .. +25 %; a cap share up to 0.5 instead of 0.4 reads
+fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin widths apart reads as
+many copies as screening every candidate (129 of 160 and 22 of 64 both ways), in about half the time.
 The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
 
@@ -50,18 +44,23 @@ from __future__ import annotations
 import numpy as np
 
 from ...adjacency import build_adjacency, is_closed
-from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, distances, excess_energy,
-                     refine_frame_on, scale_energies, statistics_in, thinned, weighted_quantiles)
+from ...spatial import pairs_within
+from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
+                     distances, excess_energy, refine_frame_on, scale_energies, statistics_in, thinned,
+                     weighted_quantiles)
 
 LAMBDA_MAX = 0.4  # the largest share of the area a crop may have taken
 T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in bounding-box diagonals
 REACH = 30.0  # candidate centres within this many bin widths of the suspect's centroid
 LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows within about 0.5)
 COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
+SCREEN_LATTICE = 0.9  # the screening looks first at candidates this far apart (in bin widths)
+SCREEN_TOP = 0.05  # then, near the best share of those (SCREEN_MIN at least),
+EXPAND = 0.65  # at the candidates LATTICE apart within this many bin widths
 SCREEN_WIDTHS = np.linspace(0.6, 1.6, 21)  # every candidate: bin widths, relative to the suspect's own
 SCREEN_PHASES = np.arange(3) / 3  # and lo offsets, in bin widths (one bin's worth)
 SCREEN_CELLS = 8  # cells per bin width of the screening's histograms
-SCREEN_KEEP = 0.1  # the share of the candidates (SCREEN_MIN at least) scored again, over
+SCREEN_KEEP = 0.05  # the share of the candidates (SCREEN_MIN at least) scored again, over
 SCREEN_MIN = 64
 COARSE_WIDTHS = np.linspace(0.6, 1.6, 51)  # these widths
 COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # and these lo offsets
@@ -140,7 +139,8 @@ def _thickness(P: np.ndarray, w: np.ndarray, h: np.ndarray, n: np.ndarray) -> fl
     return float(np.sqrt(np.average(((P - h) @ n) ** 2, weights=w)) / np.mean(w))
 
 
-def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _candidates(c: np.ndarray, planes, width: float, diag: float, lattice: float = LATTICE
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Candidate centres (K, 3) on every plane's family c + lam (h + t n - c), with their lam (K,) and the
     unit normal of their family's plane (K, 3) (the plane through c spanned by h - c and n)."""
     lam = np.linspace(0.0, LAMBDA_MAX, 161)[:, None, None]
@@ -154,7 +154,7 @@ def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.nd
     C, L, N = np.concatenate(C), np.concatenate(L), np.concatenate(N)
     near = np.linalg.norm(C - c, axis=1) <= REACH * width
     C, L, N = C[near], L[near], N[near]
-    cell = np.round((C - c) / (LATTICE * width)).astype(np.int64)
+    cell = np.round((C - c) / (lattice * width)).astype(np.int64)
     _, first = np.unique(cell, axis=0, return_index=True)
     first.sort()
     return C[first], L[first], N[first]
@@ -169,8 +169,9 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
 
     lo is the area quantile that the original's 2 % would be if the cap held none of the area. Each
     centre's distances are counted once in cells of 1/``cells`` of the smallest width, from its nearest
-    vertex out (cumulative area, count and sum of positions); lo is a cell, and every frame's bins come
-    from the cells at their edges, rounded to the nearest cell edge (as in ``radial.scale_energies``)."""
+    vertex out (``radial.cumulative_cells``: count, sum of positions and area); lo is a cell, and every
+    frame's bins come from the cells at their edges, rounded to the nearest cell edge
+    (``radial.cell_energies``, as in ``radial.scale_energies``)."""
     cell = width * float(widths.min()) / cells
     wc = width * widths / cell  # bin widths in cells (W,)
     j = np.arange(n_bins + 1)
@@ -184,27 +185,12 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
         rho = distances(P, C[s0:s0 + _BATCH])
         B = len(rho)
         x = (rho - rho.min(1)[:, None]) / cell + shift
-        xi = x.astype(np.int64)
-        n_cells = int(xi.max()) + reach + 1  # room for the outermost edge beyond the farthest vertex
-        rows = (n_cells + 1) * np.arange(B)
-        flat = (xi + (rows - np.arange(B))[:, None]).ravel()
-        cum_n = np.zeros((B, n_cells + 1))
-        cum_x = np.zeros((B, n_cells + 1))
-        cum_n[:, 1:] = np.bincount(flat, minlength=B * n_cells).reshape(B, n_cells)
-        cum_x[:, 1:] = np.bincount(flat, weights=x.ravel(), minlength=B * n_cells).reshape(B, n_cells)
-        np.cumsum(cum_n, axis=1, out=cum_n)
-        np.cumsum(cum_x, axis=1, out=cum_x)
-        cum_a = np.cumsum(np.bincount(flat, weights=np.broadcast_to(area, rho.shape).ravel(),
-                                      minlength=B * n_cells).reshape(B, n_cells), axis=1)
+        n_cells = int(x.max()) + reach + 1  # room for the outermost edge beyond the farthest vertex
+        cum_n, cum_x, cum_a = cumulative_cells(x, n_cells, None, area)
         # the cell of the area quantile the original's 2 % would be if the cap held none of the area
-        lo = (cum_a < (QUANTILES[0] / (1.0 - lam[s0:s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
-        e = (lo + rows)[:, None, None, None] + offs[None]
-        n = np.diff(np.take(cum_n, e), axis=-1)
-        ssum = np.diff(np.take(cum_x, e), axis=-1)
-        ssum -= n * (lo[:, None, None, None] + mid[None])  # sum of positions from the bins' centres, in cells
-        ssum *= ssum
-        ssum /= np.maximum(n, 1.0)
-        en = ssum.sum(-1) / (wc * wc)[None, :, None]
+        lo = (cum_a[:, 1:] < (QUANTILES[0] / (1.0 - lam[s0:s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
+        edges = lo[:, None, None, None] + offs[None]
+        en = cell_energies(cum_n, cum_x, edges, lo[:, None, None, None] + mid[None], wc[None, :, None])
         score[s0:s0 + B] = en.reshape(B, -1).max(1)
     return score
 
@@ -227,8 +213,15 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         width = (own.hi - own.lo) / n_bins
         C, L, N = _candidates(own.centre, planes, width, diag)
         Cc = (C - own.centre).astype(np.float32)
-        first = _coarse(Pc, area_c, Cc, L, width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES, SCREEN_CELLS)
-        kept = np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_KEEP * len(C)))]
+        # screening: the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them
+        S, Ls, _ = _candidates(own.centre, planes, width, diag, SCREEN_LATTICE)
+        first = _coarse(Pc, area_c, (S - own.centre).astype(np.float32), Ls, width, n_bins,
+                        SCREEN_WIDTHS, SCREEN_PHASES, SCREEN_CELLS)
+        top = S[np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_TOP * len(S)))]]
+        near = np.unique(pairs_within(top, C, EXPAND * width)[1])
+        second = _coarse(Pc, area_c, Cc[near], L[near], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES,
+                         SCREEN_CELLS)
+        kept = near[np.argsort(-second, kind="stable")[:max(SCREEN_MIN, int(SCREEN_KEEP * len(C)))]]
         score = np.full(len(C), -np.inf)
         score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], width, n_bins)
 

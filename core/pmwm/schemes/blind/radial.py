@@ -45,6 +45,7 @@ reaches its margins on the Venus head (bins are narrower than its triangles).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -298,6 +299,52 @@ def distances(P: np.ndarray, C: np.ndarray) -> np.ndarray:
 SCALE_CELLS = 16  # scale_energies: cells per bin width of the cumulative histograms
 
 
+def cumulative_cells(x: np.ndarray, n_cells: int, weights: Optional[np.ndarray], *more: np.ndarray
+                     ) -> list[np.ndarray]:
+    """Cumulative per-cell sums of B rows of points, for many frames' bins at once (``cell_energies``).
+
+    x (B, n) float: each point's position from its row's origin, in cells (points outside [0, n_cells)
+    are left out); weights (n,) or (B, n): each point's weight (None: counts); more: further (n,) or
+    (B, n) weights, summed alone. Returns [cum_w, cum_wx, *cum_more], each (B, n_cells + 1) float64:
+    entry k is the sum over the row's points in cells below k of w, of w x (the positions, in cells),
+    and of each further weight."""
+    B = len(x)
+    ok = (x >= 0) & (x < n_cells)
+    everywhere = bool(ok.all())
+    flat = x.astype(np.int64)  # (the floor, for x >= 0)
+    flat += n_cells * np.arange(B)[:, None]
+    flat = flat.ravel() if everywhere else flat[ok]
+
+    def cum(w: Optional[np.ndarray]) -> np.ndarray:
+        if w is not None:
+            w = np.broadcast_to(w, x.shape)
+            w = w.ravel() if everywhere else w[ok]
+        out = np.zeros((B, n_cells + 1))
+        out[:, 1:] = np.bincount(flat, weights=w, minlength=B * n_cells).reshape(B, n_cells)
+        return np.cumsum(out, axis=1, out=out)
+
+    return [cum(weights), cum(x if weights is None else weights * x), *(cum(m) for m in more)]
+
+
+def cell_energies(cum_w: np.ndarray, cum_wx: np.ndarray, edges: np.ndarray, mids: np.ndarray,
+                  widths: np.ndarray) -> np.ndarray:
+    """The mark's energy (as ``energies``) of many frames from ``cumulative_cells``' tables, (B, ...).
+
+    cum_w, cum_wx (B, N + 1): the cumulative weights and weighted positions (in cells) of B rows;
+    edges (B, ..., J + 1) int64: each frame's bin edges, as cell indices in 0..N (a bin takes the whole
+    cells between its edges); mids (..., J), broadcast against edges' frames: the bins' centres in cells
+    (exact, not rounded); widths (...): the frames' bin widths in cells. A bin's sum of (t - j - 1/2)
+    is its sum of (x - mid) over its width."""
+    rows = (cum_w.shape[1] * np.arange(len(cum_w))).reshape((-1,) + (1,) * (edges.ndim - 1))
+    e = edges + rows
+    n = np.diff(np.take(cum_w, e), axis=-1)
+    s = np.diff(np.take(cum_wx, e), axis=-1)
+    s -= n * mids
+    s *= s
+    s /= np.maximum(n, np.finfo(np.float64).tiny)  # (an empty bin has s == 0)
+    return s.sum(-1) / (widths * widths)
+
+
 def scale_energies(rho: np.ndarray, a: np.ndarray, lo: np.ndarray, widths: np.ndarray, phases: np.ndarray,
                    n_bins: int) -> np.ndarray:
     """The mark's energy (as ``energies``) of many frames around B centres at once, (B, W, P) float64:
@@ -306,31 +353,18 @@ def scale_energies(rho: np.ndarray, a: np.ndarray, lo: np.ndarray, widths: np.nd
     rho (B, n) float64: the distances of the same n vertices to each centre; a (n,) their weights; lo (B,);
     widths (W,) > 0; phases (P,) in bin widths. Instead of binning the vertices once per frame (W * P
     passes over them), each centre's distances are counted once in cells of 1/SCALE_CELLS of the smallest
-    width (a cumulative count and a cumulative sum of rho per cell), and every bin's count and sum of
-    (t - j - 1/2) come from the cells at its edges, rounded to the nearest cell edge (1/32 of a bin at most)."""
-    B = len(rho)
+    width (``cumulative_cells``), and every bin's weight and sum of (t - j - 1/2) come from the cells at
+    its edges, rounded to the nearest cell edge (1/32 of a bin at most: ``cell_energies``)."""
     cell = float(widths.min()) / SCALE_CELLS
     origin = lo + float(min(phases.min(), 0.0)) * float(widths.max()) - cell
     end = lo + (float(phases.max()) + n_bins) * float(widths.max())
     n_cells = int(np.ceil(float(np.max(end - origin)) / cell)) + 2
-    x = np.floor((rho - origin[:, None]) / cell).astype(np.int64)
-    ok = (x >= 0) & (x < n_cells)
-    flat = (x + n_cells * np.arange(B)[:, None])[ok]
-    w = np.broadcast_to(a, rho.shape)[ok]
-    cum_n = np.zeros((B, n_cells + 1))
-    cum_r = np.zeros((B, n_cells + 1))
-    cum_n[:, 1:] = np.bincount(flat, weights=w, minlength=B * n_cells).reshape(B, n_cells)
-    cum_r[:, 1:] = np.bincount(flat, weights=w * rho[ok], minlength=B * n_cells).reshape(B, n_cells)
-    np.cumsum(cum_n, axis=1, out=cum_n)
-    np.cumsum(cum_r, axis=1, out=cum_r)
-    W = widths[None, :, None, None]
-    start = lo[:, None, None, None] + phases[None, None, :, None] * W  # (B, W, P, 1)
-    edges = start + np.arange(n_bins + 1) * W
-    e = np.clip(np.rint((edges - origin[:, None, None, None]) / cell).astype(np.int64), 0, n_cells)
-    e += (n_cells + 1) * np.arange(B)[:, None, None, None]
-    n = np.diff(np.take(cum_n, e), axis=-1)
-    s = (np.diff(np.take(cum_r, e), axis=-1) - n * start) / W - (np.arange(n_bins) + 0.5) * n
-    return np.divide(s * s, n, out=np.zeros_like(s), where=n > 0).sum(-1)
+    cum_w, cum_wx = cumulative_cells((rho - origin[:, None]) / cell, n_cells, a)
+    wc = widths / cell  # (W,)
+    start = (lo - origin)[:, None, None, None] / cell + phases[None, None, :, None] * wc[None, :, None, None]
+    edges = np.clip(np.rint(start + np.arange(n_bins + 1) * wc[None, :, None, None]), 0, n_cells).astype(np.int64)
+    mids = start + (np.arange(n_bins) + 0.5) * wc[None, :, None, None]  # (B, W, P, J)
+    return cell_energies(cum_w, cum_wx, edges, mids, wc[None, :, None])
 
 
 def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
