@@ -208,6 +208,31 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     assert not pmwm.verify(V, F, passphrase=PHRASE).marked
 
 
+def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marked, monkeypatch):
+    """The search for the longer word can find the shorter mark's own bins (lo and bin width): read with
+    the longer word's count, those bins hold the mark and empty bins beyond it, so the frame is read at
+    every length and the length of most excess energy wins. Here the search for 96 bins returns the
+    64-bin mark's frame (the frame its own search found, extended to 96 bins) and the search for 64
+    bins a frame that holds no mark: the payload is still read, at 64 bins (each length read in its own
+    frame read 96 bins there, and nothing)."""
+    from pmwm.schemes.blind import frames
+
+    V, F = A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=1)
+    assert pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme"
+    real = frames.crop_frames
+
+    def swapped(V, a, area, own, planes, counts):
+        g = real(V, a, area, own, planes, counts)[0]  # the 64-bin mark's frame
+        assert counts == [64, 96] and g.n_bins == 64
+        return [radial.Frame(own.centre + 40 * g.width, own.lo, own.hi, 64),
+                radial.Frame(g.centre, g.lo, g.lo + 96 * g.width, 96)]
+
+    monkeypatch.setattr(frames, "crop_frames", swapped)
+    stats = blind.bin_statistics(V, F)
+    v = blind.decide(stats, marked.key.secret)
+    assert stats.n_word == 64 and v.marked and v.payload == "Acme" and v.extra["frame"].startswith("crop")
+
+
 def test_cut_planes_find_the_plane_of_a_crop():
     V, F = meshes.blob()
     assert crop.cut_planes(V, F, V.mean(0)) == []  # closed: nothing was cut

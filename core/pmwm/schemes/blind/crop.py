@@ -196,11 +196,11 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
 
 
 def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, planes: list,
-                bin_counts) -> list[tuple[Frame, float]]:
+                bin_counts) -> list[Frame]:
     """For each count in ``bin_counts``, the frame of that many bins where a cropped copy shows the most
-    mark energy near the families of the cut ``planes`` (``cut_planes``, not empty), and that frame's
-    ``excess_energy``. V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``;
-    ``own`` the suspect's own frame (its centre and range)."""
+    mark energy (``excess_energy``) near the families of the cut ``planes`` (``cut_planes``, not empty).
+    V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``; ``own`` the suspect's own
+    frame (its centre and range)."""
     by_rho = by_distance(V, a, own.centre)
     sub, fine = thinned(by_rho, COARSE_SAMPLE), thinned(by_rho, REFINE_SAMPLE)
     # the coarse stages in float32: distances of a few hundred bin widths, accurate to 1e-5 bins
@@ -241,8 +241,7 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         # the FINAL best, and each fitted again at its refined centre: the one of most energy
         finals = [f for z, fr, lam in fits[:FINAL]
                   for f in ((z, fr), refined(_fit_scale(Pf, af, area_f, fr.centre, lam, width, n_bins)[1]))]
-        z, fr = max(finals, key=lambda f: f[0])
-        found.append((fr, z))
+        found.append(max(finals, key=lambda f: f[0])[1])
     return found
 
 
