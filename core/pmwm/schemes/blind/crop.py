@@ -35,7 +35,9 @@ fine width step of 1 % or 0.25 % instead of 0.125 % loses copies (the energy's p
 few tenths of a percent wide at 64 bins); a 30 % crop moves the width further, and the widths -40 % ..
 +60 % read about twice as many of those as -20 % .. +25 %; a cap share up to 0.5 instead of 0.4 reads
 fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin widths apart reads as
-many copies as screening every candidate (129 of 160 and 22 of 64 both ways), in about half the time.
+many copies as screening every candidate (129 of 160 and 22 of 64 both ways); on a 10 % crop of Igea,
+whose families hold thousands of candidates, the screening takes 0.4 s instead of 0.9 s (a cut
+suspect's verify: BENCHMARKS.md, ``verify-speed-blind``).
 The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
 
