@@ -37,7 +37,9 @@ few tenths of a percent wide at 64 bins); a 30 % crop moves the width further, a
 fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin widths apart reads as
 many copies as screening every candidate (129 of 160 and 22 of 64 both ways); on a 10 % crop of Igea,
 whose families hold thousands of candidates, the screening takes 0.4 s instead of 0.9 s (a cut
-suspect's verify: BENCHMARKS.md, ``verify-speed-blind``).
+suspect's verify: BENCHMARKS.md, ``verify-speed-blind``). More finalists read more 30 % crops: with
+TOP 6, 10 and 16 (REFINED 3) 23, 25 and 28 of the 64, with TOP 10 and REFINED 4 27 (131 of the 160
+10 % crops with each, 130 with TOP 6); each finalist costs about 15 ms per word length.
 The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
 
@@ -66,12 +68,12 @@ SCREEN_KEEP = 0.05  # the share of the candidates (SCREEN_MIN at least) scored a
 SCREEN_MIN = 64
 COARSE_WIDTHS = np.linspace(0.6, 1.6, 51)  # these widths
 COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # and these lo offsets
-TOP = 6  # candidates searched finely
+TOP = 10  # candidates searched finely
 OFF_PLANE = np.linspace(-1.5, 1.5, 11)  # offsets of a candidate off its family's plane, in bin widths
 FINE_WIDTHS = np.linspace(0.6, 1.6, 801)  # the fine fit's relative widths (steps of 0.125 %)
 FINE_PHASES = np.linspace(-0.5, 0.5, 33)  # within half a bin: a whole bin off reads the word shifted
 FINE_KEEP = 8  # widths of most energy at the phases FINE_PHASES[::4], tried at every phase
-REFINED = 3  # of the TOP, the best (by the fine fit's energy) refined
+REFINED = 4  # of the TOP, the best (by the fine fit's energy) refined
 FINAL = 2  # of those, the best fitted again at their refined centre
 MIN_EDGES = 12  # a boundary loop of fewer edges is not a cut
 MAX_LOOPS = 32  # the largest loops are looked at, no more (a mesh may have thousands of holes)
