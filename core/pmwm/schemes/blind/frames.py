@@ -14,10 +14,10 @@ copy's.
    span -40 % .. +60 %): read as 96 bins they show the mark diluted by the 32 bins beyond it (or the
    same, when nothing lies beyond: the shorter length is read on a tie), read as 64 the mark alone
    (scratch: 63 of 80 10 % crops and 23 of 64 posed 30 % crops read, against 62 and 22 with each length
-   read in its own frame). Every length is searched: a frame searched for another length than the mark's can show
-   much of its energy too (up to four fifths of the right length's, measured on the bunny and dragon),
-   so the first strong one may be the wrong length. The search runs
-   whenever there is a cut: no level of the refined frame's energy tells a crop from an intact copy on
+   read in its own frame). Every length is searched: a frame searched for another length than the
+   mark's can show much of its energy too (up to four fifths of the right length's, measured on the
+   bunny and dragon), so the first strong one may be the wrong length. The search runs whenever there
+   is a cut: no level of the refined frame's energy tells a crop from an intact copy on
    every shape (excess energy on unmarked shapes reaches 26 on the dragon and 60 on a cropped Igea,
    against 16-30 for marked Venus heads after 8-bit quantization, Loop subdivision or 30 smoothing
    iterations).
