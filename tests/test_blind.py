@@ -18,7 +18,7 @@ from pmwm import attacks as A
 from pmwm.errors import MeshError, PayloadError
 from pmwm.meshio import read_mesh, write_mesh
 from pmwm.schemes import blind
-from pmwm.schemes.blind import crop, radial, word
+from pmwm.schemes.blind import crop, frames, radial, word
 
 BUNNY = Path(pmwm.__file__).parent / "data" / "bunny.off"
 PHRASE = "correct horse battery staple"
@@ -210,13 +210,11 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
 
 def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marked, monkeypatch):
     """The search for the longer word can find the shorter mark's own bins (lo and bin width): read with
-    the longer word's count, those bins hold the mark and empty bins beyond it, so the frame is read at
+    the longer word's count, those bins hold the mark and the bins beyond it, so the frame is read at
     every length and the length of most excess energy wins. Here the search for 96 bins returns the
     64-bin mark's frame (the frame its own search found, extended to 96 bins) and the search for 64
     bins a frame that holds no mark: the payload is still read, at 64 bins (each length read in its own
     frame read 96 bins there, and nothing)."""
-    from pmwm.schemes.blind import frames
-
     V, F = A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=1)
     assert pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme"
     real = frames.crop_frames
