@@ -64,8 +64,9 @@ def true_word(secret: str, payload: np.ndarray) -> np.ndarray:
 
 def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False):
     """(BER of the 64-bit word read, whole payload recovered with p < 1e-6) of a suspect; the BER in
-    the frame whose reading the verdict kept (own, refined, crop or a neighbour of it) when marked, else in the own frame. With ``own_too``, a third item: the
-    whole payload recovered from the suspect's own frame alone (the reader before the refinement)."""
+    the frame whose reading the verdict kept (own, refined, crop or a neighbour of it) when marked, else
+    in the own frame. With ``own_too``, a third item: the whole payload recovered from the suspect's own
+    frame alone (the reader before the refinement)."""
     try:
         stats = blind.bin_statistics(V, F)
     except pmwm.PmwmError:

@@ -58,7 +58,7 @@ T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in b
 REACH = 30.0  # candidate centres within this many bin widths of the suspect's centroid
 LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows within about 0.5)
 COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
-SCREEN_LATTICE = 0.9  # the screening looks first at candidates this far apart (in bin widths)
+SCREEN_LATTICE = 0.9  # the screening looks first at candidates this far apart (3 LATTICE, in bin widths)
 SCREEN_TOP = 0.05  # then, near the best share of those (SCREEN_MIN at least),
 EXPAND = 0.65  # at the candidates LATTICE apart within this many bin widths
 SCREEN_WIDTHS = np.linspace(0.6, 1.6, 21)  # every candidate: bin widths, relative to the suspect's own
@@ -143,10 +143,10 @@ def _thickness(P: np.ndarray, w: np.ndarray, h: np.ndarray, n: np.ndarray) -> fl
     return float(np.sqrt(np.average(((P - h) @ n) ** 2, weights=w)) / np.mean(w))
 
 
-def _candidates(c: np.ndarray, planes, width: float, diag: float, lattice: float = LATTICE
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Candidate centres (K, 3) on every plane's family c + lam (h + t n - c), with their lam (K,) and the
-    unit normal of their family's plane (K, 3) (the plane through c spanned by h - c and n)."""
+def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Candidate centres (K, 3) on every plane's family c + lam (h + t n - c), LATTICE bin widths apart,
+    with their lam (K,) and the unit normal of their family's plane (K, 3) (the plane through c spanned
+    by h - c and n)."""
     lam = np.linspace(0.0, LAMBDA_MAX, 161)[:, None, None]
     t = np.linspace(T_RANGE[0] * diag, T_RANGE[1] * diag, 121)[None, :, None]
     C, L, N = [], [], []
@@ -157,11 +157,18 @@ def _candidates(c: np.ndarray, planes, width: float, diag: float, lattice: float
         N.append(np.broadcast_to(off / max(float(np.linalg.norm(off)), 1e-300), (161 * 121, 3)))
     C, L, N = np.concatenate(C), np.concatenate(L), np.concatenate(N)
     near = np.linalg.norm(C - c, axis=1) <= REACH * width
-    C, L, N = C[near], L[near], N[near]
-    cell = np.round((C - c) / (lattice * width)).astype(np.int64)
-    _, first = np.unique(cell, axis=0, return_index=True)
-    first.sort()
+    first = np.flatnonzero(near)[_spread(C[near] - c, LATTICE * width)]
     return C[first], L[first], N[first]
+
+
+def _spread(D: np.ndarray, spacing: float) -> np.ndarray:
+    """Indices (ascending) of the first of the points D (K, 3) in each cell of a lattice of ``spacing``
+    (cells centred on the lattice's points). The cells of spacing 3s are unions of those of s, so the
+    points kept at 3s from those kept at s are the ones kept at 3s from all."""
+    cell = np.round(D / spacing).astype(np.int64)
+    first = np.unique(cell, axis=0, return_index=True)[1]
+    first.sort()
+    return first
 
 
 def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, width: float, n_bins: int,
@@ -218,10 +225,9 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         C, L, N = _candidates(own.centre, planes, width, diag)
         Cc = (C - own.centre).astype(np.float32)
         # screening: the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them
-        S, Ls, _ = _candidates(own.centre, planes, width, diag, SCREEN_LATTICE)
-        first = _coarse(Pc, area_c, (S - own.centre).astype(np.float32), Ls, width, n_bins,
-                        SCREEN_WIDTHS, SCREEN_PHASES, SCREEN_CELLS)
-        top = S[np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_TOP * len(S)))]]
+        s = _spread(C - own.centre, SCREEN_LATTICE * width)
+        first = _coarse(Pc, area_c, Cc[s], L[s], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES, SCREEN_CELLS)
+        top = C[s[np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_TOP * len(s)))]]]
         near = np.unique(pairs_within(top, C, EXPAND * width)[1])
         second = _coarse(Pc, area_c, Cc[near], L[near], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES,
                          SCREEN_CELLS)
