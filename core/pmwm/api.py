@@ -12,6 +12,7 @@ from typing import Optional
 from .base import EmbedOptions, EmbedResult, Progress, Verdict
 from .errors import KeyFileError, PayloadError
 from .key import WatermarkKey, read_key_json
+from .memory import reuse_freed_memory
 from .progressive import ProgressiveMesh
 from .schemes import get_scheme
 from .schemes.blind import key_from_passphrase
@@ -23,6 +24,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     """Watermark a triangle mesh, vertices : (n, 3) float64, faces : (m, 3) int64, with the scheme of
     ``options`` (default: robust). ``progress(fraction, message)`` is called as the work advances."""
     opts = options or EmbedOptions()
+    reuse_freed_memory()
     return get_scheme(opts.scheme).embed(vertices, faces, opts, progress)
 
 
@@ -46,6 +48,7 @@ def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: flo
         raise PayloadError("give a key or a pass phrase (the blind scheme), not both or neither")
     if key is None:
         key = key_from_passphrase(passphrase)
+    reuse_freed_memory()
     return get_scheme(key.scheme, KeyFileError).verify(vertices, faces, key, p_threshold)
 
 
