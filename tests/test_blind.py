@@ -208,6 +208,25 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     assert not pmwm.verify(V, F, passphrase=PHRASE).marked
 
 
+def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, monkeypatch):
+    """The centre a crop took away can lie a bin width or more off the plane of the family the search
+    follows (the cap's centroid off the hole's axis), too far for the mark to show on the plane: the search
+    also follows copies of the family ``crop.LAYERS`` bin widths off its plane. Two bunny crops whose
+    lost centre lies more than a bin width off it are read; with the plane alone, neither is."""
+    fr0, _ = radial.frame_of(marked.vertices, marked.faces, 64)
+    width = (fr0.hi - fr0.lo) / 64
+    crops = [A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=seed) for seed in (46, 64)]
+    for V, F in crops:
+        fr, _ = radial.frame_of(V, F, 64)
+        (h, n), = crop.cut_planes(V, F, fr.centre)
+        normal = np.cross(h - fr.centre, n)  # of the family's plane (through the centroid, h and n)
+        assert abs((fr0.centre - fr.centre) @ normal) / np.linalg.norm(normal) > width
+        v = pmwm.verify(V, F, passphrase=PHRASE)
+        assert v.marked and v.payload == "Acme" and v.extra["frame"].startswith("crop")
+    monkeypatch.setattr(crop, "LAYERS", (0.0,))
+    assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
+
+
 def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marked, monkeypatch):
     """The search for the longer word can find the shorter mark's own bins (lo and bin width): read with
     the longer word's count, those bins hold the mark and the bins beyond it, so the frame is read at
@@ -256,6 +275,25 @@ def test_weighted_quantiles_of_many_rows():
         cw = np.cumsum(w[order])
         assert got[b] == rho[b][order][np.flatnonzero(cw >= q[b, 0] * w.sum())[0]]
     assert radial.weighted_quantiles(rho[:1], w, [[0.0, 1.0]])[0].tolist() == [rho[0].min(), rho[0].max()]
+
+
+def test_a_low_quantile_from_the_smallest_values_equals_the_one_from_all():
+    """``low_quantile`` sorts only the smallest values: the same value as ``weighted_quantiles``, with
+    ties (also across the values it sorts and those it does not), weightless values, and a quantile the
+    smallest values cannot hold (it then sorts all of them)."""
+    rng = np.random.default_rng(2)
+    for trial in range(300):
+        n = int(rng.integers(1, 20000))
+        x = rng.random(n)
+        if trial % 2:
+            x = np.round(x * rng.integers(1, 300))  # many ties
+        w = rng.random(n) * (rng.random(n) < 0.8)
+        if trial % 7 == 0:
+            w[np.argsort(x)[: n // 2]] = 0.0  # the smallest half weighs nothing: the full sort is needed
+        if not w.sum() > 0:
+            continue
+        q = float(rng.choice([0.0, 0.01, 0.02, 0.05, 0.3]))
+        assert radial.low_quantile(x, w, q) == radial.weighted_quantiles(x[None], w, [q])[0, 0]
 
 
 def test_scale_energies_match_the_energy_of_each_frame():

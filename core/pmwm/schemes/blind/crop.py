@@ -8,20 +8,24 @@ area; and the cap lies beyond the cut, around the hole it left: c_cap ~ h + t n,
 cut's boundary edges, n the cut plane's normal pointing away from c. Measured on the bunny, dragon, Venus
 head and Igea, 6 crops of 10 % each: c0 lies within 0.7 bin widths of this two-parameter family in 20
 of 24 crops and within 1 in 23 (1.8 at most), the rest of the way mostly off the family's plane (the
-plane through c spanned by h - c and n). The reader searches it (``crop_frames``, for each word length):
+plane through c spanned by h - c and n). On 80 scratch crops of 10 % (the same models), the lattice below
+always came within 0.5 bin widths of c0 in that plane, but c0 lay more than 0.5 bin widths off the plane
+in 30 (14 of the 17 crops the plane alone did not read) and 1 or more in 10. The reader searches the
+family and copies of it off its plane (``crop_frames``, for each word length):
 
 1. the cut planes (``cut_planes``): boundary loops that lie in a plane, coplanar loops together (a
    plane that cuts two ears leaves two loops);
-2. candidate centres on the family (lam <= LAMBDA_MAX, t in T_RANGE, within REACH bin widths of c), on
-   a lattice of LATTICE bin widths;
+2. candidate centres on the family (lam <= LAMBDA_MAX, t in T_RANGE, within REACH bin widths of c) and
+   on its copies LAYERS bin widths off its plane, on a lattice of LATTICE bin widths;
 3. for each candidate, lo from the area quantile of what is left that is the original's 2 % quantile if
    the cap held none of the innermost vertices (2 % / (1 - lam)), and the bin width over -40 % .. +60 %
    (a crop moves hi by several bins), scored by the mark's energy on COARSE_SAMPLE vertices over a few
    widths and phases (SCREEN_*): first candidates SCREEN_LATTICE apart, then those LATTICE apart near
-   the best of them; then the best SCREEN_KEEP of these over more widths and phases (COARSE_*);
+   the best of them; then the best of these (SCREEN_KEEP of one layer's count) over more widths and
+   phases (COARSE_*);
 4. the TOP best candidates: the best of OFF_PLANE offsets off the family's plane, then the width and lo
-   again, finely, on up to REFINE_SAMPLE vertices; the REFINED best of those through
-   ``radial.refine_frame_on``, and the FINAL best of these once more from their refined centre; the
+   again, finely, on every vertex of positive weight; the REFINED best of those through ``radial.refine_frame_on`` (on
+   REFINE_SAMPLE vertices), and the FINAL best of these once more from their refined centre; the
    frame whose reading shows the most energy wins.
 
 The integer part of lo comes from the quantile alone: a frame one bin off shows nearly the same energy
@@ -39,7 +43,13 @@ many copies as screening every candidate (129 of 160 and 22 of 64 both ways); on
 whose families hold thousands of candidates, the screening takes 0.4 s instead of 0.9 s (a cut
 suspect's verify: BENCHMARKS.md, ``verify-speed-blind``). More finalists read more 30 % crops: with
 TOP 6, 10 and 16 (REFINED 3) 23, 25 and 28 of the 64, with TOP 10 and REFINED 4 27 (131 of the 160
-10 % crops with each, 130 with TOP 6); each finalist costs about 15 ms per word length.
+10 % crops with each, 130 with TOP 6); each finalist costs about 15 ms per word length. The copies of
+the family 0.9 bin widths either side of its plane, with the fine width fit on every vertex instead of
+20,000, read 145 of the 160 and 28 of the 64 (the fit alone 133 and 28; the copies alone, with three
+times as many candidates on the coarse grid, 137 and 26),
+for about a fifth more time; copies at 0.9 and 1.8 either side read 71 instead of 72 of the first 80
+10 % crops. On 20,000 vertices the width fit can peak about 10 % off the mark's width, with nearly the
+energy of the right one, where every vertex shows the right one (dragon crops).
 The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
 
@@ -50,14 +60,14 @@ import numpy as np
 from ...adjacency import build_adjacency, is_closed
 from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
-                     distances, excess_energy, refine_frame_on, scale_energies, statistics_in, thinned,
-                     weighted_quantiles)
+                     distances, excess_energy, low_quantile, refine_frame_on, scale_energies, statistics_in, thinned)
 
 LAMBDA_MAX = 0.4  # the largest share of the area a crop may have taken
 T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in bounding-box diagonals
 REACH = 30.0  # candidate centres within this many bin widths of the suspect's centroid
 LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows within about 0.5)
 COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
+LAYERS = (-0.9, 0.0, 0.9)  # the family's plane and copies of it this many bin widths off it
 SCREEN_LATTICE = 0.9  # the screening looks first at candidates this far apart (3 LATTICE, in bin widths)
 SCREEN_TOP = 0.05  # then, near the best share of those (SCREEN_MIN at least),
 EXPAND = 0.65  # at the candidates LATTICE apart within this many bin widths
@@ -156,6 +166,10 @@ def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.nd
         L.append(np.broadcast_to(lam, (161, 121, 1)).reshape(-1))
         N.append(np.broadcast_to(off / max(float(np.linalg.norm(off)), 1e-300), (161 * 121, 3)))
     C, L, N = np.concatenate(C), np.concatenate(L), np.concatenate(N)
+    if len(LAYERS) > 1:  # copies of the family off its plane
+        off = np.asarray(LAYERS, float) * width
+        C = (C[None] + off[:, None, None] * N[None]).reshape(-1, 3)
+        L, N = np.tile(L, len(off)), np.tile(N, (len(off), 1))
     near = np.linalg.norm(C - c, axis=1) <= REACH * width
     first = np.flatnonzero(near)[_spread(C[near] - c, LATTICE * width)]
     return C[first], L[first], N[first]
@@ -216,7 +230,8 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     sub, fine = thinned(by_rho, COARSE_SAMPLE), thinned(by_rho, REFINE_SAMPLE)
     # the coarse stages in float32: distances of a few hundred bin widths, accurate to 1e-5 bins
     Pc, area_c = (V[sub] - own.centre).astype(np.float32), area[sub]
-    Pf, af, area_f = V[fine], a[fine], area[fine]
+    Pf, af = V[fine], a[fine]
+    Pw, aw, area_w = V[by_rho], a[by_rho], area[by_rho]  # the fine width fit: every vertex of positive weight
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     total = float(a.sum())
     found = []
@@ -231,7 +246,8 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         near = np.unique(pairs_within(top, C, EXPAND * width)[1])
         second = _coarse(Pc, area_c, Cc[near], L[near], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES,
                          SCREEN_CELLS)
-        kept = near[np.argsort(-second, kind="stable")[:max(SCREEN_MIN, int(SCREEN_KEEP * len(C)))]]
+        keep = max(SCREEN_MIN, int(SCREEN_KEEP * len(C) / len(LAYERS)))  # (a share of one layer's candidates)
+        kept = near[np.argsort(-second, kind="stable")[:keep]]
         score = np.full(len(C), -np.inf)
         score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], width, n_bins)
 
@@ -245,12 +261,12 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
             off = C[i] - own.centre + np.outer(OFF_PLANE * width, N[i])
             e = _coarse(Pc, area_c, off.astype(np.float32), np.full(len(off), L[i]), width, n_bins)
             best_off = off[int(np.argmax(e))]
-            scaled.append((*_fit_scale(Pf, af, area_f, own.centre + best_off, L[i], width, n_bins), L[i]))
+            scaled.append((*_fit_scale(Pw, aw, area_w, own.centre + best_off, L[i], width, n_bins), L[i]))
         scaled.sort(key=lambda f: -f[0])
         fits = sorted(((*refined(fr), lam) for _, fr, lam in scaled[:REFINED]), key=lambda f: -f[0])
         # the FINAL best, and each fitted again at its refined centre: the one of most energy
         finals = [f for z, fr, lam in fits[:FINAL]
-                  for f in ((z, fr), refined(_fit_scale(Pf, af, area_f, fr.centre, lam, width, n_bins)[1]))]
+                  for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins)[1]))]
         found.append(max(finals, key=lambda f: f[0])[1])
     return found
 
@@ -261,7 +277,7 @@ def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarra
     ``lam`` its share taken) and bin width (``width`` times FINE_WIDTHS) show the most mark energy on
     the vertices P (k, 3) with reader weights a (k,) and areas (k,); and that energy."""
     rho = np.linalg.norm(P - centre, axis=1)[None]
-    lo = weighted_quantiles(rho, area, [QUANTILES[0] / (1.0 - lam)])[:, 0]
+    lo = np.array([low_quantile(rho[0], area, QUANTILES[0] / (1.0 - lam))])
     # every width at a few phases; then the widths of most energy at every phase
     e = scale_energies(rho, a, lo, width * FINE_WIDTHS, FINE_PHASES[::4], n_bins)[0].max(1)
     rel = FINE_WIDTHS[np.sort(np.argsort(-e, kind="stable")[:FINE_KEEP])]

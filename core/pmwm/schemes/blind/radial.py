@@ -88,6 +88,21 @@ def weighted_quantiles(x: np.ndarray, w: np.ndarray, q) -> np.ndarray:
     return np.take_along_axis(np.take_along_axis(x, order, 1), idx, 1)
 
 
+def low_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
+    """``weighted_quantiles`` of one row x (n,) at one small q, sorting only the smallest values that can
+    hold it (the same value: the same weights summed in the same order)."""
+    target = q * w.sum()
+    m = min(len(x), 2 * int(q * len(x)) + 256)
+    if m < len(x):
+        part = np.argpartition(x, m - 1)[:m]
+        part.sort()  # (by index: the stable sort below then orders ties as argsort of all of x does)
+        order = part[np.argsort(x[part], kind="stable")]
+        cw = np.cumsum(w[order])
+        if cw[-1] >= target:  # (ties beyond the m-th value would be read as that same value)
+            return float(x[order[int((cw < target).sum())]])
+    return float(weighted_quantiles(x[None], w, [q])[0, 0])
+
+
 def frame_of(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[Frame, np.ndarray]:
     """The frame of a mesh (area-weighted centre and range) and the vertices' weights in the bin
     statistics (n,) (1 on a face of positive area, else 0). MeshError when the surface has no area
@@ -400,16 +415,20 @@ def refine_frame_on(Vs: np.ndarray, As: np.ndarray, fr: Frame, n_bins: int) -> F
     x = np.zeros(5)
     best = float(evaluate(x[None])[0])
     for st in REFINE_STEPS:
+        back = -1  # the move back to the point just left (its energy is known to be lower)
         for _ in range(REFINE_MOVES):
             cands = x + st * dirs
-            cands = cands[np.all(np.abs(cands) <= REFINE_BOUND, axis=1)]
-            if not len(cands):
+            ok = np.all(np.abs(cands) <= REFINE_BOUND, axis=1)
+            if back >= 0:
+                ok[back] = False
+            which = np.flatnonzero(ok)
+            if not len(which):
                 break
-            e = evaluate(cands)
+            e = evaluate(cands[which])
             i = int(np.argmax(e))
             if not e[i] > best:
                 break
-            best, x = float(e[i]), cands[i]
+            best, x, back = float(e[i]), cands[which[i]], (int(which[i]) + 5) % 10
     return Frame(fr.centre + w * x[:3], float(fr.lo + w * x[3]), float(fr.hi + w * x[4]), fr.n_bins)
 
 
