@@ -11,8 +11,8 @@ spent about a third of its time in page faults (BENCHMARKS.md, ``verify-speed-bl
 ``reuse_freed_memory`` frees one block of ``BLOCK`` bytes (never written: it costs no page) so that
 glibc raises its thresholds as it would after any large array; the process then keeps up to twice
 that much freed memory for reuse. Nothing is set explicitly: a host that fixed its allocator's
-thresholds (``mallopt``, ``MALLOC_MMAP_THRESHOLD_``), or an allocator other than glibc's (macOS,
-Windows, jemalloc), is left as it is.
+thresholds (``mallopt``, ``MALLOC_MMAP_THRESHOLD_``, or ``MALLOC_TRIM_THRESHOLD_``, which dask's
+workers get), or an allocator other than glibc's (macOS, Windows, jemalloc), is left as it is.
 """
 
 from __future__ import annotations
