@@ -37,8 +37,8 @@ in BENCHMARKS.md, ``blind-crop``): with coarse samples of 2000 vertices instead 
 that win at 6000 rank in the hundreds; with t >= 0 only, or without the offsets, fewer copies read; a
 fine width step of 1 % or 0.25 % instead of 0.125 % loses copies (the energy's peak in the width is a
 few tenths of a percent wide at 64 bins); a 30 % crop moves the width further, and the widths -40 % ..
-+60 % read about twice as many of those as -20 % .. +25 %; a cap share up to 0.5 instead of 0.4 reads
-fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin widths apart reads as
++60 % read about twice as many of those as -20 % .. +25 %; with the family's plane alone, a cap share up
+to 0.5 instead of 0.4 read fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin widths apart reads as
 many copies as screening every candidate (129 of 160 and 22 of 64 both ways); on a 10 % crop of Igea,
 whose families hold thousands of candidates, the screening takes 0.4 s instead of 0.9 s (a cut
 suspect's verify: BENCHMARKS.md, ``verify-speed-blind``). More finalists read more 30 % crops: with
@@ -47,8 +47,11 @@ TOP 6, 10 and 16 (REFINED 3) 23, 25 and 28 of the 64, with TOP 10 and REFINED 4 
 the family 0.9 bin widths either side of its plane, with the fine width fit on every vertex instead of
 20,000, read 145 of the 160 and 28 of the 64 (the fit alone 133 and 28; the copies alone, with three
 times as many candidates on the coarse grid, 137 and 26),
-for about a fifth more time; copies at 0.9 and 1.8 either side read 71 instead of 72 of the first 80
-10 % crops. On 20,000 vertices the width fit can peak about 10 % off the mark's width, with nearly the
+for about a fifth more time. A 30 % crop moves the centre 14-36 bin widths (REACH was 30), the family's
+point nearest c0 has lam up to 0.55 (the model's, not the cap's share of the area: 0.22-0.39) and c0
+lies up to 2 bin widths off the plane or more (24 scratch crops of 30 %, 21 of them readable in the
+true frame, 9 read): lam up to 0.55 and REACH 40 read 149 and 30, and with copies 0.9 and 1.8 either
+side 151 and 34, for about half as much time again as the three layers. On 20,000 vertices the width fit can peak about 10 % off the mark's width, with nearly the
 energy of the right one, where every vertex shows the right one (dragon crops).
 The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
@@ -62,12 +65,12 @@ from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
                      distances, excess_energy, low_quantile, refine_frame_on, scale_energies, statistics_in, thinned)
 
-LAMBDA_MAX = 0.4  # the largest share of the area a crop may have taken
+LAMBDA_MAX = 0.55  # the largest share of the area a crop may have taken (by the family's model)
 T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in bounding-box diagonals
-REACH = 30.0  # candidate centres within this many bin widths of the suspect's centroid
+REACH = 40.0  # candidate centres within this many bin widths of the suspect's centroid
 LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows within about 0.5)
 COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
-LAYERS = (-0.9, 0.0, 0.9)  # the family's plane and copies of it this many bin widths off it
+LAYERS = (-1.8, -0.9, 0.0, 0.9, 1.8)  # the family's plane and copies of it this many bin widths off it
 SCREEN_LATTICE = 0.9  # the screening looks first at candidates this far apart (3 LATTICE, in bin widths)
 SCREEN_TOP = 0.05  # then, near the best share of those (SCREEN_MIN at least),
 EXPAND = 0.65  # at the candidates LATTICE apart within this many bin widths
