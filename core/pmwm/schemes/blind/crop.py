@@ -24,35 +24,35 @@ family and copies of it off its plane (``crop_frames``, for each word length):
    the best of them; then the best of these (SCREEN_KEEP of one layer's count) over more widths and
    phases (COARSE_*);
 4. the TOP best candidates: the best of OFF_PLANE offsets off the family's plane, then the width and lo
-   again, finely, on every vertex of positive weight; the REFINED best of those through ``radial.refine_frame_on`` (on
-   REFINE_SAMPLE vertices), and the FINAL best of these once more from their refined centre; the
-   frame whose reading shows the most energy wins.
+   again, finely, on every vertex of positive weight; the REFINED best of those through
+   ``radial.refine_frame_on`` (on REFINE_SAMPLE vertices), and the FINAL best of these once more from
+   their refined centre; the frame whose reading shows the most energy wins.
 
 The integer part of lo comes from the quantile alone: a frame one bin off shows nearly the same energy
 (the same bins, one end swapped) but reads the word shifted. Nothing here involves the pass phrase,
 so the search costs the p-value nothing.
 
-Why these constants (scratch sets of 160 crops of 10 % and 64 of 30 % in a random pose; the runs are
-in BENCHMARKS.md, ``blind-crop``): with coarse samples of 2000 vertices instead of 6000 the candidates
-that win at 6000 rank in the hundreds; with t >= 0 only, or without the offsets, fewer copies read; a
-fine width step of 1 % or 0.25 % instead of 0.125 % loses copies (the energy's peak in the width is a
-few tenths of a percent wide at 64 bins); a 30 % crop moves the width further, and the widths -40 % ..
-+60 % read about twice as many of those as -20 % .. +25 %; with the family's plane alone, a cap share up
-to 0.5 instead of 0.4 read fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin widths apart reads as
-many copies as screening every candidate (129 of 160 and 22 of 64 both ways); on a 10 % crop of Igea,
-whose families hold thousands of candidates, the screening takes 0.4 s instead of 0.9 s (a cut
-suspect's verify: BENCHMARKS.md, ``verify-speed-blind``). More finalists read more 30 % crops: with
-TOP 6, 10 and 16 (REFINED 3) 23, 25 and 28 of the 64, with TOP 10 and REFINED 4 27 (131 of the 160
-10 % crops with each, 130 with TOP 6); each finalist costs about 15 ms per word length. The copies of
-the family 0.9 bin widths either side of its plane, with the fine width fit on every vertex instead of
+Why these constants (scratch sets of 160 crops of 10 % and 64 of 30 % in a random pose; the runs are in
+BENCHMARKS.md, ``blind-crop``): with coarse samples of 2000 vertices instead of 6000 the candidates that
+win at 6000 rank in the hundreds; with t >= 0 only, or without the offsets, fewer copies read; a fine
+width step of 1 % or 0.25 % instead of 0.125 % loses copies (the energy's peak in the width is a few
+tenths of a percent wide at 64 bins); a 30 % crop moves the width further, and the widths -40 % .. +60 %
+read about twice as many of those as -20 % .. +25 %; with the family's plane alone, a cap share up to 0.5
+instead of 0.4 read fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin
+widths apart reads as many copies as screening every candidate (129 of 160 and 22 of 64 both ways); on a
+10 % crop of Igea, whose families hold thousands of candidates, the screening takes 0.4 s instead of
+0.9 s (a cut suspect's verify: BENCHMARKS.md, ``verify-speed-blind``). More finalists read more 30 % crops:
+with TOP 6, 10 and 16 (REFINED 3) 23, 25 and 28 of the 64, with TOP 10 and REFINED 4 27 (131 of the 160
+10 % crops with each, 130 with TOP 6); each finalist costs about 15 ms per word length. The copies of the
+family 0.9 bin widths either side of its plane, with the fine width fit on every vertex instead of
 20,000, read 145 of the 160 and 28 of the 64 (the fit alone 133 and 28; the copies alone, with three
-times as many candidates on the coarse grid, 137 and 26),
-for about a fifth more time. A 30 % crop moves the centre 14-36 bin widths (REACH was 30), the family's
-point nearest c0 has lam up to 0.55 (the model's, not the cap's share of the area: 0.22-0.39) and c0
-lies up to 2 bin widths off the plane or more (24 scratch crops of 30 %, 21 of them readable in the
-true frame, 9 read): lam up to 0.55 and REACH 40 read 149 and 30, and with copies 0.9 and 1.8 either
-side 151 and 34, for about half as much time again as the three layers. On 20,000 vertices the width fit can peak about 10 % off the mark's width, with nearly the
-energy of the right one, where every vertex shows the right one (dragon crops).
+times as many candidates on the coarse grid, 137 and 26), for about a fifth more time. A 30 % crop moves
+the centre 14-36 bin widths (REACH was 30), the family's point nearest c0 has lam up to 0.55 (the
+model's, not the cap's share of the area: 0.22-0.39) and c0 lies up to 6 bin widths off the plane (more
+than 1.35 in 14 of 24 scratch crops of 30 %, 21 of them readable in the true frame, 9 read): lam up to 0.55 and REACH 40
+read 149 and 30, and with copies 0.9 and 1.8 either side 151 and 34, for about half as much time again as
+the three layers. On 20,000 vertices the width fit can peak about 10 % off the mark's width, with nearly
+the energy of the right one, where every vertex shows the right one (dragon crops).
 The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
 
