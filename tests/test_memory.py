@@ -1,14 +1,15 @@
-"""pmwm.memory: numpy temporaries freed and allocated again are not faulted in again from the kernel."""
+"""pmwm.memory: numpy temporaries freed and allocated again are not faulted in again from the kernel.
+
+The page faults avoided are glibc's (its mmap threshold): the suite runs on Linux with glibc, as CI does
+(tests/run_all.py installs its tools with apt-get).
+"""
 
 from __future__ import annotations
 
 import os
-import platform
 import subprocess
 import sys
 import textwrap
-
-import pytest
 
 # a fresh process, so that the allocator starts from its defaults
 SCRIPT = textwrap.dedent("""
@@ -30,8 +31,6 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-@pytest.mark.skipif(platform.system() != "Linux" or platform.libc_ver()[0] != "glibc",
-                    reason="the page faults avoided are glibc's (mmap threshold); other allocators keep freed memory")
 def test_temporaries_freed_by_numpy_are_reused_once_the_allocator_is_set_up():
     # glibc's defaults: without the settings a host may have fixed (dask's LocalCluster, run by an
     # earlier test, sets MALLOC_TRIM_THRESHOLD_ in this process's environment)

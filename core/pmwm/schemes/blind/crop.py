@@ -169,10 +169,9 @@ def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.nd
         L.append(np.broadcast_to(lam, (161, 121, 1)).reshape(-1))
         N.append(np.broadcast_to(off / max(float(np.linalg.norm(off)), 1e-300), (161 * 121, 3)))
     C, L, N = np.concatenate(C), np.concatenate(L), np.concatenate(N)
-    if len(LAYERS) > 1:  # copies of the family off its plane
-        off = np.asarray(LAYERS, float) * width
-        C = (C[None] + off[:, None, None] * N[None]).reshape(-1, 3)
-        L, N = np.tile(L, len(off)), np.tile(N, (len(off), 1))
+    off = np.asarray(LAYERS, float) * width  # the family's plane and its copies off it
+    C = (C[None] + off[:, None, None] * N[None]).reshape(-1, 3)
+    L, N = np.tile(L, len(off)), np.tile(N, (len(off), 1))
     near = np.linalg.norm(C - c, axis=1) <= REACH * width
     first = np.flatnonzero(near)[_spread(C[near] - c, LATTICE * width)]
     return C[first], L[first], N[first]
