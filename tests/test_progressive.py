@@ -8,7 +8,7 @@ import trimesh
 
 import pmwm
 from pmwm.pmfile import from_bytes, to_bytes
-from pmwm.progressive import build_progressive_mesh
+from pmwm.progressive import build_progressive_mesh, with_positions
 
 import meshes
 from conftest import canonical_faces, quad_torus_obj
@@ -125,3 +125,23 @@ def test_bad_faces_are_refused():
         build_progressive_mesh(V, np.array([[0, 1, 1]]), base_vertices=3)
     with pytest.raises(pmwm.MeshError):
         build_progressive_mesh(V, np.array([[0, 1, 5]]), base_vertices=3)
+
+
+def test_a_moved_mesh_takes_the_progressive_mesh_of_the_unmoved_one_with_its_own_positions(bunny):
+    """``with_positions``: the embedders build the progressive mesh of the unmarked mesh and put the
+    marked positions in; every level keeps its faces and takes the new positions, and the file
+    stores them exactly."""
+    V, F = bunny
+    pm, _ = build_progressive_mesh(V, F, base_vertices=int(0.03 * len(V)))
+    rng = np.random.default_rng(5)
+    X = (V + rng.normal(scale=1e-4, size=V.shape)).astype(np.float32).astype(np.float64)
+    moved = with_positions(pm, X)
+    order = pm.vertex_order
+    back = from_bytes(to_bytes(moved))
+    for k in [0, pm.n_records // 3, pm.n_records]:
+        Vk, Fk = moved.decode(records=k)
+        assert np.array_equal(Fk, pm.decode(records=k)[1])
+        assert np.array_equal(Vk, X[order[: len(Vk)]])
+        assert np.array_equal(back.decode(records=k)[0], Vk)
+    with pytest.raises(ValueError, match="one position per vertex"):
+        with_positions(pm, X[:-1])

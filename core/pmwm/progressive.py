@@ -51,6 +51,7 @@ before, about twice that now (BENCHMARKS.md, pm-speed).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
@@ -114,6 +115,20 @@ class ProgressiveMesh:
             records = self.records_for_vertices(vertices)
         k = self.n_records if records is None else int(np.clip(records, 0, self.n_records))
         return decode(self, k)
+
+
+def with_positions(pm: ProgressiveMesh, vertices: np.ndarray) -> ProgressiveMesh:
+    """The same progressive mesh with the vertices at ``vertices`` (n, 3) float64 (input order):
+    connectivity, records and levels unchanged, the base mesh and every record's position taken from
+    ``vertices``. A mesh marked by moving vertices has the progressive mesh of the unmarked one with
+    its own positions: it decodes exactly to ``vertices`` (in ``pm.vertex_order``)."""
+    X = np.asarray(vertices, np.float64)
+    if pm.vertex_order is None or len(X) != pm.n_vertices:
+        raise ValueError(f"with_positions needs one position per vertex of the progressive mesh ({pm.n_vertices}), "
+                         f"got {len(X)}")
+    order, nb = pm.vertex_order, pm.n_base_vertices
+    return dataclasses.replace(pm, base_vertices=X[order[:nb]], pos=X[order[nb:]],
+                               float32=bool(np.all(X.astype(np.float32).astype(np.float64) == X)))
 
 
 # --------------------------------------------------------------------------- decoding

@@ -25,7 +25,7 @@ from ..errors import PayloadError
 from ..key import WatermarkKey, derive_seed, make_secret, mesh_sha256
 from ..meshio import ply_parts
 from ..pmfile import to_bytes
-from ..progressive import ProgressiveMesh
+from ..progressive import ProgressiveMesh, with_positions
 from ..register import surface_frame
 from ..schemes.robust.embed import DEFAULT_STRENGTH, REF_POINTS, SITES_PER_BIT, SiteAnalysis, analyse
 from ..schemes.robust.keydata import RobustKeyData
@@ -94,9 +94,7 @@ class AssetAnalysis:
     def copy_pm(self, marked: np.ndarray) -> ProgressiveMesh:
         """The copy's progressive mesh: the shared connectivity and records, the copy's positions
         (decodes exactly to ``marked`` in the progressive mesh's vertex order)."""
-        order, nb = self.pm.vertex_order, self.pm.n_base_vertices
-        return dataclasses.replace(self.pm, base_vertices=marked[order[:nb]], pos=marked[order[nb:]],
-                                   float32=True)
+        return with_positions(self.pm, marked)
 
     def copy(self, c: np.ndarray, pm: bool = False) -> CopyFiles:
         """The copy for codeword c (S,): its vertices and file bytes (binary PLY; .pmwm if ``pm``)."""

@@ -5,7 +5,10 @@ Two steps: ``analyse`` (everything that depends on the mesh and the key's secret
 frames and samples, the bump and swirl fields, the keyed bit layout, the protected rings) and
 ``SiteAnalysis.mark`` (a cheap step: the marked mesh for given per-site signs, a weighted sum over
 the samples). ``embed`` runs both; ``pmwm.fingerprint`` runs the analysis once and marks one copy
-per recipient."""
+per recipient. The analysis has two halves, ``place_sites`` (sites, frames, samples, protected
+rings) and ``lay_out`` (bit layout, chips, fields): once the first has named the protected vertices,
+``embed`` builds the progressive mesh of the unmarked mesh in a worker thread (``pmwm.background``)
+while the second half and the marking run."""
 
 from __future__ import annotations
 
@@ -15,12 +18,13 @@ from typing import Callable, Optional
 import numpy as np
 
 from ...adjacency import Adjacency, build_adjacency
+from ...background import Background
 from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, no_progress, start_embed
 from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
 from ...features import face_cross, mean_edge_length, vertex_normals
 from ...key import derive_seed, keyed_bits
-from ...progressive import ProgressiveMesh, build_progressive_mesh
+from ...progressive import ProgressiveMesh, build_progressive_mesh, with_positions
 from ...register import surface_frame
 from ...spatial import min_spacing, pairs_within
 from .fields import OUTER, index_templates, profile, swirl, tangent_frames
@@ -109,10 +113,7 @@ class SiteAnalysis:
     def protected(self, keep: np.ndarray) -> np.ndarray:
         """(n,) bool: the vertices the progressive mesh keeps to the end, the site vertex and its ring
         for the sites ``keep`` (S,) bool."""
-        protected = np.zeros(len(self.vertices), bool)
-        protected[self.sites[keep]] = True
-        protected[self.ring[keep].ravel()] = True
-        return protected
+        return protected_vertices(len(self.vertices), self.sites[keep], self.ring[keep])
 
     def progressive_mesh(self, marked: np.ndarray, keep: np.ndarray, base_ratio: float,
                          progress: Callable[[float, str], None] = no_progress) -> ProgressiveMesh:
@@ -123,11 +124,65 @@ class SiteAnalysis:
         return pm
 
 
+@dataclasses.dataclass
+class SitePlaces:
+    """The first half of the analysis: the sites, their frames and samples, and the protected rings
+    (S sites, K samples). It names the vertices the progressive mesh keeps (``protected``), so that
+    ``embed`` builds that mesh while the second half (``lay_out``) and the marking run.
+
+    sites (S,) int64; normal, t1, t2 (S, 3) float64 the site frames; radius, amplitude, swirl: the
+    bump radius and the bump and swirl amplitudes; sample_site, sample_vertex (K,) int64; u, v (K,)
+    float64 each sample's tangent coordinates in its site's frame; normals (K, 3) float64 the
+    samples' vertex normals; prof (K,) float64 the bump profile there; ring (S, RING) int64 as in
+    ``SiteAnalysis``."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    adj: Adjacency
+    sites: np.ndarray
+    n_bits: int
+    per_bit: int
+    normal: np.ndarray
+    t1: np.ndarray
+    t2: np.ndarray
+    radius: float
+    amplitude: float
+    swirl: float
+    sample_site: np.ndarray
+    sample_vertex: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    normals: np.ndarray
+    prof: np.ndarray
+    samples: Samples
+    ring: np.ndarray
+
+    def protected(self) -> np.ndarray:
+        """(n,) bool: every site vertex and its protected ring."""
+        return protected_vertices(len(self.vertices), self.sites, self.ring)
+
+
+def protected_vertices(n: int, sites: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """(n,) bool: the vertices the progressive mesh keeps to the end, the ``sites`` (S,) int64 and
+    their rings (S, RING) int64 (-1: none found)."""
+    protected = np.zeros(n, bool)
+    protected[sites] = True
+    protected[ring[ring >= 0]] = True
+    return protected
+
+
 def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
             sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES,
             report: Callable[[float, str], None] = no_progress) -> SiteAnalysis:
     """The robust scheme's analysis of a mesh V (n, 3) float64, F (m, 3) int64 for the key's
     ``secret``: ``n_bits`` bits, ``sites_per_bit`` sites each (fewer on small meshes, down to 2)."""
+    return lay_out(place_sites(V, F, secret, strength, n_bits, sites_per_bit, radius_edges, report), secret)
+
+
+def place_sites(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
+                sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES,
+                report: Callable[[float, str], None] = no_progress) -> SitePlaces:
+    """The first half of ``analyse``: sites, frames, samples and protected rings."""
     per_bit = max(2, 2 * (int(sites_per_bit) // 2))
     nb = n_bits
     report(0.0, "analysing the mesh")
@@ -173,27 +228,13 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
     prof = profile(u, v, r)
     counts = np.bincount(si, minlength=len(P))
     samples = Samples(counts, u, v, h_ref, vi, normal_tt)
-
-    # keyed bit assignment (even readable energy per bit) and chips
-    tp, tg = index_templates(samples, r, At / A)
-    energy = A * A * (tp * tp).sum(axis=1) + At * At * (tg * tg).sum(axis=(1, 2))
-    bit_of = assign_bits(P, nb, per_bit, derive_seed(secret, "robust-assign"), energy)
-    rng = np.random.default_rng(derive_seed(secret, "robust-chips"))
-    order = np.lexsort((rng.random(len(P)), bit_of))  # each bit's sites in a keyed order
-    rank = np.arange(len(P)) - np.searchsorted(bit_of[order], bit_of[order])
-    chip = np.empty(len(P))
-    chip[order] = np.where(rank % 2 == 0, 1.0, -1.0)  # balanced: a global bias cancels in a bit
-
-    # the bumps, and the swirls in each vertex's own tangent plane (they move vertices, not the surface)
-    gu, gv = swirl(u, v, r)
-    e = gu[:, None] * t1[si] + gv[:, None] * t2[si]
-    e -= np.einsum("ij,ij->i", e, vn[vi])[:, None] * vn[vi]
+    normals = vn[vi]
 
     # protected annulus vertices: nearest to RING_DISTANCE * r at keyed angles, facing the site
     phi = np.arctan2(v, u)
     theta0 = np.random.default_rng(derive_seed(secret, "robust-angles")).uniform(0, 2 * np.pi, len(P))
     dt = np.hypot(u, v)
-    ring_ok = (np.einsum("ij,ij->i", vn[vi], N[si]) > 0.8) & (dt > 1.05 * r)
+    ring_ok = (np.einsum("ij,ij->i", normals, N[si]) > 0.8) & (dt > 1.05 * r)
     ring = np.full((len(P), RING), -1, np.int64)
     # each site's samples are consecutive (pairs_within orders its pairs by site): its pick is its
     # first sample of least score
@@ -207,11 +248,35 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
         first = _first_least(score, starts, group)
         good = np.isfinite(score[first])
         ring[si[first][good], k] = vi[first][good]
+    return SitePlaces(vertices=V, faces=F, adj=adj, sites=sites, n_bits=nb, per_bit=per_bit, normal=N, t1=t1,
+                      t2=t2, radius=r, amplitude=A, swirl=At, sample_site=si, sample_vertex=vi, u=u, v=v,
+                      normals=normals, prof=prof, samples=samples, ring=ring)
+
+
+def lay_out(places: SitePlaces, secret: str) -> SiteAnalysis:
+    """The second half of ``analyse``: the keyed bit layout and chips, the bump and swirl fields."""
+    pl = places
+    P, si, r, A, At = pl.vertices[pl.sites], pl.sample_site, pl.radius, pl.amplitude, pl.swirl
+    # keyed bit assignment (even readable energy per bit) and chips
+    tp, tg = index_templates(pl.samples, r, At / A)
+    energy = A * A * (tp * tp).sum(axis=1) + At * At * (tg * tg).sum(axis=(1, 2))
+    bit_of = assign_bits(P, pl.n_bits, pl.per_bit, derive_seed(secret, "robust-assign"), energy)
+    rng = np.random.default_rng(derive_seed(secret, "robust-chips"))
+    order = np.lexsort((rng.random(len(P)), bit_of))  # each bit's sites in a keyed order
+    rank = np.arange(len(P)) - np.searchsorted(bit_of[order], bit_of[order])
+    chip = np.empty(len(P))
+    chip[order] = np.where(rank % 2 == 0, 1.0, -1.0)  # balanced: a global bias cancels in a bit
+
+    # the bumps, and the swirls in each vertex's own tangent plane (they move vertices, not the surface)
+    gu, gv = swirl(pl.u, pl.v, r)
+    e = gu[:, None] * pl.t1[si] + gv[:, None] * pl.t2[si]
+    e -= np.einsum("ij,ij->i", e, pl.normals)[:, None] * pl.normals
     none = np.zeros(len(P), bool)
     site = RobustKeyData(bit=bit_of, chip=chip, usable=none, centre_ok=none, swirl_ok=none, index_ok=none,
-                         origin=P, normal=N, radius=r, amplitude=A, swirl=At, samples=samples, frame=None)
-    return SiteAnalysis(vertices=V, faces=F, adj=adj, sites=sites, site=site, n_bits=nb, sample_site=si,
-                        sample_vertex=vi, bump_field=(A * prof)[:, None] * N[si], swirl_field=At * e, ring=ring)
+                         origin=P, normal=pl.normal, radius=r, amplitude=A, swirl=At, samples=pl.samples, frame=None)
+    return SiteAnalysis(vertices=pl.vertices, faces=pl.faces, adj=pl.adj, sites=pl.sites, site=site,
+                        n_bits=pl.n_bits, sample_site=si, sample_vertex=pl.sample_vertex,
+                        bump_field=(A * pl.prof)[:, None] * pl.normal[si], swirl_field=At * e, ring=pl.ring)
 
 
 def _first_least(score: np.ndarray, starts: np.ndarray, group: np.ndarray) -> np.ndarray:
@@ -230,21 +295,24 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     job = start_embed(vertices, faces, options, progress, NAME, DEFAULT_STRENGTH)
     V, F, secret, bits, report = job.vertices, job.faces, job.secret, job.bits, job.report
     nb = len(bits)
-    an = analyse(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report)
-    site, sites = an.site, an.sites
-    w = bits ^ keyed_bits(secret, "scramble", nb)
-    sign = site.chip * np.where(w[site.bit] == 1, 1.0, -1.0)
-    marked, (usable, centre_ok, index_ok, swirl_ok), _, _ = an.mark_readable(sign)
-    report(0.2, "sites marked")
-
-    def pm_progress(f: float, msg: str) -> None:
-        report(0.25 + 0.7 * f, msg)
-
-    pm = an.progressive_mesh(marked, usable | centre_ok, job.options.base_ratio, pm_progress)
+    places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report)
+    base = max(int(round(job.options.base_ratio * len(V))), 4)
+    # the progressive mesh of the unmarked mesh, every site protected, built beside the rest of the
+    # analysis and the marking; the marked positions go in after
+    with Background(build_progressive_mesh, V, F, base_vertices=base, protected=places.protected(),
+                    adjacency=places.adj) as building:
+        an = lay_out(places, secret)
+        site, sites = an.site, an.sites
+        w = bits ^ keyed_bits(secret, "scramble", nb)
+        sign = site.chip * np.where(w[site.bit] == 1, 1.0, -1.0)
+        marked, (usable, centre_ok, index_ok, swirl_ok), _, _ = an.mark_readable(sign)
+        report(0.2, "sites marked")
+        frame = surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
+        pm, _ = building.result(lambda f, msg: report(0.25 + 0.7 * f, msg))
+    pm = with_positions(pm, marked)
     first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
-    data = dataclasses.replace(
-        site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
-        frame=surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31)))
+    data = dataclasses.replace(site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
+                               frame=frame)
     # read back from its stored form, so that this key reads exactly as the key file will
     return finish_embed(job, NAME, marked, an.adj, pm, sites[first_site], sites,
                         data=RobustKeyData.from_extra(data.to_extra(), nb, len(V)))

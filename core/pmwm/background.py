@@ -1,0 +1,74 @@
+"""A long numpy computation in a worker thread beside the caller's own work.
+
+The embedders build the progressive mesh of the *unmarked* mesh (its connectivity and records do not
+depend on the mark; ``progressive.with_positions`` puts the marked positions in afterwards) while the
+calling thread computes the mark. numpy releases the GIL inside its loops, so on two cores the two
+overlap (BENCHMARKS.md, section core).
+
+The worker never calls the caller's progress callback: Blender's progress API, like most UI toolkits,
+must be called from the main thread. It records its latest progress; ``Background.result`` relays it
+from the calling thread while it waits. Leaving the ``with`` block early (an exception in the
+caller's work) stops the worker at its next progress report and waits for it, so that no thread
+outlives the call.
+"""
+
+from __future__ import annotations
+
+import threading
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from typing import Any, Callable, Optional
+
+RELAY_SECONDS = 0.1  # how often ``result`` relays the worker's progress while it waits
+
+
+class _Stopped(Exception):
+    """Raised inside the worker at its next progress report once the caller has left."""
+
+
+class Background:
+    """Run ``fn(*args, progress=..., **kwargs)`` in a worker thread from ``__enter__`` on.
+
+    ``fn`` must accept a ``progress(fraction, message)`` keyword and call it now and then (each call
+    is where it can be stopped). Use as a context manager::
+
+        with Background(build_progressive_mesh, V, F, base_vertices=b) as building:
+            marked = ...  # the caller's own work, meanwhile
+            pm, _ = building.result(report)
+    """
+
+    def __init__(self, fn: Callable[..., Any], *args: Any, **kwargs: Any):
+        self._call = (fn, args, kwargs)
+        self._stop = threading.Event()
+        self._latest: Optional[tuple[float, str]] = None
+        self._pool: Optional[ThreadPoolExecutor] = None
+        self._future: Optional[Future] = None
+
+    def _progress(self, fraction: float, message: str) -> None:
+        if self._stop.is_set():
+            raise _Stopped()
+        self._latest = (fraction, message)
+
+    def __enter__(self) -> "Background":
+        fn, args, kwargs = self._call
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="pmwm-background")
+        self._future = self._pool.submit(fn, *args, progress=self._progress, **kwargs)
+        return self
+
+    def result(self, progress: Optional[Callable[[float, str], None]] = None) -> Any:
+        """Wait for ``fn``'s result (or its exception), relaying its progress to ``progress`` from
+        this thread meanwhile."""
+        assert self._future is not None, "Background.result is called inside its with block"
+        shown = None
+        while True:
+            done, _ = wait([self._future], timeout=RELAY_SECONDS, return_when=FIRST_COMPLETED)
+            latest = self._latest
+            if progress is not None and latest is not None and latest is not shown:
+                progress(*latest)
+                shown = latest
+            if done:
+                return self._future.result()
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)

@@ -1,0 +1,92 @@
+"""The worker thread beside the caller (``pmwm.background``), and the embedders that build their
+progressive mesh in it: its result, its errors, its progress on the calling thread, its stop."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import pmwm
+from pmwm.background import Background
+from pmwm.errors import MeshError
+from pmwm.pmfile import from_bytes, to_bytes
+
+import meshes
+
+
+def _reporting(n: int, progress) -> int:
+    """A worker that reports n steps, then returns its thread's id."""
+    for i in range(n):
+        progress((i + 1) / n, f"step {i + 1}")
+        time.sleep(0.005)
+    return threading.get_ident()
+
+
+def test_the_result_comes_from_the_worker_and_its_progress_reaches_the_caller_on_the_calling_thread():
+    seen = []
+    with Background(_reporting, 40) as job:
+        worker = job.result(lambda f, m: seen.append((threading.get_ident(), f, m)))
+    assert worker != threading.get_ident()
+    assert seen and {t for t, _, _ in seen} == {threading.get_ident()}
+    fractions = [f for _, f, _ in seen]
+    assert fractions == sorted(fractions)
+    assert seen[-1][1:] == (1.0, "step 40")  # the last report is relayed before the result
+
+
+def test_an_error_in_the_worker_is_raised_by_result():
+    def failing(progress):
+        progress(0.0, "start")
+        raise MeshError("the mesh is bad")
+
+    with pytest.raises(MeshError, match="the mesh is bad"):
+        with Background(failing) as job:
+            job.result()
+
+
+def test_leaving_early_stops_the_worker_at_its_next_report_and_waits_for_it():
+    steps = []
+
+    def endless(progress):
+        for i in range(100_000):
+            steps.append(i)
+            progress(0.0, "working")
+            time.sleep(0.001)
+        return "finished"
+
+    with pytest.raises(RuntimeError, match="the caller's work failed"):
+        with Background(endless):
+            time.sleep(0.05)
+            raise RuntimeError("the caller's work failed")
+    n = len(steps)
+    assert 0 < n < 100_000
+    time.sleep(0.05)
+    assert len(steps) == n  # no thread outlives the with block
+    assert not [t for t in threading.enumerate() if t.name.startswith("pmwm-background")]
+
+
+@pytest.mark.parametrize("scheme", ["robust", "blind"])
+def test_the_embedders_progressive_mesh_decodes_to_the_marked_mesh_and_reports_on_the_calling_thread(scheme):
+    """Built beside the marking on the unmarked mesh, the progressive mesh still gives back exactly
+    the marked mesh (the file written is that one), and the embedder's progress callback (Blender's
+    progress bar) is only ever called from the thread that called embed."""
+    V, F = meshes.blob()
+    threads, messages = set(), []
+
+    def progress(f, message):
+        threads.add(threading.get_ident())
+        messages.append(message)
+
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme=scheme, payload="pm", seed=3,
+                                             passphrase="beside the mark" if scheme == "blind" else None),
+                     progress=progress)
+    assert threads == {threading.get_ident()}
+    assert any(m.startswith("progressive mesh") for m in messages)  # the worker's reports were relayed
+    Vd, Fd = res.pm.decode()
+    order = res.pm.vertex_order
+    assert np.array_equal(Vd, res.vertices[order])
+    assert not np.array_equal(res.vertices, V)
+    back = from_bytes(to_bytes(res.pm))  # the .pmwm file holds the marked positions, exactly
+    assert np.array_equal(back.decode()[0], Vd)
