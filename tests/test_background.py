@@ -3,6 +3,7 @@ progressive mesh in it: its result, its errors, its progress on the calling thre
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 import pmwm
-from pmwm.background import Background
+from pmwm.background import Background, parallel_map
 from pmwm.errors import MeshError
 from pmwm.pmfile import from_bytes, to_bytes
 
@@ -65,6 +66,26 @@ def test_leaving_early_stops_the_worker_at_its_next_report_and_waits_for_it():
     time.sleep(0.05)
     assert len(steps) == n  # no thread outlives the with block
     assert not [t for t in threading.enumerate() if t.name.startswith("pmwm-background")]
+
+
+def test_parallel_map_keeps_the_order_of_its_items_whatever_order_the_calls_end_in():
+    def slow_first(x):
+        time.sleep(0.05 if x == 0 else 0.0)
+        return x * x, threading.get_ident()
+
+    out = parallel_map(slow_first, [0, 1, 2, 3])
+    assert [y for y, _ in out] == [0, 1, 4, 9]
+    assert len({t for _, t in out}) > 1 or (os.cpu_count() or 1) == 1  # side by side where there are cores
+
+
+def test_an_error_in_one_call_of_parallel_map_is_raised():
+    def fails_on_two(x):
+        if x == 2:
+            raise MeshError("item 2 is bad")
+        return x
+
+    with pytest.raises(MeshError, match="item 2 is bad"):
+        parallel_map(fails_on_two, [1, 2, 3])
 
 
 @pytest.mark.parametrize("scheme", ["robust", "blind"])

@@ -1,4 +1,5 @@
-"""A long numpy computation in a worker thread beside the caller's own work.
+"""Long numpy computations in worker threads: one beside the caller's own work (``Background``), or
+independent ones side by side (``parallel_map``).
 
 The embedders build the progressive mesh of the *unmarked* mesh (its connectivity and records do not
 depend on the mark; ``progressive.with_positions`` puts the marked positions in afterwards) while the
@@ -14,6 +15,7 @@ outlives the call.
 
 from __future__ import annotations
 
+import os
 import threading
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from typing import Any, Callable, Optional
@@ -72,3 +74,14 @@ class Background:
         self._stop.set()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
+
+
+def parallel_map(fn: Callable[[Any], Any], items: list) -> list:
+    """``[fn(x) for x in items]``, the calls in up to one thread per core (numpy releases the GIL in
+    its loops); the results in the order of ``items``, whatever order the calls end in, so that they
+    are the same as one after the other. An exception in a call is raised here."""
+    workers = min(len(items), os.cpu_count() or 1)
+    if workers <= 1:
+        return [fn(x) for x in items]
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pmwm-background") as pool:
+        return list(pool.map(fn, items))

@@ -28,6 +28,9 @@ family and copies of it off its plane (``crop_frames``, for each word length):
    ``radial.refine_frame_on`` (on REFINE_SAMPLE vertices), and the FINAL best of these once more from
    their refined centre; the frame whose reading shows the most energy wins.
 
+The word lengths are searched independently, in parallel threads (``background.parallel_map``; numpy
+releases the GIL in its loops): the frames are the same as one after the other.
+
 The integer part of lo comes from the quantile alone: a frame one bin off shows nearly the same energy
 (the same bins, one end swapped) but reads the word shifted. Nothing here involves the pass phrase,
 so the search costs the p-value nothing.
@@ -61,6 +64,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...adjacency import build_adjacency, is_closed
+from ...background import parallel_map
 from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
                      distances, excess_energy, low_quantile, refine_frame_on, scale_energies, statistics_in, thinned)
@@ -236,8 +240,8 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     Pw, aw, area_w = V[by_rho], a[by_rho], area[by_rho]  # the fine width fit: every vertex of positive weight
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     total = float(a.sum())
-    found = []
-    for n_bins in bin_counts:
+
+    def frame_for(n_bins: int) -> Frame:
         width = (own.hi - own.lo) / n_bins
         C, L, N = _candidates(own.centre, planes, width, diag)
         Cc = (C - own.centre).astype(np.float32)
@@ -269,8 +273,10 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         # the FINAL best, and each fitted again at its refined centre: the one of most energy
         finals = [f for z, fr, lam in fits[:FINAL]
                   for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins)[1]))]
-        found.append(max(finals, key=lambda f: f[0])[1])
-    return found
+        return max(finals, key=lambda f: f[0])[1]
+
+    # the word lengths are searched independently, each in its own thread
+    return parallel_map(frame_for, list(bin_counts))
 
 
 def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarray, lam: float, width: float,
