@@ -163,10 +163,11 @@ def bin_statistics(vertices, faces) -> Statistics:
 
 
 def word_read(stat: np.ndarray, secret: str, n_word: int) -> tuple[np.ndarray, np.ndarray]:
-    """The word of length ``n_word`` as read (hard decisions, erasures drawn from a keyed coin) (N,)
-    uint8, and the score of each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure)."""
+    """The word of length ``n_word`` as read from the bins' statistics (M,) in radial order (after
+    ``radial.equalized``: hard decisions, erasures drawn from a keyed coin) (N,) uint8, and the score of
+    each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure)."""
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
-    score = np.bincount(bit_of_bin, weights=np.nan_to_num(stat, nan=0.0), minlength=n_word)
+    score = np.bincount(bit_of_bin, weights=np.nan_to_num(radial.equalized(stat), nan=0.0), minlength=n_word)
     got = (score > 0).astype(np.uint8)
     erased = score == 0
     got[erased] = keyed_bits(secret, f"blind-erasure:{n_word}", n_word)[erased]
