@@ -462,15 +462,16 @@ def equalized(stat: np.ndarray) -> np.ndarray:
     (s_{j-1} + s_{j+1}). Nothing here involves the pass phrase: the p-value stays exact. When c is above
     -ISI_MIN g (no interference to speak of: an intact copy, noise, smoothing) the statistics are
     returned as they are."""
-    x = np.nan_to_num(stat, nan=0.0)
+    empty = np.isnan(stat)
+    x = np.where(empty, 0.0, stat)
     s = np.sign(x)
     for _ in range(2):
         nb = _neighbours(s)
         (g, c), *_ = np.linalg.lstsq(np.stack([s, nb], 1), x, rcond=None)
         if not (g > 0 and c < -ISI_MIN * g):
             return stat
-        s = _most_likely_signs(x, g, c)
-    return np.where(np.isnan(stat), np.nan, x - c * _neighbours(s))
+        s = np.where(empty, 0.0, _most_likely_signs(x, g, c))  # an empty bin spills nothing
+    return np.where(empty, np.nan, x - c * _neighbours(s))
 
 
 def _neighbours(s: np.ndarray) -> np.ndarray:
