@@ -117,6 +117,11 @@ class ProgressiveMesh:
         return decode(self, k)
 
 
+def base_vertex_count(base_ratio: float, n_vertices: int) -> int:
+    """The base mesh's vertex count the embedders ask for: ``base_ratio`` of the mesh, at least 4."""
+    return max(int(round(base_ratio * n_vertices)), 4)
+
+
 def with_positions(pm: ProgressiveMesh, vertices: np.ndarray) -> ProgressiveMesh:
     """The same progressive mesh with the vertices at ``vertices`` (n, 3) float64 (input order):
     connectivity, records and levels unchanged, the base mesh and every record's position taken from

@@ -37,7 +37,7 @@ from ..adjacency import build_adjacency
 from ..base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed, verdict_from_scores
 from ..errors import KeyFileError, MeshError, PayloadError
 from ..key import WatermarkKey, keyed_bits
-from ..progressive import build_progressive_mesh
+from ..progressive import base_vertex_count, build_progressive_mesh
 from ..validate import check_mesh
 
 DEFAULT_ALPHA = 0.05
@@ -186,7 +186,7 @@ def _embed(method: str, name: str):
         w = job.bits ^ keyed_bits(job.secret, "scramble", len(job.bits))
         marked, bins = _embed_bits(V, w, method, job.strength, STRENGTH_STEP)
         adj = build_adjacency(F, len(V))
-        base = max(int(round(job.options.base_ratio * len(V))), 4)
+        base = base_vertex_count(job.options.base_ratio, len(V))
         pm, _ = build_progressive_mesh(marked, F, base_vertices=base, adjacency=adj,
                                        progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
         data = ChoKeyData(method, job.strength, bins.rho_min, bins.rho_max, STRENGTH_STEP)

@@ -44,7 +44,7 @@ from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish
 from ..carriers import eligible_carriers, select_carriers
 from ..errors import KeyFileError
 from ..key import WatermarkKey, derive_seed, face_fingerprint, keyed_bits
-from ..progressive import build_progressive_mesh
+from ..progressive import base_vertex_count, build_progressive_mesh
 from ..spatial import nearest
 from ..validate import check_mesh
 
@@ -117,7 +117,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     forced = np.stack([nh1, carriers], axis=1)[nh1 >= 0]
     protected = np.zeros(len(V), bool)
     protected[carriers] = True
-    base = max(int(round(job.options.base_ratio * len(V))), 4)
+    base = base_vertex_count(job.options.base_ratio, len(V))
 
     def pm_progress(f: float, msg: str) -> None:
         report(0.15 + 0.8 * f, msg)

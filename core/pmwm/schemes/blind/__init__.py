@@ -58,7 +58,7 @@ from ...background import Background
 from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
 from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
-from ...progressive import build_progressive_mesh, with_positions
+from ...progressive import base_vertex_count, build_progressive_mesh, with_positions
 from ...validate import check_mesh
 from . import frames, radial, word
 from .keydata import BlindKeyData
@@ -102,7 +102,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
     V, F = job.vertices, job.faces
     adj = build_adjacency(F, len(V))
-    base = max(int(round(opts.base_ratio * len(V))), 4)
+    base = base_vertex_count(opts.base_ratio, len(V))
     # the progressive mesh of the unmarked mesh, built beside the marking; the marked positions go in after
     with Background(build_progressive_mesh, V, F, base_vertices=base, adjacency=adj) as building:
         job.report(0.0, "marking the radial distribution")

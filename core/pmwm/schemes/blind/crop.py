@@ -52,10 +52,11 @@ family 0.9 bin widths either side of its plane, with the fine width fit on every
 times as many candidates on the coarse grid, 137 and 26), for about a fifth more time. A 30 % crop moves
 the centre 14-36 bin widths (REACH was 30), the family's point nearest c0 has lam up to 0.55 (the
 model's, not the cap's share of the area: 0.22-0.39) and c0 lies up to 6 bin widths off the plane (more
-than 1.35 in 14 of 24 scratch crops of 30 %, 21 of them readable in the true frame, 9 read): lam up to 0.55 and REACH 40
-read 149 and 30, and with copies 0.9 and 1.8 either side 151 and 34, for about half as much time again as
-the three layers. On 20,000 vertices the width fit can peak about 10 % off the mark's width, with nearly
-the energy of the right one, where every vertex shows the right one (dragon crops).
+than 1.35 in 14 of 24 scratch crops of 30 %, 21 of them readable in the true frame, 9 read): lam up to
+0.55 and REACH 40 read 149 and 30, and with copies 0.9 and 1.8 either side 151 and 34, for about half as
+much time again as the three layers. On 20,000 vertices the width fit can peak about 10 % off the
+mark's width, with nearly the energy of the right one, where every vertex shows the right one (dragon
+crops).
 The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
 """
 

@@ -460,8 +460,8 @@ def equalized(stat: np.ndarray) -> np.ndarray:
     on the hard decisions, then on the sequence the Viterbi search below finds), the signs from the most
     likely sequence under the model (4 states: two consecutive signs); the result is stat_j - c
     (s_{j-1} + s_{j+1}). Nothing here involves the pass phrase: the p-value stays exact. When c is above
-    -ISI_MIN g (no interference to speak of: an intact copy, noise, smoothing) the statistics are
-    returned as they are."""
+    -ISI_MIN g (no interference to speak of: an intact copy, smoothing, most subdivisions and
+    simplifications) the statistics are returned as they are."""
     empty = np.isnan(stat)
     x = np.where(empty, 0.0, stat)
     s = np.sign(x)

@@ -24,7 +24,7 @@ from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
 from ...features import face_cross, mean_edge_length, vertex_normals
 from ...key import derive_seed, keyed_bits
-from ...progressive import ProgressiveMesh, build_progressive_mesh, with_positions
+from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...register import surface_frame
 from ...spatial import min_spacing, pairs_within
 from .fields import OUTER, index_templates, profile, swirl, tangent_frames
@@ -118,7 +118,7 @@ class SiteAnalysis:
     def progressive_mesh(self, marked: np.ndarray, keep: np.ndarray, base_ratio: float,
                          progress: Callable[[float, str], None] = no_progress) -> ProgressiveMesh:
         """The progressive mesh of ``marked`` (n, 3) with the sites ``keep`` protected."""
-        base = max(int(round(base_ratio * len(self.vertices))), 4)
+        base = base_vertex_count(base_ratio, len(self.vertices))
         pm, _ = build_progressive_mesh(marked, self.faces, base_vertices=base, protected=self.protected(keep),
                                        progress=progress, adjacency=self.adj)
         return pm
@@ -296,7 +296,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     V, F, secret, bits, report = job.vertices, job.faces, job.secret, job.bits, job.report
     nb = len(bits)
     places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report)
-    base = max(int(round(job.options.base_ratio * len(V))), 4)
+    base = base_vertex_count(job.options.base_ratio, len(V))
     # the progressive mesh of the unmarked mesh, every site protected, built beside the rest of the
     # analysis and the marking; the marked positions go in after
     with Background(build_progressive_mesh, V, F, base_vertices=base, protected=places.protected(),
