@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import pmwm
-from pmwm.background import Background, parallel_map
+from pmwm.background import Background, Later, parallel_map
 from pmwm.errors import MeshError
 from pmwm.pmfile import from_bytes, to_bytes
 
@@ -65,6 +65,36 @@ def test_leaving_early_stops_the_worker_at_its_next_report_and_waits_for_it():
     assert 0 < n < 100_000
     time.sleep(0.05)
     assert len(steps) == n  # no thread outlives the with block
+    assert not [t for t in threading.enumerate() if t.name.startswith("pmwm-background")]
+
+
+def test_a_worker_waits_for_a_later_value_the_caller_supplies_after_it_started():
+    started = threading.Event()
+
+    def needs_later(later, progress):
+        started.set()
+        return later() * 2
+
+    value = Later()
+    with Background(needs_later, value) as job:
+        assert started.wait(5)  # the worker runs before the value exists
+        value.set(21)
+        assert job.result() == 42
+
+
+def test_a_worker_waiting_for_a_value_the_caller_never_supplies_stops_when_the_caller_leaves():
+    waiting = threading.Event()
+    got = []
+
+    def needs_later(progress, later):
+        waiting.set()
+        got.append(later())
+
+    with pytest.raises(RuntimeError, match="no value for the worker"):
+        with Background(needs_later, later=Later()):
+            assert waiting.wait(5)
+            raise RuntimeError("no value for the worker")
+    assert got == []  # released without a value, and joined: no thread is left waiting
     assert not [t for t in threading.enumerate() if t.name.startswith("pmwm-background")]
 
 

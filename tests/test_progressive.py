@@ -88,6 +88,29 @@ def test_protected_vertices_survive_to_the_base(bunny):
     assert set(np.flatnonzero(keep)) <= set(base_input_ids.tolist())
 
 
+def test_vertices_to_protect_given_after_the_set_up_give_the_same_progressive_mesh(bunny):
+    """The robust embedder starts the build before it knows which vertices to protect: the build
+    asks for them after its set-up, and must build what it builds when given them at the start."""
+    V, F = bunny
+    keep = np.zeros(len(V), bool)
+    keep[::211] = True
+    asked = []
+
+    def later():
+        asked.append(True)
+        return keep
+
+    want, _ = build_progressive_mesh(V, F, base_vertices=800, protected=keep)
+    got, _ = build_progressive_mesh(V, F, base_vertices=800, protected=later)
+    assert asked == [True]
+    assert np.array_equal(got.vertex_order, want.vertex_order)
+    assert np.array_equal(got.level_records, want.level_records)
+    assert to_bytes(got) == to_bytes(want)
+    assert set(np.flatnonzero(keep)) <= set(got.vertex_order[: got.n_base_vertices].tolist())
+    unprotected, _ = build_progressive_mesh(V, F, base_vertices=800)
+    assert to_bytes(unprotected) != to_bytes(want)  # (the protection made a difference to check)
+
+
 def test_decode_by_vertex_count(bunny):
     V, F = bunny
     pm, _ = build_progressive_mesh(V, F, base_vertices=1000)

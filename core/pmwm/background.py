@@ -11,6 +11,12 @@ must be called from the main thread. It records its latest progress; ``Backgroun
 from the calling thread while it waits. Leaving the ``with`` block early (an exception in the
 caller's work) stops the worker at its next progress report and waits for it, so that no thread
 outlives the call.
+
+A worker may start before all of its input is known: an argument that is a ``Later`` is a value the
+caller supplies (``Later.set``) once its own work has found it, and the worker waits for it only when
+it needs it (``later()``). The robust embedder starts the progressive mesh this way, before it knows
+which vertices to protect: the build's set-up (quadrics and every candidate's cost, a tenth of it)
+overlaps the analysis that chooses them.
 """
 
 from __future__ import annotations
@@ -25,6 +31,34 @@ RELAY_SECONDS = 0.1  # how often ``result`` relays the worker's progress while i
 
 class _Stopped(Exception):
     """Raised inside the worker at its next progress report once the caller has left."""
+
+
+class Later:
+    """A value the caller supplies after the worker has started (``set``); the worker calls the
+    ``Later`` to wait for it. A ``Background`` whose caller leaves before supplying it releases the
+    waiting worker, which then stops (it never waits for a value that will not come)."""
+
+    def __init__(self) -> None:
+        self._ready = threading.Event()
+        self._value: Any = None
+        self._abandoned = False
+
+    def set(self, value: Any) -> None:
+        """Supply the value (once)."""
+        self._value = value
+        self._ready.set()
+
+    def abandon(self) -> None:
+        """Release a worker waiting for a value that will not come; it stops (``_Stopped``)."""
+        self._abandoned = not self._ready.is_set()
+        self._ready.set()
+
+    def __call__(self) -> Any:
+        """The value, once supplied (waits until then)."""
+        self._ready.wait()
+        if self._abandoned:
+            raise _Stopped()
+        return self._value
 
 
 class Background:
@@ -72,6 +106,10 @@ class Background:
 
     def __exit__(self, *exc) -> None:
         self._stop.set()
+        fn, args, kwargs = self._call
+        for x in (*args, *kwargs.values()):
+            if isinstance(x, Later):
+                x.abandon()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
 

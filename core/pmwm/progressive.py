@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Callable, Optional
+from typing import Callable, Optional, Union
 
 import numpy as np
 
@@ -728,7 +728,7 @@ def build_progressive_mesh(
     faces: np.ndarray,
     *,
     base_vertices: int,
-    protected: Optional[np.ndarray] = None,
+    protected: Union[np.ndarray, Callable[[], np.ndarray], None] = None,
     forced: Optional[np.ndarray] = None,
     progress: Progress = None,
     trace: Optional[list] = None,
@@ -736,7 +736,9 @@ def build_progressive_mesh(
 ) -> tuple[ProgressiveMesh, np.ndarray]:
     """Decimate to about ``base_vertices`` vertices; return the PM and the forced pairs applied.
 
-    ``protected`` vertices are never removed (they may absorb others). ``forced`` is
+    ``protected`` vertices ((n,) bool) are never removed (they may absorb others); a callable
+    returning them is called once the set-up is done, just before the first pass (a caller may start
+    the build before it knows them: ``background.Later``). ``forced`` is
     a (k, 2) array of collapses (u, v) performed first, in the first passes, e.g.
     the watermark carriers absorbing their first neighbour. Returns the PM and a
     bool mask of the forced pairs that were applied. ``trace``, when a list, receives
@@ -754,7 +756,7 @@ def build_progressive_mesh(
     # vertex arrays get one more entry: the sink n that removed faces point to
     locked = np.r_[adj0.nonmanifold_vertex | adj0.isolated_vertex, True]
     keep = np.zeros(n + 1, bool)
-    if protected is not None:
+    if protected is not None and not callable(protected):
         keep[:n] = np.asarray(protected, bool)
     bbox = float(np.linalg.norm(V.max(0) - V.min(0))) if n else 1.0
     bnd = _boundary_half_edges(F0, adj0)
@@ -768,6 +770,8 @@ def build_progressive_mesh(
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
                  rcost=np.empty((m, 3)))
     _update_costs(ctx, live, np.arange(3 * m))
+    if callable(protected):
+        _protect(ctx, live, np.asarray(protected(), bool))
 
     alive = np.ones(n, bool)  # by input id
     ids = np.arange(n, dtype=np.int64)  # input id of each local vertex (the arrays shrink as vertices go)
@@ -820,6 +824,18 @@ def build_progressive_mesh(
     F_end = live.F[:, 0] < len(ids)
     pm = _assemble(V, F0, ids[live.F[F_end]], live.fid[F_end], alive, passes)
     return pm, forced_done
+
+
+def _protect(ctx: _Ctx, live: _Live, protected: np.ndarray) -> None:
+    """Forbid removing the ``protected`` vertices ((n,) bool) after the costs were first computed:
+    the candidates from and (reverse, on the boundary) into them computed again, the others as they
+    were, so that the costs are those of a build protecting them from the start."""
+    n = len(ctx.go) - 1
+    if protected.shape != (n,):
+        raise ValueError(f"protected: expected ({n},) bool, got shape {protected.shape}")
+    ctx.go[:n] &= ~protected
+    hit = np.take(np.r_[protected, False], live.F)
+    _update_costs(ctx, live, np.flatnonzero((hit | hit[:, _NEXT]).ravel()))
 
 
 def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple[_Ctx, np.ndarray]:

@@ -6,9 +6,10 @@ frames and samples, the bump and swirl fields, the keyed bit layout, the protect
 ``SiteAnalysis.mark`` (a cheap step: the marked mesh for given per-site signs, a weighted sum over
 the samples). ``embed`` runs both; ``pmwm.fingerprint`` runs the analysis once and marks one copy
 per recipient. The analysis has two halves, ``place_sites`` (sites, frames, samples, protected
-rings) and ``lay_out`` (bit layout, chips, fields): once the first has named the protected vertices,
-``embed`` builds the progressive mesh of the unmarked mesh in a worker thread (``pmwm.background``)
-while the second half and the marking run."""
+rings) and ``lay_out`` (bit layout, chips, fields). ``embed`` builds the progressive mesh of the
+unmarked mesh in a worker thread (``pmwm.background``) from the start: its set-up runs while the first
+half places the sites, its passes, once the first half has named the protected vertices, while the
+second half and the marking run."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from ...adjacency import Adjacency, build_adjacency
-from ...background import Background
+from ...background import Background, Later
 from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, no_progress, start_embed
 from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
@@ -127,8 +128,9 @@ class SiteAnalysis:
 @dataclasses.dataclass
 class SitePlaces:
     """The first half of the analysis: the sites, their frames and samples, and the protected rings
-    (S sites, K samples). It names the vertices the progressive mesh keeps (``protected``), so that
-    ``embed`` builds that mesh while the second half (``lay_out``) and the marking run.
+    (S sites, K samples). It names the vertices the progressive mesh keeps (``protected``): ``embed``
+    hands them to the build waiting for them, which then runs while the second half (``lay_out``)
+    and the marking run.
 
     sites (S,) int64; normal, t1, t2 (S, 3) float64 the site frames; radius, amplitude, swirl: the
     bump radius and the bump and swirl amplitudes; sample_site, sample_vertex (K,) int64; u, v (K,)
@@ -181,12 +183,13 @@ def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: 
 
 def place_sites(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
                 sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES,
-                report: Callable[[float, str], None] = no_progress) -> SitePlaces:
-    """The first half of ``analyse``: sites, frames, samples and protected rings."""
+                report: Callable[[float, str], None] = no_progress, adj: Optional[Adjacency] = None) -> SitePlaces:
+    """The first half of ``analyse``: sites, frames, samples and protected rings (``adj``: the mesh's
+    adjacency, when the caller has it)."""
     per_bit = max(2, 2 * (int(sites_per_bit) // 2))
     nb = n_bits
     report(0.0, "analysing the mesh")
-    adj = build_adjacency(F, len(V))
+    adj = build_adjacency(F, len(V)) if adj is None else adj
     cross = face_cross(V, F)  # the faces' cross products: their normals and the vertex normals
     eligible = eligible_carriers(V, adj, seed=derive_seed(secret, "som"), cross=cross)
     while True:  # fewer sites per bit on small meshes, down to 2
@@ -295,12 +298,15 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     job = start_embed(vertices, faces, options, progress, NAME, DEFAULT_STRENGTH)
     V, F, secret, bits, report = job.vertices, job.faces, job.secret, job.bits, job.report
     nb = len(bits)
-    places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report)
+    adj = build_adjacency(F, len(V))
     base = base_vertex_count(job.options.base_ratio, len(V))
-    # the progressive mesh of the unmarked mesh, every site protected, built beside the rest of the
-    # analysis and the marking; the marked positions go in after
-    with Background(build_progressive_mesh, V, F, base_vertices=base, protected=places.protected(),
-                    adjacency=places.adj) as building:
+    # the progressive mesh of the unmarked mesh, every site protected, built beside the analysis and
+    # the marking (its set-up runs while the sites are placed; it waits for them before its first
+    # pass); the marked positions go in after
+    protect = Later()
+    with Background(build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj) as building:
+        places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
+        protect.set(places.protected())
         an = lay_out(places, secret)
         site, sites = an.site, an.sites
         w = bits ^ keyed_bits(secret, "scramble", nb)
