@@ -490,3 +490,29 @@ def test_the_equalizer_finds_the_most_likely_signs():
                 return np.sum((x - g * s - c * (np.r_[0.0, s[:-1]] + np.r_[s[1:], 0.0])) ** 2)
             best = min(itertools.product([-1.0, 1.0], repeat=M), key=cost)
             assert np.array_equal(radial._most_likely_signs(x, g, c), np.array(best))
+
+
+def test_the_marking_search_finds_the_same_steps_whatever_its_guess():
+    """The push's step per bin is searched from a guess (the bin mean is linear in the push): a right
+    guess settles it at once, a wrong one (too high, too low, out of range) must still give the step
+    the plain bisection gives, including 0 and 'none reaches' (j_max)."""
+    rng = np.random.default_rng(3)
+    M = 40
+    j_max = rng.integers(0, 3000, M)
+    least = rng.integers(0, 3400, M)  # beyond j_max: no step reaches the target
+    reads = []
+
+    def reached(j):
+        reads.append(1)
+        return j >= least
+
+    reads.clear()
+    want = radial._least_step(reached, j_max)
+    plain = len(reads)
+    assert np.array_equal(want, np.minimum(least, j_max))
+    for guess in (np.minimum(least, j_max), least + rng.integers(1, 50, M), least - rng.integers(1, 50, M),
+                  rng.integers(-100, 4000, M), np.zeros(M, np.int64), j_max):
+        assert np.array_equal(radial._least_step(reached, j_max, guess), want)
+    reads.clear()
+    radial._least_step(reached, j_max, np.minimum(least, j_max))
+    assert len(reads) == 2 < plain  # a right guess: two readings

@@ -198,30 +198,45 @@ def make_key(secret: str, bits: np.ndarray, payload_kind: str, strength: float, 
     positions, ``key_carriers`` (k,) int64 the vertices the key records (index, progressive-mesh
     index and marked place), the mesh's size and the faces fingerprints in both numberings, and the
     scheme's typed data (written to the key file's ``extra`` by its ``to_extra``)."""
-    pm_of = np.empty(len(vertices), np.int64)
-    pm_of[pm.vertex_order] = np.arange(len(vertices))
-    return WatermarkKey(
-        secret=secret, bits=bits, payload_kind=payload_kind, strength=strength,
-        carrier_index=key_carriers, carrier_pm_index=pm_of[key_carriers],
-        carrier_position=marked[key_carriers].copy(), n_vertices=len(vertices), n_faces=len(faces),
-        mean_edge=mean_edge_length(marked, adj),
-        bbox_diagonal=float(np.linalg.norm(vertices.max(0) - vertices.min(0))),
-        scheme=scheme, data=data,
-        faces_fingerprint=face_fingerprint(faces), pm_faces_fingerprint=face_fingerprint(pm_of[faces]),
-    )
+    return WatermarkKey(**_key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, adj,
+                                      key_carriers, scheme, data),
+                        **_pm_fields(pm, faces, key_carriers))
 
 
-def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, pm: ProgressiveMesh,
-                 key_carriers: np.ndarray, carriers: np.ndarray, data: object = None) -> EmbedResult:
+def _key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, adj, key_carriers, scheme,
+                data) -> dict:
+    """``make_key``'s fields but those of the progressive mesh's numbering (``_pm_fields``)."""
+    return dict(secret=secret, bits=bits, payload_kind=payload_kind, strength=strength,
+                carrier_index=key_carriers, carrier_position=marked[key_carriers].copy(),
+                n_vertices=len(vertices), n_faces=len(faces), mean_edge=mean_edge_length(marked, adj),
+                bbox_diagonal=float(np.linalg.norm(vertices.max(0) - vertices.min(0))), scheme=scheme,
+                data=data, faces_fingerprint=face_fingerprint(faces))
+
+
+def _pm_fields(pm: ProgressiveMesh, faces: np.ndarray, key_carriers: np.ndarray) -> dict:
+    """The key's fields from the progressive mesh: the carriers' and the faces' progressive numbering."""
+    pm_of = np.empty(len(pm.vertex_order), np.int64)
+    pm_of[pm.vertex_order] = np.arange(len(pm.vertex_order))
+    return dict(carrier_pm_index=pm_of[key_carriers], pm_faces_fingerprint=face_fingerprint(pm_of[faces]))
+
+
+def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency,
+                 pm: Union[ProgressiveMesh, Callable[[], ProgressiveMesh]], key_carriers: np.ndarray,
+                 carriers: np.ndarray, data: object = None) -> EmbedResult:
     """The key and the result, the last step of every embedder. marked : (n, 3) float64 the marked
     mesh; key_carriers : (k,) int64 the vertices the key records (k = 0 or one per bit); carriers :
-    the vertices reported as carrying the mark; data: the scheme's typed key data (``make_key``)."""
+    the vertices reported as carrying the mark; data: the scheme's typed key data (``make_key``).
+    ``pm`` may be a callable giving the progressive mesh (a build still running in another thread):
+    everything else is done before it is called."""
     V, F = job.vertices, job.faces
-    key = make_key(job.secret, job.bits, job.payload_kind, job.strength, V, F, marked, adj, pm, key_carriers,
-                   scheme, data)
+    fields = _key_fields(job.secret, job.bits, job.payload_kind, job.strength, V, F, marked, adj, key_carriers,
+                         scheme, data)
+    vsnr_db, rmse = metrics.vsnr(V, marked), metrics.vertex_rmse(V, marked)
+    pm = pm() if callable(pm) else pm
+    key = WatermarkKey(**fields, **_pm_fields(pm, F, key_carriers))
     job.report(1.0, "done")
     return EmbedResult(vertices=marked, faces=F, pm=pm, key=key, carriers=carriers, bits=job.bits,
-                       vsnr_db=metrics.vsnr(V, marked), rmse=metrics.vertex_rmse(V, marked))
+                       vsnr_db=vsnr_db, rmse=rmse)
 
 
 # --------------------------------------------------------------------------- the decision

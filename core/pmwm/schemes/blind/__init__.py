@@ -58,7 +58,7 @@ from ...background import Background
 from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
 from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
-from ...progressive import base_vertex_count, build_progressive_mesh, with_positions
+from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...validate import check_mesh
 from . import frames, radial, word
 from .keydata import BlindKeyData
@@ -101,20 +101,24 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     bit_of_bin, scramble = word.layout(secret, len(w), n_bins)
     signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
     V, F = job.vertices, job.faces
-    adj = build_adjacency(F, len(V))
     base = base_vertex_count(opts.base_ratio, len(V))
-    # the progressive mesh of the unmarked mesh, built beside the marking; the marked positions go in after
-    with Background(build_progressive_mesh, V, F, base_vertices=base, adjacency=adj) as building:
+    # the progressive mesh of the unmarked mesh, built beside the marking (from the start: the worker
+    # finds the adjacency itself); the marked positions go in after
+    with Background(build_progressive_mesh, V, F, base_vertices=base) as building:
         job.report(0.0, "marking the radial distribution")
         marked = radial.embed_signs(V, F, signs, job.strength)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
             job.strength, marked = _calibrated(V, F, signs, job.strength, marked)
-        pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
-    pm = with_positions(pm, marked)
-    job.secret, job.bits, job.payload_kind = secret, payload, kind
-    none = np.zeros(0, np.int64)
-    return finish_embed(job, NAME, marked, adj, pm, none, none,
-                        data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
+        adj = build_adjacency(F, len(V))  # the key's (mean edge), while the worker still builds
+
+        def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
+            pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
+            return with_positions(pm, marked)
+
+        job.secret, job.bits, job.payload_kind = secret, payload, kind
+        none = np.zeros(0, np.int64)
+        return finish_embed(job, NAME, marked, adj, marked_pm, none, none,
+                            data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
 
 
 def _calibrated(V, F, signs, alpha, marked) -> tuple[float, np.ndarray]:

@@ -211,17 +211,18 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
     offs = np.rint(start + j * wc[:, None, None]).astype(np.int64)  # (W, P, J + 1) the edges from lo
     mid = start + (j[:-1] + 0.5) * wc[:, None, None]  # (W, P, J) the bins' centres from lo
     shift = int(max(0, -offs.min()))  # empty cells below the nearest vertex, for negative phases
-    reach = int(offs.max()) + 1
     score = np.empty(len(C))
     for s0 in range(0, len(C), _BATCH):
         rho = distances(P, C[s0:s0 + _BATCH])
         B = len(rho)
         x = (rho - rho.min(1)[:, None]) / cell + shift
-        n_cells = int(x.max()) + reach + 1  # room for the outermost edge beyond the farthest vertex
+        # cells up to the farthest vertex: an edge beyond it reads the last entry, the row's total (the
+        # outermost edges reach up to twice as far: those cells would only repeat it)
+        n_cells = int(x.max()) + 1
         cum_n, cum_x, cum_a = cumulative_cells(x, n_cells, None, area)
         # the cell of the area quantile the original's 2 % would be if the cap held none of the area
         lo = (cum_a[:, 1:] < (QUANTILES[0] / (1.0 - lam[s0:s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
-        edges = lo[:, None, None, None] + offs[None]
+        edges = np.minimum(lo[:, None, None, None] + offs[None], n_cells)
         en = cell_energies(cum_n, cum_x, edges, lo[:, None, None, None] + mid[None], wc[None, :, None])
         score[s0:s0 + B] = en.reshape(B, -1).max(1)
     return score

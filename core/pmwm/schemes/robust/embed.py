@@ -314,12 +314,15 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
         marked, (usable, centre_ok, index_ok, swirl_ok), _, _ = an.mark_readable(sign)
         report(0.2, "sites marked")
         frame = surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
-        pm, _ = building.result(lambda f, msg: report(0.25 + 0.7 * f, msg))
-    pm = with_positions(pm, marked)
-    first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
-    data = dataclasses.replace(site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
-                               frame=frame)
-    # read back from its stored form, so that this key reads exactly as the key file will
-    return finish_embed(job, NAME, marked, an.adj, pm, sites[first_site], sites,
-                        data=RobustKeyData.from_extra(data.to_extra(), nb, len(V)))
+        first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
+        data = dataclasses.replace(site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
+                                   frame=frame)
+
+        def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
+            pm, _ = building.result(lambda f, msg: report(0.25 + 0.7 * f, msg))
+            return with_positions(pm, marked)
+
+        # the key read back from its stored form, so that it reads exactly as the key file will
+        return finish_embed(job, NAME, marked, adj, marked_pm, sites[first_site], sites,
+                            data=RobustKeyData.from_extra(data.to_extra(), nb, len(V)))
 
