@@ -141,3 +141,27 @@ def test_the_embedders_progressive_mesh_decodes_to_the_marked_mesh_and_reports_o
     assert not np.array_equal(res.vertices, V)
     back = from_bytes(to_bytes(res.pm))  # the .pmwm file holds the marked positions, exactly
     assert np.array_equal(back.decode()[0], Vd)
+
+
+def test_a_fresh_process_embeds_with_the_kdtree_loaded_beside_it_and_no_thread_left_behind():
+    """In a fresh process the robust embedder loads scipy's KD-tree in a thread while it checks the
+    mesh and chooses the sites (``spatial.loading_engine``): the mark is the same as in a process
+    that had it loaded, and no thread outlives the call."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, threading, numpy as np, pmwm\n"
+        "sys.path.insert(0, 'tests'); import meshes\n"
+        "V, F = meshes.blob()\n"
+        "assert 'scipy.spatial' not in sys.modules\n"
+        "a = pmwm.embed(V, F, pmwm.EmbedOptions(payload='fresh', seed=4)).vertices\n"
+        "assert 'scipy.spatial' in sys.modules\n"
+        "assert [t.name for t in threading.enumerate()] == ['MainThread'], threading.enumerate()\n"
+        "b = pmwm.embed(V, F, pmwm.EmbedOptions(payload='fresh', seed=4)).vertices\n"
+        "assert np.array_equal(a, b)\n"
+        "print('ok')\n")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.join(root, "core"), os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr

@@ -17,12 +17,38 @@ answers (tests/test_spatial.py).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
+import sys
+import threading
 
 import numpy as np
 
 __all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
            "closest_point_on_triangles"]
+
+
+def _load_engine() -> None:
+    try:
+        from scipy.spatial import cKDTree  # noqa: F401
+    except Exception:  # (the query that needs it raises the error)
+        pass
+
+
+@contextlib.contextmanager
+def loading_engine():
+    """Load the KD-tree engine (scipy.spatial: about 0.2 s of imports) in a thread while the caller does
+    other work before its first query; the thread is joined on exit. A query that comes first waits
+    for the import to finish (Python's import lock), so the results are the same either way."""
+    if "scipy.spatial" in sys.modules:
+        yield
+        return
+    loader = threading.Thread(target=_load_engine, name="pmwm-load-kdtree", daemon=True)
+    loader.start()
+    try:
+        yield
+    finally:
+        loader.join()
 
 
 def _tree(P: np.ndarray, leafsize: int = 32) -> "cKDTree":

@@ -27,7 +27,7 @@ from ...features import face_cross, mean_edge_length, vertex_normals
 from ...key import derive_seed, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...register import surface_frame
-from ...spatial import min_spacing, pairs_within
+from ...spatial import loading_engine, min_spacing, pairs_within
 from .fields import OUTER, index_templates, profile, swirl, tangent_frames
 from .keydata import RobustKeyData, Samples
 from .layout import assign_bits
@@ -295,6 +295,11 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
           sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
     """Watermark a mesh with the robust scheme (``pmwm.schemes.robust``); same options and result as
     ``pmwm.embed``. vertices : (n, 3) float64, faces : (m, 3) int64."""
+    with loading_engine():  # the KD-tree's imports while the mesh is checked and its sites chosen
+        return _embed(vertices, faces, options, progress, sites_per_bit, radius_edges)
+
+
+def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> EmbedResult:
     job = start_embed(vertices, faces, options, progress, NAME, DEFAULT_STRENGTH)
     V, F, secret, bits, report = job.vertices, job.faces, job.secret, job.bits, job.report
     nb = len(bits)
