@@ -19,14 +19,17 @@ from typing import Optional
 
 import numpy as np
 
+from ..adjacency import build_adjacency
 from ..atomic import atomic_output
+from ..background import Background, Later
 from ..base import Progress, check_options, make_key, no_progress
 from ..errors import PayloadError
 from ..key import WatermarkKey, derive_seed, make_secret, mesh_sha256
 from ..meshio import ply_parts
 from ..pmfile import to_bytes
-from ..progressive import ProgressiveMesh, with_positions
+from ..progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ..register import surface_frame
+from ..spatial import loading_engine
 from ..schemes.robust.embed import DEFAULT_STRENGTH, REF_POINTS, SITES_PER_BIT, SiteAnalysis, analyse
 from ..schemes.robust.keydata import RobustKeyData
 from ..schemes.robust.read import NAME
@@ -128,19 +131,26 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
         raise PayloadError(f"a fingerprint needs at least {2 * SITES_PER_BIT} sites, got {opts.n_sites}")
     V, F = check_mesh(vertices, faces, max_coordinate=MAX_COORDINATE)
     secret = secret if secret is not None else make_secret(opts.seed)
-    an = analyse(V, F, secret, strength, max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
-                 report=lambda f, m: report(0.5 * f, m))
-    S = an.n_sites
-    # which sites read: decided on a keyed reference copy, the same for every recipient
-    ref = codeword(secret, "\0reference", S).astype(np.float64)
-    _, (usable, centre_ok, index_ok, swirl_ok), dead, no_swirl = an.mark_readable(ref)
-    report(0.6, "building the progressive mesh")
-    pm = an.progressive_mesh(V, usable | centre_ok, opts.base_ratio, lambda f, m: report(0.6 + 0.35 * f, m))
-    frame = surface_frame(V, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
-    data = dataclasses.replace(an.site, bit=np.arange(S), chip=np.ones(S), usable=usable, centre_ok=centre_ok,
-                               swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)
+    adj = build_adjacency(F, len(V))
+    # the progressive mesh every copy shares (of the unmarked asset), built beside the analysis: its set-up
+    # while the sites are placed, its passes, once the readable sites are known, beside the rest
+    keep = Later()
+    with loading_engine(), Background(build_progressive_mesh, V, F, base_vertices=base_vertex_count(
+            opts.base_ratio, len(V)), protected=keep, adjacency=adj) as building:
+        an = analyse(V, F, secret, strength, max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
+                     report=lambda f, m: report(0.5 * f, m), adj=adj)
+        S = an.n_sites
+        # which sites read: decided on a keyed reference copy, the same for every recipient
+        ref = codeword(secret, "\0reference", S).astype(np.float64)
+        _, (usable, centre_ok, index_ok, swirl_ok), dead, no_swirl = an.mark_readable(ref)
+        keep.set(an.protected(usable | centre_ok))
+        frame = surface_frame(V, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
+        data = dataclasses.replace(an.site, bit=np.arange(S), chip=np.ones(S), usable=usable, centre_ok=centre_ok,
+                                   swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)
+        data = RobustKeyData.from_extra(data.to_extra(), S, len(V))  # as the key file will read
+        pm, _ = building.result(lambda f, m: report(0.6 + 0.35 * f, m))
     key = make_key(secret, np.zeros(S, np.uint8), "bits", strength, V, F, V, an.adj, pm, np.zeros(0, np.int64),
-                   NAME, data=RobustKeyData.from_extra(data.to_extra(), S, len(V)))  # as the key file will read
+                   NAME, data=data)
     head, body = ply_parts(len(V), F, comment=b"pmwm fingerprinted copy")
     report(1.0, "analysed")
     return AssetAnalysis(sites=an, key=key, options=opts, bump=np.where(dead, 0.0, 1.0),

@@ -116,14 +116,6 @@ class SiteAnalysis:
         for the sites ``keep`` (S,) bool."""
         return protected_vertices(len(self.vertices), self.sites[keep], self.ring[keep])
 
-    def progressive_mesh(self, marked: np.ndarray, keep: np.ndarray, base_ratio: float,
-                         progress: Callable[[float, str], None] = no_progress) -> ProgressiveMesh:
-        """The progressive mesh of ``marked`` (n, 3) with the sites ``keep`` protected."""
-        base = base_vertex_count(base_ratio, len(self.vertices))
-        pm, _ = build_progressive_mesh(marked, self.faces, base_vertices=base, protected=self.protected(keep),
-                                       progress=progress, adjacency=self.adj)
-        return pm
-
 
 @dataclasses.dataclass
 class SitePlaces:
@@ -175,10 +167,11 @@ def protected_vertices(n: int, sites: np.ndarray, ring: np.ndarray) -> np.ndarra
 
 def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
             sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES,
-            report: Callable[[float, str], None] = no_progress) -> SiteAnalysis:
+            report: Callable[[float, str], None] = no_progress, adj: Optional[Adjacency] = None) -> SiteAnalysis:
     """The robust scheme's analysis of a mesh V (n, 3) float64, F (m, 3) int64 for the key's
-    ``secret``: ``n_bits`` bits, ``sites_per_bit`` sites each (fewer on small meshes, down to 2)."""
-    return lay_out(place_sites(V, F, secret, strength, n_bits, sites_per_bit, radius_edges, report), secret)
+    ``secret``: ``n_bits`` bits, ``sites_per_bit`` sites each (fewer on small meshes, down to 2);
+    ``adj``: the mesh's adjacency, when the caller has it."""
+    return lay_out(place_sites(V, F, secret, strength, n_bits, sites_per_bit, radius_edges, report, adj), secret)
 
 
 def place_sites(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
