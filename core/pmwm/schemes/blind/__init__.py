@@ -13,9 +13,11 @@ suspect's own (centre and range recomputed) and a refined one, the frame within 
 where the mark's energy (sum of n_j (bin mean - 1/2)^2, no pass phrase involved) is largest
 (``radial.refine_frame``). It reads one length, the one whose bins show the most energy in the own
 frame (no pass phrase involved either), and keeps the reading whose check bits match best; its
-p-value is exact per reading and a union bound over all (2 frames x 2 kinds x 1024 Chase flips =
+p-value is exact per reading and a union bound over all (2 frames x 2 kinds x 1024 Chase candidates =
 4096 candidates: all 32 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``; a cropped
-copy's 4 frames x 2 kinds x 512 flips: the same).
+copy's 4 frames x 2 kinds x 512 candidates: the same). The candidates are the words with the most
+likely sets of bits flipped (``word.likely_flips``), each bit's reliability its score in units of its
+bins' standard error (``word_read``).
 
 Why one length, chosen by energy: choices made without the pass phrase cost the p-value nothing, so
 reading one length instead of four pays for 2 more Chase bits (10 instead of 8) at the same p-value.
@@ -144,15 +146,19 @@ class Statistics:
     """What the reader measures on a suspect, independent of the pass phrase: per word length N the
     bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1
     or 2 frames (``frame_names``: the suspect's own, then a refined one or a cropped copy's; see
-    ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads."""
+    ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads; ``shares``, the
+    same shape, each bin's share of the vertices (None: taken as equal), which weighs how reliable its
+    reading is (``word_read``)."""
 
     words: dict[int, np.ndarray]
     n_word: int
     frame_names: tuple[str, ...]
+    shares: Optional[dict[int, np.ndarray]] = None
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
-        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1])
+        shares = None if self.shares is None else {n: s[:1] for n, s in self.shares.items()}
+        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1], shares)
 
 
 def bin_statistics(vertices, faces) -> Statistics:
@@ -163,43 +169,45 @@ def bin_statistics(vertices, faces) -> Statistics:
     words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
     got = frames.read_statistics_frames(V, F, [_n_bins(n) for n in words])
     return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
-                      words[got.index], got.names)
+                      words[got.index], got.names,
+                      {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)})
 
 
-def word_read(stat: np.ndarray, secret: str, n_word: int) -> tuple[np.ndarray, np.ndarray]:
+def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None
+              ) -> tuple[np.ndarray, np.ndarray]:
     """The word of length ``n_word`` as read from the bins' statistics (M,) in radial order (after
     ``radial.equalized``: hard decisions, erasures drawn from a keyed coin) (N,) uint8, and the score of
-    each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure)."""
+    each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure). With the bins' shares of the
+    vertices ``share`` (M,), each bin's statistic counts in units of its standard error (times
+    sqrt(share): a bin mean of n vertices errs by about 1 / sqrt(12 n)), so that the scores' magnitudes
+    rank the bits by how likely they are right (the Chase search's order, ``word.likely_flips``)."""
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
-    score = np.bincount(bit_of_bin, weights=np.nan_to_num(radial.equalized(stat), nan=0.0), minlength=n_word)
+    z = np.nan_to_num(radial.equalized(stat), nan=0.0)
+    if share is not None:
+        z = z * np.sqrt(np.maximum(np.nan_to_num(share, nan=0.0), 0.0))
+    score = np.bincount(bit_of_bin, weights=z, minlength=n_word)
     got = (score > 0).astype(np.uint8)
     erased = score == 0
     got[erased] = keyed_bits(secret, f"blind-erasure:{n_word}", n_word)[erased]
     return got ^ scramble, score
 
 
-def _flips(bits: int) -> np.ndarray:
-    """Every combination of ``bits`` flips, (2^bits, bits) uint8; row 0 flips nothing."""
-    return ((np.arange(2**bits)[:, None] >> np.arange(bits)) & 1).astype(np.uint8)
-
-
 def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict:
     """The verdict from the ``Statistics`` of ``bin_statistics`` and a secret (module docstring): the
-    chosen length in every frame, both kinds, every Chase flip; the p-value is the union bound over
-    all of these candidates (R frames * 2 kinds * 2^C flips, C = ``word.chase_bits(R)``), so it stays
+    chosen length in every frame, both kinds, every Chase candidate; the p-value is the union bound over
+    all of these candidates (R frames * 2 kinds * 2^C, C = ``word.chase_bits(R)``), so it stays
     exact when the reader keeps the best of them."""
     readings = []
     n_word = stats.n_word
     L = n_word - word.CHECK_BITS
     per_frame = np.atleast_2d(stats.words[n_word])
+    shares = [None] * len(per_frame) if stats.shares is None else np.atleast_2d(stats.shares[n_word])
     n_frames = len(per_frame)
     chase = word.chase_bits(n_frames)
-    flips = _flips(chase)
+    n_candidates = 2**chase
     for fi, stat in enumerate(per_frame):
-        got, score = word_read(stat, secret, n_word)
-        weak = np.argsort(np.abs(score), kind="stable")[:chase]
-        candidates = np.repeat(got[None], len(flips), axis=0)
-        candidates[:, weak] ^= flips  # row 0: the word as read
+        got, score = word_read(stat, secret, n_word, shares[fi])
+        candidates = got[None] ^ word.likely_flips(np.abs(score), n_candidates)  # row 0: the word as read
         for kind in word.KINDS:
             best = None
             for cand in candidates:
@@ -211,7 +219,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
             m, cand = best
             readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, fi, L, kind, cand, score, got))
     p1, neg_m, fi, L, kind, cand, score, raw = min(readings, key=lambda r: (r[0], r[1], r[2]))
-    p = float(min(1.0, len(readings) * len(flips) * p1))
+    p = float(min(1.0, len(readings) * n_candidates * p1))
     m = -neg_m
     payload = cand[:L]
     text = word.text_of(payload) if kind == "text" else None

@@ -7,14 +7,17 @@ The word. ``PAYLOAD_BITS`` lists the payload lengths a word can have (32, 64, 96
 12 or 28 bytes of text); behind the payload come ``CHECK_BITS`` = 32 check bits, a keyed hash of the
 secret, the payload kind (text or bits) and the payload. The reader knows neither the length nor the
 kind: it reads the length whose bins show the most mark energy (chosen without the pass phrase),
-as either kind, and in each of the 2 readings the 2^10 words that flip any of the ``CHASE_BITS`` =
-10 least reliable bits (Chase decoding: a few weak bits are corrected). Under the null (an unmarked
+as either kind, and in each of the 2 readings the 2^10 words that flip the 2^10 most likely sets of
+bits (``likely_flips``: the sets of least total reliability, a bit's reliability its score in units of
+its bins' standard error; a Chase search over 2^``CHASE_BITS`` = 1024 candidates, which corrects a few
+weak bits wherever they are, not only among the 10 least reliable). Under the null (an unmarked
 mesh, or the wrong pass phrase) the expected check bits of a candidate are fair coins independent of
 the bits read (a keyed hash of what was read), so P(m or more of the 32 match) = P(Binomial(32, 1/2)
 >= m) exactly per candidate, and the p-value reported is the union bound over the 2 * 1024 = 2048
 candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame (9.5e-7 with the
-refined frame) < 1e-6. A cropped copy is read in 4 frames (``frames``): then the 2^9 flips of the 9
-least reliable bits (``chase_bits``), 9.5e-7 at best again.
+refined frame) < 1e-6. A cropped copy is read in 4 frames (``frames``): then 2^9 candidates each
+(``chase_bits``), 9.5e-7 at best again. The candidates depend on the bits and scores read only, never
+on the check bits expected, so the bound holds whichever they are.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
 search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
@@ -26,6 +29,7 @@ to a hash collision (2^-32 per candidate).
 from __future__ import annotations
 
 import hashlib
+import heapq
 from typing import Optional
 
 import numpy as np
@@ -37,7 +41,7 @@ from ...validate import parse_bits
 
 PAYLOAD_BITS = (32, 64, 96, 224)
 CHECK_BITS = 32
-CHASE_BITS = 10  # the reader tries every flip of (at most) the 10 least reliable bits of a word
+CHASE_BITS = 10  # the reader tries (at most) 2^10 candidate words per reading: the most likely flips
 P_BEST = 1e-6  # the p-value of a reading with every check bit right stays below this
 KINDS = ("bits", "text")
 SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
@@ -45,11 +49,38 @@ SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
 
 
 def chase_bits(n_frames: int) -> int:
-    """How many of a word's least reliable bits the reader flips when it reads ``n_frames`` frames: the
-    most, up to CHASE_BITS, for which n_frames * 2 kinds * 2^bits candidates keep the p-value of a
-    reading with all CHECK_BITS right below P_BEST (1 or 2 frames: 10; 3 or 4: 9)."""
+    """The reader's 2^C candidates per reading when it reads ``n_frames`` frames, as C: the most, up to
+    CHASE_BITS, for which n_frames * 2 kinds * 2^C candidates keep the p-value of a reading with all
+    CHECK_BITS right below P_BEST (1 or 2 frames: 10; 3 or 4: 9)."""
     budget = P_BEST * 2.0**CHECK_BITS / (len(KINDS) * max(1, n_frames))  # candidates allowed per reading
     return int(min(CHASE_BITS, np.floor(np.log2(budget))))
+
+
+def likely_flips(reliability: np.ndarray, count: int) -> np.ndarray:
+    """The ``count`` sets of bits whose flipping is most likely, as masks (count, N) uint8: the sets of
+    least total ``reliability`` (N,) >= 0 (the magnitudes of the bits' scores: a bit read near zero is
+    as likely wrong as right), lightest first; row 0 flips nothing. A best-first walk over the bits
+    sorted by reliability: each set's successors add the next bit after its last one, or move its last
+    one on; every set is reached once, in order of weight (ties: the sorted order decides).
+
+    Chase's search flips every subset of the C least reliable bits; these are as many candidates, so
+    the p-value's union bound is the same, but a lone error on the 11th or 12th least reliable bit is
+    more likely than one on 6 of the 10 together, and is tried (BENCHMARKS.md, ``blind-soft-list``)."""
+    r = np.asarray(reliability, dtype=np.float64)
+    order = np.argsort(r, kind="stable")
+    w = r[order].tolist()
+    out = np.zeros((count, len(r)), np.uint8)
+    heap = [(w[0], (0,))] if len(w) and count > 1 else []
+    k = 1
+    while heap and k < count:
+        cost, bits = heapq.heappop(heap)
+        out[k, order[list(bits)]] = 1
+        k += 1
+        last = bits[-1]
+        if last + 1 < len(w):
+            heapq.heappush(heap, (cost + w[last + 1], bits + (last + 1,)))
+            heapq.heappush(heap, (cost - w[last] + w[last + 1], bits[:-1] + (last + 1,)))
+    return out[:k]
 
 
 def derive_secret(passphrase: str) -> str:
