@@ -539,3 +539,33 @@ def test_the_marking_search_finds_the_same_steps_whatever_its_guess():
     reads.clear()
     radial._least_step(reached, j_max, np.minimum(least, j_max))
     assert len(reads) == 2 < plain  # a right guess: two readings
+
+
+def test_the_equalizer_reads_each_sign_with_its_neighbours_summed_out():
+    """``radial._posterior_odds`` against every sign sequence of a short word: the log posterior odds of
+    each bin's sign under the interference model, an empty bin's sign 0 (it spills nothing)."""
+    import itertools
+
+    rng = np.random.default_rng(4)
+    for M in (2, 3, 7):
+        for _ in range(10):
+            g, c, var = rng.uniform(0.5, 1.0), -rng.uniform(0.0, 0.5), rng.uniform(0.05, 0.5)
+            x = rng.normal(size=M)
+            empty = rng.random(M) < 0.2
+            free = np.flatnonzero(~empty)
+            logp = {}
+            for signs in itertools.product([-1.0, 1.0], repeat=len(free)):
+                s = np.zeros(M)
+                s[free] = signs
+                nb = np.r_[0.0, s[:-1]] + np.r_[s[1:], 0.0]
+                logp[signs] = -np.sum(((x - g * s - c * nb) ** 2)[~empty]) / (2 * var)
+            want = np.zeros(M)
+            for k, j in enumerate(free):
+                plus = np.logaddexp.reduce([lp for sg, lp in logp.items() if sg[k] > 0])
+                minus = np.logaddexp.reduce([lp for sg, lp in logp.items() if sg[k] < 0])
+                want[j] = plus - minus
+            assert np.allclose(radial._posterior_odds(x, empty, g, c, var), want, atol=1e-9)
+    # without interference the equalizer's output is the statistic itself
+    x = np.array([0.1, -0.05, 0.2, np.nan, -0.3])
+    assert np.allclose(radial._posterior_odds(np.nan_to_num(x), np.isnan(x), 0.7, 0.0, 0.04) * 0.04 / 1.4,
+                       np.nan_to_num(x))

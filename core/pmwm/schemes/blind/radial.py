@@ -480,8 +480,14 @@ def equalized(stat: np.ndarray) -> np.ndarray:
     that) spills each bin's pushed vertices into its neighbours. Model: stat_j = g s_j + c (s_{j-1} +
     s_{j+1}) + noise, s = +-1 the bins' signs. g and c come from a regression on the signs read (twice:
     on the hard decisions, then on the sequence the Viterbi search below finds), the signs from the most
-    likely sequence under the model (4 states: two consecutive signs); the result is stat_j - c
-    (s_{j-1} + s_{j+1}). Nothing here involves the pass phrase: the p-value stays exact. When c is above
+    likely sequence under the model (4 states: two consecutive signs). The result is each bin's own
+    reading with its neighbours' signs summed out, not guessed: the log posterior odds of its sign under
+    the model (a forward-backward pass over the same chain, the noise's variance from the fit's
+    residuals), times sigma^2 / (2 g) to stay in the statistic's units (without interference that is
+    stat_j itself). A bin whose neighbours are uncertain keeps a small value, so the reader's search
+    (``word.likely_flips``) tries it early; subtracting the most likely neighbours' interference instead,
+    stat_j - c (s_{j-1} + s_{j+1}), doubles it when a neighbour's sign is wrong (BENCHMARKS.md,
+    ``blind-soft-list``). Nothing here involves the pass phrase: the p-value stays exact. When c is above
     -ISI_MIN g (no interference to speak of: an intact copy, smoothing, most subdivisions and
     simplifications) the statistics are returned as they are."""
     empty = np.isnan(stat)
@@ -493,7 +499,36 @@ def equalized(stat: np.ndarray) -> np.ndarray:
         if not (g > 0 and c < -ISI_MIN * g):
             return stat
         s = np.where(empty, 0.0, _most_likely_signs(x, g, c))  # an empty bin spills nothing
-    return np.where(empty, np.nan, x - c * _neighbours(s))
+    var = float(np.mean((x - g * s - c * _neighbours(s))[~empty] ** 2))
+    if not var > 0:
+        return np.where(empty, np.nan, x - c * _neighbours(s))  # (a noiseless fit: the signs are known)
+    return np.where(empty, np.nan, _posterior_odds(x, empty, g, c, var) * (var / (2.0 * g)))
+
+
+def _posterior_odds(x: np.ndarray, empty: np.ndarray, g: float, c: float, var: float) -> np.ndarray:
+    """log P(s_j = +1 | x) - log P(s_j = -1 | x) for each bin (M,) under x_j = g s_j + c (s_{j-1} +
+    s_{j+1}) + N(0, var), the signs +-1 equally likely a priori, an empty bin's sign 0 (it spills nothing
+    and reads nothing), 0 beyond the ends: forward-backward over pairs of consecutive signs, in logs."""
+    M = len(x)
+    values = np.array([-1.0, 0.0, 1.0])
+    sign_prior = np.array([0.0, -np.inf, 0.0])
+    zero_prior = np.array([-np.inf, 0.0, -np.inf])
+    prior = np.vstack([np.where(empty[:, None], zero_prior, sign_prior), zero_prior])  # (M + 1, 3): s_M = 0
+    prev, cur, nxt = values[:, None, None], values[None, :, None], values[None, None, :]
+    fit = g * cur + c * (prev + nxt)  # (3, 3, 3): x_j's mean for (s_{j-1}, s_j, s_{j+1})
+    loglik = np.where(empty[:, None, None, None], 0.0, -(x[:, None, None, None] - fit[None]) ** 2 / (2.0 * var))
+    step = loglik + prior[1:, None, None, :]  # (M, 3, 3, 3), with s_{j+1}'s prior
+    fwd = np.full((M + 1, 3, 3), -np.inf)  # fwd[j][s_{j-1}, s_j]
+    fwd[0, 1, :] = prior[0]  # s_{-1} = 0
+    for j in range(M):
+        fwd[j + 1] = np.logaddexp.reduce(fwd[j][:, :, None] + step[j], axis=0)
+    bwd = np.full((M + 1, 3, 3), -np.inf)  # bwd[j][s_{j-1}, s_j]
+    bwd[M, :, 1] = 0.0  # s_M = 0
+    for j in range(M - 1, -1, -1):
+        bwd[j] = np.logaddexp.reduce(step[j] + bwd[j + 1][None, :, :], axis=2)
+    marginal = np.logaddexp.reduce(fwd[:M] + bwd[:M], axis=1)  # (M, 3): over s_j
+    with np.errstate(invalid="ignore"):
+        return np.where(empty, 0.0, marginal[:, 2] - marginal[:, 0])
 
 
 def _neighbours(s: np.ndarray) -> np.ndarray:
