@@ -50,7 +50,9 @@ BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start 
              BLIND_BASELINE: "the crop search screening every candidate centre 0.3 bin widths apart",
              "70ca2f2": "the allocator left to its defaults; the crop search on the family's plane alone, "
                         "its width fit on 20,000 vertices",
-             "4a70b94": "the crop search's word lengths one after the other, in one thread"}
+             "4a70b94": "the crop search's word lengths one after the other, in one thread",
+             "ccfa066": "the screening's cell tables reaching as far again as the farthest vertex; Chase over "
+                        "the 10 least reliable bits and the Viterbi equalizer"}
 TARGET = 0.5  # seconds, issue 13
 
 
