@@ -106,7 +106,8 @@ def main() -> None:
 
             t_embed = best_of(run_embed, 2)
             pm = res.pm
-            t_decode = best_of(lambda: pm.decode(), 7)
+            t_decode = best_of(lambda: pm.decode(), 25)  # (8-30 ms calls: a busy spell of this shared machine
+            # can cover 7 of them)
             marked = pmwm.read_mesh(out)
             k = pmwm.read_key(key)
             t_verify = best_of(lambda: pmwm.verify(marked.vertices, marked.faces, k))
@@ -130,7 +131,7 @@ def main() -> None:
     lines = [
         "## Core speed and size",
         "",
-        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. Best of 2-3 runs (`pmwm embed` and its anchor: best of 5, alternating; decode: best of 7).",
+        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. Best of 2-3 runs (`pmwm embed` and its anchor: best of 5, alternating; decode: best of 25).",
         "",
         "| mesh | vertices | `pmwm embed` CLI end to end | anchor: fast-simplification to 1 %, whole process | ratio | of which Python start + import | read mesh | `pmwm.embed()` | records | full decode | records/s | verify (index) | verify (re-ordered copy) | .pmwm bytes | bytes/record |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
