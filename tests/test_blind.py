@@ -144,6 +144,9 @@ def test_the_most_likely_flips_are_the_lightest_sets_of_bits():
         if N <= 12:  # against every subset
             every = np.sort([w[list(c)].sum() for k in range(N + 1) for c in itertools.combinations(range(N), k)])
             assert np.allclose(cost, every[:len(cost)])
+    # a bit read with certainty (infinite reliability) is never flipped before the others
+    got = word.likely_flips(np.array([0.3, np.inf, 0.1, 0.2]), 8)
+    assert not got[:, 1].any() and len({row.tobytes() for row in got}) == 8
 
 
 def test_a_word_read_one_bin_off_in_a_neighbour_frame_counts_every_frame_in_its_p_value(marked):

@@ -66,7 +66,7 @@ def likely_flips(reliability: np.ndarray, count: int) -> np.ndarray:
     Chase's search flips every subset of the C least reliable bits; these are as many candidates, so
     the p-value's union bound is the same, but a lone error on the 11th or 12th least reliable bit is
     more likely than one on 6 of the 10 together, and is tried (BENCHMARKS.md, ``blind-soft-list``)."""
-    r = np.asarray(reliability, dtype=np.float64)
+    r = np.clip(np.nan_to_num(np.asarray(reliability, dtype=np.float64), nan=0.0), 0.0, 1e300)  # (sums stay finite)
     order = np.argsort(r, kind="stable")
     w = r[order].tolist()
     out = np.zeros((count, len(r)), np.uint8)
