@@ -184,7 +184,7 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
     z = np.nan_to_num(radial.equalized(stat), nan=0.0)
     if share is not None:
-        z = z * np.sqrt(np.maximum(np.nan_to_num(share, nan=0.0), 0.0))
+        z = z * np.sqrt(np.nan_to_num(share))
     score = np.bincount(bit_of_bin, weights=z, minlength=n_word)
     got = (score > 0).astype(np.uint8)
     erased = score == 0

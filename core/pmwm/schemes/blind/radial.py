@@ -161,18 +161,6 @@ def bin_statistics(r: np.ndarray, b: np.ndarray, a: np.ndarray, n_bins: int) -> 
     return np.divide(s, wsum, out=np.full(n_bins, np.nan), where=wsum > 0), wsum
 
 
-def read_statistics(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each bin's mean of r over its vertices, minus 1/2 (M,) (NaN: empty), and its share of the
-    vertices (M,)."""
-    return read_statistics_many(V, F, (n_bins,))[0]
-
-
-def read_statistics_many(V: np.ndarray, F: np.ndarray, bin_counts) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``read_statistics`` for several bin counts, the frame computed once."""
-    fr, a = frame_of(V, F, 1)
-    return statistics_in(V, a, fr, bin_counts)
-
-
 def _least_step(reached, j_max: np.ndarray, guess: Optional[np.ndarray] = None) -> np.ndarray:
     """Per bin, the smallest step j in 0 .. j_max (M,) int64 for which ``reached(j)`` ((M,) -> (M,)
     bool, monotone in j) holds; j_max where none does. Bisection, all bins at once; a ``guess`` (M,)
@@ -180,13 +168,12 @@ def _least_step(reached, j_max: np.ndarray, guess: Optional[np.ndarray] = None) 
     bin in two readings instead of about log2(j_max)."""
     lo = np.zeros_like(j_max)
     hi = j_max.copy()
-    if guess is not None:
+    if guess is not None:  # reached at g: the answer is at most g, and g itself unless reached at g - 1
         g = np.clip(guess, 0, j_max)
         at = reached(g)
-        below = reached(np.maximum(g - 1, 0)) | (g == 0)
-        hi = np.where(at, g, hi)
-        lo = np.where(at & ~below, g, np.where(at, lo, np.minimum(g + 1, hi)))
-        hi = np.where(at & below & (g > 0), g - 1, hi)
+        below = (g > 0) & reached(np.maximum(g - 1, 0))
+        lo = np.where(at, np.where(below, lo, g), np.minimum(g + 1, hi))
+        hi = np.where(at, np.where(below, g - 1, g), hi)
     while np.any(lo < hi):
         mid = (lo + hi) // 2
         sat = reached(mid)
@@ -272,14 +259,12 @@ def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, r
         beta, pushed = _solve_beta(bv.r, bv.bin, a, n_bins, one, targets)
         use_k = ~pushed & (signs != 0)  # beyond the push's reach: Cho's r**k alone
         beta = np.where(pushed & (signs != 0), beta, 0.0)
-        if use_k.any():  # (on the vertices of those bins only: a bin's mean is its own vertices')
-            sub = np.flatnonzero(use_k[np.where(bv.bin >= 0, bv.bin, 0)] & (bv.bin >= 0))
-            k = _solve_k(bv.r[sub], bv.bin[sub], a[sub], n_bins, one, targets)
-        else:
-            k = np.ones(n_bins)
-        k = np.where(use_k, k, 1.0)
         inside = bv.bin >= 0
         bi = np.where(inside, bv.bin, 0)
+        k = np.ones(n_bins)
+        if use_k.any():  # (on the vertices of those bins only: a bin's mean is its own vertices')
+            sub = np.flatnonzero(use_k[bi] & inside)
+            k = np.where(use_k, _solve_k(bv.r[sub], bv.bin[sub], a[sub], n_bins, one, targets), 1.0)
         r_new = np.where(inside, _push(bv.r, beta[bi]) ** k[bi], bv.r)
         rho_new = fr.lo + fr.width * (bi + r_new)
         moved = inside & (r_new != bv.r)
