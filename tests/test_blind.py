@@ -572,3 +572,19 @@ def test_the_equalizer_reads_each_sign_with_its_neighbours_summed_out():
     x = np.array([0.1, -0.05, 0.2, np.nan, -0.3])
     assert np.allclose(radial._posterior_odds(np.nan_to_num(x), np.isnan(x), 0.7, 0.0, 0.04) * 0.04 / 1.4,
                        np.nan_to_num(x))
+
+
+def test_crop_candidates_keep_the_first_point_of_each_lattice_cell():
+    """``crop._spread`` keeps, in ascending order, exactly the first point (in input order) of every
+    occupied lattice cell (cells centred on the lattice points, negative coordinates included), and
+    nothing of an empty set."""
+    rng = np.random.default_rng(5)
+    D = rng.normal(size=(2000, 3)) * 3.0 - 1.0
+    spacing = 0.9
+    got = crop._spread(D, spacing)
+    cells = [tuple(c) for c in np.round(D / spacing).astype(np.int64).tolist()]
+    first: dict = {}
+    for i, c in enumerate(cells):
+        first.setdefault(c, i)
+    assert got.tolist() == sorted(first.values())
+    assert crop._spread(np.zeros((0, 3)), spacing).tolist() == []

@@ -186,8 +186,13 @@ def _spread(D: np.ndarray, spacing: float) -> np.ndarray:
     """Indices (ascending) of the first of the points D (K, 3) in each cell of a lattice of ``spacing``
     (cells centred on the lattice's points). The cells of spacing 3s are unions of those of s, so the
     points kept at 3s from those kept at s are the ones kept at 3s from all."""
+    if len(D) == 0:
+        return np.zeros(0, np.int64)
     cell = np.round(D / spacing).astype(np.int64)
-    first = np.unique(cell, axis=0, return_index=True)[1]
+    cell -= cell.min(0)
+    size = cell.max(0) + 1
+    key = (cell[:, 0] * size[1] + cell[:, 1]) * size[2] + cell[:, 2]  # one integer per cell (a few
+    first = np.unique(key, return_index=True)[1]  # hundred per axis): the rows' unique, 4x faster
     first.sort()
     return first
 
