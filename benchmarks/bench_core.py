@@ -42,6 +42,12 @@ def zip_sizes(tmp: str) -> list[tuple[str, float]]:
     return [(z.name, z.stat().st_size / 2**20) for z in sorted(out.glob("*.zip"))]
 
 
+def without_pm(cmd: list[str]) -> list[str]:
+    """The command line ``cmd`` without its ``--pm FILE``."""
+    i = cmd.index("--pm")
+    return cmd[:i] + cmd[i + 2:]
+
+
 def best_of(fn, repeat: int = 3) -> float:
     times = []
     for _ in range(repeat):
@@ -90,11 +96,14 @@ def main() -> None:
             cli = [sys.executable, "-m", "pmwm", "embed", src_path, "-o", out, "--key", key, "--pm", pmf,
                    "--payload", "bench", "--seed", "1", "--force", "-q"]
             blind = [sys.executable, "-m", "pmwm", "embed", src_path, "-o", os.path.join(tmp, f"{name}_blind.ply"),
-                     "--scheme", "blind", "--payload", "bench", "--seed", "1", "--force", "-q"]
+                     "--scheme", "blind", "--pm", os.path.join(tmp, f"{name}_blind.pmwm"), "--payload", "bench",
+                     "--seed", "1", "--force", "-q"]
+            # without --pm: the same marked mesh (and key), no progressive mesh built
+            cli_flat, blind_flat = without_pm(cli), without_pm(blind)
             # the commands and their anchor alternate, so that a slow spell of this shared machine hits all
             env = dict(os.environ, PMWM_PASSPHRASE="bench core pass phrase")
-            (t_cli, c_cli), (t_blind, c_blind), (t_anchor, c_anchor) = best_alternating(
-                [cli, blind, [sys.executable, "-c", ANCHOR, src_path]], 5, env)
+            (t_cli, c_cli), (t_blind, c_blind), (t_flat, c_flat), (t_bflat, c_bflat), (t_anchor, c_anchor) = \
+                best_alternating([cli, blind, cli_flat, blind_flat, [sys.executable, "-c", ANCHOR, src_path]], 5, env)
             t_py0 = best_of(lambda: subprocess.run([sys.executable, "-c", "import pmwm.cli"], check=True), 2)
             src = pmwm.read_mesh(src_path)
             t_read = best_of(lambda: pmwm.read_mesh(src_path))
@@ -122,7 +131,7 @@ def main() -> None:
             head = size - pm.n_records * 24  # header, base mesh, level table, checksum
             rows.append((name, len(src.vertices), t_cli, t_py0, t_read, t_embed, pm.n_records, t_decode,
                          t_verify, t_verify_pos, size, len(pm.level_records), head, t_anchor))
-            cpu_rows.append((name, t_cli, c_cli, t_blind, c_blind, t_anchor, c_anchor))
+            cpu_rows.append((name, t_cli, c_cli, t_blind, c_blind, t_anchor, c_anchor, t_flat, c_flat, t_bflat, c_bflat))
         demo = [sys.executable, "-m", "pmwm", "demo", os.path.join(tmp, "demo"), "--force"]
         t_demo = best_of(lambda: subprocess.run(demo, check=True, stdout=subprocess.DEVNULL), 3)
         demo_out = subprocess.run(demo, check=True, capture_output=True, text=True).stdout
@@ -144,16 +153,19 @@ def main() -> None:
         )
     lines += [
         "",
-        "Both schemes' `pmwm embed` (default robust with a key file; `--scheme blind` with a pass phrase, "
-        "no .pmwm written) and the anchor, alternating in the same run; wall-clock and CPU time (user + "
-        "system) of each whole process, best of 5. The embedders build the progressive mesh in a second "
+        "Both schemes' `pmwm embed` with `--pm` (the progressive mesh built and written; robust with a key "
+        "file, `--scheme blind` with a pass phrase), then without `--pm` (the same marked mesh and key, no "
+        "progressive mesh built), and the anchor, alternating in the same run; wall-clock and CPU time (user "
+        "+ system) of each whole process, best of 5. The embedders build the progressive mesh in a second "
         "thread beside the marking (`pmwm.background`), so their CPU time exceeds their wall-clock time; "
         "the anchor is single-threaded.",
         "",
-        "| mesh | robust: wall / CPU | ratio to the anchor (wall) | blind: wall / CPU | ratio (wall) | anchor: wall / CPU |",
-        "|---|---|---|---|---|---|",
-        *[f"| {name} | {tc:.2f} / {cc:.2f} s | {tc / ta:.2f} | {tb:.2f} / {cb:.2f} s | {tb / ta:.2f} | {ta:.2f} / {ca:.2f} s |"
-          for name, tc, cc, tb, cb, ta, ca in cpu_rows],
+        "| mesh | robust --pm: wall / CPU | ratio to the anchor (wall) | blind --pm: wall / CPU | ratio (wall) | "
+        "robust, no --pm | ratio | blind, no --pm | ratio | anchor: wall / CPU |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+        *[f"| {name} | {tc:.2f} / {cc:.2f} s | {tc / ta:.2f} | {tb:.2f} / {cb:.2f} s | {tb / ta:.2f} | "
+          f"{tf:.2f} / {cf:.2f} s | {tf / ta:.2f} | {tbf:.2f} / {cbf:.2f} s | {tbf / ta:.2f} | {ta:.2f} / {ca:.2f} s |"
+          for name, tc, cc, tb, cb, ta, ca, tf, cf, tbf, cbf in cpu_rows],
     ]
     ig = [r for r in rows if r[0] == "igea"][0]
     igb = [r for r in cpu_rows if r[0] == "igea"][0]
@@ -161,8 +173,9 @@ def main() -> None:
         "",
         "Against the targets of issue 13 (measured above, in the same run):",
         f"- `pmwm embed` of igea end to end at most 1.5x (stretch 1.0x) the anchor's whole process: "
-        f"{ig[2]:.2f} s against {ig[13]:.2f} s, ratio {ig[2] / ig[13]:.2f} (`--scheme blind`: {igb[3]:.2f} s, "
-        f"ratio {igb[3] / igb[5]:.2f}).",
+        f"with the progressive mesh (`--pm`) {ig[2]:.2f} s against {ig[13]:.2f} s, ratio {ig[2] / ig[13]:.2f} "
+        f"(`--scheme blind`: {igb[3]:.2f} s, ratio {igb[3] / igb[5]:.2f}); without it {igb[7]:.2f} s, ratio "
+        f"{igb[7] / igb[5]:.2f} (blind {igb[9]:.2f} s, ratio {igb[9] / igb[5]:.2f}).",
         f"- the README's demo (`pmwm demo`: embed, write three files, verify) on the bunny: embed {t_demo_embed:.2f} s "
         f"as the demo prints it (target under 1 s); the whole command {t_demo:.2f} s.",
         f"- full decode at least 4 M records/s: {ig[6] / ig[7] / 1e6:.2f} M records/s on igea, "

@@ -587,3 +587,39 @@ def test_cho_schemes_behind_the_same_commands(tmp_path, scheme):
 def test_unknown_scheme_is_refused_with_the_list(tmp_path):
     fails_cleanly(tmp_path, "embed", COW, "-o", tmp_path / "m.ply", "--key", tmp_path / "k.json",
                   "--scheme", "cho3", mentions=("cho1", "robust"))
+
+
+@pytest.mark.parametrize("scheme", ["robust", "blind"])
+def test_embed_builds_the_progressive_mesh_only_for_pm(tmp_path, monkeypatch, scheme):
+    """Without --pm no progressive mesh is built (most of an embed's time) and the mark reads; with --pm
+    it is built and decodes to the marked mesh."""
+    import sys as _sys
+
+    modules = [_sys.modules["pmwm.schemes.robust.embed"], _sys.modules["pmwm.schemes.blind"]]
+    real = modules[0].build_progressive_mesh
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a progressive mesh was built without --pm")
+
+    for m in modules:
+        monkeypatch.setattr(m, "build_progressive_mesh", refuse)
+    monkeypatch.setenv("PMWM_PASSPHRASE", "a pass phrase")
+    src = COW
+    if scheme == "blind":  # (a mesh the blind scheme can mark: the blob is too small for its 64 bins)
+        src = tmp_path / "cap.off"
+        meshes.write_off(src, *meshes.open_cap())
+    common = ["--payload", PAYLOAD, "--seed", 2, "-q"] + (["--scheme", "blind"] if scheme == "blind"
+                                                          else ["--key", tmp_path / "k.json"])
+    assert call("embed", src, "-o", tmp_path / "m.ply", *common).returncode == 0
+    assert not list(tmp_path.glob("*.pmwm"))
+    key = ["--key", tmp_path / "k.json"] if scheme == "robust" else []
+    code, v = verdict(tmp_path / "m.ply", *key)
+    assert code == 0 and v["marked"] and v["payload"] == PAYLOAD
+    for m in modules:
+        monkeypatch.setattr(m, "build_progressive_mesh", real)
+    common = [c if c != tmp_path / "k.json" else tmp_path / "k2.json" for c in common]
+    assert call("embed", src, "-o", tmp_path / "m2.ply", "--pm", tmp_path / "m2.pmwm", *common).returncode == 0
+    assert (tmp_path / "m2.ply").read_bytes() == (tmp_path / "m.ply").read_bytes()
+    V, F = pmwm.read_pm(tmp_path / "m2.pmwm").decode()
+    src = pmwm.read_mesh(tmp_path / "m2.ply")
+    assert np.array_equal(sorted_rows(V), sorted_rows(src.vertices))

@@ -167,3 +167,33 @@ def test_keys_without_a_fingerprint_still_read_by_index_when_carriers_are_in_pla
     old = dataclasses.replace(res.key, faces_fingerprint="", pm_faces_fingerprint="")
     v = verify(*attacks.noise_paper(res.vertices, F, amplitude=0.002, seed=0), old)
     assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.bit_errors == 0
+
+
+@pytest.mark.parametrize("scheme", ["robust", "blind", "cho1"])
+def test_without_a_progressive_mesh_the_same_mesh_is_marked_and_read(scheme, tmp_path):
+    """``EmbedOptions(progressive=False)`` skips the build: no ``pm``, the very same marked mesh as with
+    it, and the key (its progressive numbering the mesh's own) reads the mark, through a key file too."""
+    V, F = meshes.open_cap()
+    phrase = "a pass phrase" if scheme == "blind" else None
+    runs = {p: embed(V, F, EmbedOptions(payload="Acme", seed=4, scheme=scheme, passphrase=phrase, progressive=p))
+            for p in (True, False)}
+    assert runs[True].pm is not None and runs[False].pm is None
+    assert np.array_equal(runs[True].vertices, runs[False].vertices)
+    key = runs[False].key
+    assert np.array_equal(key.carrier_pm_index, key.carrier_index) and key.pm_faces_fingerprint == ""
+    if scheme == "blind":
+        key = pmwm.schemes.blind.key_from_passphrase(phrase)
+    else:
+        pmwm.write_key(tmp_path / "k.json", key)
+        key = pmwm.read_key(tmp_path / "k.json")
+    v = verify(runs[False].vertices, F, key)
+    assert v.marked and v.payload == "Acme"
+
+
+def test_the_paper_scheme_builds_its_progressive_mesh_anyway():
+    """The paper's bits go in during the collapses: ``progressive=False`` cannot skip them."""
+    V, F = meshes.blob()
+    on = embed(V, F, EmbedOptions(payload="Acme", seed=4, scheme="paper"))
+    off = embed(V, F, EmbedOptions(payload="Acme", seed=4, scheme="paper", progressive=False))
+    assert off.pm is not None and np.array_equal(on.vertices, off.vertices)
+    assert off.pm.n_records == on.pm.n_records

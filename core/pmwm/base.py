@@ -45,6 +45,11 @@ class EmbedOptions:
     al. 2007, methods I and II), "blind" (read with ``passphrase`` alone). strength: None for the
     scheme's default; for robust and paper a factor (2), for cho1/cho2 Cho's margin alpha (0.05),
     for blind the bin-mean margin (0.07). passphrase: the blind scheme's secret (never stored).
+    progressive: build the progressive mesh (``EmbedResult.pm``); False when it will not be shipped
+    (``pmwm embed`` without ``--pm``): robust, blind, cho1 and cho2 then skip the build, most of an
+    embed's time, and give the same marked mesh with ``pm`` None (the key records the mesh's own
+    numbering as its progressive one); the paper scheme builds it anyway (its bits go in during the
+    collapses).
     """
 
     payload: Optional[str] = None
@@ -55,11 +60,12 @@ class EmbedOptions:
     seed: Optional[int] = None
     scheme: str = "robust"
     passphrase: Optional[str] = field(default=None, repr=False)
+    progressive: bool = True
 
 
 @dataclass
 class EmbedResult:
-    """The marked mesh, its progressive mesh and the key.
+    """The marked mesh, its progressive mesh (None when ``EmbedOptions.progressive`` was False) and the key.
 
     vertices : (n, 3) float64 marked positions (float32-exact), in the input's vertex order.
     faces : (m, 3) int64, the input's. carriers : (k,) int64 vertices that carry the mark
@@ -68,7 +74,7 @@ class EmbedResult:
 
     vertices: np.ndarray
     faces: np.ndarray
-    pm: ProgressiveMesh
+    pm: Optional[ProgressiveMesh]
     key: WatermarkKey
     carriers: np.ndarray
     bits: np.ndarray
@@ -213,21 +219,24 @@ def _key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, a
                 data=data, faces_fingerprint=face_fingerprint(faces))
 
 
-def _pm_fields(pm: ProgressiveMesh, faces: np.ndarray, key_carriers: np.ndarray) -> dict:
-    """The key's fields from the progressive mesh: the carriers' and the faces' progressive numbering."""
+def _pm_fields(pm: Optional[ProgressiveMesh], faces: np.ndarray, key_carriers: np.ndarray) -> dict:
+    """The key's fields from the progressive mesh: the carriers' and the faces' progressive numbering
+    (without one: the mesh's own numbering, and no faces fingerprint to match)."""
+    if pm is None:
+        return dict(carrier_pm_index=key_carriers.copy(), pm_faces_fingerprint="")
     pm_of = np.empty(len(pm.vertex_order), np.int64)
     pm_of[pm.vertex_order] = np.arange(len(pm.vertex_order))
     return dict(carrier_pm_index=pm_of[key_carriers], pm_faces_fingerprint=face_fingerprint(pm_of[faces]))
 
 
 def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency,
-                 pm: Union[ProgressiveMesh, Callable[[], ProgressiveMesh]], key_carriers: np.ndarray,
+                 pm: Union[None, ProgressiveMesh, Callable[[], ProgressiveMesh]], key_carriers: np.ndarray,
                  carriers: np.ndarray, data: object = None) -> EmbedResult:
     """The key and the result, the last step of every embedder. marked : (n, 3) float64 the marked
     mesh; key_carriers : (k,) int64 the vertices the key records (k = 0 or one per bit); carriers :
     the vertices reported as carrying the mark; data: the scheme's typed key data (``make_key``).
     ``pm`` may be a callable giving the progressive mesh (a build still running in another thread):
-    everything else is done before it is called."""
+    everything else is done before it is called; None when none was built."""
     V, F = job.vertices, job.faces
     fields = _key_fields(job.secret, job.bits, job.payload_kind, job.strength, V, F, marked, adj, key_carriers,
                          scheme, data)

@@ -125,8 +125,10 @@ def cmd_embed(a) -> int:
         raise UsageError("--passphrase-file is for --scheme blind; the other schemes write a key file")
     _check_outputs([a.output, a.key, a.pm], [a.input], a.force)
     src = read_mesh(a.input)
+    # the progressive mesh only when it is written (--pm): without it the embed skips most of its work
     opts = EmbedOptions(payload=a.payload, bits=a.bits, n_bits=a.n_bits, strength=a.strength,
-                        base_ratio=a.base_ratio, seed=a.seed, scheme=a.scheme, passphrase=passphrase)
+                        base_ratio=a.base_ratio, seed=a.seed, scheme=a.scheme, passphrase=passphrase,
+                        progressive=a.pm is not None)
     res = embed(src.vertices, src.faces, opts, progress=_progress(a.quiet))
     written: list[str] = []
     try:

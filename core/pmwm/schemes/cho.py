@@ -179,7 +179,7 @@ def _statistics(v: np.ndarray, n_bits: int, method: str) -> np.ndarray:
 def _embed(method: str, name: str):
     def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
         """Watermark a mesh with Cho's method (module docstring); vertices : (n, 3) float64, faces :
-        (m, 3) int64 (kept as they are). The progressive mesh is built on the marked mesh."""
+        (m, 3) int64 (kept as they are). The progressive mesh, if asked for, is built on the marked mesh."""
         job = start_embed(vertices, faces, options, progress, name, DEFAULT_ALPHA)
         V, F = job.vertices, job.faces
         job.report(0.0, "marking the norm distribution")
@@ -187,8 +187,10 @@ def _embed(method: str, name: str):
         marked, bins = _embed_bits(V, w, method, job.strength, STRENGTH_STEP)
         adj = build_adjacency(F, len(V))
         base = base_vertex_count(job.options.base_ratio, len(V))
-        pm, _ = build_progressive_mesh(marked, F, base_vertices=base, adjacency=adj,
-                                       progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
+        pm = None
+        if job.options.progressive:
+            pm, _ = build_progressive_mesh(marked, F, base_vertices=base, adjacency=adj,
+                                           progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
         data = ChoKeyData(method, job.strength, bins.rho_min, bins.rho_max, STRENGTH_STEP)
         none = np.zeros(0, np.int64)
         return finish_embed(job, name, marked, adj, pm, none, none, data=data)

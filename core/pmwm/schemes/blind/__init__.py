@@ -49,6 +49,7 @@ translation- and order-invariant by construction.
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Optional
 
@@ -105,8 +106,10 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     V, F = job.vertices, job.faces
     base = base_vertex_count(opts.base_ratio, len(V))
     # the progressive mesh of the unmarked mesh, built beside the marking (from the start: the worker
-    # finds the adjacency itself); the marked positions go in after
-    with Background(build_progressive_mesh, V, F, base_vertices=base) as building:
+    # finds the adjacency itself); the marked positions go in after. None built when the options ask
+    # for none.
+    with (Background(build_progressive_mesh, V, F, base_vertices=base) if opts.progressive
+          else nullcontext()) as building:
         job.report(0.0, "marking the radial distribution")
         marked = radial.embed_signs(V, F, signs, job.strength)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
@@ -119,7 +122,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
 
         job.secret, job.bits, job.payload_kind = secret, payload, kind
         none = np.zeros(0, np.int64)
-        return finish_embed(job, NAME, marked, adj, marked_pm, none, none,
+        return finish_embed(job, NAME, marked, adj, marked_pm if opts.progressive else None, none, none,
                             data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
 
 

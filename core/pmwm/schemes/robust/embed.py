@@ -14,6 +14,7 @@ second half and the marking run."""
 from __future__ import annotations
 
 import dataclasses
+from contextlib import nullcontext
 from typing import Callable, Optional
 
 import numpy as np
@@ -300,9 +301,11 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
     base = base_vertex_count(job.options.base_ratio, len(V))
     # the progressive mesh of the unmarked mesh, every site protected, built beside the analysis and
     # the marking (its set-up runs while the sites are placed; it waits for them before its first
-    # pass); the marked positions go in after
+    # pass); the marked positions go in after. None built when the options ask for none.
     protect = Later()
-    with Background(build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj) as building:
+    build = job.options.progressive
+    with (Background(build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj)
+          if build else nullcontext()) as building:
         places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
         protect.set(places.protected())
         an = lay_out(places, secret)
@@ -321,6 +324,6 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
             return with_positions(pm, marked)
 
         # the key read back from its stored form, so that it reads exactly as the key file will
-        return finish_embed(job, NAME, marked, adj, marked_pm, sites[first_site], sites,
+        return finish_embed(job, NAME, marked, adj, marked_pm if build else None, sites[first_site], sites,
                             data=RobustKeyData.from_extra(data.to_extra(), nb, len(V)))
 
