@@ -194,3 +194,32 @@ def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identi
         res = run_catalogue(assets[:2], ids, tmp_path / "b", pm=True, options=opts, scheduler=cluster.scheduler_address)
     assert not res.failed and res.written + res.skipped == 10
     assert _tree(tmp_path / "b") == {k: v for k, v in full.items() if not k.startswith("broken")}
+
+
+def test_without_a_progressive_mesh_the_copies_are_the_same_and_trace(cap, tmp_path, monkeypatch):
+    """An asset analysed with ``progressive=False`` (copies without .pmwm, the default of ``pmwm
+    fingerprint`` and ``pmwm catalogue``) builds no progressive mesh and gives the same copies; asking
+    it for a .pmwm copy is a clear error."""
+    an, fk, reg = cap
+    from pmwm.fingerprint import copies
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a progressive mesh was built for copies without .pmwm")
+
+    monkeypatch.setattr(copies, "build_progressive_mesh", refuse)
+    flat = analyse_asset(*meshes.open_cap(), FingerprintOptions(seed=11), progressive=False)
+    assert flat.pm is None and flat.key.secret == an.key.secret
+    c = an.codeword("r042")
+    assert np.array_equal(flat.marked(c), an.marked(c))
+    files = flat.write_copy(tmp_path, "r042")
+    assert sorted(files) == ["r042.ply"]
+    src = pmwm.read_mesh(tmp_path / "r042.ply")
+    assert _named(trace(src.vertices, src.faces, fk, reg)) == ["r042"]
+    with pytest.raises(ValueError, match="without a progressive mesh"):
+        flat.copy(c, pm=True)
+    # the command without --pm: the same, through the files
+    (tmp_path / "people.csv").write_text("id\nalice\nbob\n")
+    args = ["fingerprint", str(meshes.mesh_file("open_cap.off")), "--key", str(tmp_path / "cap.key.json"),
+            "--recipients", str(tmp_path / "people.csv"), "--out", str(tmp_path / "out"), "--seed", "4", "-q"]
+    assert pmwm.cli.main(args) == 0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["alice.ply", "bob.ply", "registry.json"]

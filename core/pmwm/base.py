@@ -198,7 +198,7 @@ def start_embed(vertices, faces, options: Optional[EmbedOptions], progress: Prog
 
 
 def make_key(secret: str, bits: np.ndarray, payload_kind: str, strength: float, vertices: np.ndarray,
-             faces: np.ndarray, marked: np.ndarray, adj: Adjacency, pm: ProgressiveMesh,
+             faces: np.ndarray, marked: np.ndarray, adj: Adjacency, pm: Optional[ProgressiveMesh],
              key_carriers: np.ndarray, scheme: str, data: object = None) -> WatermarkKey:
     """The key of a marked mesh: vertices (n, 3) the input, faces (m, 3), marked (n, 3) the marked
     positions, ``key_carriers`` (k,) int64 the vertices the key records (index, progressive-mesh

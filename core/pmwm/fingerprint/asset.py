@@ -46,9 +46,10 @@ def clean_temporaries(folder) -> None:
 
 
 def prepare_asset(asset_path, key_path, options: Optional[FingerprintOptions] = None,
-                  progress=None) -> tuple[AssetAnalysis, FingerprintKey]:
+                  progress=None, progressive: bool = True) -> tuple[AssetAnalysis, FingerprintKey]:
     """Read the asset and analyse it with the key at ``key_path``: the existing key (its options;
-    KeyFileError when it was made for another asset), or a new one from ``options`` written there."""
+    KeyFileError when it was made for another asset), or a new one from ``options`` written there.
+    ``progressive``: build the progressive mesh the copies share (only .pmwm copies need it)."""
     src = read_mesh(asset_path)
     V, F = src.vertices, src.faces
     if os.path.exists(key_path):
@@ -57,12 +58,12 @@ def prepare_asset(asset_path, key_path, options: Optional[FingerprintOptions] = 
             raise KeyFileError(f"{key_path} is the fingerprinting key of another asset than {asset_path}; "
                                "give that asset's key, or a new --key path")
         opts = FingerprintOptions(fk.options.strength, fk.options.n_sites, fk.options.base_ratio)
-        an = analyse_asset(V, F, opts, secret=fk.key.secret, progress=progress)
+        an = analyse_asset(V, F, opts, secret=fk.key.secret, progress=progress, progressive=progressive)
         if not np.array_equal(an.key.data.origin, fk.key.data.origin):
             raise KeyFileError(f"this pmwm analyses {asset_path} differently from the one that wrote {key_path}; "
                                "use the same pmwm version")
         return an, fk
-    an = analyse_asset(V, F, options, progress=progress)
+    an = analyse_asset(V, F, options, progress=progress, progressive=progressive)
     fk = FingerprintKey(an.key, an.options, an.asset_sha256)
     write_fingerprint_key(key_path, fk)
     return an, fk
@@ -134,7 +135,7 @@ def fingerprint_asset(asset_path, key_path, recipients, out_dir, pm: bool = Fals
         except OSError as exc:
             raise PmwmError(f"cannot create {out_dir}: {exc.strerror or exc}") from None
     t0 = time.perf_counter()
-    an, fk = prepare_asset(asset_path, key_path, options)
+    an, fk = prepare_asset(asset_path, key_path, options, progressive=pm)
     reg = open_registry(out_dir, fk)
     t1 = time.perf_counter()
     todo = pending(reg, out_dir, recipients, pm)

@@ -63,8 +63,8 @@ def asset_names(assets) -> list:
 # --------------------------------------------------------------------------- the tasks (run on workers)
 
 
-def _analyse(asset_path: str, key_path: str, options: FingerprintOptions) -> AssetAnalysis:
-    return prepare_asset(asset_path, key_path, options)[0]
+def _analyse(asset_path: str, key_path: str, options: FingerprintOptions, pm: bool) -> AssetAnalysis:
+    return prepare_asset(asset_path, key_path, options, progressive=pm)[0]
 
 
 def _todo(an: AssetAnalysis, key_path: str, out_dir: str, recipients: list, pm: bool):
@@ -150,7 +150,7 @@ def run_catalogue(assets, recipients: list, out, *, pm: bool = False, options: O
         for path, name in zip(assets, names):
             folder, key_path = os.path.join(out, name), os.path.join(out, name + ".key.json")
             an = client.submit(_analyse, os.path.abspath(os.fspath(path)), os.path.abspath(key_path),
-                               options or FingerprintOptions(), pure=False, key=f"analyse-{name}")
+                               options or FingerprintOptions(), pm, pure=False, key=f"analyse-{name}")
             todo = client.submit(_todo, an, os.path.abspath(key_path), os.path.abspath(folder), list(recipients),
                                  pm, pure=False, key=f"pending-{name}")
             tags[todo.key] = ("todo", name, an)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Optional
 
@@ -69,14 +70,15 @@ class AssetAnalysis:
     """An asset analysed for fingerprinting (see the module docstring). sites : the robust
     analysis; key: the tracing key (a robust key with one "bit" per site, chip +1); bump, swirl (S,)
     float64: 1 where a copy carries the site's bump / swirl, 0 where no reading would see it; pm: the
-    progressive mesh every copy shares (its positions those of the unmarked asset)."""
+    progressive mesh every copy shares (its positions those of the unmarked asset), None when the
+    analysis was asked for none (copies without .pmwm files)."""
 
     sites: SiteAnalysis
     key: WatermarkKey
     options: FingerprintOptions
     bump: np.ndarray
     swirl: np.ndarray
-    pm: ProgressiveMesh
+    pm: Optional[ProgressiveMesh]
     asset_sha256: str
     _ply_head: bytes = dataclasses.field(repr=False, default=b"")
     _ply_faces: bytes = dataclasses.field(repr=False, default=b"")
@@ -97,6 +99,9 @@ class AssetAnalysis:
     def copy_pm(self, marked: np.ndarray) -> ProgressiveMesh:
         """The copy's progressive mesh: the shared connectivity and records, the copy's positions
         (decodes exactly to ``marked`` in the progressive mesh's vertex order)."""
+        if self.pm is None:
+            raise ValueError("this asset was analysed without a progressive mesh (progressive=False); "
+                             "analyse it with one to write .pmwm copies")
         return with_positions(self.pm, marked)
 
     def copy(self, c: np.ndarray, pm: bool = False) -> CopyFiles:
@@ -121,9 +126,11 @@ class AssetAnalysis:
 
 
 def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None, secret: Optional[str] = None,
-                  progress: Progress = None) -> AssetAnalysis:
+                  progress: Progress = None, progressive: bool = True) -> AssetAnalysis:
     """Analyse an asset, vertices (n, 3) float64, faces (m, 3) int64, for fingerprinting with the
-    key's ``secret`` (None: drawn from ``options.seed``, or fresh)."""
+    key's ``secret`` (None: drawn from ``options.seed``, or fresh). ``progressive``: build the
+    progressive mesh the copies share (False: none, for copies without .pmwm files; the same sites,
+    codewords and copies, the key recording the asset's own numbering as its progressive one)."""
     opts = options or FingerprintOptions()
     report = progress or no_progress
     strength = check_options(opts, DEFAULT_STRENGTH)
@@ -135,8 +142,8 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
     # the progressive mesh every copy shares (of the unmarked asset), built beside the analysis: its set-up
     # while the sites are placed, its passes, once the readable sites are known, beside the rest
     keep = Later()
-    with loading_engine(), Background(build_progressive_mesh, V, F, base_vertices=base_vertex_count(
-            opts.base_ratio, len(V)), protected=keep, adjacency=adj) as building:
+    with loading_engine(), (Background(build_progressive_mesh, V, F, base_vertices=base_vertex_count(
+            opts.base_ratio, len(V)), protected=keep, adjacency=adj) if progressive else nullcontext()) as building:
         an = analyse(V, F, secret, strength, max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
                      report=lambda f, m: report(0.5 * f, m), adj=adj)
         S = an.n_sites
@@ -148,7 +155,7 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
         data = dataclasses.replace(an.site, bit=np.arange(S), chip=np.ones(S), usable=usable, centre_ok=centre_ok,
                                    swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)
         data = RobustKeyData.from_extra(data.to_extra(), S, len(V))  # as the key file will read
-        pm, _ = building.result(lambda f, m: report(0.6 + 0.35 * f, m))
+        pm = building.result(lambda f, m: report(0.6 + 0.35 * f, m))[0] if progressive else None
     key = make_key(secret, np.zeros(S, np.uint8), "bits", strength, V, F, V, an.adj, pm, np.zeros(0, np.int64),
                    NAME, data=data)
     head, body = ply_parts(len(V), F, comment=b"pmwm fingerprinted copy")
