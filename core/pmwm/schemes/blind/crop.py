@@ -191,8 +191,9 @@ def _spread(D: np.ndarray, spacing: float) -> np.ndarray:
     cell = np.round(D / spacing).astype(np.int64)
     cell -= cell.min(0)
     size = cell.max(0) + 1
-    key = (cell[:, 0] * size[1] + cell[:, 1]) * size[2] + cell[:, 2]  # one integer per cell (a few
-    first = np.unique(key, return_index=True)[1]  # hundred per axis): the rows' unique, 4x faster
+    # one integer per cell (a few hundred cells per axis): np.unique of the rows took 7 times as long
+    key = (cell[:, 0] * size[1] + cell[:, 1]) * size[2] + cell[:, 2]
+    first = np.unique(key, return_index=True)[1]
     first.sort()
     return first
 
