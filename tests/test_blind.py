@@ -234,6 +234,26 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     assert not pmwm.verify(V, F, passphrase=PHRASE).marked
 
 
+def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny, monkeypatch):
+    """An asset with a planar cut of its own (a bust's base), marked and read intact, re-ordered or with
+    0.3 % noise, shows the mark in full in its own frame: read there, without the crop search (over a
+    second otherwise), at the p-value of a suspect without a cut. Its crops are still searched (the test
+    above)."""
+    V, F = A.crop_plane(*bunny, fraction=0.1, seed=7)
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Flat", passphrase=PHRASE, seed=5,
+                                             progressive=False))
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the crop search ran on a copy that shows the mark in full")
+
+    monkeypatch.setattr(frames, "crop_frames", refuse)
+    assert crop.cut_planes(res.vertices, F, res.vertices.mean(0))  # the asset has a planar cut
+    for X, G in [(res.vertices, F), A.reorder(res.vertices, F, seed=1),
+                 A.noise_benchmark(res.vertices, F, amplitude=0.003, seed=2)]:
+        v = pmwm.verify(X, G, passphrase=PHRASE)
+        assert v.marked and v.payload == "Flat" and v.extra["chase_bits"] == 10 and v.p_value < 1e-6
+
+
 def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, monkeypatch):
     """The centre a crop took away can lie a bin width or more off the plane of the family the search
     follows (the cap's centroid off the hole's axis), too far for the mark to show on the plane: the search
