@@ -176,7 +176,7 @@ class WatermarkTask(_Task):
 
     def __init__(self, context, payload: str = "", key_path: str = "", scheme: str = "robust",
                  strength: float = 2.0, base_ratio: float = 0.03, seed: int = -1, overwrite_key: bool = False,
-                 blind_margin: float = 0.0):
+                 blind_margin: float = 0.0, progressive: bool = True):
         import pmwm
 
         ob = _active_mesh(context)
@@ -189,7 +189,8 @@ class WatermarkTask(_Task):
             self.key_path = ""
             self.opts = pmwm.EmbedOptions(payload=payload or None, strength=round(float(blind_margin), 6) or None,  # 0: per mesh
                                           base_ratio=float(base_ratio),
-                                          seed=None if seed < 0 else int(seed), scheme=scheme, passphrase=phrase)
+                                          seed=None if seed < 0 else int(seed), scheme=scheme, passphrase=phrase,
+                                          progressive=bool(progressive))
             return
         self.key_path, self.make_folder = _key_path(context, ob, key_path)
         self.overwrite = bool(overwrite_key)
@@ -205,7 +206,7 @@ class WatermarkTask(_Task):
         self._remember_mesh(ob)
         self.opts = pmwm.EmbedOptions(payload=payload or None, strength=float(strength),
                                       base_ratio=float(base_ratio), seed=None if seed < 0 else int(seed),
-                                      scheme=scheme)
+                                      scheme=scheme, progressive=bool(progressive))
 
     def compute(self, progress):
         import pmwm
@@ -460,13 +461,16 @@ class PMWM_OT_watermark(_BackgroundOperator, Operator):
     blind_margin: FloatProperty(name="Margin", description="The Blind scheme's strength (Cho's alpha); "
                                 "0: chosen per mesh for a distortion of 0.019 % of the size",
                                 default=0.0, min=0.0, max=0.45, options={"SKIP_SAVE"})
+    progressive: BoolProperty(name="Progressive Mesh", description="Build the progressive mesh (Export "
+                              "Progressive Mesh needs it)", default=True, options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):
         return _poll_mesh(cls, context)
 
     def make_task(self, context):
-        names = ("payload", "key_path", "scheme", "strength", "base_ratio", "seed", "overwrite_key", "blind_margin")
+        names = ("payload", "key_path", "scheme", "strength", "base_ratio", "seed", "overwrite_key", "blind_margin",
+                 "progressive")
         return WatermarkTask(context, **{n: self.option(context, n) for n in names})
 
 
@@ -511,6 +515,9 @@ class PMWM_OT_export_pm(_PmwmOperator, Operator, ExportHelper):
         if not session.same_positions(marked.positions, meshdata.read_positions32(ob.data)):
             raise _Failed(f"'{ob.name}' changed since it was watermarked (edit or undo): "
                           "watermark this object first")
+        if marked.pm is None:
+            raise _Failed(f"'{ob.name}' was watermarked without its progressive mesh: undo the watermark, turn on "
+                          "Progressive Mesh (Advanced) and watermark it again")
         path = _file_path(self.filepath, "progressive mesh")
         pmwm.write_pm(path, marked.pm, force=True)
         pm = marked.pm

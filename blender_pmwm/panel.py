@@ -97,7 +97,7 @@ class VIEW3D_PT_pmwm_mark(_Sidebar, Panel):
 
 
 class VIEW3D_PT_pmwm_advanced(_Sidebar, Panel):
-    """Strength, base ratio and seed, each with what it does."""
+    """Strength, base ratio, seed and whether to build the progressive mesh, each with what it does."""
 
     bl_idname = "VIEW3D_PT_pmwm_advanced"
     bl_label = "Advanced"
@@ -114,6 +114,8 @@ class VIEW3D_PT_pmwm_advanced(_Sidebar, Panel):
         col.label(text="Size of the first streamed level")
         col.prop(s, "seed")
         col.label(text="-1: fresh secret, kept in the key")
+        col.prop(s, "progressive")
+        col.label(text="Off: faster, nothing to export")
 
 
 class VIEW3D_PT_pmwm_pm(_Sidebar, Panel):

@@ -109,6 +109,12 @@ class PMWM_SceneSettings(PropertyGroup):
         description="Secret seed for the carrier choice; -1 draws a fresh random one (recorded in the key)",
         default=-1, min=-1,
     )
+    progressive: BoolProperty(
+        name="Progressive Mesh",
+        description="Build the progressive mesh while watermarking (Export Progressive Mesh needs it); off: "
+                    "the same watermark in a fraction of the time, without one",
+        default=True,
+    )
     overwrite_key: BoolProperty(
         name="Overwrite Key",
         description="Replace an existing key file (the old key can no longer verify anything marked with it)",

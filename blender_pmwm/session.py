@@ -17,7 +17,7 @@ class Marked:
     """What the last watermark of one object left behind (memory only)."""
 
     name: str
-    pm: object  # pmwm.ProgressiveMesh of the marked mesh
+    pm: object  # pmwm.ProgressiveMesh of the marked mesh (None: watermarked without one)
     carriers: np.ndarray  # carrier vertex indices into the mesh
     positions: np.ndarray  # (n, 3) float32 positions written back, to detect later edits or undo
     n_bits: int

@@ -33,6 +33,8 @@ def _setup(case, bl, tmp_path):
         pm.write_bytes(b"PMWM" + bytes(range(200)))
     elif case == "marked":
         bpy.ops.pmwm.watermark(payload="Hi", key_path=str(key), seed=1)
+    elif case == "marked_without_pm":
+        bpy.ops.pmwm.watermark(payload="Hi", key_path=str(key), seed=1, progressive=False)
     elif case == "pm_level":
         bpy.ops.pmwm.watermark(payload="Hi", key_path=str(key), seed=1)
         bpy.ops.pmwm.export_pm(filepath=str(pm))
@@ -64,6 +66,7 @@ CASES = {
         ("empty_mesh", {}, "watermark this object first"),
         ("not_marked", {}, "watermark this object first"),
         ("marked", {"filepath": "MISSING_DIR"}, "missing"),
+        ("marked_without_pm", {}, "without its progressive mesh"),
     ],
     "import_pm": [
         ("missing_pm", {}, "no such file"),

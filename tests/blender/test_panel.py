@@ -106,10 +106,11 @@ def test_sub_panels_in_the_watermark_tab(addon):
 
 def test_advanced_options_are_in_the_advanced_sub_panel_with_a_line_each(scene, addon):
     advanced = draw(addon, "VIEW3D_PT_pmwm_advanced")
-    assert [e[1] for e in advanced if e[0] == "prop"] == ["strength", "base_ratio", "seed"]
+    assert [e[1] for e in advanced if e[0] == "prop"] == ["strength", "base_ratio", "seed", "progressive"]
     kinds = [e[0] for e in advanced]
-    assert kinds == ["prop", "label"] * 3  # one explaining line under each option
+    assert kinds == ["prop", "label"] * 4  # one explaining line under each option
     assert "fresh secret" in _labels(advanced) and "robust" in _labels(advanced)
+    assert "nothing to export" in _labels(advanced)
     mark = {e[1] for e in draw(addon, "VIEW3D_PT_pmwm_mark") if e[0] == "prop"}
     assert {"payload", "key_path", "scheme", "overwrite_key", "show_carriers"} == mark
 

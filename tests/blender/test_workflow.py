@@ -248,3 +248,16 @@ def test_scheme_option_selects_the_paper_scheme(scene, bl, tmp_path):
     bl.suzanne(levels=2)
     assert bpy.ops.pmwm.watermark(payload="R", key_path=str(key2), seed=2, scheme="robust") == {"FINISHED"}
     assert pmwm.read_key(key2).scheme == "robust"
+
+
+def test_watermark_without_the_progressive_mesh_is_the_same_mark(scene, bl, tmp_path):
+    """Progressive Mesh off: the very positions of a watermark with it (same seed), read back by Verify;
+    only Export Progressive Mesh has nothing to write (its error: test_errors)."""
+    with_pm, without = bl.suzanne(levels=1), bl.suzanne(levels=1)
+    for ob, flag in ((with_pm, True), (without, False)):
+        bl.activate(ob)
+        key = tmp_path / f"{ob.name}.key.json"
+        assert bpy.ops.pmwm.watermark(payload=PAYLOAD, key_path=str(key), seed=5, progressive=flag) == {"FINISHED"}
+    assert np.array_equal(bl.positions(with_pm), bl.positions(without))
+    assert bpy.ops.pmwm.verify(key_path=str(tmp_path / f"{without.name}.key.json")) == {"FINISHED"}
+    assert _verdict(scene) == (True, PAYLOAD)
