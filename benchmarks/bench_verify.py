@@ -13,8 +13,9 @@ paper scheme on a re-ordered copy (carriers found by position) and Cho et al. I 
 
 With ``--scheme blind`` (section "verify-speed-blind"): the same meshes marked by the blind scheme
 (payload "Acme", a pass phrase), the same attacks plus a 10 % plane crop, the unmarked mesh and the
-marked one read with another pass phrase, and the unmarked mesh cut in half (the crop search runs on
-every suspect with a planar cut, marked or not).
+marked one read with another pass phrase, the unmarked mesh cut in half (the crop search runs on
+suspects with a planar cut, marked or not), and the mesh cut flat before it was marked, read intact (its
+own frame shows the mark in full: no crop search since db80848).
 
 Every case is timed by two child processes, one importing this checkout's ``core``, one importing
 ``core`` of ``--baseline`` (extracted with ``git archive``); the two alternate for ``--rounds``
@@ -43,7 +44,7 @@ BASELINE = "88eb246"  # the last commit with brute-force spatial search
 CASES = ("marked", "re-ordered", "cut in half, posed", "simplified 50 %", "unmarked, other mesh's key",
          "unmarked, other secret", "paper: re-ordered", "cho1: marked")
 BLIND_CASES = ("marked", "re-ordered", "cut in half, posed", "cut 10 %", "simplified 50 %",
-               "unmarked, the phrase", "marked, another phrase", "unmarked, cut in half")
+               "unmarked, the phrase", "marked, another phrase", "unmarked, cut in half", "cut flat, then marked")
 BLIND_BASELINE = "8ddfaa7"  # the crop search screening every candidate 0.3 bin widths apart
 BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start at a time",
              "c28a68c": "the crop search scoring every candidate centre over 23 widths x 5 phases",
@@ -53,7 +54,8 @@ BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start 
              "4a70b94": "the crop search's word lengths one after the other, in one thread",
              "ccfa066": "the screening's cell tables reaching as far again as the farthest vertex; Chase over "
                         "the 10 least reliable bits and the Viterbi equalizer",
-             "90f8c1e": "the crop search's lattice cells kept by np.unique over rows of three integers"}
+             "90f8c1e": "the crop search's lattice cells kept by np.unique over rows of three integers; the crop "
+                        "search on every suspect with a planar cut"}
 TARGET = 0.5  # seconds, issue 13
 
 
@@ -89,6 +91,17 @@ def build_cases(path: Path) -> None:
         pickle.dump(rows, f)
 
 
+def flat_marked(V, F):
+    """The mesh cut 10 % by a plane, then marked with the blind scheme ("Acme", the bench phrase)."""
+    import pmwm
+    from pmwm import attacks
+
+    Vc, Fc = attacks.crop_plane(V, F, 0.1, seed=7)
+    res = pmwm.embed(Vc, Fc, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase="bench phrase",
+                                               progressive=False))
+    return res.vertices, res.faces
+
+
 def build_blind_cases(path: Path) -> None:
     """The blind scheme's cases (module docstring), pickled like ``build_cases``'."""
     import pmwm
@@ -110,6 +123,8 @@ def build_blind_cases(path: Path) -> None:
             "unmarked, the phrase": (V, F, key),
             "marked, another phrase": (MV, MF, key_from_passphrase("another phrase")),
             "unmarked, cut in half": (*attacks.crop_plane(V, F, 0.5, seed=2), key),
+            # an asset with a planar cut of its own (a bust's base), marked and read intact
+            "cut flat, then marked": (*flat_marked(V, F), key),
         }
         rows += [(m, c, *cases[c][:2], cases[c][2].to_json()) for c in BLIND_CASES]
     with open(path, "wb") as f:
