@@ -150,7 +150,8 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
         # which sites read: decided on a keyed reference copy, the same for every recipient
         ref = codeword(secret, "\0reference", S).astype(np.float64)
         _, (usable, centre_ok, index_ok, swirl_ok), dead, no_swirl = an.mark_readable(ref)
-        keep.set(an.protected(usable | centre_ok))
+        if progressive:
+            keep.set(an.protected(usable | centre_ok))
         frame = surface_frame(V, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
         data = dataclasses.replace(an.site, bit=np.arange(S), chip=np.ones(S), usable=usable, centre_ok=centre_ok,
                                    swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)

@@ -93,7 +93,8 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     secret = word.derive_secret(passphrase)
     # the generic first steps with an explicit-bits stand-in (the blind payload has its own lengths)
     job = start_embed(vertices, faces, EmbedOptions(bits="0", strength=opts.strength, base_ratio=opts.base_ratio,
-                                                    seed=opts.seed, scheme=NAME), progress, NAME, DEFAULT_ALPHA)
+                                                    seed=opts.seed, scheme=NAME, progressive=opts.progressive),
+                      progress, NAME, DEFAULT_ALPHA)
     if not job.strength < 0.5:
         raise PayloadError(f"the blind scheme's strength (the bin-mean margin) must be below 0.5, got {job.strength}")
     payload_seed = job.secret  # fresh randomness, or from the seed: one payload per mesh
@@ -108,8 +109,8 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     # the progressive mesh of the unmarked mesh, built beside the marking (from the start: the worker
     # finds the adjacency itself); the marked positions go in after. None built when the options ask
     # for none.
-    with (Background(build_progressive_mesh, V, F, base_vertices=base) if opts.progressive
-          else nullcontext()) as building:
+    build = job.options.progressive
+    with (Background(build_progressive_mesh, V, F, base_vertices=base) if build else nullcontext()) as building:
         job.report(0.0, "marking the radial distribution")
         marked = radial.embed_signs(V, F, signs, job.strength)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
@@ -122,7 +123,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
 
         job.secret, job.bits, job.payload_kind = secret, payload, kind
         none = np.zeros(0, np.int64)
-        return finish_embed(job, NAME, marked, adj, marked_pm if opts.progressive else None, none, none,
+        return finish_embed(job, NAME, marked, adj, marked_pm if build else None, none, none,
                             data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
 
 

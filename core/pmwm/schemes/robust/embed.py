@@ -307,7 +307,8 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
     with (Background(build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj)
           if build else nullcontext()) as building:
         places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
-        protect.set(places.protected())
+        if build:  # (the vertices to protect only when something is built)
+            protect.set(places.protected())
         an = lay_out(places, secret)
         site, sites = an.site, an.sites
         w = bits ^ keyed_bits(secret, "scramble", nb)
