@@ -296,6 +296,42 @@ def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marke
     assert stats.n_word == 64 and v.marked and v.payload == "Acme" and v.extra["frame"].startswith("crop")
 
 
+@pytest.fixture(scope="module")
+def small_marked(bunny):
+    """The bunny simplified to 13,935 vertices (about the Venus head's count), marked."""
+    V, F = A.simplify(*bunny, ratio=0.6)
+    return pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3,
+                                              progressive=False))
+
+
+@pytest.mark.parametrize("scheme", ["loop", "sqrt3"])
+def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, scheme, monkeypatch):
+    """One step of Loop or sqrt(3) subdivision (and a new order) smooths a mesh this small so much that
+    its own reading loses the payload; the coarse mesh solved from the new vertices reads it."""
+    V, F = A.reorder(*A.subdivide(small_marked.vertices, small_marked.faces, scheme), seed=2)
+    v = pmwm.verify(V, F, passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == scheme and v.p_value < 1e-6
+    monkeypatch.setattr(frames, "coarse_meshes", lambda V, F: [])
+    v = pmwm.verify(V, F, passphrase=PHRASE)
+    assert not (v.marked and v.payload == "Acme") and v.extra["mesh"] == "suspect"
+
+
+@pytest.mark.parametrize("attack", [None, lambda v, f: A.quantize(v, f, bits=8)], ids=["intact", "quantize8"])
+def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack):
+    """A mesh that is itself a subdivision (a modeller's output), marked: the mark is on every vertex,
+    so the suspect, not the coarse mesh under it, shows it (intact: in full view, no coarse mesh looked
+    for; quantized: more energy per vertex than its coarse mesh)."""
+    V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), "loop")
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4,
+                                             progressive=False))
+    S = (res.vertices, res.faces) if attack is None else attack(res.vertices, res.faces)
+    own = frames.read_statistics_frames(*S, [L + word.CHECK_BITS for L in word.PAYLOAD_BITS])
+    assert (own.energy >= frames.FULL_VIEW) == (attack is None)
+    assert [c.rule for c in frames.coarse_meshes(*S)] == ["loop"]  # the structure is there either way
+    v = pmwm.verify(*S, passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "suspect"
+
+
 def test_cut_planes_find_the_plane_of_a_crop():
     V, F = meshes.blob()
     assert crop.cut_planes(V, F, V.mean(0)) == []  # closed: nothing was cut

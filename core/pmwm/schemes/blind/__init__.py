@@ -45,6 +45,11 @@ reader also searches the frame the cut took away (``crop``: the original centroi
 two-parameter family given by the cut plane; ``frames``), key-free as well, and reads there the length
 whose frame shows the most energy. The mark is global (no places); it is rotation-, scale-,
 translation- and order-invariant by construction.
+
+Subdivision: a copy subdivided once (midpoint, Loop, sqrt(3)) carries the marked mesh in its
+connectivity; when the suspect does not show the mark in full view, the reader also measures the coarse
+mesh under it (``pmwm.subdivision``; ``frames.read_statistics``), key-free, and keeps whichever of the
+two shows more mark energy per vertex.
 """
 
 from __future__ import annotations
@@ -148,33 +153,38 @@ def _calibrated(V, F, signs, alpha, marked) -> tuple[float, np.ndarray]:
 @dataclass
 class Statistics:
     """What the reader measures on a suspect, independent of the pass phrase: per word length N the
-    bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1
-    or 2 frames (``frame_names``: the suspect's own, then a refined one or a cropped copy's; see
-    ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads; ``shares``, the
-    same shape, each bin's share of the vertices (None: taken as equal), which weighs how reliable its
-    reading is (``word_read``)."""
+    bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1,
+    2 or 4 frames (``frame_names``: the suspect's own, then a refined one, or a cropped copy's and its
+    neighbours; see ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads;
+    ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
+    reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the coarse mesh
+    under a subdivided suspect: "midpoint", "loop", "sqrt3"; ``frames.read_statistics``)."""
 
     words: dict[int, np.ndarray]
     n_word: int
     frame_names: tuple[str, ...]
     shares: Optional[dict[int, np.ndarray]] = None
+    mesh: str = "suspect"
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
         shares = None if self.shares is None else {n: s[:1] for n, s in self.shares.items()}
-        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1], shares)
+        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1], shares,
+                          self.mesh)
 
 
 def bin_statistics(vertices, faces) -> Statistics:
-    """The ``Statistics`` of a suspect, vertices (n, 3), faces (m, 3) (``frames.read_statistics_frames``)."""
+    """The ``Statistics`` of a suspect, vertices (n, 3), faces (m, 3) (``frames.read_statistics``: its
+    own, or those of the coarse mesh under it when it is a subdivided copy)."""
     V, F = check_mesh(vertices, faces)
     if len(F) == 0:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
-    got = frames.read_statistics_frames(V, F, [_n_bins(n) for n in words])
+    got = frames.read_statistics(V, F, [_n_bins(n) for n in words])
     return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
                       words[got.index], got.names,
-                      {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)})
+                      {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)},
+                      got.mesh)
 
 
 def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None
@@ -236,6 +246,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
         carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
         p_threshold=p_threshold,
         extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
+               "mesh": stats.mesh,  # "suspect", or the subdivision undone: "midpoint", "loop", "sqrt3"
                "frame": stats.frame_names[fi], "frame_index": fi, "frames": n_frames, "chase_bits": chase,
                "word": "".join(map(str, cand.tolist())),  # after the Chase search
                "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it

@@ -1,0 +1,62 @@
+"""Undoing one step of subdivision (pmwm.subdivision): the coarse mesh comes back exactly."""
+
+import numpy as np
+import pytest
+
+import meshes
+from pmwm import attacks as A
+from pmwm.subdivision import coarse_meshes
+
+
+def shuffled(V, F, seed):
+    """A copy with its vertices and faces in a random order (and each face's corners rotated), and the
+    new index of each old vertex is ``perm``'s inverse: returns (V2, F2, perm), V2 = V[perm]."""
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(len(V))
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(len(perm))
+    F2 = inv[F][rng.permutation(len(F))]
+    F2 = np.roll(F2, int(rng.integers(3)), axis=1)
+    return V[perm], F2, perm
+
+
+def triangles(F):
+    """The faces as a set of rotation-normalised triples (orientation kept)."""
+    k = np.argmin(F, axis=1)[:, None]
+    return set(map(tuple, np.take_along_axis(F, (k + np.arange(3)) % 3, axis=1).tolist()))
+
+
+@pytest.mark.parametrize("mesh", ["bunny", "open_cap"])
+@pytest.mark.parametrize("scheme", ["midpoint", "loop", "sqrt3"])
+def test_the_coarse_mesh_of_a_shuffled_subdivided_copy_is_the_original(mesh, scheme):
+    V, F = getattr(meshes, mesh)()
+    S, SF = A.subdivide(V, F, scheme)
+    S, SF, perm = shuffled(S, SF, seed=1)
+    found = coarse_meshes(S, SF)
+    assert [c.rule for c in found] == [scheme]
+    c = found[0]
+    ids = perm[c.original]  # the subdivided mesh's own numbering: the original vertices come first
+    assert np.all(ids < len(V)) and len(np.unique(ids)) == len(V)
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    err = np.abs(c.vertices - V[ids]).max() / diag
+    assert err == 0.0 if scheme == "midpoint" else err < 1e-6
+    assert c.residual < 1e-8
+    got = ids[c.faces]
+    if scheme == "sqrt3" and mesh == "open_cap":  # the boundary's face vertices have no fan order
+        assert set(map(frozenset, got.tolist())) == set(map(frozenset, F.tolist()))
+    else:
+        assert triangles(got) == triangles(F)
+
+
+@pytest.mark.parametrize("mesh", ["bunny", "blob", "open_cap", "cad_part"])
+def test_a_mesh_that_is_no_subdivision_has_no_coarse_mesh(mesh):
+    assert coarse_meshes(*getattr(meshes, mesh)()) == []
+
+
+def test_noise_after_the_subdivision_is_seen_in_the_residual_not_in_the_structure():
+    V, F = meshes.bunny()
+    S, SF = A.noise_benchmark(*A.subdivide(V, F, "loop"), 0.001, seed=2)
+    (c,) = coarse_meshes(S, SF)
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    assert c.rule == "loop" and 1e-6 < c.residual < 1e-3
+    assert np.sqrt(np.mean(np.sum((c.vertices - V[c.original]) ** 2, 1))) / diag < 1e-3
