@@ -283,8 +283,11 @@ class VerifyTask(_Task):
         s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total if self.blind else len(verdict.bits)}"
         if self.blind:  # no key file: nothing for the HTML report to cite
             found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
+            mesh = verdict.extra.get("mesh", "suspect")
+            under = "" if mesh == "suspect" else f" (read on the mesh under one step of {mesh} subdivision)"
             report({"INFO"}, f"'{ob.name}' is {'MARKED' if verdict.marked else 'not marked'} (blind): p-value "
-                             f"{verdict.p_value:.3g}, {verdict.matches}/{verdict.carriers_total} check bits match, {found}")
+                             f"{verdict.p_value:.3g}, {verdict.matches}/{verdict.carriers_total} check bits match, "
+                             f"{found}{under}")
             return
         session.remember_verified(ob, session.Verified(
             name=ob.name, verdict=verdict, key=self.key, key_path=self.key_path, key_sha256=self.key_sha256,

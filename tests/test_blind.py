@@ -644,3 +644,13 @@ def test_crop_candidates_keep_the_first_point_of_each_lattice_cell():
         first.setdefault(c, i)
     assert got.tolist() == sorted(first.values())
     assert crop._spread(np.zeros((0, 3)), spacing).tolist() == []
+
+
+def test_cli_says_when_it_read_the_mesh_under_a_subdivided_copy(small_marked, tmp_path):
+    path = meshes.write_off(tmp_path / "loop.off", *A.subdivide(small_marked.vertices, small_marked.faces, "loop"))
+    v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
+    assert v.returncode == 0 and "MARKED" in v.stdout and "'Acme'" in v.stdout
+    assert "under one step of loop subdivision" in v.stdout
+    plain = run("verify", meshes.write_off(tmp_path / "m.off", small_marked.vertices, small_marked.faces),
+                env={"PMWM_PASSPHRASE": PHRASE})
+    assert plain.returncode == 0 and "'Acme'" in plain.stdout and "subdivision" not in plain.stdout
