@@ -16,7 +16,7 @@ edge (a, b) runs a, new, new, b, new, new); two steps apart, both original or bo
 step (a face vertex's ring alternates original and new). The connected components of those pairs
 (``scipy.sparse.csgraph``) that hold no edge of the mesh between two of their vertices (interior
 edges: a sqrt(3) step may keep the boundary's original edges) are the candidates, and the structure is
-then checked in full (``coarse_meshes``); a mesh that is not a subdivision fails the check.
+then checked in full (``coarse_mesh``); a mesh that is not a subdivision fails the check.
 
 Everything here is from the suspect alone (no key, no pass phrase).
 """
@@ -48,26 +48,25 @@ class Coarse:
     residual: float
 
 
-def coarse_meshes(V: np.ndarray, F: np.ndarray) -> list[Coarse]:
-    """The coarse meshes the mesh V (n, 3) float64, F (m, 3) int64 is one step of subdivision of
-    (module docstring): an empty list for a mesh that is not one (about 0.1 s on 270k faces)."""
+def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
+    """The coarse mesh the mesh V (n, 3) float64, F (m, 3) int64 is one step of subdivision of (module
+    docstring), or None for a mesh that is not one (0.01-0.09 s on 29k-270k faces)."""
     n, m = len(V), len(F)
     kinds = [k for k in (("1-to-4", 3, 4), ("sqrt3", 2, 3)) if m % k[2] == 0]
     if m < 8 or not kinds:
-        return []
+        return None
     y, ring = _rings_of_six(F, n)
     if len(y) == 0:
-        return []
+        return None
     diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
-    found = []
     for kind, hops, _ in kinds:
         old = _old_vertices(F, n, y, ring, hops)
         if old is None or not _counts_fit(F, n, old, kind):
             continue
         c = _one_to_four(V, F, old, diag) if kind == "1-to-4" else _sqrt3(V, F, old, y, ring, diag)
         if c is not None:
-            found.append(c)
-    return found
+            return c
+    return None
 
 
 def _counts_fit(F: np.ndarray, n: int, old: np.ndarray, kind: str) -> bool:
@@ -80,7 +79,6 @@ def _counts_fit(F: np.ndarray, n: int, old: np.ndarray, kind: str) -> bool:
     used = np.zeros(n, bool)
     used[F.ravel()] = True
     return int(np.count_nonzero(used & ~old)) * 3 == len(F)
-
 
 
 def _rings_of_six(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -98,7 +96,7 @@ def _rings_of_six(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     p, q = np.roll(F, -1, axis=1).ravel()[sel], np.roll(F, -2, axis=1).ravel()[sel]
     match = q[:, :, None] == p[:, None, :]  # (R, i, j): corner j follows corner i
     nxt = np.argmax(match, axis=2)
-    ok = match.sum(2).max(1) == 1
+    ok = (match.sum(2) == 1).all(1)  # every corner followed by exactly one
     ring = np.empty_like(p)
     rows = np.arange(len(y))
     cur = np.zeros(len(y), np.int64)
@@ -111,8 +109,7 @@ def _rings_of_six(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return y[ok], ring[ok]
 
 
-
-def _old_vertices(F: np.ndarray, n: int, y: np.ndarray, ring: np.ndarray, hops: int):
+def _old_vertices(F: np.ndarray, n: int, y: np.ndarray, ring: np.ndarray, hops: int) -> Optional[np.ndarray]:
     """(n,) bool: the candidate original vertices (module docstring), or None when there are none.
     y (R,), ring (R, 6): the interior valence-6 vertices and their rings in fan order
     (``_rings_of_six``)."""
@@ -136,9 +133,7 @@ def _old_vertices(F: np.ndarray, n: int, y: np.ndarray, ring: np.ndarray, hops: 
     return old if old.any() else None
 
 
-
-
-def _old_of_new(F: np.ndarray, old: np.ndarray, count: int):
+def _old_of_new(F: np.ndarray, old: np.ndarray, count: int) -> Optional[tuple[np.ndarray, np.ndarray]]:
     """For every vertex not in ``old``, the ``count`` vertices of ``old`` it shares a face with,
     (k, count) int64 ascending, and those vertices (k,) int64; None when one has another number."""
     n = len(old)

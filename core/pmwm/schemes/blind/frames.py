@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...subdivision import coarse_meshes
+from ...subdivision import coarse_mesh
 from .crop import crop_frames, cut_planes
 from .radial import Frame, excess_energy, frame_of_areas, refine_frame, statistics_in, vertex_areas
 
@@ -75,7 +75,7 @@ class Frames:
 
 def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it is one
-    step of subdivision of (``pmwm.subdivision.coarse_meshes``), whichever shows more excess energy per
+    step of subdivision of (``pmwm.subdivision.coarse_mesh``), whichever shows more excess energy per
     vertex; the coarse meshes are only looked for when the suspect does not show the mark in full view
     (``FULL_VIEW``).
 
@@ -91,10 +91,11 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     got = read_statistics_frames(V, F, bin_counts)
     if got.energy >= FULL_VIEW:
         return got
-    for coarse in coarse_meshes(V, F):
+    coarse = coarse_mesh(V, F)
+    if coarse is not None:
         alt = read_statistics_frames(coarse.vertices, coarse.faces, bin_counts)
         if alt.energy > got.energy:
-            got = dataclasses.replace(alt, mesh=coarse.rule)
+            return dataclasses.replace(alt, mesh=coarse.rule)
     return got
 
 
