@@ -14,8 +14,9 @@ paper scheme on a re-ordered copy (carriers found by position) and Cho et al. I 
 With ``--scheme blind`` (section "verify-speed-blind"): the same meshes marked by the blind scheme
 (payload "Acme", a pass phrase), the same attacks plus a 10 % plane crop, the unmarked mesh and the
 marked one read with another pass phrase, the unmarked mesh cut in half (the crop search runs on
-suspects with a planar cut, marked or not), and the mesh cut flat before it was marked, read intact (its
-own frame shows the mark in full: no crop search since db80848).
+suspects with a planar cut, marked or not), the mesh cut flat before it was marked, read intact (its
+own frame shows the mark in full: no crop search since db80848), and a copy subdivided once by Loop's
+scheme (read on the coarse mesh under it since 7c3a7d4, when it shows more energy).
 
 Every case is timed by two child processes, one importing this checkout's ``core``, one importing
 ``core`` of ``--baseline`` (extracted with ``git archive``); the two alternate for ``--rounds``
@@ -44,7 +45,8 @@ BASELINE = "88eb246"  # the last commit with brute-force spatial search
 CASES = ("marked", "re-ordered", "cut in half, posed", "simplified 50 %", "unmarked, other mesh's key",
          "unmarked, other secret", "paper: re-ordered", "cho1: marked")
 BLIND_CASES = ("marked", "re-ordered", "cut in half, posed", "cut 10 %", "simplified 50 %",
-               "unmarked, the phrase", "marked, another phrase", "unmarked, cut in half", "cut flat, then marked")
+               "unmarked, the phrase", "marked, another phrase", "unmarked, cut in half", "cut flat, then marked",
+               "Loop-subdivided")
 BLIND_BASELINE = "8ddfaa7"  # the crop search screening every candidate 0.3 bin widths apart
 BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start at a time",
              "c28a68c": "the crop search scoring every candidate centre over 23 widths x 5 phases",
@@ -55,7 +57,8 @@ BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start 
              "ccfa066": "the screening's cell tables reaching as far again as the farthest vertex; Chase over "
                         "the 10 least reliable bits and the Viterbi equalizer",
              "90f8c1e": "the crop search's lattice cells kept by np.unique over rows of three integers; the crop "
-                        "search on every suspect with a planar cut"}
+                        "search on every suspect with a planar cut",
+             "d959176": "no coarse mesh looked for under a subdivided suspect"}
 TARGET = 0.5  # seconds, issue 13
 
 
@@ -125,6 +128,8 @@ def build_blind_cases(path: Path) -> None:
             "unmarked, cut in half": (*attacks.crop_plane(V, F, 0.5, seed=2), key),
             # an asset with a planar cut of its own (a bust's base), marked and read intact
             "cut flat, then marked": (*flat_marked(V, F), key),
+            # one step of Loop subdivision: read on the coarse mesh under it (since 7c3a7d4)
+            "Loop-subdivided": (*attacks.subdivide(MV, MF, "loop"), key),
         }
         rows += [(m, c, *cases[c][:2], cases[c][2].to_json()) for c in BLIND_CASES]
     with open(path, "wb") as f:
