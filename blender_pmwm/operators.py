@@ -284,7 +284,7 @@ class VerifyTask(_Task):
         if self.blind:  # no key file: nothing for the HTML report to cite
             found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
             mesh = verdict.extra.get("mesh", "suspect")
-            under = "" if mesh == "suspect" else f" (read on the mesh under one step of {mesh} subdivision)"
+            under = "" if mesh == "suspect" else f" (read on the mesh it was subdivided from: {mesh} undone)"
             report({"INFO"}, f"'{ob.name}' is {'MARKED' if verdict.marked else 'not marked'} (blind): p-value "
                              f"{verdict.p_value:.3g}, {verdict.matches}/{verdict.carriers_total} check bits match, "
                              f"{found}{under}")

@@ -316,11 +316,32 @@ def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, sch
     assert not (v.marked and v.payload == "Acme") and v.extra["mesh"] == "suspect"
 
 
+def test_two_steps_of_subdivision_are_undone_one_at_a_time(small_marked):
+    V, F = A.subdivide(*A.subdivide(small_marked.vertices, small_marked.faces, "sqrt3"), "loop")
+    v = pmwm.verify(*A.reorder(V, F, seed=1), passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "sqrt3 + loop"
+
+
+def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(small_marked, monkeypatch):
+    """A 1-to-4 step that keeps the original vertices where they are and puts the new ones off the
+    edges' midpoints (as butterfly does): solved as Loop's (the better fit of the two rules), the coarse
+    mesh is smoothed; the original vertices as the copy has them read the payload."""
+    M, MF = small_marked.vertices, small_marked.faces
+    V, F = A.subdivide(M, MF, "midpoint")
+    n0, c = len(M), M.mean(0)
+    out = V[n0:] - c
+    V[n0:] += 0.2 * np.mean(np.linalg.norm(M[MF[:, 1]] - M[MF[:, 0]], axis=1)) * out / np.linalg.norm(out, axis=1)[:, None]
+    assert frames.coarse_mesh(V, F).rule == "loop"
+    v = pmwm.verify(V, F, passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "1-to-4"
+
+
 @pytest.mark.parametrize("attack", [None, lambda v, f: A.quantize(v, f, bits=8)], ids=["intact", "quantize8"])
 def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack):
     """A mesh that is itself a subdivision (a modeller's output), marked: the mark is on every vertex,
     so the suspect, not the coarse mesh under it, shows it (intact: in full view, no coarse mesh looked
-    for; quantized: more energy per vertex than its coarse mesh)."""
+    for; quantized: its coarse mesh, solved or as it is, shows no more energy per vertex, far from the
+    factor COARSE_GAIN that a subdivided copy's shows)."""
     V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), "loop")
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4,
                                              progressive=False))
@@ -650,7 +671,7 @@ def test_cli_says_when_it_read_the_mesh_under_a_subdivided_copy(small_marked, tm
     path = meshes.write_off(tmp_path / "loop.off", *A.subdivide(small_marked.vertices, small_marked.faces, "loop"))
     v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
     assert v.returncode == 0 and "MARKED" in v.stdout and "'Acme'" in v.stdout
-    assert "under one step of loop subdivision" in v.stdout
+    assert "subdivided from (loop subdivision undone)" in v.stdout
     plain = run("verify", meshes.write_off(tmp_path / "m.off", small_marked.vertices, small_marked.faces),
                 env={"PMWM_PASSPHRASE": PHRASE})
     assert plain.returncode == 0 and "'Acme'" in plain.stdout and "subdivision" not in plain.stdout

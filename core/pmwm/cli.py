@@ -174,7 +174,7 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
         print(f"{state}: {v.matches}/{v.carriers_total} check bits match, p = {v.p_value:.3g} "
               f"(threshold {v.p_threshold:g}), {v.extra.get('payload_bits')}-bit payload read (blind)")
         if v.extra.get("mesh", "suspect") != "suspect":
-            print(f"read on the mesh under one step of {v.extra['mesh']} subdivision (the suspect is a subdivided copy)")
+            print(f"read on the mesh the suspect was subdivided from ({v.extra['mesh']} subdivision undone)")
         print(f"payload: {v.payload!r}" if v.payload is not None else f"payload bits: {v.bits}")
         return
     print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "

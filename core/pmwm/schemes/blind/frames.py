@@ -55,6 +55,8 @@ CROP_MAX_BINS = 96  # the crop search reads words of up to this many bins (paylo
 FULL_VIEW = 2.5e-3  # the mark in full view: the own or refined frame shows this much excess energy per vertex
 # (then no crop search, and no coarse mesh under a subdivided suspect is read)
 CROP_SHIFTS = (-1, 1)  # the crop frame is also read with lo and hi moved by these many bins
+MAX_UNDO = 3  # steps of subdivision undone under a suspect, one at a time
+COARSE_GAIN = 2.0  # a coarse mesh is read when it shows this many times the excess energy per vertex
 
 
 @dataclass
@@ -64,7 +66,9 @@ class Frames:
     bin's mean of r - 1/2 (M,) and its share of the vertices (M,); ``index``, the bin count to read
     (an index into the counts asked for); ``energy``, the excess energy per vertex (``excess_energy``
     over the vertices' total weight) of the frame and count read; ``mesh``, the mesh read: "suspect", or
-    the coarse mesh under a subdivided suspect ("midpoint", "loop", "sqrt3": the rule undone)."""
+    the coarse mesh a subdivided suspect was made from, by the steps undone in the order they were applied
+    ("loop", "sqrt3", "midpoint", "1-to-4" for a 1-to-4 step's original vertices as they are; several
+    joined by " + ")."""
 
     index: int
     names: tuple[str, ...]
@@ -74,28 +78,42 @@ class Frames:
 
 
 def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
-    """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it is one
-    step of subdivision of (``pmwm.subdivision.coarse_mesh``), whichever shows more excess energy per
-    vertex; the coarse meshes are only looked for when the suspect does not show the mark in full view
-    (``FULL_VIEW``).
+    """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it was
+    subdivided from (``pmwm.subdivision.coarse_mesh``, up to MAX_UNDO steps, one at a time) when that
+    shows COARSE_GAIN times the excess energy per vertex; the coarse meshes are only looked for when the
+    suspect does not show the mark in full view (``FULL_VIEW``), and no further once one does. Under a
+    1-to-4 step solved as Loop's, the original vertices as the copy has them are read too, the better of
+    the two counting (``Frames.mesh`` "1-to-4"): an interpolating scheme (butterfly) keeps them where
+    they were.
 
     Why: one step of Loop or sqrt(3) subdivision smooths the original vertices and adds three new ones
     for each, averages of their neighbours: the Venus head read no whole payload after Loop and 3 of 10
-    after sqrt(3) (BENCHMARKS.md, ``blind``). The coarse mesh solved from the new vertices is the marked
-    mesh itself when the copy is exact. Per vertex, because the subdivided suspect's vertices are linear
-    combinations of the coarse mesh's: its total energy counts the same information about four times
-    (scratch, bunny and Venus head, 2 keys: exact midpoint, Loop and sqrt(3) copies 9.3e-3-1.1e-2 per
-    vertex coarse against 5.7e-4-1.6e-3 subdivided; a subdivided mesh marked as it is, then 8-bit
-    quantized: 1.8e-3-2.4e-3 against 5.7e-4-1.5e-3 for its coarse mesh; read intact it is in full
-    view). The choice involves no pass phrase, so the p-value's union bound is the chosen mesh's."""
+    after sqrt(3) (BENCHMARKS.md, ``blind-subdivision``). The coarse mesh solved from the new vertices is
+    the marked mesh itself when the copy is exact. Per vertex, because the subdivided suspect's vertices
+    are linear combinations of the coarse mesh's: its total energy counts the same information about
+    four times, so a subdivided copy's coarse mesh shows about four times its energy per vertex (three
+    for sqrt(3)), a subdivided mesh marked as it is about as much (its original vertices, a quarter of
+    the marked ones) or less (the solved positions mix them); hence the factor 2 between. Scratch, bunny
+    and Venus head, 2 keys: exact midpoint, Loop and sqrt(3) copies 2.9-19 times; Loop then 0.3 % noise
+    3.7-6.8; Loop then 8-bit quantization 2.1-2.5 (bunny) and 3.1-3.4 (Venus head); a Loop-subdivided
+    mesh marked as it is, then 8-bit quantized or 0.3 % noised, 0.96-1.08 for its original vertices as
+    they are and 0.19-0.98 solved (read intact it is in full view). The choice involves no pass phrase,
+    so the p-value's union bound is the chosen mesh's."""
     got = read_statistics_frames(V, F, bin_counts)
-    if got.energy >= FULL_VIEW:
-        return got
-    coarse = coarse_mesh(V, F)
-    if coarse is not None:
-        alt = read_statistics_frames(coarse.vertices, coarse.faces, bin_counts)
-        if alt.energy > got.energy:
-            return dataclasses.replace(alt, mesh=coarse.rule)
+    rules: list[str] = []
+    while got.energy < FULL_VIEW and len(rules) < MAX_UNDO:
+        coarse = coarse_mesh(V, F)
+        if coarse is None:
+            break
+        tries = [(coarse.vertices, rules + [coarse.rule])]
+        if coarse.rule == "loop":
+            tries.append((V[coarse.original], rules + ["1-to-4"]))
+        alt, steps = max(((read_statistics_frames(Vc, coarse.faces, bin_counts), steps) for Vc, steps in tries),
+                         key=lambda r: r[0].energy)
+        if alt.energy > COARSE_GAIN * got.energy:
+            got = dataclasses.replace(alt, mesh=" + ".join(reversed(steps)))
+        rules.append(coarse.rule)
+        V, F = coarse.vertices, coarse.faces
     return got
 
 
