@@ -3,6 +3,8 @@ the pass phrase never reaches the .blend."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import bpy
 import numpy as np
 import pytest
@@ -75,3 +77,26 @@ def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
                              pmwm.EmbedOptions(payload="Acme", scheme="blind", seed=3, passphrase=PHRASE))
             np.testing.assert_array_equal(after, lib.vertices.astype(np.float32))
     assert moved[2] > 2 * moved[1] > 0
+
+
+def test_verify_reads_a_subdivided_copy_and_says_so(scene, addon, bl):
+    """A copy subdivided once by Loop's scheme (the bunny coarsened to 14,000 vertices, marked): Verify
+    reads the payload on the mesh it was subdivided from and the report says so."""
+    import pmwm
+    from pmwm import attacks
+    from pmwm.progressive import build_progressive_mesh
+
+    from .test_modal import Reports
+
+    src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
+    pm, _ = build_progressive_mesh(src.vertices, src.faces, base_vertices=3000)
+    res = pmwm.embed(*pm.decode(vertices=14000), pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE,
+                                                                    seed=3, progressive=False))
+    bl.new_object("copy", *attacks.subdivide(res.vertices, res.faces, "loop"))
+    scene.pmwm.scheme = "blind"
+    _secrets().passphrase = PHRASE
+    task = addon.operators.VerifyTask(bpy.context)
+    reports = Reports()
+    task.finish(bpy.context, task.compute(lambda fraction, message: None), reports)
+    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert "subdivided from: loop undone" in reports.text()
