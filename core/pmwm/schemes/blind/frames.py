@@ -1,6 +1,6 @@
 """The frames the blind reader reads in: the suspect's own, then the best of a refined one and a cropped
-copy's; and the mesh it reads, the suspect or, after one step of subdivision, the coarse mesh under it
-(``read_statistics``).
+copy's; and the mesh it reads, the suspect or, when it is a subdivided copy, the mesh it was subdivided
+from (``read_statistics``).
 
 1. The own frame (``radial.frame_of_areas``): centre and range recomputed on the suspect. The word length read
    is the one whose bins show the most mark energy there.
@@ -80,7 +80,7 @@ class Frames:
 def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it was
     subdivided from (``pmwm.subdivision.coarse_mesh``, up to MAX_UNDO steps, one at a time) when that
-    shows COARSE_GAIN times the excess energy per vertex; the coarse meshes are only looked for when the
+    shows COARSE_GAIN times the excess energy per vertex (any, when that is not positive); the coarse meshes are only looked for when the
     suspect does not show the mark in full view (``FULL_VIEW``), and no further once one does. Under a
     1-to-4 step solved as Loop's, the original vertices as the copy has them are read too, the better of
     the two counting (``Frames.mesh`` "1-to-4"): an interpolating scheme (butterfly) keeps them where
@@ -110,7 +110,7 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
             tries.append((V[coarse.original], rules + ["1-to-4"]))
         alt, steps = max(((read_statistics_frames(Vc, coarse.faces, bin_counts), steps) for Vc, steps in tries),
                          key=lambda r: r[0].energy)
-        if alt.energy > COARSE_GAIN * got.energy:
+        if alt.energy > COARSE_GAIN * max(got.energy, 0.0):
             got = dataclasses.replace(alt, mesh=" + ".join(reversed(steps)))
         rules.append(coarse.rule)
         V, F = coarse.vertices, coarse.faces
