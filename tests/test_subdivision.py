@@ -59,3 +59,11 @@ def test_noise_after_the_subdivision_is_seen_in_the_residual_not_in_the_structur
     diag = np.linalg.norm(V.max(0) - V.min(0))
     assert c.rule == "loop" and 1e-6 < c.residual < 1e-3
     assert np.sqrt(np.mean(np.sum((c.vertices - V[c.original]) ** 2, 1))) / diag < 1e-3
+
+
+def test_a_vertex_of_no_face_is_left_out_of_the_coarse_mesh():
+    V, F = meshes.open_cap()
+    S, SF = A.subdivide(V, F, "loop")
+    S = np.vstack([S, [[9.0, 9.0, 9.0]]])  # a stray vertex, referenced by no face
+    c = coarse_mesh(S, SF)
+    assert c is not None and c.rule == "loop" and len(c.vertices) == len(V) and len(S) - 1 not in c.original

@@ -128,14 +128,17 @@ def _old_vertices(F: np.ndarray, n: int, y: np.ndarray, ring: np.ndarray, hops: 
     same = (label[a] == label[b]) & (six[a] | six[b])
     joined = np.zeros(n_comp, bool)
     joined[label[a[same]]] = True
-    # (a vertex in no pair, e.g. an original one on the boundary whose faces all touch it, stands alone)
-    old = ~joined[label]
+    # (a vertex in no pair, e.g. an original one on the boundary whose faces all touch it, stands alone;
+    # a vertex of no face is none of the mesh's)
+    used = np.zeros(n, bool)
+    used[F.ravel()] = True
+    old = ~joined[label] & used
     return old if old.any() else None
 
 
 def _old_of_new(F: np.ndarray, old: np.ndarray, count: int) -> Optional[tuple[np.ndarray, np.ndarray]]:
-    """For every vertex not in ``old``, the ``count`` vertices of ``old`` it shares a face with,
-    (k, count) int64 ascending, and those vertices (k,) int64; None when one has another number."""
+    """For every vertex of a face not in ``old``, the ``count`` vertices of ``old`` it shares a face
+    with, (k, count) int64 ascending, and those vertices (k,) int64; None when one has another number."""
     n = len(old)
     in_old = old[F]
     used = np.zeros(n, bool)
@@ -154,6 +157,7 @@ def _old_of_new(F: np.ndarray, old: np.ndarray, count: int) -> Optional[tuple[np
 
 
 def _rms(x: np.ndarray, diag: float) -> float:
+    """The RMS length of the rows of x (k, 3), as a share of ``diag``."""
     return float(np.sqrt(np.mean(np.sum(x * x, axis=1)))) / diag if len(x) else 0.0
 
 
