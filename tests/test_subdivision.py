@@ -8,16 +8,13 @@ from pmwm import attacks as A
 from pmwm.subdivision import coarse_mesh
 
 
-def shuffled(V, F, seed):
-    """A copy with its vertices and faces in a random order (and each face's corners rotated), and the
-    new index of each old vertex is ``perm``'s inverse: returns (V2, F2, perm), V2 = V[perm]."""
-    rng = np.random.default_rng(seed)
-    perm = rng.permutation(len(V))
-    inv = np.empty_like(perm)
-    inv[perm] = np.arange(len(perm))
-    F2 = inv[F][rng.permutation(len(F))]
-    F2 = np.roll(F2, int(rng.integers(3)), axis=1)
-    return V[perm], F2, perm
+def reordered(V, F, seed):
+    """``attacks.reorder`` of the mesh, and ``perm`` with V2 = V[perm] (the positions are unique rows)."""
+    V2, F2 = A.reorder(V, F, seed=seed)
+    perm = np.empty(len(V), np.int64)
+    perm[np.lexsort(V2.T)] = np.lexsort(V.T)
+    assert np.array_equal(V2, V[perm])
+    return V2, F2, perm
 
 
 def triangles(F):
@@ -31,7 +28,7 @@ def triangles(F):
 def test_the_coarse_mesh_of_a_shuffled_subdivided_copy_is_the_original(mesh, scheme):
     V, F = getattr(meshes, mesh)()
     S, SF = A.subdivide(V, F, scheme)
-    S, SF, perm = shuffled(S, SF, seed=1)
+    S, SF, perm = reordered(S, SF, seed=1)
     c = coarse_mesh(S, SF)
     assert c is not None and c.rule == scheme
     ids = perm[c.original]  # the subdivided mesh's own numbering: the original vertices come first

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import os
 import threading
+from contextlib import AbstractContextManager, nullcontext
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from typing import Any, Callable, Optional
 
@@ -112,6 +113,13 @@ class Background:
                 x.abandon()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
+
+
+def beside(enabled: bool, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> AbstractContextManager:
+    """``Background(fn, *args, **kwargs)`` when ``enabled``, else a context that gives None: the
+    embedders build a progressive mesh beside their work only when one is asked for
+    (``EmbedOptions.progressive``)."""
+    return Background(fn, *args, **kwargs) if enabled else nullcontext()
 
 
 def parallel_map(fn: Callable[[Any], Any], items: list) -> list:

@@ -28,6 +28,8 @@ from typing import Optional
 
 import numpy as np
 
+from .metrics import vertex_rmse
+
 LOOP_ODD = (0.375, 0.125)  # a Loop edge vertex: 3/8 of each end of its edge, 1/8 of each opposite vertex
 SOLVE_TOL = 1e-9  # the least-squares solve's relative residual (positions to about 1e-8 of the size)
 EXACT = 1e-9  # a rule fits exactly when its RMS residual is below this share of the bounding-box diagonal
@@ -55,37 +57,37 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
     kinds = [k for k in (("1-to-4", 3, 4), ("sqrt3", 2, 3)) if m % k[2] == 0]
     if m < 8 or not kinds:
         return None
-    y, ring = _rings_of_six(F, n)
+    count = np.bincount(F.ravel(), minlength=n)  # faces per vertex
+    used = count > 0
+    y, ring = _rings_of_six(F, count)
     if len(y) == 0:
         return None
     diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
     for kind, hops, _ in kinds:
-        old = _old_vertices(F, n, y, ring, hops)
-        if old is None or not _counts_fit(F, n, old, kind):
+        old = _old_vertices(F, used, y, ring, hops)
+        if old is None or not _counts_fit(F, used, old, kind):
             continue
-        c = _one_to_four(V, F, old, diag) if kind == "1-to-4" else _sqrt3(V, F, old, y, ring, diag)
+        new = np.flatnonzero(used & ~old)
+        c = _one_to_four(V, F, old, new, diag) if kind == "1-to-4" else _sqrt3(V, F, old, new, y, ring, diag)
         if c is not None:
             return c
     return None
 
 
-def _counts_fit(F: np.ndarray, n: int, old: np.ndarray, kind: str) -> bool:
+def _counts_fit(F: np.ndarray, used: np.ndarray, old: np.ndarray, kind: str) -> bool:
     """The counts a subdivision of that kind has, before the full check: 1-to-4, no face with two
     original vertices and a quarter of the faces with none (the central ones); sqrt(3), one new vertex
     per three faces."""
     per_face = old[F].sum(1)
     if kind == "1-to-4":
         return int(per_face.max()) <= 1 and int(np.count_nonzero(per_face == 0)) * 4 == len(F)
-    used = np.zeros(n, bool)
-    used[F.ravel()] = True
     return int(np.count_nonzero(used & ~old)) * 3 == len(F)
 
 
-def _rings_of_six(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The vertices of exactly six faces whose faces close one fan around them (interior, manifold,
-    valence 6): y (R,) int64 and their rings in fan order, (R, 6) int64."""
+def _rings_of_six(F: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices of exactly six faces (``count`` (n,): faces per vertex) whose faces close one fan
+    around them (interior, manifold, valence 6): y (R,) int64 and their rings in fan order, (R, 6) int64."""
     corners = F.ravel()
-    count = np.bincount(corners, minlength=n)
     y = np.flatnonzero(count == 6)
     if len(y) == 0:
         return y, np.zeros((0, 6), np.int64)
@@ -109,10 +111,12 @@ def _rings_of_six(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return y[ok], ring[ok]
 
 
-def _old_vertices(F: np.ndarray, n: int, y: np.ndarray, ring: np.ndarray, hops: int) -> Optional[np.ndarray]:
+def _old_vertices(F: np.ndarray, used: np.ndarray, y: np.ndarray, ring: np.ndarray,
+                  hops: int) -> Optional[np.ndarray]:
     """(n,) bool: the candidate original vertices (module docstring), or None when there are none.
-    y (R,), ring (R, 6): the interior valence-6 vertices and their rings in fan order
-    (``_rings_of_six``)."""
+    used (n,): the vertices of a face; y (R,), ring (R, 6): the interior valence-6 vertices and their
+    rings in fan order (``_rings_of_six``)."""
+    n = len(used)
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
@@ -130,20 +134,16 @@ def _old_vertices(F: np.ndarray, n: int, y: np.ndarray, ring: np.ndarray, hops: 
     joined[label[a[same]]] = True
     # (a vertex in no pair, e.g. an original one on the boundary whose faces all touch it, stands alone;
     # a vertex of no face is none of the mesh's)
-    used = np.zeros(n, bool)
-    used[F.ravel()] = True
     old = ~joined[label] & used
     return old if old.any() else None
 
 
-def _old_of_new(F: np.ndarray, old: np.ndarray, count: int) -> Optional[tuple[np.ndarray, np.ndarray]]:
-    """For every vertex of a face not in ``old``, the ``count`` vertices of ``old`` it shares a face
-    with, (k, count) int64 ascending, and those vertices (k,) int64; None when one has another number."""
+def _old_of_new(F: np.ndarray, old: np.ndarray, new: np.ndarray, count: int) -> Optional[np.ndarray]:
+    """For each of the vertices ``new`` (k,) (those of a face not in ``old``, ascending), the ``count``
+    vertices of ``old`` it shares a face with, (k, count) int64 ascending; None when one has another
+    number."""
     n = len(old)
     in_old = old[F]
-    used = np.zeros(n, bool)
-    used[F.ravel()] = True
-    new = np.flatnonzero(used & ~old)
     # every (new, old) pair of a face, as one key; the distinct old vertices of each new one, ascending
     pn = np.broadcast_to(F[:, :, None], (len(F), 3, 3))
     po = np.broadcast_to(F[:, None, :], (len(F), 3, 3))
@@ -153,12 +153,7 @@ def _old_of_new(F: np.ndarray, old: np.ndarray, count: int) -> Optional[tuple[np
     per = np.bincount(a, minlength=n)
     if np.any(per[new] != count):
         return None
-    return b.reshape(-1, count), new  # (keys sorted by new vertex, then old)
-
-
-def _rms(x: np.ndarray, diag: float) -> float:
-    """The RMS length of the rows of x (k, 3), as a share of ``diag``."""
-    return float(np.sqrt(np.mean(np.sum(x * x, axis=1)))) / diag if len(x) else 0.0
+    return b.reshape(-1, count)  # (keys sorted by new vertex, then old)
 
 
 def _solve(A, b: np.ndarray) -> np.ndarray:
@@ -177,14 +172,13 @@ def _solve(A, b: np.ndarray) -> np.ndarray:
     return x
 
 
-def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, diag: float) -> Optional[Coarse]:
+def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, diag: float) -> Optional[Coarse]:
     """The coarse mesh of a 1-to-4 step (midpoint, Loop), or None when the structure does not hold."""
     from scipy.sparse import coo_matrix
 
-    got = _old_of_new(F, old, 2)
-    if got is None:
+    ends = _old_of_new(F, old, new, 2)
+    if ends is None:
         return None
-    ends, new = got
     slot = np.full(len(old), -1, np.int64)
     slot[new] = np.arange(len(new))
     central = F[~old[F].any(1)]
@@ -211,7 +205,7 @@ def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, diag: float) -> 
     if np.any((sides < 1) | (sides > 2)):
         return None
     e = V[new]
-    mid = _rms(e - 0.5 * (V[ends[:, 0]] + V[ends[:, 1]]), diag)
+    mid = vertex_rmse(e, 0.5 * (V[ends[:, 0]] + V[ends[:, 1]])) / diag
     if mid <= EXACT:
         return Coarse("midpoint", V[keep].copy(), faces, keep, mid)
     interior = sides == 2
@@ -221,22 +215,21 @@ def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, diag: float) -> 
     vals = np.concatenate([np.repeat(w_end, 2), np.where(interior[odd], LOOP_ODD[1], 0.0)])
     A = coo_matrix((vals, (rows, cols)), shape=(len(new), len(keep))).tocsr()
     loop = _solve(A, e)
-    res = _rms(A @ loop - e, diag)
+    res = vertex_rmse(A @ loop, e) / diag
     if res < mid:
         return Coarse("loop", loop, faces, keep, res)
     return Coarse("midpoint", V[keep].copy(), faces, keep, mid)
 
 
-def _sqrt3(V: np.ndarray, F: np.ndarray, old: np.ndarray, y: np.ndarray, ring: np.ndarray,
+def _sqrt3(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, y: np.ndarray, ring: np.ndarray,
            diag: float) -> Optional[Coarse]:
     """The coarse mesh of a sqrt(3) step, or None when the structure does not hold. The faces take the
     orientation of the face vertex's fan where it has valence 6 (all but the boundary's)."""
     from scipy.sparse import coo_matrix
 
-    got = _old_of_new(F, old, 3)
-    if got is None:
+    corners = _old_of_new(F, old, new, 3)
+    if corners is None:
         return None
-    corners, new = got
     keep = np.flatnonzero(old)
     index = np.full(len(old), -1, np.int64)
     index[keep] = np.arange(len(keep))
@@ -256,4 +249,4 @@ def _sqrt3(V: np.ndarray, F: np.ndarray, old: np.ndarray, y: np.ndarray, ring: n
     A = coo_matrix((np.full(len(rows), 1.0 / 3.0), (rows, faces.ravel())), shape=(len(new), len(keep))).tocsr()
     e = V[new]
     x = _solve(A, e)
-    return Coarse("sqrt3", x, faces, keep, _rms(A @ x - e, diag))
+    return Coarse("sqrt3", x, faces, keep, vertex_rmse(A @ x, e) / diag)

@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
-from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Optional
 
@@ -22,7 +21,7 @@ import numpy as np
 
 from ..adjacency import build_adjacency
 from ..atomic import atomic_output
-from ..background import Background, Later
+from ..background import Later, beside
 from ..base import Progress, check_options, make_key, no_progress
 from ..errors import PayloadError
 from ..key import WatermarkKey, derive_seed, make_secret, mesh_sha256
@@ -142,8 +141,8 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
     # the progressive mesh every copy shares (of the unmarked asset), built beside the analysis: its set-up
     # while the sites are placed, its passes, once the readable sites are known, beside the rest
     keep = Later()
-    with loading_engine(), (Background(build_progressive_mesh, V, F, base_vertices=base_vertex_count(
-            opts.base_ratio, len(V)), protected=keep, adjacency=adj) if progressive else nullcontext()) as building:
+    with loading_engine(), beside(progressive, build_progressive_mesh, V, F, protected=keep, adjacency=adj,
+                                  base_vertices=base_vertex_count(opts.base_ratio, len(V))) as building:
         an = analyse(V, F, secret, strength, max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
                      report=lambda f, m: report(0.5 * f, m), adj=adj)
         S = an.n_sites

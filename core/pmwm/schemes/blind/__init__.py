@@ -46,15 +46,14 @@ two-parameter family given by the cut plane; ``frames``), key-free as well, and 
 whose frame shows the most energy. The mark is global (no places); it is rotation-, scale-,
 translation- and order-invariant by construction.
 
-Subdivision: a copy subdivided once (midpoint, Loop, sqrt(3)) carries the marked mesh in its
-connectivity; when the suspect does not show the mark in full view, the reader also measures the coarse
-mesh under it (``pmwm.subdivision``; ``frames.read_statistics``), key-free, and keeps whichever of the
-two shows more mark energy per vertex.
+Subdivision: a subdivided copy (midpoint, Loop, sqrt(3)) carries the marked mesh in its
+connectivity; when the suspect does not show the mark in full view, the reader also measures the mesh
+it was subdivided from (``pmwm.subdivision``, up to three steps back; ``frames.read_statistics``),
+key-free, and reads that one when it shows twice the mark energy per vertex.
 """
 
 from __future__ import annotations
 
-from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Optional
 
@@ -62,7 +61,7 @@ import numpy as np
 
 from ... import metrics
 from ...adjacency import build_adjacency
-from ...background import Background
+from ...background import beside
 from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
 from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
@@ -115,7 +114,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     # finds the adjacency itself); the marked positions go in after. None built when the options ask
     # for none.
     build = job.options.progressive
-    with (Background(build_progressive_mesh, V, F, base_vertices=base) if build else nullcontext()) as building:
+    with beside(build, build_progressive_mesh, V, F, base_vertices=base) as building:
         job.report(0.0, "marking the radial distribution")
         marked = radial.embed_signs(V, F, signs, job.strength)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
@@ -157,8 +156,8 @@ class Statistics:
     2 or 4 frames (``frame_names``: the suspect's own, then a refined one, or a cropped copy's and its
     neighbours; see ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads;
     ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
-    reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the coarse mesh
-    under a subdivided suspect: "midpoint", "loop", "sqrt3"; ``frames.read_statistics``)."""
+    reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
+    subdivided suspect was made from: ``frames.Frames.mesh``)."""
 
     words: dict[int, np.ndarray]
     n_word: int
@@ -246,7 +245,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
         carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
         p_threshold=p_threshold,
         extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
-               "mesh": stats.mesh,  # "suspect", or the subdivision undone: "midpoint", "loop", "sqrt3"
+               "mesh": stats.mesh,  # "suspect", or the subdivision steps undone (frames.Frames.mesh)
                "frame": stats.frame_names[fi], "frame_index": fi, "frames": n_frames, "chase_bits": chase,
                "word": "".join(map(str, cand.tolist())),  # after the Chase search
                "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it

@@ -14,13 +14,12 @@ second half and the marking run."""
 from __future__ import annotations
 
 import dataclasses
-from contextlib import nullcontext
 from typing import Callable, Optional
 
 import numpy as np
 
 from ...adjacency import Adjacency, build_adjacency
-from ...background import Background, Later
+from ...background import Later, beside
 from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, no_progress, start_embed
 from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
@@ -304,8 +303,7 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
     # pass); the marked positions go in after. None built when the options ask for none.
     protect = Later()
     build = job.options.progressive
-    with (Background(build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj)
-          if build else nullcontext()) as building:
+    with beside(build, build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj) as building:
         places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
         if build:  # (the vertices to protect only when something is built)
             protect.set(places.protected())
