@@ -321,7 +321,7 @@ def test_midpoint_subdivision_keeps_vertices_and_surface(sphere):
     assert not adj.boundary_vertex.any() and not adj.nonmanifold_vertex.any()
 
 
-@pytest.mark.parametrize("scheme,face_factor", [("loop", 4), ("sqrt3", 3)])
+@pytest.mark.parametrize("scheme,face_factor", [("loop", 4), ("sqrt3", 3), ("catmull-clark", 6)])
 def test_smooth_subdivisions_give_a_closed_refined_mesh(sphere, scheme, face_factor):
     v, f = sphere
     v2, f2 = A.subdivide(v, f, scheme)

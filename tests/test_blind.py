@@ -304,10 +304,11 @@ def small_marked(bunny):
                                               progressive=False))
 
 
-@pytest.mark.parametrize("scheme", ["loop", "sqrt3"])
+@pytest.mark.parametrize("scheme", ["loop", "sqrt3", "catmull-clark"])
 def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, scheme, monkeypatch):
-    """One step of Loop or sqrt(3) subdivision (and a new order) smooths a mesh this small so much that
-    its own reading loses the payload; the coarse mesh solved from the new vertices reads it."""
+    """One step of Loop, sqrt(3) or Catmull-Clark subdivision (and a new order) smooths a mesh this small
+    so much that its own reading loses the payload; the coarse mesh solved from the new vertices reads
+    it."""
     V, F = A.reorder(*A.subdivide(small_marked.vertices, small_marked.faces, scheme), seed=2)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == scheme and v.p_value < 1e-6
@@ -336,19 +337,20 @@ def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(s
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "1-to-4"
 
 
+@pytest.mark.parametrize("scheme", ["loop", "catmull-clark"])
 @pytest.mark.parametrize("attack", [None, lambda v, f: A.quantize(v, f, bits=8)], ids=["intact", "quantize8"])
-def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack):
+def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, scheme):
     """A mesh that is itself a subdivision (a modeller's output), marked: the mark is on every vertex,
     so the suspect, not the coarse mesh under it, shows it (intact: in full view, no coarse mesh looked
     for; quantized: its coarse mesh, solved or as it is, shows no more energy per vertex, far from the
     factor COARSE_GAIN that a subdivided copy's shows)."""
-    V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), "loop")
+    V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), scheme)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4,
                                              progressive=False))
     S = (res.vertices, res.faces) if attack is None else attack(res.vertices, res.faces)
     own = frames.read_statistics_frames(*S, [L + word.CHECK_BITS for L in word.PAYLOAD_BITS])
     assert (own.energy >= frames.FULL_VIEW) == (attack is None)
-    assert frames.coarse_mesh(*S).rule == "loop"  # the structure is there either way
+    assert frames.coarse_mesh(*S).rule == scheme  # the structure is there either way
     v = pmwm.verify(*S, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "suspect"
 

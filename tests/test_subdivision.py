@@ -24,7 +24,7 @@ def triangles(F):
 
 
 @pytest.mark.parametrize("mesh", ["bunny", "open_cap"])
-@pytest.mark.parametrize("scheme", ["midpoint", "loop", "sqrt3"])
+@pytest.mark.parametrize("scheme", ["midpoint", "loop", "sqrt3", "catmull-clark"])
 def test_the_coarse_mesh_of_a_shuffled_subdivided_copy_is_the_original(mesh, scheme):
     V, F = getattr(meshes, mesh)()
     S, SF = A.subdivide(V, F, scheme)
@@ -64,3 +64,21 @@ def test_a_vertex_of_no_face_is_left_out_of_the_coarse_mesh():
     S = np.vstack([S, [[9.0, 9.0, 9.0]]])  # a stray vertex, referenced by no face
     c = coarse_mesh(S, SF)
     assert c is not None and c.rule == "loop" and len(c.vertices) == len(V) and len(S) - 1 not in c.original
+
+
+def test_a_grid_of_squares_split_at_their_centres_is_no_catmull_clark_step():
+    """Squares split into four triangles at their centres: a quarter of the vertices in 4 faces, as many
+    as a Catmull-Clark step's edge points, so the structure is looked for, and it does not hold (two
+    corners in every triangle)."""
+    k = 6
+    xs = np.arange(k + 1, dtype=float)
+    corners = np.stack(np.meshgrid(xs, xs, indexing="ij"), -1).reshape(-1, 2)
+    centres = np.stack(np.meshgrid(xs[:-1] + 0.5, xs[:-1] + 0.5, indexing="ij"), -1).reshape(-1, 2)
+    V = np.c_[np.vstack([corners, centres]), np.zeros(len(corners) + len(centres))]
+    i, j = (g.ravel() for g in np.meshgrid(np.arange(k), np.arange(k), indexing="ij"))
+    a, b, c, d = i * (k + 1) + j, (i + 1) * (k + 1) + j, (i + 1) * (k + 1) + j + 1, i * (k + 1) + j + 1
+    m = len(corners) + i * k + j
+    F = np.concatenate([np.stack(t, 1) for t in ((a, b, m), (b, c, m), (c, d, m), (d, a, m))])
+    count = np.bincount(F.ravel())
+    assert len(F) % 6 == 0 and np.count_nonzero((count == 4) | (count == 2)) * 4 >= len(F)
+    assert coarse_mesh(V, F) is None

@@ -20,7 +20,7 @@ Benchmark protocol (Wang, Lavoue, Denis, Baskurt, SMI 2010):
   ``reorder``           random vertex and face permutation, random rotation of each face's indices.
   ``crop_plane``        removes the vertices beyond a random plane.
   ``simplify``          quadric simplification (optional dependency fast-simplification).
-  ``subdivide``         one step of midpoint, Loop or sqrt(3) subdivision.
+  ``subdivide``         one step of midpoint, Loop, sqrt(3) or Catmull-Clark subdivision.
 
 Beyond both protocols:
   ``retriangulate``     adjacent triangles joined into quads and split along the other diagonal.
@@ -317,13 +317,20 @@ def simplify(vertices, faces, ratio: float = 0.5, seed: int | None = None) -> Me
 
 
 def subdivide(vertices, faces, scheme: str = "midpoint", seed: int | None = None) -> MeshArrays:
-    """One step of subdivision: ``midpoint`` (1:4, vertices kept), ``loop`` or ``sqrt3``.
+    """One step of subdivision: ``midpoint`` (1:4, vertices kept), ``loop``, ``sqrt3`` or
+    ``catmull-clark``.
 
     midpoint: every edge gets its midpoint; the original vertices keep their indices and positions.
     loop: trimesh.remesh.subdivide_loop (original vertices are smoothed by the Loop masks).
     sqrt3: Kobbelt's sqrt(3) scheme: a centroid per face, original edges flipped, original vertices
     relaxed with alpha_n = (4 - 2 cos(2 pi / n)) / 9; boundary (and inconsistently oriented) edges
-    are not flipped and boundary vertices are not moved. ``seed`` is ignored (deterministic).
+    are not flipped and boundary vertices are not moved.
+    catmull-clark: what Blender's Subdivision Surface modifier (one level, without its limit surface)
+    and its exporters make of a triangle mesh: a point per face (its centroid) and per edge, each
+    triangle three quads (corner, next edge point, face point, previous edge point), each quad written
+    as two triangles split from its corner, as Blender's OBJ, PLY, STL and glTF exporters leave them
+    (verified with bpy 4.2); the Catmull-Clark rules, boundaries by the cubic B-spline's.
+    ``seed`` is ignored (deterministic).
     """
     v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     if scheme == "midpoint":
@@ -337,7 +344,9 @@ def subdivide(vertices, faces, scheme: str = "midpoint", seed: int | None = None
         return np.asarray(v2, dtype=np.float64), np.asarray(f2, dtype=np.int64)
     if scheme == "sqrt3":
         return _subdivide_sqrt3(v, f)
-    raise ParameterError(f"unknown subdivision scheme {scheme!r}; use 'midpoint', 'loop' or 'sqrt3'")
+    if scheme == "catmull-clark":
+        return _subdivide_catmull_clark(v, f)
+    raise ParameterError(f"unknown subdivision scheme {scheme!r}; use 'midpoint', 'loop', 'sqrt3' or 'catmull-clark'")
 
 
 def _subdivide_midpoint(v: np.ndarray, f: np.ndarray) -> MeshArrays:
@@ -382,6 +391,44 @@ def _subdivide_sqrt3(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     relaxed = (1.0 - alpha)[:, None] * v + (alpha / safe_val)[:, None] * nsum
     v_new = np.where(movable[:, None], relaxed, v)
     return np.vstack([v_new, centroids]), np.concatenate([tri_flip, tri_keep]).astype(np.int64)
+
+
+def _subdivide_catmull_clark(v: np.ndarray, f: np.ndarray) -> MeshArrays:
+    n, m = len(v), len(f)
+    fp = v[f].mean(axis=1)  # (m, 3) face points
+    he_from, he_to = f.ravel(), f[:, [1, 2, 0]].ravel()  # half-edge 3 t + k: corner k to k + 1
+    keys = np.minimum(he_from, he_to) * n + np.maximum(he_from, he_to)
+    ukeys, inverse = np.unique(keys, return_inverse=True)
+    e0, e1 = ukeys // n, ukeys % n
+    n_e = len(ukeys)
+    faces_of = np.bincount(inverse, minlength=n_e)  # 2: interior edge, 1: boundary
+    fsum = np.stack([np.bincount(inverse, weights=np.repeat(fp[:, k], 3), minlength=n_e) for k in range(3)], 1)
+    mid = 0.5 * (v[e0] + v[e1])
+    ep = np.where((faces_of == 2)[:, None], 0.5 * mid + 0.25 * fsum, mid)
+    # original vertices: (Q + 2 R + (k - 3) P) / k inside (Q: mean of the k face points, R: of the k edge
+    # midpoints); (b0 + 6 P + b1) / 8 on a boundary of two boundary edges; kept anywhere else
+    ends = np.concatenate([e0, e1])
+    k_edges = np.bincount(ends, minlength=n).astype(np.float64)
+    k_faces = np.bincount(he_from, minlength=n).astype(np.float64)
+    safe = np.maximum(k_edges, 1.0)
+    Q = np.stack([np.bincount(he_from, weights=np.repeat(fp[:, k], 3), minlength=n) for k in range(3)], 1)
+    R = np.stack([np.bincount(ends, weights=np.concatenate([mid[:, k], mid[:, k]]), minlength=n) for k in range(3)], 1)
+    inner = (Q / np.maximum(k_faces, 1.0)[:, None] + 2.0 * R / safe[:, None] + (safe - 3.0)[:, None] * v) / safe[:, None]
+    bnd = faces_of == 1
+    b_ends = np.concatenate([e0[bnd], e1[bnd]])
+    b_count = np.bincount(b_ends, minlength=n)
+    b_other = np.concatenate([e1[bnd], e0[bnd]])
+    B = np.stack([np.bincount(b_ends, weights=v[b_other, k], minlength=n) for k in range(3)], 1)
+    on_edge = (k_edges == k_faces) & (k_edges > 0)  # every edge of two faces: interior manifold
+    vp = np.where(on_edge[:, None], inner, np.where((b_count == 2)[:, None], (B + 6.0 * v) / 8.0, v))
+    # each corner's quad (corner, edge point to the next corner, face point, edge point from the previous)
+    e_idx = (n + inverse).reshape(m, 3)  # edge point of the edges (0, 1), (1, 2), (2, 0)
+    f_idx = np.repeat(n + n_e + np.arange(m), 3)
+    corner = f.ravel()
+    nxt = e_idx.ravel()
+    prv = e_idx[:, [2, 0, 1]].ravel()
+    tris = np.stack([np.stack([corner, nxt, f_idx], 1), np.stack([corner, f_idx, prv], 1)], 1).reshape(-1, 3)
+    return np.vstack([vp, ep, fp]), tris.astype(np.int64)
 
 
 def _twin_half_edges(f: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -4,11 +4,16 @@ A copy subdivided once carries the original mesh in its connectivity (Taubin, "D
 reconstructing subdivision connectivity", The Visual Computer 18, 2002): after a 1-to-4 step (midpoint,
 Loop) the original vertices are an independent set, every new vertex sits on an original edge between
 two of them, and each original triangle left one central triangle of new vertices; after a sqrt(3)
-step (Kobbelt) every new vertex is an original triangle's centroid, joined to its three corners. The
-positions carry it too: a Loop edge vertex is 3/8 (a + b) + 1/8 (c + d) of the original edge (a, b)
-and its two opposite vertices, a sqrt(3) face vertex the mean of its triangle's corners, whatever the
-scheme does to the original vertices (each variant smooths them with its own weights). So the original
-positions follow from the new vertices by linear least squares, exactly when the copy is exact.
+step (Kobbelt) every new vertex is an original triangle's centroid, joined to its three corners; after
+a Catmull-Clark step (Blender's Subdivision Surface) each triangle is three quads, which Blender's
+exporters and its own triangulation split from their corner, so that every triangle has one original
+vertex, one edge point and one face point. The positions carry it too: a Loop edge vertex is
+3/8 (a + b) + 1/8 (c + d) of the original edge (a, b) and its two opposite vertices, a sqrt(3) or
+Catmull-Clark face point the mean of its triangle's corners, a Catmull-Clark edge point
+(a + b + f1 + f2) / 4 with its two face points, whatever the scheme does to the original vertices (each
+variant smooths them with its own weights). So the original positions follow from the new vertices by
+linear least squares, exactly when the copy is exact (and closely when Blender's modifier puts the
+vertices on its limit surface, its default: residual about 3e-5 of the diagonal, read as well).
 
 Finding the original vertices. Around an interior vertex of valence 6, the vertices three steps apart
 in its ring (opposite) are both original or both new in a 1-to-4 step (the ring of a new vertex on the
@@ -16,7 +21,10 @@ edge (a, b) runs a, new, new, b, new, new); two steps apart, both original or bo
 step (a face vertex's ring alternates original and new). The connected components of those pairs
 (``scipy.sparse.csgraph``) that hold no edge of the mesh between two of their vertices (interior
 edges: a sqrt(3) step may keep the boundary's original edges) are the candidates, and the structure is
-then checked in full (``coarse_mesh``); a mesh that is not a subdivision fails the check.
+then checked in full (``coarse_mesh``); a mesh that is not a subdivision fails the check. After a
+Catmull-Clark step the two vertices opposite an edge are of one kind; the components of those pairs
+are the three kinds (``_catmull_clark``), looked for only when at least a quarter as many vertices as
+faces are in 4 faces or 2 (the edge points), which few meshes have.
 
 Everything here is from the suspect alone (no key, no pass phrase).
 """
@@ -38,9 +46,9 @@ EXACT = 1e-9  # a rule fits exactly when its RMS residual is below this share of
 @dataclass
 class Coarse:
     """A coarse mesh found under a subdivided one. ``rule``: "midpoint" (the original vertices kept
-    where they are), "loop" (solved from the edge vertices) or "sqrt3" (solved from the face
-    vertices); ``vertices`` (n0, 3) float64, ``faces`` (m0, 3) int64; ``original`` (n0,) int64 the
-    suspect's index of each coarse vertex; ``residual`` the rule's RMS residual over the new vertices,
+    where they are), "loop" (solved from the edge vertices), "sqrt3" (solved from the face vertices) or
+    "catmull-clark" (from both); ``vertices`` (n0, 3) float64, ``faces`` (m0, 3) int64; ``original``
+    (n0,) int64 the suspect's index of each coarse vertex; ``residual`` the rule's RMS residual over the new vertices,
     a share of the bounding-box diagonal (0 for an exact copy, about the noise after an attack)."""
 
     rule: str
@@ -55,14 +63,18 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
     docstring), or None for a mesh that is not one (0.01-0.09 s on 29k-270k faces)."""
     n, m = len(V), len(F)
     kinds = [k for k in (("1-to-4", 3, 4), ("sqrt3", 2, 3)) if m % k[2] == 0]
-    if m < 8 or not kinds:
+    if m < 8 or not (kinds or m % 6 == 0):
         return None
     count = np.bincount(F.ravel(), minlength=n)  # faces per vertex
     used = count > 0
+    diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
+    if m % 6 == 0 and np.count_nonzero((count == 4) | (count == 2)) * 4 >= m:  # edge points, cheaply
+        c = _catmull_clark(V, F, count, diag)
+        if c is not None:
+            return c
     y, ring = _rings_of_six(F, count)
     if len(y) == 0:
         return None
-    diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
     for kind, hops, _ in kinds:
         old = _old_vertices(F, used, y, ring, hops)
         if old is None or not _counts_fit(F, used, old, kind):
@@ -72,6 +84,86 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
         if c is not None:
             return c
     return None
+
+
+def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float) -> Optional[Coarse]:
+    """The coarse mesh of a Catmull-Clark step of a triangle mesh with its quads split from their
+    corner (``attacks.subdivide``), or None when the structure does not hold. ``count`` (n,): faces per
+    vertex.
+
+    Every triangle then has one original vertex, one edge point and one face point, so the two vertices
+    opposite an edge of two faces are of one kind: the connected components of those pairs are the
+    three kinds. Edge points are in 4 faces (2 on the boundary), face points in 6. The positions: a face
+    point is its triangle's centroid, an interior edge point (a + b + f1 + f2) / 4 of its edge (a, b) and
+    its two face points, a boundary one (a + b) / 2; the original vertices, whatever the variant does to
+    them, follow by least squares as for Loop."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(V)
+    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()
+    third = np.roll(F, -2, axis=1).ravel()
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    order = np.argsort(key)
+    sk = key[order]
+    twin = np.flatnonzero(sk[1:] == sk[:-1])
+    p, q = third[order[twin]], third[order[twin + 1]]
+    n_comp, label = connected_components(coo_matrix((np.ones(len(p), np.int8), (p, q)), shape=(n, n)),
+                                         directed=False)
+    lab = label[F]
+    if np.any((lab[:, 0] == lab[:, 1]) | (lab[:, 1] == lab[:, 2]) | (lab[:, 0] == lab[:, 2])):
+        return None
+    used = count > 0
+
+    def every(ok: np.ndarray) -> np.ndarray:
+        """(n,) bool: the vertex's component has no used vertex that is not ``ok``."""
+        bad = np.zeros(n_comp, bool)
+        bad[label[used & ~ok]] = True
+        return used & ~bad[label]
+
+    edge = every((count == 4) | (count == 2))
+    face = every(count == 6) & ~edge
+    old = used & ~edge & ~face
+    kind = (old * 1 + edge * 2 + face * 4).astype(np.int8)[F]  # one of each in every triangle: 1 + 2 + 4
+    if np.any((kind.sum(1) != 7) | (kind[:, 0] | kind[:, 1] | kind[:, 2] != 7)) or np.count_nonzero(face) * 6 != len(F):
+        return None
+    fv, ev = np.flatnonzero(face), np.flatnonzero(edge)
+    rows = np.arange(len(F))
+    k_o, k_e = np.argmax(old[F], axis=1), np.argmax(edge[F], axis=1)
+    O, E, Fc = F[rows, k_o], F[rows, k_e], F[rows, 3 - k_o - k_e]  # each triangle's three kinds
+    corners = _distinct(Fc, O, fv, 3, n)
+    ends = _distinct(E, O, ev, 2, n)
+    if corners is None or ends is None:
+        return None
+    keep = np.flatnonzero(old)
+    index = np.full(n, -1, np.int64)
+    index[keep] = np.arange(len(keep))
+    # orientation: a triangle (o, e, f) in this cyclic order has e on the edge from o to the next corner
+    forward = k_e == (k_o + 1) % 3
+    slot = np.full(n, -1, np.int64)
+    slot[ev] = np.arange(len(ev))
+    se = slot[E[forward]]
+    nxt = np.where(ends[se, 0] == O[forward], ends[se, 1], ends[se, 0])
+    fslot = np.full(n, -1, np.int64)
+    fslot[fv] = np.arange(len(fv))
+    first = np.full((len(fv), 2), -1, np.int64)
+    first[fslot[Fc[forward]]] = np.stack([O[forward], nxt], 1)  # one directed edge per face point
+    tri = np.stack([first[:, 0], first[:, 1], corners.sum(1) - first.sum(1)], 1)
+    if first.min() < 0 or not np.array_equal(np.sort(tri, axis=1), corners):
+        return None
+    faces = index[tri]
+    # each edge point's face points (one per triangle): 2 inside, 1 on the boundary
+    pairs = np.unique(slot[E] * n + Fc)
+    e_of, f_of = pairs // n, pairs % n
+    inner = np.bincount(e_of, minlength=len(ev)) == 2
+    rows = np.concatenate([np.repeat(np.arange(len(fv)), 3), len(fv) + np.repeat(np.arange(len(ev)), 2)])
+    cols = np.concatenate([faces.ravel(), index[ends].ravel()])
+    vals = np.concatenate([np.full(3 * len(fv), 1.0 / 3.0), np.repeat(np.where(inner, 0.25, 0.5), 2)])
+    A = coo_matrix((vals, (rows, cols)), shape=(len(fv) + len(ev), len(keep))).tocsr()
+    fsum = np.stack([np.bincount(e_of, weights=V[f_of, k], minlength=len(ev)) for k in range(3)], 1)
+    rhs = np.concatenate([V[fv], V[ev] - np.where(inner[:, None], 0.25 * fsum, 0.0)])
+    x = _solve(A, rhs)
+    return Coarse("catmull-clark", x, faces, keep, vertex_rmse(A @ x, rhs) / diag)
 
 
 def _counts_fit(F: np.ndarray, used: np.ndarray, old: np.ndarray, kind: str) -> bool:
@@ -139,21 +231,26 @@ def _old_vertices(F: np.ndarray, used: np.ndarray, y: np.ndarray, ring: np.ndarr
 
 
 def _old_of_new(F: np.ndarray, old: np.ndarray, new: np.ndarray, count: int) -> Optional[np.ndarray]:
-    """For each of the vertices ``new`` (k,) (those of a face not in ``old``, ascending), the ``count``
-    vertices of ``old`` it shares a face with, (k, count) int64 ascending; None when one has another
-    number."""
-    n = len(old)
-    in_old = old[F]
-    # every (new, old) pair of a face, as one key; the distinct old vertices of each new one, ascending
+    """For each of the vertices ``new`` (k,) (ascending, none of them in ``old``), the ``count`` vertices
+    of ``old`` it shares a face with, (k, count) int64 ascending; None when one has another number."""
+    is_new = np.zeros(len(old), bool)
+    is_new[new] = True
+    # every (new, old) pair of a face
     pn = np.broadcast_to(F[:, :, None], (len(F), 3, 3))
     po = np.broadcast_to(F[:, None, :], (len(F), 3, 3))
-    pick = ~in_old[:, :, None] & in_old[:, None, :]
-    keys = np.unique(pn[pick] * n + po[pick])
+    pick = is_new[F][:, :, None] & old[F][:, None, :]
+    return _distinct(pn[pick], po[pick], new, count, len(old))
+
+
+def _distinct(a: np.ndarray, b: np.ndarray, new: np.ndarray, count: int, n: int) -> Optional[np.ndarray]:
+    """Of the pairs (a, b) (p,) int64 of vertices below n, where every a is in ``new`` (k,) ascending: the
+    distinct b of each vertex of ``new``, (k, count) int64 ascending; None when one has another number."""
+    keys = np.unique(a * n + b)
     a, b = keys // n, keys % n
     per = np.bincount(a, minlength=n)
     if np.any(per[new] != count):
         return None
-    return b.reshape(-1, count)  # (keys sorted by new vertex, then old)
+    return b.reshape(-1, count)  # (keys sorted by a, then b)
 
 
 def _solve(A, b: np.ndarray) -> np.ndarray:

@@ -79,24 +79,90 @@ def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
     assert moved[2] > 2 * moved[1] > 0
 
 
-def test_verify_reads_a_subdivided_copy_and_says_so(scene, addon, bl):
-    """A copy subdivided once by Loop's scheme (the bunny coarsened to 14,000 vertices, marked): Verify
-    reads the payload on the mesh it was subdivided from and the report says so."""
+_SMALL: dict = {}
+
+
+def _small_marked():
+    """The bundled bunny coarsened to 14,000 vertices, marked (Blind, "Acme"): a mesh small enough that one
+    step of subdivision smooths the mark out of its own reading."""
     import pmwm
-    from pmwm import attacks
     from pmwm.progressive import build_progressive_mesh
 
+    if "res" not in _SMALL:
+        src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
+        pm, _ = build_progressive_mesh(src.vertices, src.faces, base_vertices=3000)
+        _SMALL["res"] = pmwm.embed(*pm.decode(vertices=14000), pmwm.EmbedOptions(
+            scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False))
+    return _SMALL["res"]
+
+
+def _verify_report(addon, scene) -> str:
+    """Run Verify's task on the active object (Blind, PHRASE) and return its report text."""
     from .test_modal import Reports
 
-    src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
-    pm, _ = build_progressive_mesh(src.vertices, src.faces, base_vertices=3000)
-    res = pmwm.embed(*pm.decode(vertices=14000), pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE,
-                                                                    seed=3, progressive=False))
-    bl.new_object("copy", *attacks.subdivide(res.vertices, res.faces, "loop"))
     scene.pmwm.scheme = "blind"
     _secrets().passphrase = PHRASE
     task = addon.operators.VerifyTask(bpy.context)
     reports = Reports()
     task.finish(bpy.context, task.compute(lambda fraction, message: None), reports)
+    return reports.text()
+
+
+def test_verify_reads_a_subdivided_copy_and_says_so(scene, addon, bl):
+    """A copy subdivided once by Loop's scheme (the bunny coarsened to 14,000 vertices, marked): Verify
+    reads the payload on the mesh it was subdivided from and the report says so."""
+    from pmwm import attacks
+
+    res = _small_marked()
+    bl.new_object("copy", *attacks.subdivide(res.vertices, res.faces, "loop"))
+    text = _verify_report(addon, scene)
     assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
-    assert "subdivided from: loop undone" in reports.text()
+    assert "subdivided from: loop undone" in text
+
+
+@pytest.mark.parametrize("limit", [True, False], ids=["limit-surface", "plain"])
+def test_verify_reads_a_copy_given_blenders_subdivision_surface(scene, addon, bl, limit):
+    """Blender's own subdivision: the Subdivision Surface modifier (Catmull-Clark, one level; its default
+    places the vertices on the limit surface) applied to a marked copy turns every triangle into three
+    quads. Verify reads the payload on the mesh it was made from, and says so."""
+    res = _small_marked()
+    ob = bl.new_object("copy", res.vertices, res.faces)
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels, mod.use_limit_surface = 1, limit
+    assert bpy.ops.object.modifier_apply(modifier=mod.name) == {"FINISHED"}
+    assert len(ob.data.polygons) == 3 * len(res.faces)
+    text = _verify_report(addon, scene)
+    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert "subdivided from: catmull-clark undone" in text
+
+
+def test_the_catmull_clark_attack_is_blenders_subdivision_surface(scene, bl):
+    """``attacks.subdivide(..., "catmull-clark")``, which the benchmarks and the library's tests use, makes
+    what the modifier makes (one level, no limit surface), boundary included: the same positions (to
+    float32) and the same triangles once Blender's quads are split from their corner, up to the order of
+    the edge points."""
+    import pmwm
+    from pmwm import attacks
+    from scipy.spatial import cKDTree
+
+    src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
+    V, F = attacks.crop_plane(src.vertices, src.faces, fraction=0.2, seed=1)  # with a boundary
+    ob = bl.new_object("cut", V, F)
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels, mod.use_limit_surface = 1, False
+    assert bpy.ops.object.modifier_apply(modifier=mod.name) == {"FINISHED"}
+    loops, sizes = bl.polygons(ob)
+    assert np.all(sizes == 4)
+    quads = loops.reshape(-1, 4)
+    got_v = bl.positions(ob).astype(np.float64)
+    want_v, want_f = attacks.subdivide(V, F, "catmull-clark")
+    assert len(got_v) == len(want_v)
+    dist, index = cKDTree(want_v).query(got_v)  # Blender's vertex -> ours
+    assert dist.max() < 1e-5 * np.ptp(V, axis=0).max() and len(np.unique(index)) == len(want_v)
+    got_f = index[np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])]
+
+    def oriented(T):
+        k = np.argmin(T, axis=1)[:, None]
+        return set(map(tuple, np.take_along_axis(T, (k + np.arange(3)) % 3, axis=1).tolist()))
+
+    assert oriented(got_f) == oriented(want_f)

@@ -46,7 +46,7 @@ two-parameter family given by the cut plane; ``frames``), key-free as well, and 
 whose frame shows the most energy. The mark is global (no places); it is rotation-, scale-,
 translation- and order-invariant by construction.
 
-Subdivision: a subdivided copy (midpoint, Loop, sqrt(3)) carries the marked mesh in its
+Subdivision: a subdivided copy (midpoint, Loop, sqrt(3), Catmull-Clark) carries the marked mesh in its
 connectivity; when the suspect does not show the mark in full view, the reader also measures the mesh
 it was subdivided from (``pmwm.subdivision``, up to three steps back; ``frames.read_statistics``),
 key-free, and reads that one when it shows twice the mark energy per vertex.
