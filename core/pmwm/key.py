@@ -81,7 +81,7 @@ class WatermarkKey:
             ],
             "extra": self.data.to_extra() if hasattr(self.data, "to_extra") else self.extra,
         }
-        return json.dumps(doc, indent=1) + "\n"
+        return json_text(doc)
 
     @classmethod
     def from_json(cls, text: str, name: str = "the key") -> "WatermarkKey":
@@ -149,6 +149,14 @@ class WatermarkKey:
             problems.append("mean edge length is not positive")
         if problems:
             raise KeyFileError(f"{name} is inconsistent: {'; '.join(problems)}")
+
+
+def json_text(doc: dict) -> str:
+    """A key file's text: JSON, one top-level field per line (readable), each value compact. Why not
+    ``indent``: json writes indented text in pure Python, 3x slower than compact (0.04 against 0.012 s
+    for a robust key of Igea, 1 MB, measured), and that time is the end of every ``pmwm embed``."""
+    fields = (f"{json.dumps(k)}:{json.dumps(v, separators=(',', ':'))}" for k, v in doc.items())
+    return "{\n" + ",\n".join(fields) + "\n}\n"
 
 
 def derive_seed(secret: str, label: str) -> int:

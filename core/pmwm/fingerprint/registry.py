@@ -22,7 +22,7 @@ import numpy as np
 
 from ..atomic import atomic_write_bytes
 from ..errors import KeyFileError, PayloadError
-from ..key import WatermarkKey
+from ..key import WatermarkKey, json_text
 from ..schemes.robust.keydata import RobustKeyData
 from .codes import check_recipient_id, key_id, unpack_codewords
 from .copies import FingerprintOptions
@@ -72,7 +72,7 @@ class FingerprintKey:
     def to_json(self) -> str:
         doc = {"format": KEY_FORMAT, "version": VERSION, "key_id": self.key_id, "options": self.options.to_dict(),
                "asset_sha256": self.asset_sha256, "key": json.loads(self.key.to_json())}
-        return json.dumps(doc, indent=1) + "\n"
+        return json_text(doc)
 
     @classmethod
     def from_json(cls, doc: dict, name: str = "the key") -> "FingerprintKey":
