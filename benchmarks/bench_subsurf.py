@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # the add-on package, blender_pmwm
 from _report import command, commit, load, machine, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
@@ -34,16 +35,11 @@ def subsurf(V: np.ndarray, F: np.ndarray, limit: bool, ply: Path) -> tuple[tuple
     ``pmwm.read_mesh`` reads Blender's PLY export of it)."""
     import bpy
 
+    from blender_pmwm import meshdata  # the add-on's own mesh transfer
+
     bpy.ops.wm.read_homefile(use_empty=True)
     mesh = bpy.data.meshes.new("m")
-    mesh.vertices.add(len(V))
-    mesh.loops.add(3 * len(F))
-    mesh.polygons.add(len(F))
-    mesh.vertices.foreach_set("co", np.asarray(V, np.float32).ravel())
-    mesh.loops.foreach_set("vertex_index", np.asarray(F, np.int32).ravel())
-    mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * len(F), 3, dtype=np.int32))
-    mesh.polygons.foreach_set("loop_total", np.full(len(F), 3, np.int32))
-    mesh.update(calc_edges=True)
+    meshdata.set_geometry(mesh, V, F)
     ob = bpy.data.objects.new("m", mesh)
     bpy.context.collection.objects.link(ob)
     bpy.context.view_layer.objects.active = ob
@@ -51,16 +47,11 @@ def subsurf(V: np.ndarray, F: np.ndarray, limit: bool, ply: Path) -> tuple[tuple
     mod = ob.modifiers.new("Subdivision", "SUBSURF")
     mod.levels, mod.use_limit_surface = 1, limit
     bpy.ops.object.modifier_apply(modifier=mod.name)
-    me = ob.data
-    co = np.empty(3 * len(me.vertices), np.float32)
-    me.vertices.foreach_get("co", co)
-    me.calc_loop_triangles()
-    tris = np.empty(3 * len(me.loop_triangles), np.int32)
-    me.loop_triangles.foreach_get("vertices", tris)
+    as_object = (meshdata.read_positions(ob.data), meshdata.read_triangles(ob.data))
     bpy.ops.wm.ply_export(filepath=str(ply), export_selected_objects=True, export_normals=False,
                           export_uv=False, export_colors="NONE", apply_modifiers=False)
     src = pmwm.read_mesh(str(ply))
-    return (co.reshape(-1, 3).astype(np.float64), tris.reshape(-1, 3).astype(np.int64)), (src.vertices, src.faces)
+    return as_object, (src.vertices, src.faces)
 
 
 def as_it_is(Vs: np.ndarray, Fs: np.ndarray, phrase: str):

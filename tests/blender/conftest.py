@@ -67,16 +67,10 @@ def scene(addon):
 
 
 def new_object(name: str, V: np.ndarray, F: np.ndarray):
-    """A mesh object from triangle arrays, linked, selected and active."""
+    """A mesh object from triangle arrays (the add-on's ``meshdata.set_geometry``), linked, selected and
+    active."""
     mesh = bpy.data.meshes.new(name)
-    mesh.vertices.add(len(V))
-    mesh.loops.add(3 * len(F))
-    mesh.polygons.add(len(F))
-    mesh.vertices.foreach_set("co", np.asarray(V, np.float32).ravel())
-    mesh.loops.foreach_set("vertex_index", np.asarray(F, np.int32).ravel())
-    mesh.polygons.foreach_set("loop_start", np.arange(0, 3 * len(F), 3, dtype=np.int32))
-    mesh.polygons.foreach_set("loop_total", np.full(len(F), 3, np.int32))
-    mesh.update(calc_edges=True)
+    _load_addon().meshdata.set_geometry(mesh, V, F)
     ob = bpy.data.objects.new(name, mesh)
     bpy.context.collection.objects.link(ob)
     activate(ob)
