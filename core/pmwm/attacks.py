@@ -328,8 +328,9 @@ def subdivide(vertices, faces, scheme: str = "midpoint", seed: int | None = None
     catmull-clark: what Blender's Subdivision Surface modifier (one level, without its limit surface)
     and its exporters make of a triangle mesh: a point per face (its centroid) and per edge, each
     triangle three quads (corner, next edge point, face point, previous edge point), each quad written
-    as two triangles split from its corner, as Blender's OBJ, PLY, STL and glTF exporters leave them
-    (verified with bpy 4.2); the Catmull-Clark rules, boundaries by the cubic B-spline's.
+    as two triangles split from its corner, as Blender's OBJ, PLY, STL and glTF exporters and its own
+    triangulation leave them; the Catmull-Clark rules, boundaries by the cubic B-spline's (the same
+    positions and triangles as the modifier's: tests/blender).
     ``seed`` is ignored (deterministic).
     """
     v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
@@ -416,11 +417,11 @@ def _subdivide_catmull_clark(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     inner = (Q / np.maximum(k_faces, 1.0)[:, None] + 2.0 * R / safe[:, None] + (safe - 3.0)[:, None] * v) / safe[:, None]
     bnd = faces_of == 1
     b_ends = np.concatenate([e0[bnd], e1[bnd]])
-    b_count = np.bincount(b_ends, minlength=n)
+    b_count = np.bincount(b_ends, minlength=n)  # boundary edges per vertex
     b_other = np.concatenate([e1[bnd], e0[bnd]])
     B = np.stack([np.bincount(b_ends, weights=v[b_other, k], minlength=n) for k in range(3)], 1)
-    on_edge = (k_edges == k_faces) & (k_edges > 0)  # every edge of two faces: interior manifold
-    vp = np.where(on_edge[:, None], inner, np.where((b_count == 2)[:, None], (B + 6.0 * v) / 8.0, v))
+    interior = (b_count == 0) & (k_edges == k_faces) & (k_edges > 0)  # one closed fan, no boundary edge
+    vp = np.where(interior[:, None], inner, np.where((b_count == 2)[:, None], (B + 6.0 * v) / 8.0, v))
     # each corner's quad (corner, edge point to the next corner, face point, edge point from the previous)
     e_idx = (n + inverse).reshape(m, 3)  # edge point of the edges (0, 1), (1, 2), (2, 0)
     f_idx = np.repeat(n + n_e + np.arange(m), 3)
