@@ -53,9 +53,10 @@ WHOLE = [
     ("subdivision midpoint", lambda V, F, seed: attacks.subdivide(V, F, "midpoint")),
     ("subdivision loop", lambda V, F, seed: attacks.subdivide(V, F, "loop")),
     ("subdivision sqrt3", lambda V, F, seed: attacks.subdivide(V, F, "sqrt3")),
-    ("subdivision Catmull-Clark", lambda V, F, seed: attacks.subdivide(V, F, "catmull-clark")),
     ("plane crop 10 %", lambda V, F, seed: attacks.crop_plane(V, F, fraction=0.1, seed=seed)),
     ("crop 30 % in a random pose", lambda V, F, seed: crop_posed(V, F, seed=seed)),
+    # rows are added at the end: a row's attack seed follows its index (attack_seed(seed, "whole", j))
+    ("subdivision Catmull-Clark", lambda V, F, seed: attacks.subdivide(V, F, "catmull-clark")),
 ]
 
 
