@@ -123,14 +123,21 @@ def test_verify_reads_a_subdivided_copy_and_says_so(scene, addon, bl):
 @pytest.mark.parametrize("limit", [True, False], ids=["limit-surface", "plain"])
 def test_verify_reads_a_copy_given_blenders_subdivision_surface(scene, addon, bl, limit):
     """Blender's own subdivision: the Subdivision Surface modifier (Catmull-Clark, one level; its default
-    places the vertices on the limit surface) applied to a marked copy turns every triangle into three
-    quads. Verify reads the payload on the mesh it was made from, and says so."""
-    res = _small_marked()
+    places the vertices on the limit surface) applied to the marked bundled bunny turns every triangle
+    into three quads, and Blender's triangulation splits a few of them the other way (concave ones).
+    Verify reads the payload on the mesh it was made from, and says so."""
+    import pmwm
+
+    src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
+    res = pmwm.embed(src.vertices, src.faces, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE,
+                                                                seed=3, progressive=False))
     ob = bl.new_object("copy", res.vertices, res.faces)
     mod = ob.modifiers.new("Subdivision", "SUBSURF")
     mod.levels, mod.use_limit_surface = 1, limit
     assert bpy.ops.object.modifier_apply(modifier=mod.name) == {"FINISHED"}
     assert len(ob.data.polygons) == 3 * len(res.faces)
+    tris = addon.meshdata.read_triangles(ob.data)
+    assert np.any(np.bincount(tris.ravel()) % 2 == 1)  # some quads split (e, e'), not from their corner
     text = _verify_report(addon, scene)
     assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
     assert "subdivided from: catmull-clark undone" in text
