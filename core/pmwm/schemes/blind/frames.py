@@ -67,8 +67,8 @@ class Frames:
     (an index into the counts asked for); ``energy``, the excess energy per vertex (``excess_energy``
     over the vertices' total weight) of the frame and count read; ``mesh``, the mesh read: "suspect", or
     the coarse mesh a subdivided suspect was made from, by the steps undone in the order they were applied
-    ("loop", "sqrt3", "catmull-clark", "midpoint", "1-to-4" for a 1-to-4 step's original vertices as they are; several
-    joined by " + ")."""
+    ("loop", "sqrt3", "catmull-clark", "midpoint", "1-to-4" for a 1-to-4 step's original vertices as they
+    are; several joined by " + ")."""
 
     index: int
     names: tuple[str, ...]
@@ -86,8 +86,8 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     the two counting (``Frames.mesh`` "1-to-4"): an interpolating scheme (butterfly) keeps them where
     they were.
 
-    Why: one step of Loop, sqrt(3) or Catmull-Clark subdivision smooths the original vertices and adds three new ones
-    for each, averages of their neighbours: the Venus head read no whole payload after Loop and 3 of 10
+    Why: one step of Loop, sqrt(3) or Catmull-Clark subdivision smooths the original vertices and adds new
+    ones, averages of their neighbours: the Venus head read no whole payload after Loop and 3 of 10
     after sqrt(3) (BENCHMARKS.md, ``blind-subdivision``). The coarse mesh solved from the new vertices is
     the marked mesh itself when the copy is exact. Per vertex, because the subdivided suspect's vertices
     are linear combinations of the coarse mesh's: its total energy counts the same information about
