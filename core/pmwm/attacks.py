@@ -415,7 +415,8 @@ def _subdivide_catmull_clark(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     Q = np.stack([np.bincount(he_from, weights=np.repeat(fp[:, k], 3), minlength=n) for k in range(3)], 1)
     R = np.stack([np.bincount(ends, weights=np.concatenate([mid[:, k], mid[:, k]]), minlength=n)
                   for k in range(3)], 1)
-    inner = (Q / np.maximum(k_faces, 1.0)[:, None] + 2.0 * R / safe[:, None] + (safe - 3.0)[:, None] * v) / safe[:, None]
+    inner = (Q / np.maximum(k_faces, 1.0)[:, None] + 2.0 * R / safe[:, None]
+             + (safe - 3.0)[:, None] * v) / safe[:, None]
     bnd = faces_of == 1
     b_ends = np.concatenate([e0[bnd], e1[bnd]])
     b_count = np.bincount(b_ends, minlength=n)  # boundary edges per vertex
