@@ -303,7 +303,8 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
     # pass); the marked positions go in after. None built when the options ask for none.
     protect = Later()
     build = job.options.progressive
-    with beside(build, build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj) as building:
+    with beside(build, build_progressive_mesh, V, F, base_vertices=base, protected=protect,
+                adjacency=adj) as building:
         places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
         if build:  # (the vertices to protect only when something is built)
             protect.set(places.protected())
