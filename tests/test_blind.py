@@ -582,6 +582,49 @@ def test_the_equalizer_recovers_signs_blurred_into_their_neighbours_and_leaves_c
     assert radial.equalized(clean) is clean
 
 
+def _interfering(rng: np.random.Generator, s: np.ndarray) -> np.ndarray:
+    """Bin statistics in standard errors as 8-bit quantization leaves the Venus head's (64 bins): each
+    neighbour's sign pulls a bin the other way by 0.43 of its own, and the noise is half the mark."""
+    nb = np.r_[0.0, s[:-1]] + np.r_[s[1:], 0.0]
+    return 0.035 * s - 0.015 * nb + rng.normal(0, 0.019, len(s))
+
+
+def test_the_equalizer_judges_the_interference_once_the_signs_have_settled():
+    """A sixth of the hard decisions wrong hide most of the interference from a fit on them (c / g
+    about -0.2 where it is -0.43): judged there, most of these readings were left as they were. Fitted
+    again on the signs the model finds, until they settle, the equalizer removes it: about 7 % of the
+    signs wrong against 12 % read as they are (9.4 % when judged on the hard decisions)."""
+    wrong = raw = 0
+    for seed in range(60):
+        rng = np.random.default_rng(seed)
+        s = rng.choice([-1.0, 1.0], 64)
+        x = _interfering(rng, s)
+        raw += int(np.sum(np.sign(x) != s))
+        wrong += int(np.sum(np.sign(radial.equalized(x)) != s))
+    assert raw > 0.11 * 60 * 64
+    assert wrong < 0.082 * 60 * 64
+
+
+def test_the_word_is_equalized_in_standard_errors():
+    """The margins grow as 1 / sqrt(count) (``radial.bin_margins``), so in bin means the mark and its
+    interference differ from bin to bin while in standard errors they are alike, as the equalizer's
+    model has them: ``word_read`` equalizes the statistics times sqrt(share). With counts from 90 to
+    1,000 over the bins, 7 % of the bits come out wrong (11 % when the bin means were equalized)."""
+    secret = word.derive_secret(PHRASE)
+    bit_of_bin, scramble = word.layout(secret, 64, 64)
+    n = 300 * np.exp(1.2 * np.sin(np.linspace(0, 3 * np.pi, 64)))  # a smooth histogram
+    share = n / n.sum()
+    wrong = 0
+    for seed in range(60):
+        rng = np.random.default_rng(100 + seed)
+        w = rng.integers(0, 2, 64).astype(np.uint8)
+        s = np.where((w ^ scramble)[bit_of_bin] == 1, 1.0, -1.0)
+        stat = np.sqrt(np.median(n) / n) * _interfering(rng, s)  # bin means: the margins' spread
+        got, _ = blind.word_read(stat, secret, 64, share)
+        wrong += int(np.sum(got != w))
+    assert wrong < 0.09 * 60 * 64
+
+
 def test_the_equalizer_finds_the_most_likely_signs():
     import itertools
 
