@@ -283,8 +283,10 @@ class VerifyTask(_Task):
         s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total if self.blind else len(verdict.bits)}"
         if self.blind:  # no key file: nothing for the HTML report to cite
             found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
-            mesh = verdict.extra.get("mesh", "suspect")
-            under = "" if mesh == "suspect" else f" (read on the mesh it was subdivided from: {mesh} undone)"
+            from pmwm.schemes.blind import mesh_read
+
+            read_on = mesh_read(verdict.extra.get("mesh", "suspect"))
+            under = f" ({read_on})" if read_on else ""
             report({"INFO"}, f"'{ob.name}' is {'MARKED' if verdict.marked else 'not marked'} (blind): p-value "
                              f"{verdict.p_value:.3g}, {verdict.matches}/{verdict.carriers_total} check bits match, "
                              f"{found}{under}")

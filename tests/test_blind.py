@@ -82,9 +82,11 @@ def test_whole_payload_survives(marked, attack):
     lambda v, f: A.smooth_laplacian(v, f, lam=0.1, iterations=8, seed=0),
     lambda v, f: A.noise_benchmark(v, f, 0.008, seed=2),
 ], ids=["smoothing8", "noise0.8%"])
-def test_refined_frame_reads_what_the_own_frame_loses(marked, attack):
+def test_refined_frame_reads_what_the_own_frame_loses(marked, attack, monkeypatch):
     """These attacks move the suspect's frame by a fraction of a bin; read in its own frame alone the
-    payload is lost, the key-free frame refinement finds it, with p still below 1e-6."""
+    payload is lost, the key-free frame refinement finds it, with p still below 1e-6 (the smoothed copy
+    reads with its smoothing undone too: left out here, the refinement alone)."""
+    monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)
     V, F = attack(marked.vertices, marked.faces)
     stats = blind.bin_statistics(V, F)
     own_only = blind.decide(stats.own_frame(), marked.key.secret)
@@ -313,6 +315,7 @@ def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, sch
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == scheme and v.p_value < 1e-6
     monkeypatch.setattr(frames, "coarse_mesh", lambda V, F: None)
+    monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)  # (a Loop copy reads with smoothing undone too)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert not (v.marked and v.payload == "Acme") and v.extra["mesh"] == "suspect"
 
@@ -716,7 +719,37 @@ def test_cli_says_when_it_read_the_mesh_under_a_subdivided_copy(small_marked, tm
     path = meshes.write_off(tmp_path / "loop.off", *A.subdivide(small_marked.vertices, small_marked.faces, "loop"))
     v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
     assert v.returncode == 0 and "MARKED" in v.stdout and "'Acme'" in v.stdout
-    assert "subdivided from (loop subdivision undone)" in v.stdout
+    assert "read on the mesh it was subdivided from: loop undone" in v.stdout
     plain = run("verify", meshes.write_off(tmp_path / "m.off", small_marked.vertices, small_marked.faces),
                 env={"PMWM_PASSPHRASE": PHRASE})
     assert plain.returncode == 0 and "'Acme'" in plain.stdout and "subdivision" not in plain.stdout
+
+
+@pytest.mark.parametrize("lam,iterations", [(0.1, 30), (0.1, 50), (0.25, 6)],
+                         ids=["30x0.1", "50x0.1", "Blender-Smooth-0.5x6"])
+def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, monkeypatch, lam, iterations):
+    """Uniform Laplacian smoothing (the benchmark's, lambda 0.1, and Blender's Smooth modifier, lambda =
+    factor / 2) blurs the radii beyond reading, but leaves the mark in the copy; the reader takes the
+    smoothing back step by step (``frames.unsmoothing``, key-free) and reads the payload."""
+    V, F = A.smooth_laplacian(marked.vertices, marked.faces, lam=lam, iterations=iterations)
+    v = pmwm.verify(V, F, passphrase=PHRASE)
+    assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
+    steps = int(v.extra["mesh"].split("smoothing:")[1])
+    assert lam * iterations <= 0.1 * steps <= 1.5 * lam * iterations
+    monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)
+    plain = pmwm.verify(V, F, passphrase=PHRASE)
+    assert not (plain.marked and plain.payload == "Acme")
+
+
+def test_an_unmarked_smoothed_mesh_stays_unmarked(bunny):
+    V, F = A.smooth_laplacian(*bunny, lam=0.1, iterations=30)
+    v = pmwm.verify(V, F, passphrase=PHRASE)
+    assert not v.marked and v.extra["mesh"] == "suspect"
+
+
+def test_cli_says_when_it_read_a_smoothed_copy_with_its_smoothing_undone(marked, tmp_path):
+    path = meshes.write_off(tmp_path / "smooth.off", *A.smooth_laplacian(marked.vertices, marked.faces, lam=0.1,
+                                                                         iterations=30))
+    v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
+    assert v.returncode == 0 and "MARKED" in v.stdout and "'Acme'" in v.stdout
+    assert "steps of Laplacian smoothing (0.1 each) undone" in v.stdout

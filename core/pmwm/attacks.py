@@ -38,6 +38,7 @@ import numpy as np
 
 from .adjacency import build_adjacency, gather_rows, segment_owner
 from .errors import ParameterError
+from .smoothing import neighbour_pairs
 from .validate import check_mesh
 
 MeshArrays = tuple[np.ndarray, np.ndarray]
@@ -129,7 +130,8 @@ def smooth_laplacian(
     All vertices are updated simultaneously from the previous iterate. Boundary vertices (on an edge
     with one face) average only their neighbours along boundary edges, i.e. the open border is
     smoothed as a curve and does not shrink into the surface (MeshLab's "1D boundary smoothing"
-    default). Isolated vertices do not move. ``seed`` is ignored (deterministic).
+    default; ``smoothing.neighbour_pairs``). Isolated vertices do not move. ``seed`` is ignored
+    (deterministic).
     """
     v, f = check_mesh(vertices, faces, need_faces=False, copy=True)
     iterations = int(iterations)
@@ -138,13 +140,7 @@ def smooth_laplacian(
     n = len(v)
     if iterations == 0 or len(f) == 0:
         return v, f
-    adj = build_adjacency(f, n)
-    owner = segment_owner(adj.ring_ptr)
-    nbr = adj.ring_idx
-    interior_pair = ~adj.boundary_vertex[owner]
-    bedges = adj.edges[adj.edge_face_count == 1]
-    owner = np.concatenate([owner[interior_pair], bedges[:, 0], bedges[:, 1]])
-    nbr = np.concatenate([nbr[interior_pair], bedges[:, 1], bedges[:, 0]])
+    owner, nbr = neighbour_pairs(f, n)
     count = np.bincount(owner, minlength=n).astype(np.float64)
     moving = count > 0
     inv = np.zeros(n)

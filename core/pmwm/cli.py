@@ -28,7 +28,7 @@ from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .pmfile import read_pm, record_size, write_pm
 from .schemes import SCHEMES
-from .schemes.blind import key_from_passphrase
+from .schemes.blind import key_from_passphrase, mesh_read
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
 
@@ -173,8 +173,8 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
     if v.mode == "blind":
         print(f"{state}: {v.matches}/{v.carriers_total} check bits match, p = {v.p_value:.3g} "
               f"(threshold {v.p_threshold:g}), {v.extra.get('payload_bits')}-bit payload read (blind)")
-        if v.extra.get("mesh", "suspect") != "suspect":
-            print(f"read on the mesh the suspect was subdivided from ({v.extra['mesh']} subdivision undone)")
+        if mesh_read(v.extra.get("mesh", "suspect")):
+            print(mesh_read(v.extra["mesh"]))
         print(f"payload: {v.payload!r}" if v.payload is not None else f"payload bits: {v.bits}")
         return
     print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "

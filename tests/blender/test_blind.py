@@ -161,6 +161,32 @@ def test_verify_reads_a_copy_given_simple_or_two_levels_of_subdivision_surface(s
     assert "subdivided from: catmull-clark" in text
 
 
+def test_verify_reads_a_copy_given_blenders_smooth_modifier(scene, addon, bl):
+    """Blender's Smooth modifier (factor 0.5, repeated 6 times: each a step of lambda 0.25 towards the
+    neighbours' mean) blurs the mark out of the copy's own reading; Verify takes the steps back (the
+    reader's ``unsmoothing``) and reads the payload, and says so."""
+    from pmwm.schemes.blind import frames
+
+    res = _small_marked()
+    ob = bl.new_object("copy", res.vertices, res.faces)
+    mod = ob.modifiers.new("Smooth", "SMOOTH")
+    mod.factor, mod.iterations = 0.5, 6
+    assert bpy.ops.object.modifier_apply(modifier=mod.name) == {"FINISHED"}
+    text = _verify_report(addon, scene)
+    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert "steps of Laplacian smoothing (0.1 each) undone" in text
+    V, F = addon.meshdata.read_positions(ob.data), addon.meshdata.read_triangles(ob.data)
+    real = frames.unsmoothing
+    frames.unsmoothing = lambda *a: None
+    try:
+        import pmwm
+
+        plain = pmwm.verify(V, F, passphrase=PHRASE)
+    finally:
+        frames.unsmoothing = real
+    assert not (plain.marked and plain.payload == "Acme")
+
+
 def test_the_catmull_clark_attack_is_blenders_subdivision_surface(scene, bl):
     """``attacks.subdivide(..., "catmull-clark")``, which the benchmarks and the library's tests use, makes
     what the modifier makes (one level, no limit surface), boundary included: the same positions (to

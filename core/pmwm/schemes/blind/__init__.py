@@ -50,6 +50,11 @@ Subdivision: a subdivided copy (midpoint, Loop, sqrt(3), Catmull-Clark) carries 
 connectivity; when the suspect does not show the mark in full view, the reader also measures the mesh
 it was subdivided from (``pmwm.subdivision``, up to three steps back; ``frames.read_statistics``),
 key-free, and reads that one when it shows twice the mark energy per vertex.
+
+Smoothing: a copy smoothed by uniform Laplacian steps still holds the mark, damped with the rest of its
+detail, but its radii are blurred; when the suspect does not show the mark in full view, the reader
+also takes the smoothing back step by step (``pmwm.smoothing``, ``frames.unsmoothing``), key-free, and
+reads the count of steps that shows twice the mark energy per vertex.
 """
 
 from __future__ import annotations
@@ -71,7 +76,7 @@ from . import frames, radial, word
 from .keydata import BlindKeyData
 
 __all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "bin_statistics", "decide",
-           "Statistics", "word_read", "BlindKeyData"]
+           "Statistics", "word_read", "mesh_read", "BlindKeyData"]
 
 DEFAULT_ALPHA = 0.07
 TARGET_MRMS = 0.019  # without an explicit strength: the margin giving this MRMS (% of the bbox diagonal)
@@ -268,6 +273,17 @@ def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Ver
     """Read with the secret of ``key`` (from ``pmwm.embed`` or ``key_from_passphrase``); the payload in
     the key is not used: the reading is blind."""
     return read(vertices, faces, key.secret, p_threshold)
+
+
+def mesh_read(mesh: str) -> str:
+    """The mesh a verdict was read on (``Verdict.extra["mesh"]``, ``frames.Frames.mesh``) in words, for
+    the command line and the add-on: "" for the suspect itself."""
+    if mesh == "suspect":
+        return ""
+    if mesh.startswith("smoothing:"):
+        steps = mesh.split(":", 1)[1]
+        return f"read with {steps} steps of Laplacian smoothing ({frames.UNSMOOTH_LAM:g} each) undone"
+    return f"read on the mesh it was subdivided from: {mesh} undone"
 
 
 def key_from_passphrase(passphrase: str) -> WatermarkKey:

@@ -1,6 +1,6 @@
 """The frames the blind reader reads in: the suspect's own, then the best of a refined one and a cropped
 copy's; and the mesh it reads, the suspect or, when it is a subdivided copy, the mesh it was subdivided
-from (``read_statistics``).
+from, or when it is a smoothed copy, the suspect with its smoothing undone (``read_statistics``).
 
 1. The own frame (``radial.frame_of_areas``): centre and range recomputed on the suspect. The word length read
    is the one whose bins show the most mark energy there.
@@ -47,9 +47,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...smoothing import mean_operator, unsmoothing_steps
 from ...subdivision import coarse_mesh
 from .crop import crop_frames, cut_planes
-from .radial import Frame, excess_energy, frame_of_areas, refine_frame, statistics_in, vertex_areas
+from .radial import (QUANTILES, Frame, by_distance, excess_energy, frame_of_areas, refine_frame, statistics_in,
+                     thinned, vertex_areas, weighted_quantiles)
 
 CROP_MAX_BINS = 96  # the crop search reads words of up to this many bins (payloads up to 64 bits)
 FULL_VIEW = 2.5e-3  # the mark in full view: the own or refined frame shows this much excess energy per vertex
@@ -57,6 +59,13 @@ FULL_VIEW = 2.5e-3  # the mark in full view: the own or refined frame shows this
 CROP_SHIFTS = (-1, 1)  # the crop frame is also read with lo and hi moved by these many bins
 MAX_UNDO = 3  # steps of subdivision undone under a suspect, one at a time
 COARSE_GAIN = 2.0  # a coarse mesh is read when it shows this many times the excess energy per vertex
+# (and so is the suspect with its smoothing undone)
+UNSMOOTH_LAM = 0.1  # the smoothing undone: steps of this share towards the neighbours' mean, backwards
+UNSMOOTH_SCAN = (2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 18, 20, 23, 26, 30, 34, 38, 43, 48, 54, 60, 67, 74, 80)
+UNSMOOTH_SAMPLE = 20000  # vertices the scan's energies are measured on
+UNSMOOTH_FLOOR = 6e-4  # the scan's best excess energy per vertex must reach this to be looked at closely
+UNSMOOTH_NEAR = (0.4, 1.1)  # then the counts between these shares of the scan's best count,
+UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count around the best of them
 
 
 @dataclass
@@ -68,7 +77,8 @@ class Frames:
     over the vertices' total weight) of the frame and count read; ``mesh``, the mesh read: "suspect", or
     the coarse mesh a subdivided suspect was made from, by the steps undone in the order they were applied
     ("loop", "sqrt3", "catmull-clark", "midpoint", "1-to-4" for a 1-to-4 step's original vertices as they
-    are; several joined by " + ")."""
+    are; several joined by " + "), or the suspect with k steps of smoothing undone ("smoothing:k",
+    ``unsmoothing``)."""
 
     index: int
     names: tuple[str, ...]
@@ -98,8 +108,11 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     3.7-6.8; Loop then 8-bit quantization 2.1-2.5 (bunny) and 3.1-3.4 (Venus head); a Loop-subdivided
     mesh marked as it is, then 8-bit quantized or 0.3 % noised, 0.96-1.08 for its original vertices as
     they are and 0.19-0.98 solved (read intact it is in full view). The choice involves no pass phrase,
-    so the p-value's union bound is the chosen mesh's."""
+    so the p-value's union bound is the chosen mesh's. Then, when still no mesh shows the mark in full
+    view, the suspect with its smoothing undone (``unsmoothing``), read when it shows COARSE_GAIN times
+    the excess energy per vertex of the best so far."""
     got = read_statistics_frames(V, F, bin_counts)
+    V0, F0 = V, F
     rules: list[str] = []
     while got.energy < FULL_VIEW and len(rules) < MAX_UNDO:
         coarse = coarse_mesh(V, F)
@@ -114,7 +127,71 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
             got = dataclasses.replace(alt, mesh=" + ".join(reversed(steps)))
         rules.append(coarse.rule)
         V, F = coarse.vertices, coarse.faces
+    if got.energy < FULL_VIEW:
+        steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0))
+        if steps is not None:
+            got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
     return got
+
+
+def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float):
+    """(steps, ``Frames``) of the suspect V (n, 3), F (m, 3) with that many steps of uniform Laplacian
+    smoothing undone (``pmwm.smoothing``, UNSMOOTH_LAM each), the count whose own frame shows the most
+    excess energy per vertex, when its frames show more than ``above``; else None.
+
+    Why: smoothing leaves the mark in the copy but blurs the radii (10 iterations of 0.1 move the Venus
+    head's vertices by 0.2 bin widths, RMS, each by its own curvature) and the bins lose it: the Venus
+    head read no whole payload after 10 iterations (BENCHMARKS.md, ``blind``). Smoothing damps the
+    mesh's frequencies without mixing them, so steps taken back restore the radii and the mark, even
+    after 50 iterations (``blind-unsmoothing``). The count is unknown: a scan measures the energy at
+    UNSMOOTH_SCAN steps on UNSMOOTH_SAMPLE vertices (the surface's areas kept from the suspect: cheaper,
+    and it peaks up to twice beyond the right count), and when its best shows UNSMOOTH_FLOOR per vertex
+    (unmarked meshes: 3e-4 at most, measured), the own frame is measured in full over UNSMOOTH_NEAR of
+    that count, every UNSMOOTH_FINE of it, then at every count around the best of those. Nothing
+    involves the pass phrase: the union bound is that of the frames read. The scan takes up to 80 sparse
+    products with the neighbour-mean operator, the full measurement up to 2 x 88 more."""
+    area = vertex_areas(V, F)
+    if not area.sum() > 0:
+        return None
+    operator = mean_operator(F, len(V))
+    weight = area / area.sum()
+    sub = thinned(by_distance(V, area, weight @ V), UNSMOOTH_SAMPLE)
+    ones = np.ones(len(sub))
+    scan = {}
+    for m, X in zip(range(1, UNSMOOTH_SCAN[-1] + 1), unsmoothing_steps(V, operator, UNSMOOTH_LAM)):
+        if m in UNSMOOTH_SCAN:
+            centre = weight @ X
+            lo, hi = weighted_quantiles(np.linalg.norm(X[sub] - centre, axis=1)[None], area[sub], [QUANTILES])[0]
+            if hi > lo:
+                scan[m] = max(excess_energy(st, share, len(sub))
+                              for st, share in statistics_in(X[sub], ones, Frame(centre, lo, hi, 1), bin_counts))
+    if not scan or max(scan.values()) < UNSMOOTH_FLOOR * len(sub):
+        return None
+    best = max(scan, key=scan.get)
+    step = max(1, int(round(UNSMOOTH_FINE * best)))
+    lo_m, hi_m = max(1, int(round(UNSMOOTH_NEAR[0] * best))), int(round(UNSMOOTH_NEAR[1] * best))
+    m, e, X = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step))
+    if step > 1:
+        m, e, X = max((m, e, X), _best_count(V, F, operator, bin_counts,
+                                             [k for k in range(m - step + 1, m + step) if k != m and k >= 1]),
+                      key=lambda r: r[1])
+    got = read_statistics_frames(X, F, bin_counts)
+    return (m, got) if got.energy > above else None
+
+
+def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts) -> tuple[int, float, np.ndarray]:
+    """Of the step counts ``counts`` (ascending), the one whose unsmoothed vertices' own frame shows the
+    most excess energy per vertex over ``bin_counts``: (count, energy, vertices (n, 3)); energy -inf
+    and the suspect's vertices when ``counts`` is empty."""
+    wanted = set(counts)
+    best = (0, -np.inf, V)
+    for m, X in zip(range(1, max(wanted, default=0) + 1), unsmoothing_steps(V, operator, UNSMOOTH_LAM)):
+        if m in wanted:
+            fr, a = frame_of_areas(X, vertex_areas(X, F), 1)
+            e = max(excess_energy(st, share, a.sum()) for st, share in statistics_in(X, a, fr, bin_counts)) / a.sum()
+            if e > best[1]:
+                best = (m, e, X)
+    return best
 
 
 def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:

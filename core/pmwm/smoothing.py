@@ -1,0 +1,65 @@
+"""Uniform Laplacian smoothing and its inverse: the neighbour mean, steps forward and back.
+
+One step moves every vertex a share ``lam`` of the way to the mean of its neighbours, all at once:
+V <- V + lam (M V - V), M the neighbour-mean operator (``mean_operator``). Interior vertices average
+their 1-ring; boundary vertices (on an edge with one face) average their neighbours along boundary
+edges only, so an open border is smoothed as a curve (MeshLab's "1D boundary smoothing" default);
+isolated vertices stay. This is the benchmark's smoothing attack (``attacks.smooth_laplacian``,
+lam 0.1); Blender's Smooth modifier takes the same steps with lam = factor / 2, its repeat the step
+count, boundary vertices averaging all their neighbours (measured in Blender 4.2: equal to 1e-7 of the
+diagonal).
+
+``unsmoothing_steps`` runs the same steps backwards, V <- V - lam (M V - V): a step of heat flow
+back. Smoothing damps each of the mesh's frequencies by a factor (1 + lam mu) per step (mu in [-2, 0],
+an eigenvalue of M - I) and moves no vertex's information elsewhere, so the same number of steps back
+gives the details back as far as the arithmetic and any later change of the copy allow; high
+frequencies it damped to nothing it amplifies from nothing (noise stays noise). A reader that does not
+know how many steps were taken tries several and keeps the one that shows what it looks for (the
+blind scheme: ``pmwm.schemes.blind.frames``).
+"""
+
+from __future__ import annotations
+
+from typing import Iterator
+
+import numpy as np
+
+from .adjacency import build_adjacency, segment_owner
+
+__all__ = ["neighbour_pairs", "mean_operator", "unsmoothing_steps"]
+
+
+def neighbour_pairs(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Whom each vertex averages: pairs (owner, neighbour), each (p,) int64, for the n vertices of the
+    faces (m, 3): an interior vertex's 1-ring, a boundary vertex's neighbours along boundary edges."""
+    adj = build_adjacency(faces, n, detect_pinches=False)  # (the rings are the same; pinches not needed)
+    owner = segment_owner(adj.ring_ptr)
+    nbr = adj.ring_idx
+    interior = ~adj.boundary_vertex[owner]
+    bedges = adj.edges[adj.edge_face_count == 1]
+    return (np.concatenate([owner[interior], bedges[:, 0], bedges[:, 1]]),
+            np.concatenate([nbr[interior], bedges[:, 1], bedges[:, 0]]))
+
+
+def mean_operator(faces: np.ndarray, n: int):
+    """The neighbour-mean operator M, a sparse (n, n) CSR matrix: row i averages vertex i's neighbours
+    (``neighbour_pairs``); a vertex with none keeps itself (M V = V there: it never moves)."""
+    from scipy.sparse import coo_matrix
+
+    owner, nbr = neighbour_pairs(faces, n)
+    count = np.bincount(owner, minlength=n).astype(np.float64)
+    alone = np.flatnonzero(count == 0)
+    rows = np.concatenate([owner, alone])
+    cols = np.concatenate([nbr, alone])
+    weight = np.concatenate([1.0 / count[owner], np.ones(len(alone))])
+    return coo_matrix((weight, (rows, cols)), shape=(n, n)).tocsr()
+
+
+def unsmoothing_steps(vertices: np.ndarray, operator, lam: float) -> Iterator[np.ndarray]:
+    """The vertices (n, 3) after 1, 2, 3, ... steps of smoothing undone, V <- V - lam (M V - V), with
+    M = ``operator`` (``mean_operator``): an endless iterator (the caller stops it). Each step costs
+    one sparse product."""
+    X = np.asarray(vertices, dtype=np.float64)
+    while True:
+        X = (1.0 + lam) * X - lam * (operator @ X)
+        yield X
