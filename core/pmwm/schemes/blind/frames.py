@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...errors import MeshError
 from ...smoothing import mean_operator, unsmoothing_steps
 from ...subdivision import coarse_mesh
 from .crop import crop_frames, cut_planes
@@ -175,7 +176,12 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float):
         m, e, X = max((m, e, X), _best_count(V, F, operator, bin_counts,
                                              [k for k in range(m - step + 1, m + step) if k != m and k >= 1]),
                       key=lambda r: r[1])
-    got = read_statistics_frames(X, F, bin_counts)
+    if not np.isfinite(e):
+        return None
+    try:
+        got = read_statistics_frames(X, F, bin_counts)
+    except MeshError:  # (a surface the steps back flattened to no area or no range: not this one)
+        return None
     return (m, got) if got.energy > above else None
 
 
@@ -187,7 +193,10 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts) -> t
     best = (0, -np.inf, V)
     for m, X in zip(range(1, max(wanted, default=0) + 1), unsmoothing_steps(V, operator, UNSMOOTH_LAM)):
         if m in wanted:
-            fr, a = frame_of_areas(X, vertex_areas(X, F), 1)
+            try:
+                fr, a = frame_of_areas(X, vertex_areas(X, F), 1)
+            except MeshError:
+                continue
             e = max(excess_energy(st, share, a.sum()) for st, share in statistics_in(X, a, fr, bin_counts)) / a.sum()
             if e > best[1]:
                 best = (m, e, X)
