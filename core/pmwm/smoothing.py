@@ -11,11 +11,12 @@ diagonal).
 
 ``unsmoothing_steps`` runs the same steps backwards, V <- V - lam (M V - V): a step of heat flow
 back. Smoothing damps each of the mesh's frequencies by a factor (1 + lam mu) per step (mu in [-2, 0],
-an eigenvalue of M - I) and moves no vertex's information elsewhere, so the same number of steps back
-gives the details back as far as the arithmetic and any later change of the copy allow; high
-frequencies it damped to nothing it amplifies from nothing (noise stays noise). A reader that does not
-know how many steps were taken tries several and keeps the one that shows what it looks for (the
-blind scheme: ``pmwm.schemes.blind.frames``).
+an eigenvalue of M - I) and mixes none of them, so steps back give the detail back: each is the forward
+step's inverse to first order (it leaves (lam mu)^2 per step), so about as many steps back as were
+taken forward, or a few more, restore most of it; what smoothing damped to nothing they amplify from
+nothing (noise stays noise). A reader that does not know how many steps were taken tries several and
+keeps the one that shows what it looks for (the blind scheme: ``pmwm.schemes.blind.frames``;
+BENCHMARKS.md, ``blind-unsmoothing``).
 """
 
 from __future__ import annotations

@@ -201,8 +201,7 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
     rank the bits by how likely they are right (the Chase search's order, ``word.likely_flips``). The
     neighbours' interference is removed in those units: the margins make every bin's mark the same
     number of standard errors (``radial.bin_margins``), as the equalizer's model has it (one g for all
-    bins); on the bin means, with the same rounds, it read 7 fewer of 288 attacked copies (BENCHMARKS.md,
-    ``blind-equalizer-rounds``)."""
+    bins), where in bin means they differ from bin to bin (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
     if share is not None:
         stat = stat * np.sqrt(np.nan_to_num(share))  # (an empty bin stays NaN)

@@ -140,14 +140,13 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float):
     smoothing undone (``pmwm.smoothing``, UNSMOOTH_LAM each), the count whose own frame shows the most
     excess energy per vertex, when its frames show more than ``above``; else None.
 
-    Why: smoothing leaves the mark in the copy but blurs the radii (10 iterations of 0.1 move the Venus
-    head's vertices by 0.2 bin widths, RMS, each by its own curvature) and the bins lose it: the Venus
-    head read no whole payload after 10 iterations (BENCHMARKS.md, ``blind``). Smoothing damps the
-    mesh's frequencies without mixing them, so steps taken back restore the radii and the mark, even
-    after 50 iterations (``blind-unsmoothing``). The count is unknown: a scan measures the energy at
+    Why: smoothing leaves the mark in the copy but blurs the radii (each vertex moves inward by its own
+    curvature) and the bins lose it across their edges. Smoothing damps the mesh's frequencies without
+    mixing them, so steps taken back restore the radii and the mark, even after 50 iterations
+    (BENCHMARKS.md, ``blind-unsmoothing``). The count is unknown: a scan measures the energy at
     UNSMOOTH_SCAN steps on UNSMOOTH_SAMPLE vertices (the surface's areas kept from the suspect: cheaper,
-    and it peaks up to twice beyond the right count), and when its best shows UNSMOOTH_FLOOR per vertex
-    (unmarked meshes: 3e-4 at most, measured), the own frame is measured in full over UNSMOOTH_NEAR of
+    but it peaks beyond the right count, up to twice), and when its best reaches UNSMOOTH_FLOOR per
+    vertex (above what unmarked meshes show), the own frame is measured in full over UNSMOOTH_NEAR of
     that count, every UNSMOOTH_FINE of it, then at every count around the best of those. Nothing
     involves the pass phrase: the union bound is that of the frames read. The scan takes up to 80 sparse
     products with the neighbour-mean operator, the full measurement up to 2 x 88 more."""

@@ -479,8 +479,8 @@ def equalized(stat: np.ndarray) -> np.ndarray:
     simplifications) the statistics are returned as they are.
 
     Why the rounds: a fit on the hard decisions alone, a sixth of them wrong after 8-bit quantization of
-    the Venus head, sees c / g of -0.08 to -0.31 where the true signs give -0.40, and left 16 of the 20
-    readings of 10 such copies (two frames each) as they were (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
+    the Venus head, sees much less interference than there is and judged most such readings free of it
+    (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
     empty = np.isnan(stat)
     x = np.where(empty, 0.0, stat)
     s = np.sign(x)
