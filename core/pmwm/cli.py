@@ -173,8 +173,9 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
     if v.mode == "blind":
         print(f"{state}: {v.matches}/{v.carriers_total} check bits match, p = {v.p_value:.3g} "
               f"(threshold {v.p_threshold:g}), {v.extra.get('payload_bits')}-bit payload read (blind)")
-        if mesh_read(v.extra.get("mesh", "suspect")):
-            print(mesh_read(v.extra["mesh"]))
+        read_on = mesh_read(v.extra.get("mesh", "suspect"))
+        if read_on:
+            print(read_on)
         print(f"payload: {v.payload!r}" if v.payload is not None else f"payload bits: {v.bits}")
         return
     print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "
