@@ -55,13 +55,15 @@ def subsurf(V: np.ndarray, F: np.ndarray, limit: bool, ply: Path) -> tuple[tuple
 
 
 def as_it_is(Vs: np.ndarray, Fs: np.ndarray, phrase: str):
-    """``pmwm.verify`` with no subdivision step undone (the reader before d46800f, for this copy)."""
-    real = frames.coarse_mesh
+    """``pmwm.verify`` with no subdivision step undone and no smoothing taken back (the reader before
+    d46800f, for this copy)."""
+    real, real_unsmoothing = frames.coarse_mesh, frames.unsmoothing
     frames.coarse_mesh = lambda V, F: None
+    frames.unsmoothing = lambda *a: None
     try:
         return pmwm.verify(Vs, Fs, passphrase=phrase)
     finally:
-        frames.coarse_mesh = real
+        frames.coarse_mesh, frames.unsmoothing = real, real_unsmoothing
 
 
 def main(argv=None) -> int:
