@@ -122,7 +122,8 @@ def main(argv=None) -> int:
         "with the modifier's limit surface (its default) and without; the copy is read as the add-on reads "
         "the object (its positions and Blender's triangulation of the quads) and as `pmwm.read_mesh` reads "
         "Blender's PLY export of it. Whole payload: marked (p < 1e-6) with the exact payload; in brackets, "
-        "the same copies read as they are (no subdivision step undone: the reader before d46800f). Mesh read: the "
+        "the same copies read as they are (no subdivision step undone, no smoothing taken back: the reader "
+        "before d46800f). Mesh read: the "
         "verdict's `mesh`. Residual: `pmwm.subdivision.coarse_mesh`'s RMS residual, a share of the "
         "bounding-box diagonal (largest over the keys). Verify: `pmwm.verify` alone, median.", "",
         "| model | vertices after | limit surface | read from | whole payload | mesh read | residual | verify |",
