@@ -43,3 +43,32 @@ def test_steps_back_restore_what_the_steps_forward_smoothed(steps):
     left = [metrics.vertex_rmse(X, V) / moved for X in back]
     assert min(left[steps - 1:]) < 0.13
     assert left[steps // 2 - 1] > 0.3 and left[steps // 2 - 1] > min(left[steps - 1:]) * 2
+
+
+def _pairs_by_hand(F, n):
+    """The neighbour pairs from their definition, edge by edge (a small mesh: a loop is fine here)."""
+    from collections import Counter
+
+    faces_of_edge = Counter(tuple(sorted((int(f[i]), int(f[(i + 1) % 3])))) for f in F for i in range(3)
+                            if f[i] != f[(i + 1) % 3])
+    boundary = {v for e, c in faces_of_edge.items() if c == 1 for v in e}
+    want = set()
+    for (a, b), c in faces_of_edge.items():
+        for u, w in ((a, b), (b, a)):
+            if u not in boundary or c == 1:
+                want.add((u, w))
+    return want
+
+
+@pytest.mark.parametrize("mesh", ["blob", "open_cap"])
+def test_whom_each_vertex_averages(mesh):
+    """Interior vertices average their 1-ring, boundary vertices their neighbours along boundary edges,
+    on a closed mesh, an open one, and one with an edge of three faces and a degenerate face added."""
+    V, F = getattr(meshes, mesh)()
+    n = len(V)
+    extra = np.array([[F[0, 0], F[0, 1], n], [F[0, 1], F[0, 1], F[1, 2]]])  # a third face on edge 0-1; a degenerate one
+    for faces, count in ((F, n), (np.vstack([F, extra]), n + 1)):
+        owner, nbr = smoothing.neighbour_pairs(faces, count)
+        got = list(zip(owner.tolist(), nbr.tolist()))
+        assert len(got) == len(set(got))  # each pair once: the mean weighs every neighbour the same
+        assert set(got) == _pairs_by_hand(faces, count)

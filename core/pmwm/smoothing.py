@@ -25,21 +25,33 @@ from typing import Iterator
 
 import numpy as np
 
-from .adjacency import build_adjacency, segment_owner
 
 __all__ = ["neighbour_pairs", "mean_operator", "unsmoothing_steps"]
 
 
 def neighbour_pairs(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Whom each vertex averages: pairs (owner, neighbour), each (p,) int64, for the n vertices of the
-    faces (m, 3): an interior vertex's 1-ring, a boundary vertex's neighbours along boundary edges."""
-    adj = build_adjacency(faces, n, detect_pinches=False)  # (the rings are the same; pinches not needed)
-    owner = segment_owner(adj.ring_ptr)
-    nbr = adj.ring_idx
-    interior = ~adj.boundary_vertex[owner]
-    bedges = adj.edges[adj.edge_face_count == 1]
-    return (np.concatenate([owner[interior], bedges[:, 0], bedges[:, 1]]),
-            np.concatenate([nbr[interior], bedges[:, 1], bedges[:, 0]]))
+    faces (m, 3): an interior vertex's 1-ring, a boundary vertex's neighbours along boundary edges (an
+    edge of one face); each pair once, a vertex never its own neighbour (a degenerate face's repeated
+    corner). The edges and their face counts come from one sparse matrix (its conversion to CSR sums
+    the faces' repeated edges): a third of the time of ``adjacency.build_adjacency``, which builds
+    much more."""
+    from scipy.sparse import coo_matrix
+
+    a = faces.ravel()
+    b = np.roll(faces, -1, axis=1).ravel()
+    a, b = a[a != b], b[a != b]  # (a degenerate face's repeated corner is no neighbour)
+    E = coo_matrix((np.ones(len(a)), (np.minimum(a, b), np.maximum(a, b))), shape=(n, n)).tocsr()
+    lo = np.repeat(np.arange(n), np.diff(E.indptr))
+    hi = E.indices.astype(np.int64)
+    one_face = E.data == 1
+    boundary = np.zeros(n, bool)
+    boundary[lo[one_face]] = True
+    boundary[hi[one_face]] = True
+    owner, nbr = np.concatenate([lo, hi]), np.concatenate([hi, lo])
+    interior = ~boundary[owner]
+    bl, bh = lo[one_face], hi[one_face]
+    return np.concatenate([owner[interior], bl, bh]), np.concatenate([nbr[interior], bh, bl])
 
 
 def mean_operator(faces: np.ndarray, n: int):

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -62,8 +63,9 @@ MAX_UNDO = 3  # steps of subdivision undone under a suspect, one at a time
 COARSE_GAIN = 2.0  # a coarse mesh is read when it shows this many times the excess energy per vertex
 # (and so is the suspect with its smoothing undone)
 UNSMOOTH_LAM = 0.1  # the smoothing undone: steps of this share towards the neighbours' mean, backwards
-UNSMOOTH_SCAN = (2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 18, 20, 23, 26, 30, 34, 38, 43, 48, 54, 60, 67, 74, 80)
-UNSMOOTH_SAMPLE = 20000  # vertices the scan's energies are measured on
+UNSMOOTH_STRIDE = 3  # the scan takes steps of UNSMOOTH_STRIDE * UNSMOOTH_LAM, as many UNSMOOTH_LAM steps
+UNSMOOTH_SCAN = (3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 39, 42, 48, 54, 60, 66, 75, 81)  # counts it measures
+UNSMOOTH_SAMPLE = 10000  # vertices the scan's energies are measured on
 UNSMOOTH_FLOOR = 6e-4  # the scan's best excess energy per vertex must reach this to be looked at closely
 UNSMOOTH_NEAR = (0.4, 1.1)  # then the counts between these shares of the scan's best count,
 UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count around the best of them
@@ -112,7 +114,8 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     so the p-value's union bound is the chosen mesh's. Then, when still no mesh shows the mark in full
     view, the suspect with its smoothing undone (``unsmoothing``), read when it shows COARSE_GAIN times
     the excess energy per vertex of the best so far."""
-    got = read_statistics_frames(V, F, bin_counts)
+    area = vertex_areas(V, F)
+    got = read_statistics_frames(V, F, bin_counts, area)
     V0, F0 = V, F
     rules: list[str] = []
     while got.energy < FULL_VIEW and len(rules) < MAX_UNDO:
@@ -129,28 +132,33 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
         rules.append(coarse.rule)
         V, F = coarse.vertices, coarse.faces
     if got.energy < FULL_VIEW:
-        steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0))
+        steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area)
         if steps is not None:
             got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
     return got
 
 
-def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float):
+def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Optional[np.ndarray] = None):
     """(steps, ``Frames``) of the suspect V (n, 3), F (m, 3) with that many steps of uniform Laplacian
     smoothing undone (``pmwm.smoothing``, UNSMOOTH_LAM each), the count whose own frame shows the most
-    excess energy per vertex, when its frames show more than ``above``; else None.
+    excess energy per vertex, when its frames show more than ``above``; else None. ``area`` (n,): the
+    suspect's ``vertex_areas``, when the caller has them.
 
     Why: smoothing leaves the mark in the copy but blurs the radii (each vertex moves inward by its own
     curvature) and the bins lose it across their edges. Smoothing damps the mesh's frequencies without
     mixing them, so steps taken back restore the radii and the mark, even after 50 iterations
     (BENCHMARKS.md, ``blind-unsmoothing``). The count is unknown: a scan measures the energy at
     UNSMOOTH_SCAN steps on UNSMOOTH_SAMPLE vertices (the surface's areas kept from the suspect: cheaper,
-    but it peaks beyond the right count, up to twice), and when its best reaches UNSMOOTH_FLOOR per
-    vertex (above what unmarked meshes show), the own frame is measured in full over UNSMOOTH_NEAR of
-    that count, every UNSMOOTH_FINE of it, then at every count around the best of those. Nothing
-    involves the pass phrase: the union bound is that of the frames read. The scan takes up to 80 sparse
-    products with the neighbour-mean operator, the full measurement up to 2 x 88 more."""
-    area = vertex_areas(V, F)
+    but it peaks beyond the right count, up to twice), taking UNSMOOTH_STRIDE steps at once (a step of
+    UNSMOOTH_STRIDE times the share is their product to first order in the share: a third of the sparse
+    products for a scan that only places the count roughly), and when its best reaches UNSMOOTH_FLOOR
+    per vertex (above what unmarked meshes show), the own frame is measured in full over UNSMOOTH_NEAR of
+    that count, every UNSMOOTH_FINE of it, then at every count around the best of those (stepping on
+    from the count measured before it). Nothing involves the pass phrase: the union bound is that of the
+    frames read. The scan takes 27 sparse products with the neighbour-mean operator, the full
+    measurement up to 100 more (the scan runs on every suspect not read in full view, unmarked ones
+    included: BENCHMARKS.md, ``verify-speed-blind``)."""
+    area = vertex_areas(V, F) if area is None else area
     if not area.sum() > 0:
         return None
     operator = mean_operator(F, len(V))
@@ -158,7 +166,9 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float):
     sub = thinned(by_distance(V, area, weight @ V), UNSMOOTH_SAMPLE)
     ones = np.ones(len(sub))
     scan = {}
-    for m, X in zip(range(1, UNSMOOTH_SCAN[-1] + 1), unsmoothing_steps(V, operator, UNSMOOTH_LAM)):
+    stride = UNSMOOTH_STRIDE
+    for j, X in zip(range(1, UNSMOOTH_SCAN[-1] // stride + 1), unsmoothing_steps(V, operator, stride * UNSMOOTH_LAM)):
+        m = j * stride
         if m in UNSMOOTH_SCAN:
             centre = weight @ X
             lo, hi = weighted_quantiles(np.linalg.norm(X[sub] - centre, axis=1)[None], area[sub], [QUANTILES])[0]
@@ -170,11 +180,12 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float):
     best = max(scan, key=scan.get)
     step = max(1, int(round(UNSMOOTH_FINE * best)))
     lo_m, hi_m = max(1, int(round(UNSMOOTH_NEAR[0] * best))), int(round(UNSMOOTH_NEAR[1] * best))
-    m, e, X = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step))
-    if step > 1:
-        m, e, X = max((m, e, X), _best_count(V, F, operator, bin_counts,
-                                             [k for k in range(m - step + 1, m + step) if k != m and k >= 1]),
-                      key=lambda r: r[1])
+    (m, e, X), (m0, X0) = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step))
+    if step > 1:  # every count around the best, stepped on from the count measured before it
+        (m1, e1, X1), _ = _best_count(X0, F, operator, bin_counts,
+                                      [k for k in range(m - step + 1, m + step) if k != m and k > m0], m0)
+        if e1 > e:
+            m, e, X = m1, e1, X1
     if not np.isfinite(e):
         return None
     try:
@@ -184,13 +195,17 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float):
     return (m, got) if got.energy > above else None
 
 
-def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts) -> tuple[int, float, np.ndarray]:
-    """Of the step counts ``counts`` (ascending), the one whose unsmoothed vertices' own frame shows the
-    most excess energy per vertex over ``bin_counts``: (count, energy, vertices (n, 3)); energy -inf
-    and the suspect's vertices when ``counts`` is empty."""
+def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, start: int = 0
+                ) -> tuple[tuple[int, float, np.ndarray], tuple[int, np.ndarray]]:
+    """Of the step counts ``counts`` (ascending, above ``start``), the one whose unsmoothed vertices'
+    own frame shows the most excess energy per vertex over ``bin_counts``: (count, energy, vertices
+    (n, 3)), energy -inf and V when ``counts`` is empty; and the count measured before it, with its
+    vertices ((start, V) when none), for a finer search around it to step on from. V (n, 3): the
+    vertices after ``start`` steps back."""
     wanted = set(counts)
-    best = (0, -np.inf, V)
-    for m, X in zip(range(1, max(wanted, default=0) + 1), unsmoothing_steps(V, operator, UNSMOOTH_LAM)):
+    best, before, last = (start, -np.inf, V), (start, V), (start, V)
+    steps = unsmoothing_steps(V, operator, UNSMOOTH_LAM)
+    for m, X in zip(range(start + 1, max(wanted, default=start) + 1), steps):
         if m in wanted:
             try:
                 fr, a = frame_of_areas(X, vertex_areas(X, F), 1)
@@ -198,15 +213,16 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts) -> t
                 continue
             e = max(excess_energy(st, share, a.sum()) for st, share in statistics_in(X, a, fr, bin_counts)) / a.sum()
             if e > best[1]:
-                best = (m, e, X)
-    return best
+                best, before = (m, e, X), last
+            last = (m, X)
+    return best, before
 
 
-def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
+def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts, area: Optional[np.ndarray] = None) -> Frames:
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
-    frames of the module docstring."""
+    frames of the module docstring. ``area`` (n,): its ``vertex_areas``, when the caller has them."""
     counts = list(bin_counts)
-    area = vertex_areas(V, F)
+    area = vertex_areas(V, F) if area is None else area
     fr, a = frame_of_areas(V, area, 1)
     total = float(a.sum())
     own = statistics_in(V, a, fr, counts)
