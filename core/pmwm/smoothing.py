@@ -40,7 +40,8 @@ def neighbour_pairs(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
 
     a = faces.ravel()
     b = np.roll(faces, -1, axis=1).ravel()
-    a, b = a[a != b], b[a != b]  # (a degenerate face's repeated corner is no neighbour)
+    edge = a != b  # (a degenerate face's repeated corner is no neighbour)
+    a, b = a[edge], b[edge]
     E = coo_matrix((np.ones(len(a)), (np.minimum(a, b), np.maximum(a, b))), shape=(n, n)).tocsr()
     lo = np.repeat(np.arange(n), np.diff(E.indptr))
     hi = E.indices.astype(np.int64)

@@ -167,7 +167,8 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     ones = np.ones(len(sub))
     scan = {}
     stride = UNSMOOTH_STRIDE
-    for j, X in zip(range(1, UNSMOOTH_SCAN[-1] // stride + 1), unsmoothing_steps(V, operator, stride * UNSMOOTH_LAM)):
+    scan_steps = unsmoothing_steps(V, operator, stride * UNSMOOTH_LAM)
+    for j, X in zip(range(1, UNSMOOTH_SCAN[-1] // stride + 1), scan_steps):
         m = j * stride
         if m in UNSMOOTH_SCAN:
             centre = weight @ X
@@ -218,7 +219,8 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, star
     return best, before
 
 
-def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts, area: Optional[np.ndarray] = None) -> Frames:
+def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
+                           area: Optional[np.ndarray] = None) -> Frames:
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
     frames of the module docstring. ``area`` (n,): its ``vertex_areas``, when the caller has them."""
     counts = list(bin_counts)
