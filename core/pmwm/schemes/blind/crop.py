@@ -42,9 +42,8 @@ width step of 1 % or 0.25 % instead of 0.125 % loses copies (the energy's peak i
 tenths of a percent wide at 64 bins); a 30 % crop moves the width further, and the widths -40 % .. +60 %
 read about twice as many of those as -20 % .. +25 %; with the family's plane alone, a cap share up to 0.5
 instead of 0.4 read fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin
-widths apart reads as many copies as screening every candidate (129 of 160 and 22 of 64 both ways); on a
-10 % crop of Igea, whose families hold thousands of candidates, the screening takes 0.4 s instead of
-0.9 s (a cut suspect's verify: BENCHMARKS.md, ``verify-speed-blind``). More finalists read more 30 % crops:
+widths apart, rather than every candidate, reads a few fewer crops (about 4 % of 10 % crops) in a
+quarter of the time (BENCHMARKS.md, ``blind-crop`` and ``verify-speed-blind``). More finalists read more 30 % crops:
 with TOP 6, 10 and 16 (REFINED 3) 23, 25 and 28 of the 64, with TOP 10 and REFINED 4 27 (131 of the 160
 10 % crops with each, 130 with TOP 6); each finalist costs about 15 ms per word length. The copies of the
 family 0.9 bin widths either side of its plane, with the fine width fit on every vertex instead of
