@@ -84,3 +84,15 @@ def test_is_closed_agrees_with_the_boundary_edges(name):
     if not has_boundary:  # one face removed opens it; one face flipped breaks the twins too
         assert not is_closed(F[1:], len(V))
         assert not is_closed(np.vstack([F[:1, ::-1], F[1:]]), len(V))
+
+
+@pytest.mark.parametrize("name", ["blob", "open_cap", "cad_part", "pinched_torus"])
+def test_edge_face_counts_are_the_adjacencys_edges(name):
+    """The cheap edge list is build_adjacency's: the same edges, the same face counts, closed or open;
+    with a degenerate face added, its repeated corner makes no edge."""
+    V, F = getattr(meshes, name)()
+    adj = build_adjacency(F, len(V))
+    edges, count = adjacency.edge_face_counts(F, len(V))
+    assert np.array_equal(edges, adj.edges) and np.array_equal(count, adj.edge_face_count)
+    edges, _ = adjacency.edge_face_counts(np.vstack([F, [[F[0, 0], F[0, 0], F[0, 1]]]]), len(V))
+    assert not (edges[:, 0] == edges[:, 1]).any()

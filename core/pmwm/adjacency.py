@@ -125,6 +125,23 @@ def _stable_order(keys: np.ndarray, own: bool) -> tuple[np.ndarray, np.ndarray]:
     return order, keys[order]
 
 
+def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """The undirected edges of the faces (m, 3), (e, 2) int64 with edges[:, 0] < edges[:, 1], sorted,
+    and how many face sides lie on each, (e,) int64: the ``edges`` and ``edge_face_count`` of
+    ``build_adjacency`` (a degenerate face's repeated corner left out), from one sparse matrix whose
+    conversion to CSR sums the repeats: a third of its time, for callers that need nothing else."""
+    from scipy.sparse import coo_matrix
+
+    n = int(n_vertices)
+    a = np.asarray(faces, dtype=np.int64).ravel()
+    b = np.roll(np.asarray(faces, dtype=np.int64).reshape(-1, 3), -1, axis=1).ravel()
+    side = a != b
+    a, b = a[side], b[side]
+    E = coo_matrix((np.ones(len(a)), (np.minimum(a, b), np.maximum(a, b))), shape=(n, n)).tocsr()
+    edges = np.stack([np.repeat(np.arange(n), np.diff(E.indptr)), E.indices.astype(np.int64)], axis=1)
+    return edges, E.data.astype(np.int64)
+
+
 def is_closed(faces: np.ndarray, n_vertices: int) -> bool:
     """Whether every half-edge (a, b) of the faces (m, 3) has its twin (b, a), so that no edge is on a
     boundary, without building the adjacency: the sums of x_a y_b and of x_b y_a over the half-edges

@@ -25,6 +25,7 @@ from typing import Iterator
 
 import numpy as np
 
+from .adjacency import edge_face_counts
 
 __all__ = ["neighbour_pairs", "mean_operator", "unsmoothing_steps"]
 
@@ -33,22 +34,12 @@ def neighbour_pairs(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Whom each vertex averages: pairs (owner, neighbour), each (p,) int64, for the n vertices of the
     faces (m, 3): an interior vertex's 1-ring, a boundary vertex's neighbours along boundary edges (an
     edge of one face); each pair once, a vertex never its own neighbour (a degenerate face's repeated
-    corner). The edges and their face counts come from one sparse matrix (its conversion to CSR sums
-    the faces' repeated edges): a third of the time of ``adjacency.build_adjacency``, which builds
-    much more."""
-    from scipy.sparse import coo_matrix
-
-    a = faces.ravel()
-    b = np.roll(faces, -1, axis=1).ravel()
-    edge = a != b  # (a degenerate face's repeated corner is no neighbour)
-    a, b = a[edge], b[edge]
-    E = coo_matrix((np.ones(len(a)), (np.minimum(a, b), np.maximum(a, b))), shape=(n, n)).tocsr()
-    lo = np.repeat(np.arange(n), np.diff(E.indptr))
-    hi = E.indices.astype(np.int64)
-    one_face = E.data == 1
+    corner). The edges from ``adjacency.edge_face_counts``."""
+    edges, count = edge_face_counts(faces, n)
+    lo, hi = edges[:, 0], edges[:, 1]
+    one_face = count == 1
     boundary = np.zeros(n, bool)
-    boundary[lo[one_face]] = True
-    boundary[hi[one_face]] = True
+    boundary[edges[one_face].ravel()] = True
     owner, nbr = np.concatenate([lo, hi]), np.concatenate([hi, lo])
     interior = ~boundary[owner]
     bl, bh = lo[one_face], hi[one_face]

@@ -64,7 +64,7 @@ COARSE_GAIN = 2.0  # a coarse mesh is read when it shows this many times the exc
 # (and so is the suspect with its smoothing undone)
 UNSMOOTH_LAM = 0.1  # the smoothing undone: steps of this share towards the neighbours' mean, backwards
 UNSMOOTH_STRIDE = 3  # the scan takes steps of UNSMOOTH_STRIDE * UNSMOOTH_LAM, as many UNSMOOTH_LAM steps
-UNSMOOTH_SCAN = (3, 6, 9, 12, 15, 18, 21, 24, 27, 30, 33, 39, 42, 48, 54, 60, 66, 75, 81)  # counts it measures
+UNSMOOTH_SCAN = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 16, 18, 20, 22, 25, 27)  # its steps it measures at
 UNSMOOTH_SAMPLE = 10000  # vertices the scan's energies are measured on
 UNSMOOTH_FLOOR = 6e-4  # the scan's best excess energy per vertex must reach this to be looked at closely
 UNSMOOTH_NEAR = (0.4, 1.1)  # then the counts between these shares of the scan's best count,
@@ -148,7 +148,7 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     curvature) and the bins lose it across their edges. Smoothing damps the mesh's frequencies without
     mixing them, so steps taken back restore the radii and the mark, even after 50 iterations
     (BENCHMARKS.md, ``blind-unsmoothing``). The count is unknown: a scan measures the energy at
-    UNSMOOTH_SCAN steps on UNSMOOTH_SAMPLE vertices (the surface's areas kept from the suspect: cheaper,
+    UNSMOOTH_SCAN of its steps on UNSMOOTH_SAMPLE vertices (the surface's areas kept from the suspect: cheaper,
     but it peaks beyond the right count, up to twice), taking UNSMOOTH_STRIDE steps at once (a step of
     UNSMOOTH_STRIDE times the share is their product to first order in the share: a third of the sparse
     products for a scan that only places the count roughly), and when its best reaches UNSMOOTH_FLOOR
@@ -166,11 +166,10 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     sub = thinned(by_distance(V, area, weight @ V), UNSMOOTH_SAMPLE)
     ones = np.ones(len(sub))
     scan = {}
-    stride = UNSMOOTH_STRIDE
-    scan_steps = unsmoothing_steps(V, operator, stride * UNSMOOTH_LAM)
-    for j, X in zip(range(1, UNSMOOTH_SCAN[-1] // stride + 1), scan_steps):
-        m = j * stride
-        if m in UNSMOOTH_SCAN:
+    scan_steps = unsmoothing_steps(V, operator, UNSMOOTH_STRIDE * UNSMOOTH_LAM)
+    for j, X in zip(range(1, UNSMOOTH_SCAN[-1] + 1), scan_steps):
+        m = j * UNSMOOTH_STRIDE  # (in steps of UNSMOOTH_LAM)
+        if j in UNSMOOTH_SCAN:
             centre = weight @ X
             lo, hi = weighted_quantiles(np.linalg.norm(X[sub] - centre, axis=1)[None], area[sub], [QUANTILES])[0]
             if hi > lo:
@@ -181,40 +180,41 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     best = max(scan, key=scan.get)
     step = max(1, int(round(UNSMOOTH_FINE * best)))
     lo_m, hi_m = max(1, int(round(UNSMOOTH_NEAR[0] * best))), int(round(UNSMOOTH_NEAR[1] * best))
-    (m, e, X), (m0, X0) = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step))
+    (m, e, X, aX), (m0, X0) = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step))
     if step > 1:  # every count around the best, stepped on from the count measured before it
-        (m1, e1, X1), _ = _best_count(X0, F, operator, bin_counts,
-                                      [k for k in range(m - step + 1, m + step) if k != m and k > m0], m0)
-        if e1 > e:
-            m, e, X = m1, e1, X1
+        second, _ = _best_count(X0, F, operator, bin_counts,
+                                [k for k in range(m - step + 1, m + step) if k != m and k > m0], m0)
+        if second[1] > e:
+            m, e, X, aX = second
     if not np.isfinite(e):
         return None
     try:
-        got = read_statistics_frames(X, F, bin_counts)
+        got = read_statistics_frames(X, F, bin_counts, aX)
     except MeshError:  # (a surface the steps back flattened to no area or no range: not this one)
         return None
     return (m, got) if got.energy > above else None
 
 
 def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, start: int = 0
-                ) -> tuple[tuple[int, float, np.ndarray], tuple[int, np.ndarray]]:
+                ) -> tuple[tuple[int, float, np.ndarray, Optional[np.ndarray]], tuple[int, np.ndarray]]:
     """Of the step counts ``counts`` (ascending, above ``start``), the one whose unsmoothed vertices'
     own frame shows the most excess energy per vertex over ``bin_counts``: (count, energy, vertices
-    (n, 3)), energy -inf and V when ``counts`` is empty; and the count measured before it, with its
-    vertices ((start, V) when none), for a finer search around it to step on from. V (n, 3): the
-    vertices after ``start`` steps back."""
+    (n, 3), their ``vertex_areas`` (n,)), energy -inf, V and None when ``counts`` is empty; and the
+    count measured before it, with its vertices ((start, V) when none), for a finer search around it to
+    step on from. V (n, 3): the vertices after ``start`` steps back."""
     wanted = set(counts)
-    best, before, last = (start, -np.inf, V), (start, V), (start, V)
+    best, before, last = (start, -np.inf, V, None), (start, V), (start, V)
     steps = unsmoothing_steps(V, operator, UNSMOOTH_LAM)
     for m, X in zip(range(start + 1, max(wanted, default=start) + 1), steps):
         if m in wanted:
+            area = vertex_areas(X, F)
             try:
-                fr, a = frame_of_areas(X, vertex_areas(X, F), 1)
+                fr, a = frame_of_areas(X, area, 1)
             except MeshError:
                 continue
             e = max(excess_energy(st, share, a.sum()) for st, share in statistics_in(X, a, fr, bin_counts)) / a.sum()
             if e > best[1]:
-                best, before = (m, e, X), last
+                best, before = (m, e, X, area), last
             last = (m, X)
     return best, before
 
