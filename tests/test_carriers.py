@@ -9,7 +9,7 @@ import trimesh
 from pmwm.adjacency import build_adjacency
 from pmwm.carriers import eligible_carriers, select_carriers
 from pmwm.errors import PayloadError
-from pmwm.features import face_normals, mean_edge_length, smoothness_feature
+from pmwm.features import face_normals, mean_edge_length, smoothness_feature, vertex_areas
 from pmwm.som import FLAT, PEAK, SUITABLE, classify_smoothness, train_som
 
 import meshes
@@ -113,6 +113,23 @@ def test_face_normals_unit_and_areas():
     n, a = face_normals(v * 2.0, f)
     np.testing.assert_allclose(np.abs(n[:, 2]), 1.0)
     np.testing.assert_allclose(a, 2.0)  # half of a 2 x 2 cell
+
+
+def test_vertex_areas_share_each_face_in_thirds():
+    # a 3 x 2 grid scaled by 2 (four triangles of area 2), a vertex of no face and a degenerate face
+    v, f = grid(3, 2)
+    v = np.vstack([v * 2.0, [[9.0, 9.0, 9.0]]])
+    f = np.vstack([f, [[0, 2, 4]]])  # (0, 0), (2, 0), (4, 0) in a line: no area
+    want = np.zeros(len(v))
+    for tri in f:  # each face's area by Heron's formula, a third to each corner
+        a, b, c = (np.linalg.norm(v[tri[i]] - v[tri[(i + 1) % 3]]) for i in range(3))
+        s = (a + b + c) / 2
+        want[tri] += np.sqrt(max(s * (s - a) * (s - b) * (s - c), 0.0)) / 3
+    got = vertex_areas(v, f)
+    assert got.dtype == np.float64 and got.shape == (len(v),)
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert got[-1] == 0 and got.sum() == pytest.approx(8.0)
+    np.testing.assert_array_equal(vertex_areas(v, np.zeros((0, 3), np.int64)), np.zeros(len(v)))
 
 
 # ---------------------------------------------------------------- SOM

@@ -38,6 +38,7 @@ import numpy as np
 
 from .adjacency import build_adjacency, gather_rows, segment_owner
 from .errors import ParameterError
+from .features import vertex_areas
 from .smoothing import neighbour_pairs
 from .validate import check_mesh
 
@@ -89,14 +90,6 @@ def remove_vertices(vertices: np.ndarray, faces: np.ndarray, remove: np.ndarray)
     new_index = np.cumsum(keep) - 1
     face_keep = keep[faces].all(axis=1) if len(faces) else np.zeros(0, bool)
     return vertices[keep].copy(), new_index[faces[face_keep]].astype(np.int64)
-
-
-def _vertex_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """A third of the area of the faces around each vertex."""
-    if len(f) == 0:
-        return np.zeros(len(v))
-    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
-    return np.bincount(f.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(v))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -172,7 +165,7 @@ def crop_paper(vertices, faces, fraction: float = 0.1, seed: int | None = None) 
         return remove_vertices(v, f, remove)
     rng = np.random.default_rng(seed)
     adj = build_adjacency(f, n)
-    area = _vertex_areas(v, f)
+    area = vertex_areas(v, f)
     p = area / area.sum() if area.sum() > 0 else np.full(n, 1.0 / n)
     seed_vertex = int(rng.choice(n, p=p))
     centre = v[seed_vertex]

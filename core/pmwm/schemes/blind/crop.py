@@ -63,7 +63,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...adjacency import build_adjacency, is_closed
+from ...adjacency import edge_face_counts, is_closed
 from ...background import parallel_map
 from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
@@ -109,8 +109,8 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
     at, and the planes of the MAX_PLANES largest are returned."""
     if is_closed(F, len(V)):
         return []
-    adj = build_adjacency(F, len(V), detect_pinches=False)
-    E = adj.edges[adj.edge_face_count == 1]
+    edges, sides = edge_face_counts(F, len(V))
+    E = edges[sides == 1]
     if len(E) < MIN_EDGES:
         return []
     from scipy.sparse import coo_matrix

@@ -49,11 +49,12 @@ from typing import Optional
 import numpy as np
 
 from ...errors import MeshError
+from ...features import vertex_areas
 from ...smoothing import mean_operator, unsmoothing_steps
 from ...subdivision import coarse_mesh
 from .crop import crop_frames, cut_planes
 from .radial import (QUANTILES, Frame, by_distance, excess_energy, frame_of_areas, refine_frame, statistics_in,
-                     thinned, vertex_areas, weighted_quantiles)
+                     thinned, weighted_quantiles)
 
 CROP_MAX_BINS = 96  # the crop search reads words of up to this many bins (payloads up to 64 bits)
 FULL_VIEW = 2.5e-3  # the mark in full view: the own or refined frame shows this much excess energy per vertex

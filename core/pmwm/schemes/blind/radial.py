@@ -52,6 +52,7 @@ from typing import Optional
 import numpy as np
 
 from ...errors import MeshError
+from ...features import vertex_areas
 
 QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as area-weighted quantiles
 K_GRID = 1e-3  # the step of the exponent k (Cho's)
@@ -72,12 +73,6 @@ class Frame:
     @property
     def width(self) -> float:
         return (self.hi - self.lo) / self.n_bins
-
-
-def vertex_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """A third of the area of the faces around each vertex, (n,) float64."""
-    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-    return np.bincount(F.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(V))
 
 
 def weighted_quantiles(x: np.ndarray, w: np.ndarray, q) -> np.ndarray:
