@@ -21,7 +21,9 @@ scheme (read on the coarse mesh under it since 7c3a7d4, when it shows more energ
 Every case is timed by two child processes, one importing this checkout's ``core``, one importing
 ``core`` of ``--baseline`` (extracted with ``git archive``); the two alternate for ``--rounds``
 rounds of ``--repeat`` calls each, and the table gives the median of all calls. The verdicts of
-both are compared.
+both are compared. With ``--fresh``, every case is timed in a process of its own, its first and only
+call (as ``pmwm verify`` reads one suspect per process: memory not yet mapped, caches cold), the two
+commits alternating for ``--rounds`` rounds; the section's name then ends in "-fresh".
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Optional
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import ROOT, command, commit, load, machine, write_section  # noqa: E402
@@ -139,14 +142,17 @@ def build_blind_cases(path: Path) -> None:
         pickle.dump(rows, f)
 
 
-def child(cases_path: str, out_path: str, repeat: int) -> None:
-    """Time every case ``repeat`` times with the ``pmwm`` on sys.path; write JSON."""
+def child(cases_path: str, out_path: str, repeat: int, only: Optional[int] = None) -> None:
+    """Time every case (or the case of index ``only``) ``repeat`` times with the ``pmwm`` on sys.path;
+    write JSON."""
     import numpy as np
 
     import pmwm
 
     with open(cases_path, "rb") as f:
         rows = pickle.load(f)
+    if only is not None:
+        rows = rows[only:only + 1]
     out = []
     for m, case, V, F, key_json in rows:
         key = pmwm.WatermarkKey.from_json(key_json)
@@ -166,10 +172,11 @@ def child(cases_path: str, out_path: str, repeat: int) -> None:
         json.dump(out, f)
 
 
-def run_child(core: Path, cases_path: Path, out_path: Path, repeat: int) -> list[dict]:
+def run_child(core: Path, cases_path: Path, out_path: Path, repeat: int, only: Optional[int] = None
+              ) -> list[dict]:
     env = dict(os.environ, PYTHONPATH=str(core), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    subprocess.run([sys.executable, __file__, "--child", str(cases_path), str(out_path), str(repeat)],
-                   check=True, env=env, cwd=str(ROOT))
+    subprocess.run([sys.executable, __file__, "--child", str(cases_path), str(out_path), str(repeat),
+                    *([] if only is None else [str(only)])], check=True, env=env, cwd=str(ROOT))
     with open(out_path) as f:
         return json.load(f)
 
@@ -183,11 +190,15 @@ def main() -> None:
     ap.add_argument("--baseline", default=None,
                     help=f"commit to compare with (default {BASELINE}, with --scheme blind {BLIND_BASELINE}); "
                          "'' for none")
-    ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--fresh", action="store_true",
+                    help="time each case's first call in a process of its own (section ...-fresh)")
+    ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
-        child(a.child[0], a.child[1], int(a.child[2]))
+        child(a.child[0], a.child[1], int(a.child[2]), int(a.child[3]) if len(a.child) > 3 else None)
         return
+    if a.fresh:
+        a.repeat = 1
     if a.baseline is None:
         a.baseline = BLIND_BASELINE if a.scheme == "blind" else BASELINE
     with tempfile.TemporaryDirectory() as tmp:
@@ -202,10 +213,21 @@ def main() -> None:
             (tmp / "core").rename(tmp / "old" / "core")
             cores["old"] = tmp / "old" / "core"
         runs: dict[str, list[list[dict]]] = {k: [] for k in cores}
+        with open(tmp / "cases.pkl", "rb") as f:
+            n_cases = len(pickle.load(f))
         for r in range(a.rounds):
             for label, core in cores.items():
+                if a.fresh:  # one process per case, alternating with the baseline case by case
+                    continue
                 runs[label].append(run_child(core, tmp / "cases.pkl", tmp / f"{label}{r}.json", a.repeat))
                 print(f"round {r + 1}: {label} done", flush=True)
+            if a.fresh:
+                for label in cores:
+                    runs[label].append([])
+                for i in range(n_cases):
+                    for label, core in cores.items():
+                        runs[label][-1] += run_child(core, tmp / "cases.pkl", tmp / f"{label}{r}.json", 1, i)
+                print(f"round {r + 1} done", flush=True)
     report(runs, a)
 
 
@@ -224,12 +246,16 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
     n_calls = a.repeat * a.rounds
     blind = a.scheme == "blind"
     lines = [
-        "## Verify speed (issues 13, 14): the blind scheme" if blind else
-        "## Verify speed (issue 13): spatial search by KD-tree",
+        ("## Verify speed (issues 13, 14): the blind scheme" if blind else
+         "## Verify speed (issue 13): spatial search by KD-tree")
+        + (", the first call in a fresh process" if a.fresh else ""),
         "",
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
-        f"`pmwm.verify` alone (the meshes and keys already in memory), median of {n_calls} calls in "
-        f"{a.rounds} rounds that alternate with the baseline"
+        (f"`pmwm.verify` alone (the meshes and keys already in memory), each case's first call in a process "
+         f"of its own (as `pmwm verify` reads one suspect), median of {a.rounds} processes that alternate "
+         "with the baseline's" if a.fresh else
+         f"`pmwm.verify` alone (the meshes and keys already in memory), median of {n_calls} calls in "
+         f"{a.rounds} rounds that alternate with the baseline")
         + ((f" (commit {a.baseline}: {BASELINES[a.baseline]})" if a.baseline in BASELINES
             else f" (commit {a.baseline})") if old else "")
         + "; OMP_NUM_THREADS=1. Wall-clock time and CPU time of the "
@@ -273,7 +299,8 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
         + ("identical to the baseline's in every case." if old and not changed else
            ("changed: " + "; ".join(changed) + ".") if changed else "(no baseline run)."),
     ]
-    write_section("verify-speed-blind" if blind else "verify-speed", "\n".join(lines))
+    write_section(("verify-speed-blind" if blind else "verify-speed") + ("-fresh" if a.fresh else ""),
+                  "\n".join(lines))
 
 
 if __name__ == "__main__":
