@@ -229,15 +229,14 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
     for fi, stat in enumerate(per_frame):
         got, score = word_read(stat, secret, n_word, shares[fi])
         candidates = got[None] ^ word.likely_flips(np.abs(score), n_candidates)  # row 0: the word as read
+        # the flips of check bits leave the payload as it is: each distinct payload's check computed once
+        _, first, which = np.unique(np.packbits(candidates[:, :L], axis=1), axis=0, return_index=True,
+                                    return_inverse=True)
         for kind in word.KINDS:
-            best = None
-            for cand in candidates:
-                m = int(np.sum(cand[L:] == word.check_bits(secret, kind, cand[:L])))
-                if best is None or m > best[0]:
-                    best = (m, cand)
-                if m == word.CHECK_BITS:
-                    break
-            m, cand = best
+            checks = np.stack([word.check_bits(secret, kind, candidates[i, :L]) for i in first])
+            matches = np.sum(candidates[:, L:] == checks[which.ravel()], axis=1)
+            best = int(np.argmax(matches))  # the first candidate of the most matches
+            m, cand = int(matches[best]), candidates[best]
             readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, fi, L, kind, cand, score, got))
     p1, neg_m, fi, L, kind, cand, score, raw = min(readings, key=lambda r: (r[0], r[1], r[2]))
     p = float(min(1.0, len(readings) * n_candidates * p1))
