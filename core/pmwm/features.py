@@ -64,9 +64,10 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray, cross: np.ndarray | 
 
 
 def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """A third of the area of the faces around each vertex, (n,) float64 (0 for a vertex of no face).
-    From ``face_cross``, without ``np.cross``'s temporaries: on a mesh of 1.6 M faces about half the
-    time, most of it in a process's first call (BENCHMARKS.md, ``verify-speed-blind``)."""
+    """A third of the area of the faces around each vertex, (n,) float64 (0 for a vertex of no face):
+    the surface's share per vertex, which the blind scheme weighs its frame with and the paper's crop
+    draws its seed by. From ``face_cross``, without ``np.cross``'s temporaries (BENCHMARKS.md,
+    ``verify-first-call``)."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     area = 0.5 * np.linalg.norm(face_cross(vertices, f), axis=1)
     out = np.bincount(f.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(vertices))

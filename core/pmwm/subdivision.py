@@ -97,8 +97,8 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
 
 def _fewest_sixes(F: np.ndarray, n: int) -> dict[str, float]:
     """The fewest vertices in exactly six faces that a 1-to-4 or a sqrt(3) step leaves in a mesh of the
-    faces F (m, 3) over n vertices: a necessary count, checked before the structure (on a mesh that is no
-    subdivision this settles most of them in a tenth of the structure's time, a scipy import included).
+    faces F (m, 3) over n vertices: a necessary count, checked before the structure: many meshes that are no
+    subdivision (scanned or remeshed ones) fall short of it (BENCHMARKS.md, ``verify-first-call``).
     Every new vertex of a 1-to-4 step on an edge of two faces is in six (3 m / 8 of them, less a quarter
     of the boundary's edges); every face vertex of a sqrt(3) step in a triangle whose edges all flipped is
     (m / 3, less one per boundary edge); an edge of more than two faces takes one per face, counted
