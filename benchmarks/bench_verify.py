@@ -216,18 +216,16 @@ def main() -> None:
         with open(tmp / "cases.pkl", "rb") as f:
             n_cases = len(pickle.load(f))
         for r in range(a.rounds):
-            for label, core in cores.items():
-                if a.fresh:  # one process per case, alternating with the baseline case by case
-                    continue
-                runs[label].append(run_child(core, tmp / "cases.pkl", tmp / f"{label}{r}.json", a.repeat))
-                print(f"round {r + 1}: {label} done", flush=True)
-            if a.fresh:
+            if a.fresh:  # every case in a process of its own, alternating with the baseline case by case
                 for label in cores:
                     runs[label].append([])
                 for i in range(n_cases):
                     for label, core in cores.items():
                         runs[label][-1] += run_child(core, tmp / "cases.pkl", tmp / f"{label}{r}.json", 1, i)
-                print(f"round {r + 1} done", flush=True)
+            else:
+                for label, core in cores.items():
+                    runs[label].append(run_child(core, tmp / "cases.pkl", tmp / f"{label}{r}.json", a.repeat))
+            print(f"round {r + 1} done", flush=True)
     report(runs, a)
 
 

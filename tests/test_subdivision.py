@@ -23,8 +23,8 @@ def triangles(F):
     return set(map(tuple, np.take_along_axis(F, (k + np.arange(3)) % 3, axis=1).tolist()))
 
 
-# (a CAD part: few vertices in six faces; a pinched torus: a non-manifold vertex; both must still pass
-# the count of vertices in six faces that is checked before the structure)
+# (a CAD part and a pinched torus, with its non-manifold vertex, too: the count of vertices in six faces
+# that coarse_mesh checks before the structure must let every real step through)
 @pytest.mark.parametrize("mesh", ["bunny", "open_cap", "cad_part", "pinched_torus"])
 @pytest.mark.parametrize("scheme", ["midpoint", "loop", "sqrt3", "catmull-clark"])
 def test_the_coarse_mesh_of_a_shuffled_subdivided_copy_is_the_original(mesh, scheme):
