@@ -15,7 +15,7 @@ where the mark's energy (sum of n_j (bin mean - 1/2)^2, no pass phrase involved)
 frame (no pass phrase involved either), and keeps the reading whose check bits match best; its
 p-value is exact per reading and a union bound over all (2 frames x 2 kinds x 1024 Chase candidates =
 4096 candidates: all 32 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``; a cropped
-copy's 4 frames x 2 kinds x 512 candidates: the same). The candidates are the words with the most
+copy's 6 frames x 2 kinds x 256 candidates: 7.2e-7). The candidates are the words with the most
 likely sets of bits flipped (``word.likely_flips``), each bit's reliability its score in units of its
 bins' standard error (``word_read``).
 
@@ -158,7 +158,7 @@ def _calibrated(V, F, signs, alpha, marked) -> tuple[float, np.ndarray]:
 class Statistics:
     """What the reader measures on a suspect, independent of the pass phrase: per word length N the
     bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1,
-    2 or 4 frames (``frame_names``: the suspect's own, then a refined one, or a cropped copy's and its
+    2 or 6 frames (``frame_names``: the suspect's own, then a refined one, or a cropped copy's and its
     neighbours; see ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads;
     ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a

@@ -56,7 +56,8 @@ than 1.35 in 14 of 24 scratch crops of 30 %, 21 of them readable in the true fra
 much time again as the three layers. On 20,000 vertices the width fit can peak about 10 % off the
 mark's width, with nearly the energy of the right one, where every vertex shows the right one (dragon
 crops).
-The reader also reads the frame found one bin off either way (``frames``; the counts above include it).
+The reader also reads the frame found one and two bins off either way (``frames``; the counts above include
+one bin, from an earlier run).
 """
 
 from __future__ import annotations

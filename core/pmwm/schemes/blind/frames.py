@@ -28,16 +28,20 @@ from, or when it is a smoothed copy, the suspect with its smoothing undone (``re
    cropped Igea, against 16-30 for marked Venus heads after 8-bit quantization, Loop subdivision or 30
    smoothing iterations). The choice involves no pass phrase: the frames read and the union bound are
    those of a suspect without a cut.
-4. With the crop frame, the same frame moved by one bin either way (``CROP_SHIFTS``): the crop search
-   takes the integer part of lo from an area quantile, and a frame a whole bin off shows about the same
-   energy but reads the word shifted. Reading both neighbours too (4 frames, so 9 Chase bits instead
-   of 10 at the same best p-value, ``word.chase_bits``) read the whole payload in 129 of 160 scratch
-   10 % plane crops against 126, and in 11 of 64 crops of 30 % in a random pose against 9 (two
-   neighbours each way with 8 Chase bits: the same 129 and 11). Picking the shift by the energy
-   instead, key-free, read 87 of the 160: it picks the wrong one on every bunny crop.
+4. With the crop frame, the same frame moved by one and two bins either way (``CROP_SHIFTS``): the crop
+   search takes the integer part of lo from an area quantile, and a frame a whole bin off shows about
+   the same energy but reads the word shifted. Reading the neighbours one bin off too (4 frames, so 9
+   Chase bits instead of 10 at the same best p-value, ``word.chase_bits``) read the whole payload in 129
+   of 160 scratch 10 % plane crops against 126, and in 11 of 64 crops of 30 % in a random pose against
+   9; two bins off as well (6 frames, 8 Chase bits) read the same then. With today's search the second
+   neighbours read one more of 160 scratch crops (149 against 148: the Venus head crop of the benchmark
+   row "plane crop 10 %" that the others miss, lo two bins off) and lose none of those 160 nor of another
+   112 (64 of 10 % and 48 posed of 30 %: 59 and 24 read either way): BENCHMARKS.md, ``blind-crop``.
+   Picking the shift by the energy instead, key-free, read 87 of the 160: it picks the wrong one on
+   every bunny crop.
 
 Every choice here is made on the mark's energy, which involves no pass phrase, so it costs the p-value
-nothing; the union bound counts the frames read (1, 2 or 4).
+nothing; the union bound counts the frames read (1, 2 or 6).
 """
 
 from __future__ import annotations
@@ -59,7 +63,7 @@ from .radial import (QUANTILES, Frame, by_distance, excess_energy, frame_of_area
 CROP_MAX_BINS = 96  # the crop search reads words of up to this many bins (payloads up to 64 bits)
 FULL_VIEW = 2.5e-3  # the mark in full view: the own or refined frame shows this much excess energy per vertex
 # (then no crop search, and no coarse mesh under a subdivided suspect is read)
-CROP_SHIFTS = (-1, 1)  # the crop frame is also read with lo and hi moved by these many bins
+CROP_SHIFTS = (-2, -1, 1, 2)  # the crop frame is also read with lo and hi moved by these many bins
 MAX_UNDO = 3  # steps of subdivision undone under a suspect, one at a time
 COARSE_GAIN = 2.0  # a coarse mesh is read when it shows this many times the excess energy per vertex
 # (and so is the suspect with its smoothing undone)
@@ -75,7 +79,8 @@ UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count ar
 @dataclass
 class Frames:
     """What ``read_statistics_frames`` measured: for each frame read (``names``: "own", then "refined",
-    or "crop" and the crop frame moved by CROP_SHIFTS bins: "crop-1", "crop+1"), per bin count, each
+    or "crop" and the crop frame moved by CROP_SHIFTS bins: "crop-2", "crop-1", "crop+1", "crop+2"), per
+    bin count, each
     bin's mean of r - 1/2 (M,) and its share of the vertices (M,); ``index``, the bin count to read
     (an index into the counts asked for); ``energy``, the excess energy per vertex (``excess_energy``
     over the vertices' total weight) of the frame and count read; ``mesh``, the mesh read: "suspect", or

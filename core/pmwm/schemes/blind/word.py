@@ -15,8 +15,8 @@ mesh, or the wrong pass phrase) the expected check bits of a candidate are fair 
 the bits read (a keyed hash of what was read), so P(m or more of the 32 match) = P(Binomial(32, 1/2)
 >= m) exactly per candidate, and the p-value reported is the union bound over the 2 * 1024 = 2048
 candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame (9.5e-7 with the
-refined frame) < 1e-6. A cropped copy is read in 4 frames (``frames``): then 2^9 candidates each
-(``chase_bits``), 9.5e-7 at best again. The candidates depend on the bits and scores read only, never
+refined frame) < 1e-6. A cropped copy is read in 6 frames (``frames``): then 2^8 candidates each
+(``chase_bits``), 7.2e-7 at best. The candidates depend on the bits and scores read only, never
 on the check bits expected, so the bound holds whichever they are.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
