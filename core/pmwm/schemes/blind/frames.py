@@ -33,10 +33,11 @@ from, or when it is a smoothed copy, the suspect with its smoothing undone (``re
    the same energy but reads the word shifted. Reading the neighbours one bin off too (4 frames, so 9
    Chase bits instead of 10 at the same best p-value, ``word.chase_bits``) read the whole payload in 129
    of 160 scratch 10 % plane crops against 126, and in 11 of 64 crops of 30 % in a random pose against
-   9; two bins off as well (6 frames, 8 Chase bits) read the same then. With today's search the second
-   neighbours read one more of 160 scratch crops (149 against 148: the Venus head crop of the benchmark
-   row "plane crop 10 %" that the others miss, lo two bins off) and lose none of those 160 nor of another
-   112 (64 of 10 % and 48 posed of 30 %: 59 and 24 read either way): BENCHMARKS.md, ``blind-crop``.
+   9; two bins off as well (6 frames, 8 Chase bits) read the same then. With the present search the
+   second neighbours read one more of 160 scratch crops (149 against 148: the Venus head crop of the
+   benchmark row "plane crop 10 %" that the others miss, lo two bins off) and lose none of those 160
+   nor of another 112 (64 of 10 % and 48 posed of 30 %: 59 and 24 read either way): BENCHMARKS.md,
+   ``blind-crop``.
    Picking the shift by the energy instead, key-free, read 87 of the 160: it picks the wrong one on
    every bunny crop.
 
