@@ -79,16 +79,14 @@ UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count ar
 
 @dataclass
 class Frames:
-    """What ``read_statistics_frames`` measured: for each frame read (``names``: "own", then "refined",
-    or "crop" and the crop frame moved by CROP_SHIFTS bins: "crop-2", "crop-1", "crop+1", "crop+2"), per
-    bin count, each
-    bin's mean of r - 1/2 (M,) and its share of the vertices (M,); ``index``, the bin count to read
-    (an index into the counts asked for); ``energy``, the excess energy per vertex (``excess_energy``
-    over the vertices' total weight) of the frame and count read; ``mesh``, the mesh read: "suspect", or
-    the coarse mesh a subdivided suspect was made from, by the steps undone in the order they were applied
-    ("loop", "sqrt3", "catmull-clark", "midpoint", "1-to-4" for a 1-to-4 step's original vertices as they
-    are; several joined by " + "), or the suspect with k steps of smoothing undone ("smoothing:k",
-    ``unsmoothing``)."""
+    """What ``read_statistics_frames`` measured: for each frame read (``names``: "own", then "refined", or
+    "crop" and the crop frame moved by CROP_SHIFTS bins: "crop-2", "crop-1", "crop+1", "crop+2"), per bin count,
+    each bin's mean of r - 1/2 (M,) and its share of the vertices (M,); ``index``, the bin count to read (an
+    index into the counts asked for); ``energy``, the excess energy per vertex (``excess_energy`` over the
+    vertices' total weight) of the frame and count read; ``mesh``, the mesh read: "suspect", or the coarse mesh
+    a subdivided suspect was made from, by the steps undone in the order they were applied ("loop", "sqrt3",
+    "catmull-clark", "midpoint", "1-to-4" for a 1-to-4 step's original vertices as they are; several joined
+    by " + "), or the suspect with k steps of smoothing undone ("smoothing:k", ``unsmoothing``)."""
 
     index: int
     names: tuple[str, ...]
@@ -98,13 +96,12 @@ class Frames:
 
 
 def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
-    """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it was
-    subdivided from (``pmwm.subdivision.coarse_mesh``, up to MAX_UNDO steps, one at a time) when that
-    shows COARSE_GAIN times the excess energy per vertex (any, when that is not positive); the coarse meshes are only looked for when the
-    suspect does not show the mark in full view (``FULL_VIEW``), and no further once one does. Under a
-    1-to-4 step solved as Loop's, the original vertices as the copy has them are read too, the better of
-    the two counting (``Frames.mesh`` "1-to-4"): an interpolating scheme (butterfly) keeps them where
-    they were.
+    """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it was subdivided
+    from (``pmwm.subdivision.coarse_mesh``, up to MAX_UNDO steps, one at a time) when that shows COARSE_GAIN
+    times the excess energy per vertex (any, when that is not positive); the coarse meshes are only looked for
+    when the suspect does not show the mark in full view (``FULL_VIEW``), and no further once one does. Under a
+    1-to-4 step solved as Loop's, the original vertices as the copy has them are read too, the better of the two
+    counting (``Frames.mesh`` "1-to-4"): an interpolating scheme (butterfly) keeps them where they were.
 
     Why: one step of Loop, sqrt(3) or Catmull-Clark subdivision smooths the original vertices and adds new
     ones, averages of their neighbours: the Venus head read no whole payload after Loop and 3 of 10
