@@ -30,6 +30,17 @@ def test_a_vertex_with_no_neighbour_stays():
     assert np.array_equal(back[3], V[3])
 
 
+@pytest.mark.parametrize("mesh", ["blob", "open_cap"])
+@pytest.mark.parametrize("steps", [0, 1, 3])
+def test_smoothed_takes_the_attacks_steps(mesh, steps):
+    """``smoothing.smoothed`` is the benchmark's smoothing attack, step for step (no step: the input)."""
+    V, F = getattr(meshes, mesh)()
+    M = smoothing.mean_operator(F, len(V))
+    want, _ = A.smooth_laplacian(V, F, lam=0.1, iterations=steps)
+    got = smoothing.smoothed(V, M, 0.1, steps)
+    assert got.shape == V.shape and np.abs(got - want).max() < 1e-12 * np.ptp(V, axis=0).max()
+
+
 @pytest.mark.parametrize("steps", [5, 20])
 def test_steps_back_restore_what_the_steps_forward_smoothed(steps):
     """A step back is the forward step's first-order inverse (it leaves (lam L)^2 per step), so k steps

@@ -21,13 +21,14 @@ BENCHMARKS.md, ``blind-unsmoothing``).
 
 from __future__ import annotations
 
+from itertools import islice
 from typing import Iterator
 
 import numpy as np
 
 from .adjacency import edge_face_counts
 
-__all__ = ["neighbour_pairs", "mean_operator", "unsmoothing_steps"]
+__all__ = ["neighbour_pairs", "mean_operator", "unsmoothing_steps", "smoothed"]
 
 
 def neighbour_pairs(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -68,3 +69,11 @@ def unsmoothing_steps(vertices: np.ndarray, operator, lam: float) -> Iterator[np
     while True:
         X = (1.0 + lam) * X - lam * (operator @ X)
         yield X
+
+
+def smoothed(vertices: np.ndarray, operator, lam: float, steps: int) -> np.ndarray:
+    """The vertices (n, 3) after ``steps`` forward steps V <- V + lam (M V - V), M = ``operator``
+    (``mean_operator``): the smoothing ``unsmoothing_steps`` takes back, the same step with lam negated;
+    ``steps`` sparse products (none: the vertices as float64)."""
+    X = np.asarray(vertices, dtype=np.float64)
+    return next(islice(unsmoothing_steps(X, operator, -lam), steps - 1, None)) if steps > 0 else X

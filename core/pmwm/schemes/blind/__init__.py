@@ -15,7 +15,8 @@ where the mark's energy (sum of n_j (bin mean - 1/2)^2, no pass phrase involved)
 frame (no pass phrase involved either), and keeps the reading whose check bits match best; its
 p-value is exact per reading and a union bound over all (2 frames x 2 kinds x 1024 Chase candidates =
 4096 candidates: all 32 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``; a cropped
-copy's 6 frames x 2 kinds x 256 candidates: 7.2e-7). The candidates are the words with the most
+copy's 6 frames x 2 kinds x 256 candidates: 7.2e-7; a blurred copy's own and refined frames read as
+they are and after a few smoothing steps, 4 x 2 x 512: 9.5e-7). The candidates are the words with the most
 likely sets of bits flipped (``word.likely_flips``), each bit's reliability its score in units of its
 bins' standard error (``word_read``).
 
@@ -50,6 +51,11 @@ Subdivision: a subdivided copy (midpoint, Loop, sqrt(3), Catmull-Clark) carries 
 connectivity; when the suspect does not show the mark in full view, the reader also measures the mesh
 it was subdivided from (``pmwm.subdivision``, up to three steps back; ``frames.read_statistics``),
 key-free, and reads that one when it shows twice the mark energy per vertex.
+
+Noise: when the bins read show their neighbours' interference (8-bit quantization, 0.5 % noise blur the
+radii across the bins' edges), the reader also reads the suspect after three steps of Laplacian
+smoothing, which take out more of the blur than of the mark (``frames.with_denoised``), its frames
+counted in the union bound.
 
 Smoothing: a copy smoothed by uniform Laplacian steps still holds the mark, damped with the rest of its
 detail, but its radii are blurred; when the suspect does not show the mark in full view, the reader
@@ -157,9 +163,10 @@ def _calibrated(V, F, signs, alpha, marked) -> tuple[float, np.ndarray]:
 @dataclass
 class Statistics:
     """What the reader measures on a suspect, independent of the pass phrase: per word length N the
-    bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1,
-    2 or 6 frames (``frame_names``: the suspect's own, then a refined one, or a cropped copy's and its
-    neighbours; see ``frames.read_statistics_frames``), and the length ``n_word`` the reader reads;
+    bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1
+    to 4 or 6 frames (``frame_names``: the suspect's own, then a refined one, or a cropped copy's and its
+    neighbours, then the "denoised" ones; see ``frames.read_statistics``), and the length ``n_word`` the
+    reader reads;
     ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
     subdivided suspect was made from: ``frames.Frames.mesh``)."""
@@ -204,7 +211,7 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
     bins), where in bin means they differ from bin to bin (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
     if share is not None:
-        stat = stat * np.sqrt(np.nan_to_num(share))  # (an empty bin stays NaN)
+        stat = radial.in_standard_errors(stat, share)
     z = np.nan_to_num(radial.equalized(stat), nan=0.0)
     score = np.bincount(bit_of_bin, weights=z, minlength=n_word)
     got = (score > 0).astype(np.uint8)
@@ -252,7 +259,9 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
         carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
         p_threshold=p_threshold,
         extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
-               "mesh": stats.mesh,  # "suspect", or the subdivision steps undone (frames.Frames.mesh)
+               # the mesh of the reading kept: "suspect", the subdivision steps undone, the smoothing
+               # steps undone or taken ("smoothing:k", k < 0: a "denoised" frame; frames.mesh_of)
+               "mesh": frames.mesh_of(stats.frame_names[fi], stats.mesh),
                "frame": stats.frame_names[fi], "frame_index": fi, "frames": n_frames, "chase_bits": chase,
                "word": "".join(map(str, cand.tolist())),  # after the Chase search
                "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it
@@ -279,7 +288,9 @@ def mesh_read(mesh: str) -> str:
     if mesh == "suspect":
         return ""
     if mesh.startswith("smoothing:"):
-        steps = mesh.split(":", 1)[1]
+        steps = int(mesh.split(":", 1)[1])
+        if steps < 0:
+            return f"read after {-steps} steps of Laplacian smoothing ({frames.DENOISE_LAM:g} each) against noise"
         return f"read with {steps} steps of Laplacian smoothing ({frames.UNSMOOTH_LAM:g} each) undone"
     return f"read on the mesh it was subdivided from: {mesh} undone"
 

@@ -476,24 +476,46 @@ def equalized(stat: np.ndarray) -> np.ndarray:
     Why the rounds: a fit on the hard decisions alone, a sixth of them wrong after 8-bit quantization of
     the Venus head, sees much less interference than there is and judged most such readings free of it
     (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
-    empty = np.isnan(stat)
-    x = np.where(empty, 0.0, stat)
-    s = np.sign(x)
-    for _ in range(ISI_ROUNDS):
-        g, c = _fit(x, s)
-        if not g > 0:
-            return stat
-        found = np.where(empty, 0.0, _most_likely_signs(x, g, c))  # an empty bin spills nothing
-        if np.array_equal(found, s):
-            break
-        s = found
-    g, c = _fit(x, s)
+    empty, x, s, g, c = _settled_fit(stat)
     if not (g > 0 and c < -ISI_MIN * g):
         return stat
     var = float(np.mean((x - g * s - c * _neighbours(s))[~empty] ** 2))
     if not var > 0:
         return np.where(empty, np.nan, x - c * _neighbours(s))  # (a noiseless fit: the signs are known)
     return np.where(empty, np.nan, _posterior_odds(x, empty, g, c, var) * (var / (2.0 * g)))
+
+
+def interferes(stat: np.ndarray) -> bool:
+    """Whether the bins' statistics (M,) (in standard errors, radial order, NaN: empty) show their
+    neighbours' interference as ``equalized`` judges it: c < -ISI_MIN g once the fit's signs settle."""
+    _, _, _, g, c = _settled_fit(stat)
+    return bool(g > 0 and c < -ISI_MIN * g)
+
+
+def in_standard_errors(stat: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """Bin means (M,) in units of their standard errors, up to a common factor: times sqrt(share), the
+    bins' shares of the vertices (M,) (a bin mean of n vertices errs by about 1 / sqrt(12 n)); an empty
+    bin stays NaN."""
+    return stat * np.sqrt(np.nan_to_num(share))
+
+
+def _settled_fit(stat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    """(empty bins, the statistics with 0 there, the signs, g, c): ``equalized``'s fit of g and c
+    alternating with the Viterbi signs from the hard decisions on, until the signs settle (ISI_ROUNDS
+    fits at most), then once more on them; stopped where g is not positive."""
+    empty = np.isnan(stat)
+    x = np.where(empty, 0.0, stat)
+    s = np.sign(x)
+    for _ in range(ISI_ROUNDS):
+        g, c = _fit(x, s)
+        if not g > 0:
+            return empty, x, s, g, c
+        found = np.where(empty, 0.0, _most_likely_signs(x, g, c))  # an empty bin spills nothing
+        if np.array_equal(found, s):
+            break
+        s = found
+    g, c = _fit(x, s)
+    return empty, x, s, g, c
 
 
 def _fit(x: np.ndarray, s: np.ndarray) -> tuple[float, float]:
