@@ -16,7 +16,8 @@ With ``--scheme blind`` (section "verify-speed-blind"): the same meshes marked b
 marked one read with another pass phrase, the unmarked mesh cut in half (the crop search runs on
 suspects with a planar cut, marked or not), the mesh cut flat before it was marked, read intact (its
 own frame shows the mark in full: no crop search since db80848), and a copy subdivided once by Loop's
-scheme (read on the coarse mesh under it since 7c3a7d4, when it shows more energy).
+scheme (read on the coarse mesh under it since 7c3a7d4, when it shows more energy), and a copy quantized
+to 8 bits (read after three smoothing steps too since 6037447, when its bins show the blur).
 
 Every case is timed by two child processes, one importing this checkout's ``core``, one importing
 ``core`` of ``--baseline`` (extracted with ``git archive``); the two alternate for ``--rounds``
@@ -49,7 +50,7 @@ CASES = ("marked", "re-ordered", "cut in half, posed", "simplified 50 %", "unmar
          "unmarked, other secret", "paper: re-ordered", "cho1: marked")
 BLIND_CASES = ("marked", "re-ordered", "cut in half, posed", "cut 10 %", "simplified 50 %",
                "unmarked, the phrase", "marked, another phrase", "unmarked, cut in half", "cut flat, then marked",
-               "Loop-subdivided", "Catmull-Clark-subdivided")
+               "Loop-subdivided", "Catmull-Clark-subdivided", "quantized to 8 bits")
 BLIND_BASELINE = "8ddfaa7"  # the crop search screening every candidate 0.3 bin widths apart
 BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start at a time",
              "c28a68c": "the crop search scoring every candidate centre over 23 widths x 5 phases",
@@ -62,7 +63,8 @@ BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start 
              "90f8c1e": "the crop search's lattice cells kept by np.unique over rows of three integers; the crop "
                         "search on every suspect with a planar cut",
              "d959176": "no coarse mesh looked for under a subdivided suspect",
-             "ad122bd": "no Catmull-Clark step undone"}
+             "ad122bd": "no Catmull-Clark step undone",
+             "c64bf81": "no suspect read after smoothing steps against noise"}
 TARGET = 0.5  # seconds, issue 13
 
 
@@ -136,6 +138,8 @@ def build_blind_cases(path: Path) -> None:
             "Loop-subdivided": (*attacks.subdivide(MV, MF, "loop"), key),
             # one step of Catmull-Clark, as Blender's Subdivision Surface leaves it (undone since d46800f)
             "Catmull-Clark-subdivided": (*attacks.subdivide(MV, MF, "catmull-clark"), key),
+            # blurred radii: read as it is and after a few smoothing steps when its bins show it (since 6037447)
+            "quantized to 8 bits": (*attacks.quantize(MV, MF, bits=8), key),
         }
         rows += [(m, c, *cases[c][:2], cases[c][2].to_json()) for c in BLIND_CASES]
     with open(path, "wb") as f:
