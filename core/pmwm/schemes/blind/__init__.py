@@ -16,8 +16,8 @@ frame (no pass phrase involved either), and keeps the reading whose check bits m
 p-value is exact per reading and a union bound over all (2 frames x 2 kinds x 1024 Chase candidates =
 4096 candidates: all 32 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``; a cropped
 copy's 6 frames x 2 kinds x 256 candidates: 7.2e-7; a blurred copy's own and refined frames read as
-they are and after a few smoothing steps, 4 x 2 x 512: 9.5e-7). The candidates are the words with the most
-likely sets of bits flipped (``word.likely_flips``), each bit's reliability its score in units of its
+they are and after a few smoothing steps, 4 x 2 x 512: 9.5e-7). The candidates are the words with the
+most likely sets of bits flipped (``word.likely_flips``), each bit's reliability its score in units of its
 bins' standard error (``word_read``).
 
 Why one length, chosen by energy: choices made without the pass phrase cost the p-value nothing, so
@@ -169,7 +169,7 @@ class Statistics:
     reader reads;
     ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
-    subdivided suspect was made from: ``frames.Frames.mesh``)."""
+    subdivided suspect was made from: ``frames.Frames.mesh``; the "denoised" frames': ``frames.mesh_of``)."""
 
     words: dict[int, np.ndarray]
     n_word: int

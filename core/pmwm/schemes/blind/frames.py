@@ -77,11 +77,13 @@ UNSMOOTH_LAM = 0.1  # the smoothing undone: steps of this share towards the neig
 UNSMOOTH_STRIDE = 3  # the scan takes steps of UNSMOOTH_STRIDE * UNSMOOTH_LAM, as many UNSMOOTH_LAM steps
 UNSMOOTH_SCAN = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 16, 18, 20, 22, 25, 27)  # its steps it measures at
 UNSMOOTH_SAMPLE = 10000  # vertices the scan's energies are measured on
-UNSMOOTH_FLOOR = 6e-4  # the scan's best excess energy per vertex must reach this to be looked at closely
+UNSMOOTH_FLOOR = 4e-4  # the scan's best excess energy per vertex must reach this to be looked at closely
+# (a cost gate, key-free: unmarked organic meshes show 1.8e-4 to 5.1e-4, some CAD and low-poly ones more; 6e-4
+# skipped weak marks smoothed 10 times: BENCHMARKS.md, blind-denoised)
 UNSMOOTH_NEAR = (0.4, 1.1)  # then the counts between these shares of the scan's best count,
 UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count around the best of them
-DENOISE_LAM = 0.1  # a suspect not in full view is also read after DENOISE_STEPS steps of smoothing of this share
-DENOISE_STEPS = 3
+DENOISE_LAM = 0.1  # a reading whose bins show interference is also read after DENOISE_STEPS steps of smoothing
+DENOISE_STEPS = 3  # of this share
 
 
 @dataclass
@@ -204,7 +206,7 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     but it peaks beyond the right count, up to twice), taking UNSMOOTH_STRIDE steps at once (a step of
     UNSMOOTH_STRIDE times the share is their product to first order in the share: a third of the sparse
     products for a scan that only places the count roughly), and when its best reaches UNSMOOTH_FLOOR
-    per vertex (above what unmarked meshes show), the own frame is measured in full over UNSMOOTH_NEAR of
+    per vertex (above what most unmarked meshes show), the own frame is measured in full over UNSMOOTH_NEAR of
     that count, every UNSMOOTH_FINE of it, then at every count around the best of those (stepping on
     from the count measured before it). Nothing involves the pass phrase: the union bound is that of the
     frames read. The scan takes 27 sparse products with the neighbour-mean operator, the full
