@@ -8,8 +8,11 @@ $PMWM_TEST_DATA (or $PMWM_BENCH_DATA), else in ../shared/data beside the checkou
 from __future__ import annotations
 
 import os
+import resource
 import shlex
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -46,3 +49,24 @@ def write_section(name: str, body: str) -> None:
 def command() -> str:
     """The command line that ran the script, relative to the checkout."""
     return "python " + shlex.join([os.path.relpath(sys.argv[0], ROOT), *sys.argv[1:]])
+
+
+def best_alternating(commands: list[list[str]], repeat: int, env: dict, exit_codes: tuple[int, ...] = (0,)
+                     ) -> list[tuple[float, float]]:
+    """(best wall-clock time, best CPU time) of each command (a whole process, environment ``env``)
+    run alternately ``repeat`` times each (their output discarded); an exit status outside ``exit_codes`` raises. The CPU time is
+    the child's user + system time: the embedders use a second thread, so it can exceed the wall-clock
+    time."""
+    wall: list[list[float]] = [[] for _ in commands]
+    cpu: list[list[float]] = [[] for _ in commands]
+    for _ in range(repeat):
+        for i, cmd in enumerate(commands):
+            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t = time.perf_counter()
+            done = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL)
+            wall[i].append(time.perf_counter() - t)
+            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if done.returncode not in exit_codes:
+                raise subprocess.CalledProcessError(done.returncode, cmd)
+            cpu[i].append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
+    return [(min(w), min(c)) for w, c in zip(wall, cpu)]

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import compileall
 import os
-import resource
 import subprocess
 import sys
 import tempfile
@@ -23,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import command, commit, machine, mesh_path, write_section  # noqa: E402
+from _report import best_alternating, command, commit, machine, mesh_path, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
 from pmwm.pmfile import to_bytes  # noqa: E402
@@ -55,23 +54,6 @@ def best_of(fn, repeat: int = 3) -> float:
         fn()
         times.append(time.perf_counter() - t)
     return min(times)
-
-
-def best_alternating(commands: list[list[str]], repeat: int, env: dict) -> list[tuple[float, float]]:
-    """(best wall-clock time, best CPU time) of each command (a whole process, environment ``env``)
-    run alternately ``repeat`` times each. The CPU time is the child's user + system time: the
-    embedders use a second thread, so it can exceed the wall-clock time."""
-    wall: list[list[float]] = [[] for _ in commands]
-    cpu: list[list[float]] = [[] for _ in commands]
-    for _ in range(repeat):
-        for i, cmd in enumerate(commands):
-            r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t = time.perf_counter()
-            subprocess.run(cmd, check=True, env=env)
-            wall[i].append(time.perf_counter() - t)
-            r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu[i].append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)
-    return [(min(w), min(c)) for w, c in zip(wall, cpu)]
 
 
 def main() -> None:

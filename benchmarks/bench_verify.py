@@ -25,6 +25,13 @@ rounds of ``--repeat`` calls each, and the table gives the median of all calls. 
 both are compared. With ``--fresh``, every case is timed in a process of its own, its first and only
 call (as ``pmwm verify`` reads one suspect per process: memory not yet mapped, caches cold), the two
 commits alternating for ``--rounds`` rounds; the section's name then ends in "-fresh".
+
+With ``--cli``, every case is timed as the user runs it: the suspect written to a PLY file (and the key to
+a JSON file, or the pass phrase to a file), ``python -m pmwm verify`` as a whole process, beside a process
+that only reads the two files as ``pmwm verify`` does (the same imports, ``read_key`` or the pass phrase
+file, ``read_mesh``), the two alternating, best of ``--repeat`` each; their difference is the time
+``pmwm verify`` takes beyond reading the two files (issue 13's wording). The section's name then ends in
+"-cli"; no baseline.
 """
 
 from __future__ import annotations
@@ -42,7 +49,7 @@ from pathlib import Path
 from typing import Optional
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, command, commit, load, machine, write_section  # noqa: E402
+from _report import ROOT, best_alternating, command, commit, load, machine, write_section  # noqa: E402
 
 MODELS = ("bunny", "igea")  # names in the catalogue, pmwm_bench.models
 BASELINE = "88eb246"  # the last commit with brute-force spatial search
@@ -196,10 +203,15 @@ def main() -> None:
                          "'' for none")
     ap.add_argument("--fresh", action="store_true",
                     help="time each case's first call in a process of its own (section ...-fresh)")
+    ap.add_argument("--cli", action="store_true",
+                    help="time `pmwm verify` as whole processes beside reading the files alone (section ...-cli)")
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
         child(a.child[0], a.child[1], int(a.child[2]), int(a.child[3]) if len(a.child) > 3 else None)
+        return
+    if a.cli:
+        cli(a)
         return
     if a.fresh:
         a.repeat = 1
@@ -231,6 +243,86 @@ def main() -> None:
                     runs[label].append(run_child(core, tmp / "cases.pkl", tmp / f"{label}{r}.json", a.repeat))
             print(f"round {r + 1} done", flush=True)
     report(runs, a)
+
+
+READ_ONLY = """
+import sys
+from pmwm.cli import main  # the imports of `python -m pmwm`
+from pmwm.api import read_key
+from pmwm.meshio import read_mesh
+suspect, key = sys.argv[1:3]
+if key.endswith(".json"):
+    read_key(key)
+else:
+    open(key, encoding="utf-8").read()
+read_mesh(suspect)
+"""
+
+
+def phrase_of(case: str) -> str:
+    """The pass phrase of a blind case (``build_blind_cases``)."""
+    return "another phrase" if case == "marked, another phrase" else "bench phrase"
+
+
+def cli(a) -> None:
+    """``--cli``: every case's `pmwm verify` whole process beside reading its two files (module docstring)."""
+    from pmwm.key import WatermarkKey, write_key
+    from pmwm.meshio import write_mesh
+
+    blind = a.scheme == "blind"
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "core"), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    lines = []
+    over_wall, over_cpu = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        (build_blind_cases if blind else build_cases)(tmp / "cases.pkl")
+        with open(tmp / "cases.pkl", "rb") as f:
+            rows = pickle.load(f)
+        for i, (m, case, V, F, key_json) in enumerate(rows):
+            suspect = tmp / f"suspect{i}.ply"
+            write_mesh(suspect, V, F)
+            if blind:
+                key = tmp / f"phrase{i}.txt"
+                key.write_text(phrase_of(case), encoding="utf-8")
+                verify_cmd = [sys.executable, "-m", "pmwm", "verify", str(suspect), "--passphrase-file", str(key)]
+            else:
+                key = tmp / f"key{i}.json"
+                write_key(key, WatermarkKey.from_json(key_json))
+                verify_cmd = [sys.executable, "-m", "pmwm", "verify", str(suspect), "--key", str(key)]
+            verdict = subprocess.run(verify_cmd + ["--json"], env=env, capture_output=True, text=True)
+            marked = json.loads(verdict.stdout)["marked"]
+            (tv, cv), (tr, cr) = best_alternating(
+                [verify_cmd, [sys.executable, "-c", READ_ONLY, str(suspect), str(key)]], a.repeat, env, (0, 1))
+            lines.append(f"| {m} | {case} | {len(V):,} | {'marked' if marked else 'not marked'} | "
+                         f"{tv:.2f} / {cv:.2f} s | {tr:.2f} / {cr:.2f} s | {tv - tr:.2f} / {cv - cr:.2f} s |")
+            print(lines[-1], flush=True)
+            if tv - tr >= TARGET:
+                over_wall.append(f"{m} / {case} ({tv - tr:.2f} s)")
+            if cv - cr >= TARGET:
+                over_cpu.append(f"{m} / {case} ({cv - cr:.2f} s)")
+    body = "\n".join([
+        ("## Verify speed (issues 13, 14): the blind scheme" if blind else "## Verify speed (issue 13)")
+        + ", `pmwm verify` as the user runs it",
+        "",
+        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
+        "Each case's suspect written to a PLY file (float32 coordinates), "
+        + ("its pass phrase to a file; " if blind else "its key to a JSON file; ")
+        + "`python -m pmwm verify` as a whole process (Python start-up, imports, reading the files, the "
+        f"verdict printed) and a process that only reads the two files as it does (the same imports), alternating, "
+        f"best of {a.repeat} each; OMP_NUM_THREADS=1. Wall-clock and CPU time (user + system) of each process; "
+        "their difference is what `pmwm verify` takes beyond reading the two files"
+        + (" (deriving the key from the pass phrase, scrypt, included)" if blind else "") + ".",
+        "",
+        "| mesh | case | suspect vertices | verdict | `pmwm verify`: wall / CPU | reading the files: wall / CPU | "
+        "beyond reading: wall / CPU |",
+        "|---|---|---|---|---|---|---|",
+        *lines,
+        "",
+        f"Target of issue 13, every case under {TARGET} s beyond reading the two files: in CPU time "
+        + ("met" if not over_cpu else "not met for " + "; ".join(over_cpu))
+        + "; in wall-clock time " + ("met." if not over_wall else "not met for " + "; ".join(over_wall) + "."),
+    ])
+    write_section(("verify-speed-blind" if blind else "verify-speed") + "-cli", body)
 
 
 def report(runs: dict[str, list[list[dict]]], a) -> None:
