@@ -54,9 +54,9 @@ def command() -> str:
 def best_alternating(commands: list[list[str]], repeat: int, env: dict, exit_codes: tuple[int, ...] = (0,)
                      ) -> list[tuple[float, float]]:
     """(best wall-clock time, best CPU time) of each command (a whole process, environment ``env``)
-    run alternately ``repeat`` times each (their output discarded); an exit status outside ``exit_codes`` raises. The CPU time is
-    the child's user + system time: the embedders use a second thread, so it can exceed the wall-clock
-    time."""
+    run alternately ``repeat`` times each, their output discarded; an exit status outside ``exit_codes``
+    raises. The CPU time is the child's user + system time: the embedders use a second thread, so it can
+    exceed the wall-clock time."""
     wall: list[list[float]] = [[] for _ in commands]
     cpu: list[list[float]] = [[] for _ in commands]
     for _ in range(repeat):

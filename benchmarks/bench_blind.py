@@ -36,6 +36,7 @@ from _report import command, commit, data_dirs, load, machine, write_section  # 
 import pmwm  # noqa: E402
 from pmwm import attacks, metrics  # noqa: E402
 from pmwm.schemes import blind  # noqa: E402
+from pmwm.validate import parse_bits  # noqa: E402
 from pmwm_bench.protocols import attack_seed, benchmark_settings  # noqa: E402
 
 PAYLOAD_BITS = 32
@@ -97,15 +98,15 @@ def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False) -> R
     got, _ = blind.word_read(stats.words[N_WORD][fi], secret, N_WORD)
     want = true_word(secret, payload)
     ber = float(np.mean(got != want))
-    returned = got
-    if v.marked and len(v.bits) == PAYLOAD_BITS:  # the decoded payload and its check bits
-        returned = true_word(secret, np.array([int(b) for b in v.bits], dtype=np.uint8))
-    ok = bool(v.marked and v.bits == "".join(map(str, payload.tolist())))
+    # the word the verdict returns: its decoded word (after the Chase search) when marked at this length
+    decoded = parse_bits(v.extra["word"]) if v.marked else got
+    returned = decoded if len(decoded) == N_WORD else got
+    bits = "".join(map(str, payload.tolist()))
     own = None
     if own_too:
         v0 = blind.decide(stats.own_frame(), secret)
-        own = bool(v0.marked and v0.bits == "".join(map(str, payload.tolist())))
-    return Reading(ber, float(np.mean(returned != want)), ok, own)
+        own = bool(v0.marked and v0.bits == bits)
+    return Reading(ber, float(np.mean(returned != want)), bool(v.marked and v.bits == bits), own)
 
 
 def pm_first_level(pm, secret: str, payload: np.ndarray) -> tuple[int, int]:

@@ -290,6 +290,8 @@ def cli(a) -> None:
                 write_key(key, WatermarkKey.from_json(key_json))
                 verify_cmd = [sys.executable, "-m", "pmwm", "verify", str(suspect), "--key", str(key)]
             verdict = subprocess.run(verify_cmd + ["--json"], env=env, capture_output=True, text=True)
+            if verdict.returncode not in (0, 1):  # 0 marked, 1 not marked; anything else is an error
+                raise SystemExit(f"{m} / {case}: pmwm verify failed: {verdict.stderr.strip()}")
             marked = json.loads(verdict.stdout)["marked"]
             (tv, cv), (tr, cr) = best_alternating(
                 [verify_cmd, [sys.executable, "-c", READ_ONLY, str(suspect), str(key)]], a.repeat, env, (0, 1))
