@@ -107,13 +107,22 @@ def build_cases(path: Path) -> None:
         pickle.dump(rows, f)
 
 
+BENCH_PHRASE = "bench phrase"  # every blind case's pass phrase (the mark's and the reader's), but:
+OTHER_PHRASES = {"marked, another phrase": "another phrase"}  # the reader's, in these cases
+
+
+def phrase_of(case: str) -> str:
+    """The pass phrase a blind case is read with (``build_blind_cases``)."""
+    return OTHER_PHRASES.get(case, BENCH_PHRASE)
+
+
 def flat_marked(V, F):
-    """The mesh cut 10 % by a plane, then marked with the blind scheme ("Acme", the bench phrase)."""
+    """The mesh cut 10 % by a plane, then marked with the blind scheme ("Acme", BENCH_PHRASE)."""
     import pmwm
     from pmwm import attacks
 
     Vc, Fc = attacks.crop_plane(V, F, 0.1, seed=7)
-    res = pmwm.embed(Vc, Fc, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase="bench phrase",
+    res = pmwm.embed(Vc, Fc, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=BENCH_PHRASE,
                                                progressive=False))
     return res.vertices, res.faces
 
@@ -127,28 +136,28 @@ def build_blind_cases(path: Path) -> None:
     rows = []
     for m in MODELS:
         V, F = load(m)
-        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase="bench phrase"))
-        MV, MF, key = res.vertices, res.faces, key_from_passphrase("bench phrase")
+        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=BENCH_PHRASE))
+        MV, MF = res.vertices, res.faces
         half = attacks.crop_plane(MV, MF, 0.5, seed=2)
         cases = {
-            "marked": (MV, MF, key),
-            "re-ordered": (*attacks.reorder(MV, MF, seed=1), key),
-            "cut in half, posed": (*attacks.similarity(*half, seed=2), key),
-            "cut 10 %": (*attacks.crop_plane(MV, MF, 0.1, seed=3), key),
-            "simplified 50 %": (*attacks.simplify(MV, MF, ratio=0.5), key),
-            "unmarked, the phrase": (V, F, key),
-            "marked, another phrase": (MV, MF, key_from_passphrase("another phrase")),
-            "unmarked, cut in half": (*attacks.crop_plane(V, F, 0.5, seed=2), key),
+            "marked": (MV, MF),
+            "re-ordered": attacks.reorder(MV, MF, seed=1),
+            "cut in half, posed": attacks.similarity(*half, seed=2),
+            "cut 10 %": attacks.crop_plane(MV, MF, 0.1, seed=3),
+            "simplified 50 %": attacks.simplify(MV, MF, ratio=0.5),
+            "unmarked, the phrase": (V, F),
+            "marked, another phrase": (MV, MF),
+            "unmarked, cut in half": attacks.crop_plane(V, F, 0.5, seed=2),
             # an asset with a planar cut of its own (a bust's base), marked and read intact
-            "cut flat, then marked": (*flat_marked(V, F), key),
+            "cut flat, then marked": flat_marked(V, F),
             # one step of Loop subdivision: read on the coarse mesh under it (since 7c3a7d4)
-            "Loop-subdivided": (*attacks.subdivide(MV, MF, "loop"), key),
+            "Loop-subdivided": attacks.subdivide(MV, MF, "loop"),
             # one step of Catmull-Clark, as Blender's Subdivision Surface leaves it (undone since d46800f)
-            "Catmull-Clark-subdivided": (*attacks.subdivide(MV, MF, "catmull-clark"), key),
+            "Catmull-Clark-subdivided": attacks.subdivide(MV, MF, "catmull-clark"),
             # blurred radii: read as it is and after a few smoothing steps when its bins show it (since 6037447)
-            "quantized to 8 bits": (*attacks.quantize(MV, MF, bits=8), key),
+            "quantized to 8 bits": attacks.quantize(MV, MF, bits=8),
         }
-        rows += [(m, c, *cases[c][:2], cases[c][2].to_json()) for c in BLIND_CASES]
+        rows += [(m, c, *cases[c], key_from_passphrase(phrase_of(c)).to_json()) for c in BLIND_CASES]
     with open(path, "wb") as f:
         pickle.dump(rows, f)
 
@@ -257,11 +266,6 @@ else:
     open(key, encoding="utf-8").read()
 read_mesh(suspect)
 """
-
-
-def phrase_of(case: str) -> str:
-    """The pass phrase of a blind case (``build_blind_cases``)."""
-    return "another phrase" if case == "marked, another phrase" else "bench phrase"
 
 
 def cli(a) -> None:

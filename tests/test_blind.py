@@ -652,11 +652,34 @@ def test_the_word_is_equalized_in_standard_errors():
     assert wrong < 0.09 * 60 * 64
 
 
+def test_the_check_is_the_keyed_hash_a_marked_mesh_was_written_with():
+    """The check bits are the first 32 bits of SHA-256(secret, kind, payload): a mesh marked before must
+    stay readable, so the hash's input is fixed here byte for byte; many payloads at once give each
+    one's check, and a different kind, secret or payload length a different one."""
+    import hashlib
+
+    secret = word.derive_secret(PHRASE)
+    rng = np.random.default_rng(5)
+    for L in word.PAYLOAD_BITS:
+        P = rng.integers(0, 2, (7, L)).astype(np.uint8)
+        many = word.check_bits(secret, "bits", P)
+        assert many.shape == (7, word.CHECK_BITS) and many.dtype == np.uint8
+        for row, got in zip(P, many):
+            tag = hashlib.sha256(f"{secret}:blind-check:bits:".encode() + np.packbits(row).tobytes()
+                                 + L.to_bytes(2, "little")).digest()
+            want = np.unpackbits(np.frombuffer(tag[:4], np.uint8))
+            assert np.array_equal(got, want) and np.array_equal(word.check_bits(secret, "bits", row), want)
+        assert not np.array_equal(word.check_bits(secret, "text", P), many)
+        assert not np.array_equal(word.check_bits(word.derive_secret(PHRASE + "!"), "bits", P), many)
+    assert not np.array_equal(word.check_bits(secret, "bits", np.zeros(32, np.uint8)),
+                              word.check_bits(secret, "bits", np.zeros(64, np.uint8)))
+
+
 def test_the_equalizer_finds_the_most_likely_signs():
     import itertools
 
     rng = np.random.default_rng(0)
-    for M in (2, 3, 6):
+    for M in (2, 3, 6, 11):
         for _ in range(20):
             x, g = rng.normal(size=M), rng.uniform(0.1, 1.0)
             c = -rng.uniform(0.0, 0.5) * g

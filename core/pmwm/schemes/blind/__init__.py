@@ -240,7 +240,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
         _, first, which = np.unique(np.packbits(candidates[:, :L], axis=1), axis=0, return_index=True,
                                     return_inverse=True)
         for kind in word.KINDS:
-            checks = np.stack([word.check_bits(secret, kind, candidates[i, :L]) for i in first])
+            checks = word.check_bits(secret, kind, candidates[first, :L])
             matches = np.sum(candidates[:, L:] == checks[which.ravel()], axis=1)
             best = int(np.argmax(matches))  # the first candidate of the most matches
             m, cand = int(matches[best]), candidates[best]

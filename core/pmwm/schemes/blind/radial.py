@@ -566,12 +566,14 @@ def _most_likely_signs(x: np.ndarray, g: float, c: float) -> np.ndarray:
     if M < 2:
         return np.where(x >= 0, 1.0, -1.0)
     prev, cur, nxt = S[:, None, None], S[None, :, None], S[None, None, :]
+    # each inner bin's cost for every (s_{j-1}, s_j, s_{j+1}), all at once: the loop only adds and compares
+    step = (x[1:M - 1, None, None, None] - g * cur - c * (prev + nxt)) ** 2  # (M - 2, 2, 2, 2)
     cost = (x[0] - g * S[:, None] - c * S[None, :]) ** 2  # [s_0, s_1]
-    back = np.zeros((M, 2, 2), np.int64)  # back[j][s_j, s_{j+1}]: the best s_{j-1}
+    back = np.zeros((M, 2, 2), np.int64)  # back[j][s_j, s_{j+1}]: the best s_{j-1} (the first on a tie)
     for j in range(1, M - 1):
-        total = cost[:, :, None] + (x[j] - g * cur - c * (prev + nxt)) ** 2  # [s_{j-1}, s_j, s_{j+1}]
-        back[j] = np.argmin(total, axis=0)
-        cost = np.min(total, axis=0)  # [s_j, s_{j+1}]
+        total = cost[:, :, None] + step[j - 1]  # [s_{j-1}, s_j, s_{j+1}]
+        back[j] = total[1] < total[0]
+        cost = np.minimum(total[0], total[1])  # [s_j, s_{j+1}]
     last = cost + (x[M - 1] - g * S[None, :] - c * S[:, None]) ** 2  # [s_{M-2}, s_{M-1}], s_M = 0
     a, b = np.unravel_index(int(np.argmin(last)), last.shape)
     out = np.empty(M)

@@ -120,11 +120,19 @@ def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[
 
 
 def check_bits(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
-    """The keyed check (CHECK_BITS,) uint8 of a payload (L,) uint8 of a kind: the first bits of
-    SHA-256(secret, kind, payload) (a MAC; hashlib directly, as the reader computes thousands of them)."""
-    tag = hashlib.sha256(f"{secret}:blind-check:{kind}:".encode() + np.packbits(payload).tobytes()
-                         + len(payload).to_bytes(2, "little")).digest()
-    return np.unpackbits(np.frombuffer(tag[:CHECK_BITS // 8], np.uint8))
+    """The keyed check of a payload (L,) uint8 of a kind, (CHECK_BITS,) uint8, or of each of the payloads
+    (k, L), (k, CHECK_BITS): the first bits of SHA-256(secret, kind, payload) (a MAC). hashlib directly,
+    the key's part hashed once (the reader computes thousands of these per suspect)."""
+    rows = np.atleast_2d(np.asarray(payload, dtype=np.uint8))
+    head = hashlib.sha256(f"{secret}:blind-check:{kind}:".encode())
+    tail = rows.shape[1].to_bytes(2, "little")
+    tags = bytearray()
+    for row in np.packbits(rows, axis=1):
+        h = head.copy()
+        h.update(row.tobytes() + tail)
+        tags += h.digest()[:CHECK_BITS // 8]
+    bits = np.unpackbits(np.frombuffer(bytes(tags), np.uint8)).reshape(len(rows), CHECK_BITS)
+    return bits if np.ndim(payload) == 2 else bits[0]
 
 
 def layout(secret: str, n_word: int, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
