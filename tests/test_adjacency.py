@@ -96,3 +96,14 @@ def test_edge_face_counts_are_the_adjacencys_edges(name):
     assert np.array_equal(edges, adj.edges) and np.array_equal(count, adj.edge_face_count)
     edges, _ = adjacency.edge_face_counts(np.vstack([F, [[F[0, 0], F[0, 0], F[0, 1]]]]), len(V))
     assert not (edges[:, 0] == edges[:, 1]).any()
+
+
+def test_unique_values_are_those_of_np_unique():
+    """``unique_values`` (a sort, not numpy 2's hash set) gives np.unique's values: integers with many
+    repeats or none, any shape, floats, one value, none."""
+    rng = np.random.default_rng(3)
+    cases = [rng.integers(0, 50, 1000), rng.integers(-2**40, 2**40, 5000), rng.integers(0, 9, (30, 4)),
+             rng.normal(size=200).round(1), np.array([7]), np.zeros(0, np.int64), np.arange(10)[::-1]]
+    for x in cases:
+        got = adjacency.unique_values(x)
+        assert got.dtype == x.dtype and np.array_equal(got, np.unique(x))

@@ -95,6 +95,20 @@ def segment_reduce(ptr: np.ndarray, values: np.ndarray, ufunc: np.ufunc, empty) 
     return out
 
 
+def unique_values(values: np.ndarray) -> np.ndarray:
+    """The distinct values of a numeric array (any shape, no NaN), ascending, (k,): ``np.unique``'s
+    answer, from a sorted copy. Why not ``np.unique``: asked for the values alone, numpy 2.x finds them
+    with a hash set (``_unique_hash``), which on this project's integer keys is many times slower than
+    numpy's SIMD sort (1.9 M int64 keys: 0.96-1.0 s against 57 ms, numpy 2.4.6; numpy issue #31969)."""
+    x = np.sort(np.asarray(values).ravel())
+    if len(x) < 2:
+        return x
+    keep = np.empty(len(x), bool)
+    keep[0] = True
+    np.not_equal(x[1:], x[:-1], out=keep[1:])
+    return x[keep]
+
+
 def stable_order(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(order, keys[order]): the stable argsort of integer ``keys`` (k,) and the sorted keys, both
     (k,) int64.

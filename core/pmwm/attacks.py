@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from .adjacency import build_adjacency, gather_rows, segment_owner
+from .adjacency import build_adjacency, gather_rows, segment_owner, unique_values
 from .errors import ParameterError
 from .features import vertex_areas
 from .smoothing import neighbour_pairs
@@ -180,7 +180,7 @@ def crop_paper(vertices, faces, fraction: float = 0.1, seed: int | None = None) 
             frontier = frontier[np.argsort(d, kind="stable")[: k - taken]]
         remove[frontier] = True
         taken += len(frontier)
-        nxt = np.unique(gather_rows(adj.ring_ptr, adj.ring_idx, frontier))
+        nxt = unique_values(gather_rows(adj.ring_ptr, adj.ring_idx, frontier))
         frontier = nxt[~remove[nxt]]
     return remove_vertices(v, f, remove)
 
@@ -467,7 +467,7 @@ def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = Non
         a, b = f.ravel()[h1], f.ravel()[h2]
         c = f[fa, (h1 % 3 + 2) % 3]
         d = f[fb, (h2 % 3 + 2) % 3]
-        edge_keys = np.unique(np.sort(np.stack([f.ravel(), f[:, [1, 2, 0]].ravel()], 1), axis=1) @ [n, 1])
+        edge_keys = unique_values(np.sort(np.stack([f.ravel(), f[:, [1, 2, 0]].ravel()], 1), axis=1) @ [n, 1])
         new_keys = np.minimum(c, d) * n + np.maximum(c, d)
         pos = np.minimum(np.searchsorted(edge_keys, new_keys), len(edge_keys) - 1)
         uniq = np.zeros(len(new_keys), bool)

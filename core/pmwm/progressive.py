@@ -57,7 +57,7 @@ from typing import Callable, Optional, Union
 
 import numpy as np
 
-from .adjacency import Adjacency, build_adjacency, stable_order
+from .adjacency import Adjacency, build_adjacency, stable_order, unique_values
 from .features import face_cross
 from .errors import MeshError
 
@@ -161,7 +161,7 @@ def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
     F[:nf] = pm.base_faces
     rec.fill_faces(F.reshape(-1))
     inc = _Incidence.of(F[:nf], nb + k, np.int32 if 3 * rec.n_faces < 2**31 else np.int64)
-    bounds = np.unique(np.r_[0, pm.level_records[pm.level_records < k], k]).tolist()
+    bounds = unique_values(np.r_[0, pm.level_records[pm.level_records < k], k]).tolist()
     for a, b in zip(bounds[:-1], bounds[1:]):
         _split_chunk(rec, F, nb + a, a, b, inc)
     return V, F

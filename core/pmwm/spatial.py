@@ -24,6 +24,8 @@ import threading
 
 import numpy as np
 
+from .adjacency import unique_values
+
 __all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
            "closest_point_on_triangles"]
 
@@ -235,7 +237,7 @@ def _radius_groups(rad: np.ndarray) -> list[np.ndarray]:
     """Indices of the positive radii in groups within a factor of 2 of each other (each group is
     searched at its largest radius, so that a few large radii do not widen every search)."""
     group = np.ceil(np.log2(np.maximum(rad, 1e-300) / max(float(rad.max()), 1e-300))).clip(-64, 0)
-    return [np.flatnonzero((group == g) & (rad > 0)) for g in np.unique(group[rad > 0])]
+    return [np.flatnonzero((group == g) & (rad > 0)) for g in unique_values(group[rad > 0])]
 
 
 def min_spacing(P: np.ndarray) -> float:

@@ -36,7 +36,7 @@ from typing import Optional
 
 import numpy as np
 
-from .adjacency import edge_face_counts
+from .adjacency import edge_face_counts, unique_values
 from .metrics import vertex_rmse
 
 LOOP_ODD = (0.375, 0.125)  # a Loop edge vertex: 3/8 of each end of its edge, 1/8 of each opposite vertex
@@ -134,7 +134,7 @@ def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float)
     a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()
     third = np.roll(F, -2, axis=1).ravel()
     used = count > 0
-    ue = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
+    ue = unique_values(np.minimum(a, b) * n + np.maximum(a, b))
     u, w = ue // n, ue % n  # the edges, once each
 
     def around(kind: np.ndarray) -> np.ndarray:
@@ -229,7 +229,7 @@ def _solve_terms(terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int
     positions (K, 3) and each equation's left side at them (R, 3)."""
     from scipy.sparse import coo_matrix
 
-    keep = np.unique(terms[terms >= 0])
+    keep = unique_values(terms[terms >= 0])
     index = np.full(n, -1, np.int64)
     index[keep] = np.arange(len(keep))
     used = terms >= 0
@@ -243,7 +243,7 @@ def _solve_terms(terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int
 def _groups(x: np.ndarray, y: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distinct y of each vertex x, for the pairs (x, y) (p,) int64 of vertices below n: how many
     (n,), where each vertex's start in the third array (n,), and the y grouped by x, ascending."""
-    keys = np.unique(x * n + y)
+    keys = unique_values(x * n + y)
     per = np.bincount(keys // n, minlength=n)
     return per, np.cumsum(per) - per, keys % n
 

@@ -25,6 +25,7 @@ from typing import Optional
 import numpy as np
 
 from . import __version__
+from .adjacency import unique_values
 from .atomic import atomic_write_bytes, file_sha256
 from .base import Verdict
 from .key import WatermarkKey, mesh_sha256
@@ -81,7 +82,7 @@ def _rasterise(P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int) -> tu
     edge = np.max(np.linalg.norm(T[:, [1, 2, 0], :2] - T[:, :, :2], axis=2), axis=1)
     level = np.clip(2 ** np.ceil(np.log2(np.maximum(edge / 0.8, 1.0))), 1, 256).astype(np.int64)
     pix_all, z_all, s_all = [], [], []
-    for n in np.unique(level):
+    for n in unique_values(level):
         i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
         keep = i + j <= n
         W = np.stack([i[keep], j[keep], n - i[keep] - j[keep]], axis=1) / n  # (k, 3)

@@ -38,7 +38,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..adjacency import Adjacency, build_adjacency, gather_rows
+from ..adjacency import Adjacency, build_adjacency, gather_rows, unique_values
 from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed,
                     verdict_from_scores)
 from ..carriers import eligible_carriers, select_carriers
@@ -172,7 +172,7 @@ def carrier_scores(V: np.ndarray, F: np.ndarray, idx: np.ndarray) -> np.ndarray:
     rec = s[rows, cols]
     nb = np.concatenate([F[rows, (cols + 1) % 3], F[rows, (cols + 2) % 3]])
     rec2 = np.concatenate([rec, rec])
-    pair = np.unique(rec2 * len(V) + nb)
+    pair = unique_values(rec2 * len(V) + nb)
     rec_u, nb_u = pair // len(V), pair % len(V)
     mu, sigma, cnt = _grouped_stats(V[nb_u], rec_u, k)
     c = V[np.where(good, idx, 0)]

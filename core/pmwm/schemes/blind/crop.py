@@ -64,7 +64,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...adjacency import edge_face_counts, is_closed
+from ...adjacency import edge_face_counts, is_closed, unique_values
 from ...background import parallel_map
 from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
@@ -257,7 +257,7 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         s = _spread(C - own.centre, SCREEN_LATTICE * width)
         first = _coarse(Pc, area_c, Cc[s], L[s], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES, SCREEN_CELLS)
         top = C[s[np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_TOP * len(s)))]]]
-        near = np.unique(pairs_within(top, C, EXPAND * width)[1])
+        near = unique_values(pairs_within(top, C, EXPAND * width)[1])
         second = _coarse(Pc, area_c, Cc[near], L[near], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES,
                          SCREEN_CELLS)
         keep = max(SCREEN_MIN, int(SCREEN_KEEP * len(C) / len(LAYERS)))  # (a share of one layer's candidates)
