@@ -82,6 +82,7 @@ UNSMOOTH_FLOOR = 4e-4  # the scan's best excess energy per vertex must reach thi
 # skipped weak marks smoothed 10 times: BENCHMARKS.md, blind-denoised)
 UNSMOOTH_NEAR = (0.4, 1.1)  # then the counts between these shares of the scan's best count,
 UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count around the best of them
+UNSMOOTH_GROWTH = 1.1  # no count at which the steps back have grown the mesh's bounding box by this factor
 DENOISE_LAM = 0.1  # a reading whose bins show interference is also read after DENOISE_STEPS steps of smoothing
 DENOISE_STEPS = 3  # of this share
 
@@ -224,6 +225,8 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     for j, X in zip(range(1, UNSMOOTH_SCAN[-1] + 1), scan_steps):
         m = j * UNSMOOTH_STRIDE  # (in steps of UNSMOOTH_LAM)
         if j in UNSMOOTH_SCAN:
+            if _grown(X[sub], V[sub]):  # (the steps back amplify what smoothing did not damp: no further)
+                break
             centre = weight @ X
             lo, hi = weighted_quantiles(np.linalg.norm(X[sub] - centre, axis=1)[None], area[sub], [QUANTILES])[0]
             if hi > lo:
@@ -249,6 +252,20 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     return (m, got) if got.energy > above else None
 
 
+def _grown(X: np.ndarray, V: np.ndarray) -> bool:
+    """Whether the vertices X (k, 3), V after steps of smoothing undone, span a bounding box whose
+    diagonal is UNSMOOTH_GROWTH times that of V (k, 3) or more. Smoothing shrinks a mesh by a few percent
+    at most (the benchmark's 50 iterations: 1 % of the bunny's diagonal, and steps back as many give it
+    back), so more growth is the steps back amplifying what no smoothing damped: a crop's zigzag border,
+    a mesh's finest detail (1.2 times per step at the highest frequency); those counts show a large
+    energy that is not the mark's (a 10 % plane crop of the bunny read after 83 steps back, its
+    bounding box 13,000 times as large, in place of its crop frame)."""
+    def diagonal(P: np.ndarray) -> float:
+        return float(np.linalg.norm(P.max(0) - P.min(0)))
+
+    return bool(diagonal(X) >= UNSMOOTH_GROWTH * diagonal(V))
+
+
 def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, start: int = 0
                 ) -> tuple[tuple[int, float, np.ndarray, Optional[np.ndarray]], tuple[int, np.ndarray]]:
     """Of the step counts ``counts`` (ascending, above ``start``), the one whose unsmoothed vertices'
@@ -261,6 +278,8 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, star
     steps = unsmoothing_steps(V, operator, UNSMOOTH_LAM)
     for m, X in zip(range(start + 1, max(wanted, default=start) + 1), steps):
         if m in wanted:
+            if _grown(X, V):
+                break
             area = vertex_areas(X, F)
             try:
                 fr, a = frame_of_areas(X, area, 1)
