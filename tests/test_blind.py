@@ -237,6 +237,18 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     assert not pmwm.verify(V, F, passphrase=PHRASE).marked
 
 
+def test_a_cropped_copy_is_not_read_after_its_border_blew_up(marked):
+    """Steps of smoothing undone amplify what smoothing never damped, a crop's zigzag border first (1.2
+    times per step): past the count a smoothed copy needs, the mesh grows without bound and its own frame
+    shows a large energy that is not the mark's. The reader stops where the bounding box has grown by 10 %
+    (``frames.UNSMOOTH_GROWTH``), so these crops of the bunny (20 % and 30 %, each read before after 75-84
+    steps back, the bunny blown up) keep their crop frames."""
+    for fraction, seed in ((0.2, 6), (0.2, 7), (0.3, 1)):
+        V, F = A.crop_plane(marked.vertices, marked.faces, fraction=fraction, seed=seed)
+        stats = blind.bin_statistics(V, F)
+        assert stats.mesh == "suspect" and stats.frame_names[:2] == ("own", "crop")
+
+
 def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny, monkeypatch):
     """An asset with a planar cut of its own (a bust's base), marked and read intact, re-ordered or with
     0.3 % noise, shows the mark in full in its own frame: read there, without the crop search (over a
