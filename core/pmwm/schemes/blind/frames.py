@@ -60,6 +60,7 @@ import numpy as np
 
 from ...errors import MeshError
 from ...features import vertex_areas
+from ...metrics import bbox_diagonal
 from ...smoothing import mean_operator, smoothed, unsmoothing_steps
 from ...subdivision import coarse_mesh
 from .crop import crop_frames, cut_planes
@@ -212,7 +213,14 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     from the count measured before it). Nothing involves the pass phrase: the union bound is that of the
     frames read. The scan takes 27 sparse products with the neighbour-mean operator, the full
     measurement up to 100 more (the scan runs on every suspect not read in full view, unmarked ones
-    included: BENCHMARKS.md, ``verify-speed-blind``)."""
+    included: BENCHMARKS.md, ``verify-speed-blind``).
+
+    Neither looks at a count where the steps back have grown the bounding box by UNSMOOTH_GROWTH: smoothing
+    shrinks a mesh by a few percent at most (the benchmark's 50 iterations: 1 % of the bunny's diagonal, and
+    as many steps back give it back), so more growth is the steps back amplifying what no smoothing damped
+    (a crop's zigzag border, the finest detail: 1.2 times per step at the highest frequency), whose own
+    frame shows a large energy that is not the mark's (a 10 % plane crop of the bunny was read after 83
+    steps back, its bounding box 13,000 times as large, in place of its crop frame)."""
     area = vertex_areas(V, F) if area is None else area
     if not area.sum() > 0:
         return None
@@ -220,12 +228,14 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     weight = area / area.sum()
     sub = thinned(by_distance(V, area, weight @ V), UNSMOOTH_SAMPLE)
     ones = np.ones(len(sub))
+    # no count that grows the bounding box by UNSMOOTH_GROWTH (scan: of the sample; fine search: of the mesh)
+    scan_limit, limit = UNSMOOTH_GROWTH * bbox_diagonal(V[sub]), UNSMOOTH_GROWTH * bbox_diagonal(V)
     scan = {}
     scan_steps = unsmoothing_steps(V, operator, UNSMOOTH_STRIDE * UNSMOOTH_LAM)
     for j, X in zip(range(1, UNSMOOTH_SCAN[-1] + 1), scan_steps):
         m = j * UNSMOOTH_STRIDE  # (in steps of UNSMOOTH_LAM)
         if j in UNSMOOTH_SCAN:
-            if _grown(X[sub], V[sub]):  # (the steps back amplify what smoothing did not damp: no further)
+            if bbox_diagonal(X[sub]) >= scan_limit:  # (steps back amplifying what smoothing never damped)
                 break
             centre = weight @ X
             lo, hi = weighted_quantiles(np.linalg.norm(X[sub] - centre, axis=1)[None], area[sub], [QUANTILES])[0]
@@ -237,10 +247,10 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     best = max(scan, key=scan.get)
     step = max(1, int(round(UNSMOOTH_FINE * best)))
     lo_m, hi_m = max(1, int(round(UNSMOOTH_NEAR[0] * best))), int(round(UNSMOOTH_NEAR[1] * best))
-    (m, e, X, aX), (m0, X0) = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step))
+    (m, e, X, aX), (m0, X0) = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step), limit)
     if step > 1:  # every count around the best, stepped on from the count measured before it
         second, _ = _best_count(X0, F, operator, bin_counts,
-                                [k for k in range(m - step + 1, m + step) if k != m and k > m0], m0)
+                                [k for k in range(m - step + 1, m + step) if k != m and k > m0], limit, m0)
         if second[1] > e:
             m, e, X, aX = second
     if not np.isfinite(e):
@@ -252,33 +262,20 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     return (m, got) if got.energy > above else None
 
 
-def _grown(X: np.ndarray, V: np.ndarray) -> bool:
-    """Whether the vertices X (k, 3), V after steps of smoothing undone, span a bounding box whose
-    diagonal is UNSMOOTH_GROWTH times that of V (k, 3) or more. Smoothing shrinks a mesh by a few percent
-    at most (the benchmark's 50 iterations: 1 % of the bunny's diagonal, and steps back as many give it
-    back), so more growth is the steps back amplifying what no smoothing damped: a crop's zigzag border,
-    a mesh's finest detail (1.2 times per step at the highest frequency); those counts show a large
-    energy that is not the mark's (a 10 % plane crop of the bunny read after 83 steps back, its
-    bounding box 13,000 times as large, in place of its crop frame)."""
-    def diagonal(P: np.ndarray) -> float:
-        return float(np.linalg.norm(P.max(0) - P.min(0)))
-
-    return bool(diagonal(X) >= UNSMOOTH_GROWTH * diagonal(V))
-
-
-def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, start: int = 0
+def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, limit: float, start: int = 0
                 ) -> tuple[tuple[int, float, np.ndarray, Optional[np.ndarray]], tuple[int, np.ndarray]]:
     """Of the step counts ``counts`` (ascending, above ``start``), the one whose unsmoothed vertices'
     own frame shows the most excess energy per vertex over ``bin_counts``: (count, energy, vertices
     (n, 3), their ``vertex_areas`` (n,)), energy -inf, V and None when ``counts`` is empty; and the
     count measured before it, with its vertices ((start, V) when none), for a finer search around it to
-    step on from. V (n, 3): the vertices after ``start`` steps back."""
+    step on from. V (n, 3): the vertices after ``start`` steps back. No count whose vertices' bounding-box
+    diagonal reaches ``limit`` is measured (nor any after it)."""
     wanted = set(counts)
     best, before, last = (start, -np.inf, V, None), (start, V), (start, V)
     steps = unsmoothing_steps(V, operator, UNSMOOTH_LAM)
     for m, X in zip(range(start + 1, max(wanted, default=start) + 1), steps):
         if m in wanted:
-            if _grown(X, V):
+            if bbox_diagonal(X) >= limit:
                 break
             area = vertex_areas(X, F)
             try:
