@@ -623,3 +623,13 @@ def test_embed_builds_the_progressive_mesh_only_for_pm(tmp_path, monkeypatch, sc
     V, F = pmwm.read_pm(tmp_path / "m2.pmwm").decode()
     src = pmwm.read_mesh(tmp_path / "m2.ply")
     assert np.array_equal(sorted_rows(V), sorted_rows(src.vertices))
+
+
+def test_embed_help_names_every_scheme_once():
+    """``pmwm embed --help`` lists each scheme as "name: what it does", the name not repeated."""
+    parser = cli.build_parser()
+    embed = next(a for a in parser._subparsers._group_actions[0].choices.values() if a.prog.endswith("embed"))
+    text = " ".join(embed.format_help().split())
+    for name, scheme in pmwm.schemes.SCHEMES.items():
+        assert f"{name}: {scheme.description.split()[0]}" in text
+        assert f"{name}: {name}:" not in text

@@ -311,4 +311,4 @@ def load_key_data(key: WatermarkKey) -> BlindKeyData:
 
 
 SCHEME = Scheme(NAME, DEFAULT_ALPHA, embed, verify, load_key_data,
-                "blind: read with a pass phrase alone (no key file); the distribution of vertex norms")
+                "read with a pass phrase alone (no key file); the distribution of vertex norms")
