@@ -417,6 +417,26 @@ def test_a_low_quantile_from_the_smallest_values_equals_the_one_from_all():
         assert radial.low_quantile(x, w, q) == radial.weighted_quantiles(x[None], w, [q])[0, 0]
 
 
+def test_a_high_quantile_from_the_largest_values_equals_the_one_from_all():
+    """``high_quantile`` sorts only the largest values (the frame's upper end, on every frame the reader
+    measures): the same value as ``weighted_quantiles``, with ties (also across the values it sorts and
+    those it does not), weightless values, and a quantile the largest values cannot hold (it then sorts
+    all of them)."""
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        n = int(rng.integers(1, 20000))
+        x = rng.random(n)
+        if trial % 2:
+            x = np.round(x * rng.integers(1, 300))  # many ties
+        w = rng.random(n) * (rng.random(n) < 0.8)
+        if trial % 7 == 0:
+            w[np.argsort(x)[n // 2:]] = 0.0  # the largest half weighs nothing: the full sort is needed
+        if not w.sum() > 0:
+            continue
+        q = float(rng.choice([1.0, 0.99, 0.98, 0.95, 0.7]))
+        assert radial.high_quantile(x, w, q) == radial.weighted_quantiles(x[None], w, [q])[0, 0]
+
+
 def test_scale_energies_match_the_energy_of_each_frame():
     """The cumulative-histogram energies equal a direct binning wherever the bins' edges fall on cells."""
     rng = np.random.default_rng(0)

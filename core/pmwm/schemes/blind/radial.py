@@ -100,6 +100,25 @@ def low_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
     return float(weighted_quantiles(x[None], w, [q])[0, 0])
 
 
+def high_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
+    """``weighted_quantiles`` of one row x (n,) at one large q, sorting only the largest values that can
+    hold it (``low_quantile`` from the other end): the same value, the weight below them summed at once
+    instead of along the sorted order (the two sums differ by rounding, about 1e-16 of the total, far
+    below one vertex's weight)."""
+    target = q * w.sum()
+    n = len(x)
+    m = min(n, 2 * int((1.0 - q) * n) + 256)
+    if m < n and q < 1.0:  # (at q = 1 the full sort's rounding decides: its own answer is kept)
+        part = np.argpartition(x, n - m)[n - m:]
+        part.sort()  # (by index: the stable sort below then orders ties as argsort of all of x does)
+        order = part[np.argsort(x[part], kind="stable")]
+        tail = np.take(w, order)
+        cw = (w.sum() - tail.sum()) + np.cumsum(tail)
+        if cw[0] - tail[0] < target <= cw[-1]:  # (else the quantile lies below the values sorted)
+            return float(x[order[int((cw < target).sum())]])
+    return float(weighted_quantiles(x[None], w, [q])[0, 0])
+
+
 def frame_of(V: np.ndarray, F: np.ndarray, n_bins: int) -> tuple[Frame, np.ndarray]:
     """The frame of a mesh (area-weighted centre and range) and the vertices' weights in the bin
     statistics (n,) (1 on a face of positive area, else 0). MeshError when the surface has no area
@@ -114,7 +133,7 @@ def frame_of_areas(V: np.ndarray, area: np.ndarray, n_bins: int) -> tuple[Frame,
         raise MeshError("the mesh has no surface area; the blind scheme reads a surface")
     c = (area[:, None] * V).sum(0) / total  # the surface's centroid: vertex density does not move it
     rho = np.linalg.norm(V - c, axis=1)
-    lo, hi = weighted_quantiles(rho[None], area, [QUANTILES])[0]
+    lo, hi = low_quantile(rho, area, QUANTILES[0]), high_quantile(rho, area, QUANTILES[1])
     a = (area > 0).astype(np.float64)  # in the statistics every vertex of the surface weighs 1
     if not hi > lo * (1 + 1e-9) or not hi > 0:
         raise MeshError("the surface has no range of distances from its centre; the blind scheme needs one")
