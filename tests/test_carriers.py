@@ -9,7 +9,7 @@ import trimesh
 from pmwm.adjacency import build_adjacency
 from pmwm.carriers import eligible_carriers, select_carriers
 from pmwm.errors import PayloadError
-from pmwm.features import face_normals, mean_edge_length, smoothness_feature, vertex_areas
+from pmwm.features import face_cross, face_normals, mean_edge_length, row_norms, smoothness_feature, vertex_areas
 from pmwm.som import FLAT, PEAK, SUITABLE, classify_smoothness, train_som
 
 import meshes
@@ -130,6 +130,18 @@ def test_vertex_areas_share_each_face_in_thirds():
     np.testing.assert_allclose(got, want, atol=1e-12)
     assert got[-1] == 0 and got.sum() == pytest.approx(8.0)
     np.testing.assert_array_equal(vertex_areas(v, np.zeros((0, 3), np.int64)), np.zeros(len(v)))
+
+
+def test_vertex_areas_and_row_norms_are_bit_for_bit_those_of_np_linalg_norm():
+    """The blind scheme's frames and weights come from these areas and norms: the same bits as
+    np.linalg.norm gives (marks made before must read the same)."""
+    rng = np.random.default_rng(4)
+    v = rng.standard_normal((500, 3)) * rng.random((500, 1)) * 1e3
+    f = rng.integers(0, 500, (2000, 3))
+    np.testing.assert_array_equal(row_norms(v), np.linalg.norm(v, axis=1))
+    third = 0.5 * np.linalg.norm(face_cross(v, f), axis=1) / 3.0
+    np.testing.assert_array_equal(vertex_areas(v, f), np.bincount(f.ravel(), weights=np.repeat(third, 3),
+                                                                   minlength=len(v)))
 
 
 # ---------------------------------------------------------------- SOM

@@ -41,6 +41,14 @@ def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return cross
 
 
+def row_norms(x: np.ndarray) -> np.ndarray:
+    """The Euclidean norms of the rows of x (k, 3), (k,) float64: the bits of np.linalg.norm(x, axis=1)
+    (its sum of a row's three squares, in the same order), a column at a time, without its (k, 3)
+    temporary and row-wise reduction (about 3 times as fast on Igea's faces)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2])
+
+
 def face_normals(vertices: np.ndarray, faces: np.ndarray,
                  cross: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal.
@@ -69,7 +77,7 @@ def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     draws its seed by. From ``face_cross``, without ``np.cross``'s temporaries (BENCHMARKS.md,
     ``verify-first-call``)."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    area = 0.5 * np.linalg.norm(face_cross(vertices, f), axis=1)
+    area = 0.5 * row_norms(face_cross(vertices, f))
     out = np.bincount(f.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(vertices))
     return out.astype(np.float64, copy=False)  # (bincount of no faces gives integers)
 

@@ -52,7 +52,7 @@ from typing import Optional
 import numpy as np
 
 from ...errors import MeshError
-from ...features import vertex_areas
+from ...features import row_norms, vertex_areas
 
 QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as area-weighted quantiles
 K_GRID = 1e-3  # the step of the exponent k (Cho's)
@@ -132,7 +132,7 @@ def frame_of_areas(V: np.ndarray, area: np.ndarray, n_bins: int) -> tuple[Frame,
     if not total > 0:
         raise MeshError("the mesh has no surface area; the blind scheme reads a surface")
     c = (area[:, None] * V).sum(0) / total  # the surface's centroid: vertex density does not move it
-    rho = np.linalg.norm(V - c, axis=1)
+    rho = row_norms(V - c)
     lo, hi = low_quantile(rho, area, QUANTILES[0]), high_quantile(rho, area, QUANTILES[1])
     a = (area > 0).astype(np.float64)  # in the statistics every vertex of the surface weighs 1
     if not hi > lo * (1 + 1e-9) or not hi > 0:
@@ -418,7 +418,7 @@ def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
 def by_distance(V: np.ndarray, a: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """The vertices of positive weight a (n,), nearest ``centre`` first (ties in index order), (k,) int64."""
     keep = np.flatnonzero(a > 0)
-    return keep[np.argsort(np.linalg.norm(V[keep] - centre, axis=1), kind="stable")]
+    return keep[np.argsort(row_norms(V[keep] - centre), kind="stable")]
 
 
 def thinned(order: np.ndarray, k: int) -> np.ndarray:
