@@ -162,16 +162,19 @@ def bin_vertices(V: np.ndarray, fr: Frame) -> Binned:
 def _bins(t: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
     """Positions t (n,) in bin widths from lo -> bin (n,) int64 (-1 outside the n_bins) and r (n,),
     the place inside the bin in [0, 1) (0 outside)."""
-    b = np.floor(t).astype(np.int64)
+    floor = np.floor(t)
+    b = floor.astype(np.int64)
     inside = (b >= 0) & (b < n_bins)
-    return np.where(inside, b, -1), np.where(inside, t - np.floor(t), 0.0)
+    return np.where(inside, b, -1), np.where(inside, t - floor, 0.0)
 
 
 def bin_statistics(r: np.ndarray, b: np.ndarray, a: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
     """Per bin: the weighted mean of r (NaN when empty) and the bin's total weight, both (M,)."""
-    ok = b >= 0
-    wsum = np.bincount(b[ok], weights=a[ok], minlength=n_bins)
-    s = np.bincount(b[ok], weights=(a * r)[ok], minlength=n_bins)
+    # the vertices outside (b = -1) go to one extra bin, dropped: cheaper than compressing the arrays,
+    # and each bin sums the same values in the same order
+    idx = np.where(b >= 0, b, n_bins)
+    wsum = np.bincount(idx, weights=a, minlength=n_bins + 1)[:n_bins]
+    s = np.bincount(idx, weights=a * r, minlength=n_bins + 1)[:n_bins]
     return np.divide(s, wsum, out=np.full(n_bins, np.nan), where=wsum > 0), wsum
 
 
