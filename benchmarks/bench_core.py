@@ -11,7 +11,6 @@ start-up, trimesh loading the same file, fast_simplification.simplify to 1 % of 
 from __future__ import annotations
 
 import argparse
-import compileall
 import os
 import subprocess
 import sys
@@ -22,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import best_alternating, command, commit, machine, mesh_path, write_section  # noqa: E402
+from _report import best_alternating, byte_compiled, command, commit, machine, mesh_path, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
 from pmwm.pmfile import to_bytes  # noqa: E402
@@ -61,10 +60,8 @@ def main() -> None:
     ap.add_argument("--print-only", action="store_true", help="print the section, do not write BENCHMARKS.md")
     ap.add_argument("--no-zips", action="store_true", help="do not build and size the extension zips")
     a = ap.parse_args()
-    # the library byte-compiled, as `pip install` leaves it: with PYTHONDONTWRITEBYTECODE set (as on
-    # these machines) every timed process would otherwise compile the edited modules from source,
-    # while the anchor's packages were compiled at install
-    compileall.compile_dir(str(Path(pmwm.__file__).parent), quiet=1)
+    # the anchor's packages were byte-compiled at install: so is the library
+    byte_compiled(Path(pmwm.__file__).parent)
     rows = []
     cpu_rows = []
     lod_rows: list = []

@@ -49,7 +49,7 @@ from pathlib import Path
 from typing import Optional
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import ROOT, best_alternating, command, commit, load, machine, write_section  # noqa: E402
+from _report import ROOT, best_alternating, byte_compiled, command, commit, load, machine, write_section  # noqa: E402
 
 MODELS = ("bunny", "igea")  # names in the catalogue, pmwm_bench.models
 BASELINE = "88eb246"  # the last commit with brute-force spatial search
@@ -242,6 +242,8 @@ def main() -> None:
             (tmp / "old").mkdir()
             (tmp / "core").rename(tmp / "old" / "core")
             cores["old"] = tmp / "old" / "core"
+        for core in cores.values():
+            byte_compiled(core / "pmwm")
         runs: dict[str, list[list[dict]]] = {k: [] for k in cores}
         with open(tmp / "cases.pkl", "rb") as f:
             n_cases = len(pickle.load(f))
@@ -279,6 +281,7 @@ def cli(a) -> None:
     from pmwm.meshio import write_mesh
 
     blind = a.scheme == "blind"
+    byte_compiled(ROOT / "core" / "pmwm")
     env = dict(os.environ, PYTHONPATH=str(ROOT / "core"), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     lines = []
     over_wall, over_cpu = [], []

@@ -230,3 +230,14 @@ def test_energy_per_bit_is_total_squared_displacement_over_bits():
     moved = v.copy()
     moved[:4, 0] = 0.5
     assert M.energy_per_bit(v, moved, 2) == pytest.approx(4 * 0.25 / 2)
+
+
+def test_bbox_diagonal_is_that_of_the_extremes_of_each_axis():
+    """The bounding box's diagonal, from each column's extremes: the value of the axis-0 reduction, for
+    float32 and float64 points, one point (0) and none (0)."""
+    rng = np.random.default_rng(7)
+    v = rng.standard_normal((1000, 3)) * [1.0, 20.0, 300.0] + [5.0, -7.0, 1e4]
+    for x in (v, v.astype(np.float32)):
+        want = float(np.linalg.norm(x.astype(np.float64).max(axis=0) - x.astype(np.float64).min(axis=0)))
+        assert M.bbox_diagonal(x) == want
+    assert M.bbox_diagonal(v[:1]) == 0.0 and M.bbox_diagonal(np.zeros((0, 3))) == 0.0

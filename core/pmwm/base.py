@@ -215,7 +215,7 @@ def _key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, a
     return dict(secret=secret, bits=bits, payload_kind=payload_kind, strength=strength,
                 carrier_index=key_carriers, carrier_position=marked[key_carriers].copy(),
                 n_vertices=len(vertices), n_faces=len(faces), mean_edge=mean_edge_length(marked, adj),
-                bbox_diagonal=float(np.linalg.norm(vertices.max(0) - vertices.min(0))), scheme=scheme,
+                bbox_diagonal=metrics.bbox_diagonal(vertices), scheme=scheme,
                 data=data, faces_fingerprint=face_fingerprint(faces))
 
 

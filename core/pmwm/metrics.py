@@ -118,8 +118,13 @@ def vsnr(orig, marked, centred: bool = True) -> float:
 
 
 def bbox_diagonal(vertices) -> float:
+    """The length of the diagonal of the bounding box of the points (n, 3) (0 for none). The extremes a
+    column at a time: numpy's axis-0 reduction of an (n, 3) array (``v.max(0)``) is about ten times
+    slower, with the same values (a maximum does not round)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if len(v) else 0.0
+    if not len(v):
+        return 0.0
+    return float(np.linalg.norm(np.array([v[:, k].max() - v[:, k].min() for k in range(3)])))
 
 
 def psnr(orig, marked) -> float:

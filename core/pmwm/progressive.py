@@ -60,6 +60,7 @@ import numpy as np
 from .adjacency import Adjacency, build_adjacency, stable_order, unique_values
 from .features import face_cross
 from .errors import MeshError
+from .metrics import bbox_diagonal
 
 Progress = Optional[Callable[[float, str], None]]
 
@@ -758,7 +759,7 @@ def build_progressive_mesh(
     keep = np.zeros(n + 1, bool)
     if protected is not None and not callable(protected):
         keep[:n] = np.asarray(protected, bool)
-    bbox = float(np.linalg.norm(V.max(0) - V.min(0))) if n else 1.0
+    bbox = bbox_diagonal(V) if n else 1.0
     bnd = _boundary_half_edges(F0, adj0)
     Q = np.zeros((n + 1, 10))
     Q[:n] = _vertex_quadrics(V, F0, bnd)

@@ -37,7 +37,7 @@ from typing import Optional
 import numpy as np
 
 from .adjacency import edge_face_counts, unique_values
-from .metrics import vertex_rmse
+from .metrics import bbox_diagonal, vertex_rmse
 
 LOOP_ODD = (0.375, 0.125)  # a Loop edge vertex: 3/8 of each end of its edge, 1/8 of each opposite vertex
 SOLVE_TOL = 1e-9  # the least-squares solve's relative residual (positions to about 1e-8 of the size)
@@ -71,7 +71,7 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
         return None
     count = np.bincount(F.ravel(), minlength=n)  # faces per vertex
     used = count > 0
-    diag = float(np.linalg.norm(V.max(0) - V.min(0))) or 1.0
+    diag = bbox_diagonal(V) or 1.0
     if m % 6 == 0 and np.count_nonzero((count == 4) | (count == 2)) * 5 >= m:  # edge points, cheaply
         c = _catmull_clark(V, F, count, diag)
         if c is not None:

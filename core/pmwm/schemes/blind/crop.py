@@ -66,6 +66,7 @@ import numpy as np
 
 from ...adjacency import edge_face_counts, is_closed, unique_values
 from ...background import parallel_map
+from ...metrics import bbox_diagonal
 from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
                      distances, excess_energy, low_quantile, refine_frame_on, scale_energies, statistics_in, thinned)
@@ -246,7 +247,7 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     Pc, area_c = (V[sub] - own.centre).astype(np.float32), area[sub]
     Pf, af = V[fine], a[fine]
     Pw, aw, area_w = V[by_rho], a[by_rho], area[by_rho]  # the fine width fit: every vertex of positive weight
-    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    diag = bbox_diagonal(V)
     total = float(a.sum())
 
     def frame_for(n_bins: int) -> Frame:
