@@ -398,43 +398,27 @@ def test_weighted_quantiles_of_many_rows():
     assert radial.weighted_quantiles(rho[:1], w, [[0.0, 1.0]])[0].tolist() == [rho[0].min(), rho[0].max()]
 
 
-def test_a_low_quantile_from_the_smallest_values_equals_the_one_from_all():
-    """``low_quantile`` sorts only the smallest values: the same value as ``weighted_quantiles``, with
-    ties (also across the values it sorts and those it does not), weightless values, and a quantile the
-    smallest values cannot hold (it then sorts all of them)."""
-    rng = np.random.default_rng(2)
+@pytest.mark.parametrize("end, quantiles, seed", [("low", (0.0, 0.01, 0.02, 0.05, 0.3), 2),
+                                                    ("high", (1.0, 0.99, 0.98, 0.95, 0.7), 3)])
+def test_a_quantile_from_the_values_at_one_end_equals_the_one_from_all(end, quantiles, seed):
+    """``low_quantile`` sorts only the smallest values, ``high_quantile`` only the largest (a frame's ends,
+    on every frame the reader measures): the same value as ``weighted_quantiles``, with ties (also across
+    the values sorted and those not), weightless values, and a quantile the values at that end cannot hold
+    (all are then sorted)."""
+    quantile = radial.low_quantile if end == "low" else radial.high_quantile
+    rng = np.random.default_rng(seed)
     for trial in range(300):
         n = int(rng.integers(1, 20000))
         x = rng.random(n)
         if trial % 2:
             x = np.round(x * rng.integers(1, 300))  # many ties
         w = rng.random(n) * (rng.random(n) < 0.8)
-        if trial % 7 == 0:
-            w[np.argsort(x)[: n // 2]] = 0.0  # the smallest half weighs nothing: the full sort is needed
+        if trial % 7 == 0:  # the half at that end weighs nothing: the full sort is needed
+            w[np.argsort(x)[: n // 2] if end == "low" else np.argsort(x)[n // 2:]] = 0.0
         if not w.sum() > 0:
             continue
-        q = float(rng.choice([0.0, 0.01, 0.02, 0.05, 0.3]))
-        assert radial.low_quantile(x, w, q) == radial.weighted_quantiles(x[None], w, [q])[0, 0]
-
-
-def test_a_high_quantile_from_the_largest_values_equals_the_one_from_all():
-    """``high_quantile`` sorts only the largest values (the frame's upper end, on every frame the reader
-    measures): the same value as ``weighted_quantiles``, with ties (also across the values it sorts and
-    those it does not), weightless values, and a quantile the largest values cannot hold (it then sorts
-    all of them)."""
-    rng = np.random.default_rng(3)
-    for trial in range(300):
-        n = int(rng.integers(1, 20000))
-        x = rng.random(n)
-        if trial % 2:
-            x = np.round(x * rng.integers(1, 300))  # many ties
-        w = rng.random(n) * (rng.random(n) < 0.8)
-        if trial % 7 == 0:
-            w[np.argsort(x)[n // 2:]] = 0.0  # the largest half weighs nothing: the full sort is needed
-        if not w.sum() > 0:
-            continue
-        q = float(rng.choice([1.0, 0.99, 0.98, 0.95, 0.7]))
-        assert radial.high_quantile(x, w, q) == radial.weighted_quantiles(x[None], w, [q])[0, 0]
+        q = float(rng.choice(quantiles))
+        assert quantile(x, w, q) == radial.weighted_quantiles(x[None], w, [q])[0, 0]
 
 
 def test_scale_energies_match_the_energy_of_each_frame():
