@@ -105,7 +105,8 @@ def high_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
     hold it (``low_quantile`` from the other end): the same value, the weight below them summed at once
     instead of along the sorted order (the two sums differ by rounding, about 1e-16 of the total, far
     below one vertex's weight)."""
-    target = q * w.sum()
+    total = w.sum()
+    target = q * total
     n = len(x)
     m = min(n, 2 * int((1.0 - q) * n) + 256)
     if m < n and q < 1.0:  # (at q = 1 the full sort's rounding decides: its own answer is kept)
@@ -113,8 +114,9 @@ def high_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
         part.sort()  # (by index: the stable sort below then orders ties as argsort of all of x does)
         order = part[np.argsort(x[part], kind="stable")]
         tail = np.take(w, order)
-        cw = (w.sum() - tail.sum()) + np.cumsum(tail)
-        if cw[0] - tail[0] < target <= cw[-1]:  # (else the quantile lies below the values sorted)
+        below = total - tail.sum()  # the weight of the values not sorted
+        cw = below + np.cumsum(tail)
+        if below < target <= cw[-1]:  # (else the quantile lies below the values sorted)
             return float(x[order[int((cw < target).sum())]])
     return float(weighted_quantiles(x[None], w, [q])[0, 0])
 
