@@ -16,7 +16,10 @@ Each zip holds ``blender_manifest.toml`` and the add-on (``blender_pmwm/``) at i
 ``wheels/``: ``pmwm`` itself, ``trimesh`` (pure python) and scipy for that platform and Python
 (``pip download --no-deps``; the scipy versions are chosen for the numpy each Blender ships: scipy
 1.15.3 accepts numpy 1.23.5 to 2.4, Blender 4.2-5.0's numpy 1.24-1.26; scipy 1.17.1 accepts Blender
-5.1+'s numpy 2.x). The pmwm wheel holds the library only: it is built (``pip wheel --no-deps``) from
+5.1+'s numpy 2.x). pykdtree, the library's faster KD-tree where pip installs it, is not bundled: its
+macOS wheels carry their own OpenMP runtime, Blender on macOS loads one already, and two LLVM OpenMP
+runtimes in one process abort it (OMP Error #15); inside Blender scipy answers every spatial query
+(``pmwm.spatial``). The pmwm wheel holds the library only: it is built (``pip wheel --no-deps``) from
 a copy of ``core/pmwm`` with a pyproject derived from this checkout's, without the evaluation package
 ``pmwm_bench``, its ``pmwm.commands`` entry point and the extras; the build checks that. numpy is never
 bundled: Blender ships it. The manifest's ``wheels`` list is rewritten to name exactly the bundled

@@ -12,7 +12,7 @@ import pytest
 
 import pmwm
 import pmwm.cli
-from pmwm import attacks, metrics
+from pmwm import attacks, metrics, spatial
 from pmwm.errors import KeyFileError
 from pmwm.key import make_secret
 from pmwm.schemes.robust import embed as robust_embed, key_data, verify as robust_verify
@@ -405,3 +405,28 @@ def test_heights_by_position_are_the_crossings_of_every_face():
     assert np.isfinite(want).sum() > S * (K - 3) * 0.9
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)  # (the same faces; rounding of the projection)
+
+
+def test_both_kdtree_engines_mark_and_read_alike(bunny, marked):
+    """pykdtree (pip installs) and scipy (inside Blender) give the same marked mesh and the same
+    readings: a re-ordered copy, a cut and posed one (registration, heights by position) and the mesh
+    read with another mesh's key."""
+    V, F = bunny
+    small = attacks.simplify(V, F, ratio=0.8)
+    with spatial.using_engine("scipy"):
+        again = robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11))
+        other = robust_embed(*small, pmwm.EmbedOptions(payload=PAYLOAD, seed=12)).key
+    np.testing.assert_array_equal(again.vertices, marked.vertices)
+    cut = attacks.similarity(*attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=3), seed=3)
+    suspects = [(attacks.reorder(marked.vertices, marked.faces, seed=2), marked.key), (cut, marked.key),
+                ((V, F), other)]
+    for (SV, SF), key in suspects:
+        read = {}
+        for name in spatial.ENGINES:
+            with spatial.using_engine(name):
+                read[name] = robust_verify(SV, SF, key)
+        a, b = read.values()
+        assert (a.marked, a.bits, a.p_value, a.mode) == (b.marked, b.bits, b.p_value, b.mode)
+        np.testing.assert_array_equal(a.scores, b.scores)
+        assert a.extra == b.extra
+    assert read["scipy"].marked is False

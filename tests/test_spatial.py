@@ -1,6 +1,7 @@
 """pmwm.spatial, the one place of nearest-point and radius queries: the KD-tree answers exactly what a
 brute-force scan answers (the same neighbours, pairs, order and distances), on the awkward inputs
-too (duplicates, points far from the origin, radii of very different sizes, empty sets)."""
+too (duplicates, points far from the origin, radii of very different sizes, empty sets), with each
+engine (pykdtree, a dependency of the package, and scipy, which answers inside Blender)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,41 @@ import pytest
 
 from pmwm import spatial
 from pmwm.spatial import PointIndex
+
+
+@pytest.fixture(autouse=True, params=spatial.ENGINES)
+def kdtree_engine(request):
+    """Every test of this module once per engine."""
+    with spatial.using_engine(request.param):
+        yield request.param
+
+
+def test_pykdtree_is_the_engine_where_it_is_installed(kdtree_engine):
+    """The package depends on pykdtree, so a pip install answers with it (scipy inside Blender); an
+    engine can be chosen for a block, and an unknown one is refused."""
+    assert spatial._pykdtree() is not None  # a dependency: importable wherever the tests run
+    assert spatial.engine() == kdtree_engine
+    with spatial.using_engine("scipy"):
+        assert spatial.engine() == "scipy"
+    assert spatial.engine() == kdtree_engine
+    with pytest.raises(ValueError, match="unknown KD-tree engine"):
+        with spatial.using_engine("flann"):
+            pass
+    spatial._engine.clear()  # chosen afresh at the next query, as in a new process
+    assert spatial.engine() == "pykdtree"
+
+
+def test_radius_queries_ask_for_more_neighbours_until_they_have_them_all():
+    """Points with hundreds of neighbours within the radius (far more than FIRST_K): every pair found."""
+    rng = np.random.default_rng(12)
+    P, Q = rng.normal(size=(30, 3)) * 0.1, rng.normal(size=(3000, 3)) * 0.1
+    for a, b in ((P, Q), (Q, P)):
+        i, j, d = spatial.pairs_within(a, b, 0.15)
+        bi, bj, bd = _pairs_brute(a, b, 0.15)
+        assert np.bincount(i).max() > 40 * spatial.FIRST_K or np.bincount(j).max() > 40 * spatial.FIRST_K
+        np.testing.assert_array_equal(i, bi)
+        np.testing.assert_array_equal(j, bj)
+        np.testing.assert_allclose(d, bd, rtol=0, atol=1e-12)
 
 
 def _points(n: int, seed: int, offset: float = 0.0) -> np.ndarray:

@@ -1,10 +1,24 @@
 """Nearest-point, radius and point-to-surface queries: the one place spatial search is done.
 
-Every scheme, the registration and the metrics ask their spatial questions here. The engine is
-scipy's KD-tree (``scipy.spatial.cKDTree``), built unbalanced and without compacting nodes (faster to
-build, as fast to query on surface samples) and queried on one thread (``workers=1``: the library
-never takes more than the caller's thread). Distances are computed from coordinate differences, so
-far-off coordinates keep their digits.
+Every scheme, the registration and the metrics ask their spatial questions here. Two KD-trees answer
+them, each where it is the better one:
+
+- Nearest points (``PointIndex``, ``MovingNearest``, ``nearest``, ``min_spacing``) and the pairs within a
+  radius (``pairs_within``): pykdtree's KD-tree when it is installed (a dependency of the pip package),
+  else scipy's. Both answer exactly (the same neighbours, distances and pairs; where two points lie at
+  exactly the same distance, either may be named). Why pykdtree: it imports in about a millisecond where
+  ``scipy.spatial`` takes 0.25-0.4 s with numpy 2 (scipy's array-API layer imports most of numpy's
+  submodules), which was most of what ``pmwm verify`` spent beyond reading its files (BENCHMARKS.md,
+  ``verify-cli-notes`` and ``kdtree-engine``). The radius queries ask it for the neighbours within the
+  radius, more of them until a point has fewer than it asked for. Its queries run on OpenMP threads
+  (``OMP_NUM_THREADS``). The Blender extension does not bundle it: its macOS wheels carry their own
+  OpenMP runtime, and Blender loads one already (two LLVM OpenMP runtimes in one process abort it), so
+  inside Blender scipy answers, whose import is paid once per session.
+- Point-to-surface distances (``surface_distances``, for the metrics): scipy's KD-tree.
+
+scipy's tree is built unbalanced and without compacting nodes (faster to build, as fast to query on
+surface samples) and queried on one thread (``workers=1``). Distances are computed from coordinate
+differences, so far-off coordinates keep their digits.
 
 ``PointIndex`` is the reusable form: a tree built ONCE over a reference set and queried many times
 (the registration queries the key's samples some hundred times per suspect); ``MovingNearest`` answers
@@ -12,7 +26,7 @@ the same queries for points that move a little between calls (an ICP) without se
 points whose nearest cannot have changed. ``nearest``,
 ``pairs_within``, ``min_spacing`` and ``surface_distances`` (exact point-to-triangle-surface
 distances, for the metrics) are the one-shot functions. Each answers exactly what a brute-force scan
-answers (tests/test_spatial.py).
+answers, with either engine (tests/test_spatial.py).
 """
 
 from __future__ import annotations
@@ -39,10 +53,11 @@ def _load_engine() -> None:
 
 @contextlib.contextmanager
 def loading_engine():
-    """Load the KD-tree engine (scipy.spatial: about 0.2 s of imports) in a thread while the caller does
-    other work before its first query; the thread is joined on exit. A query that comes first waits
-    for the import to finish (Python's import lock), so the results are the same either way."""
-    if "scipy.spatial" in sys.modules:
+    """Load scipy's KD-tree (scipy.spatial: 0.25-0.4 s of imports) in a thread while the caller does
+    other work before its first query that needs it; the thread is joined on exit. A query that comes
+    first waits for the import to finish (Python's import lock), so the results are the same either way.
+    Nothing to load when pykdtree answers (it imports in a millisecond)."""
+    if "scipy.spatial" in sys.modules or engine() == "pykdtree":
         yield
         return
     loader = threading.Thread(target=_load_engine, name="pmwm-load-kdtree", daemon=True)
@@ -54,19 +69,88 @@ def loading_engine():
 
 
 def _tree(P: np.ndarray, leafsize: int = 32) -> "cKDTree":
-    from scipy.spatial import cKDTree  # scipy loads (0.2 s) when a query first runs, not on import
+    from scipy.spatial import cKDTree  # scipy loads (0.25-0.4 s) when a query first runs, not on import
 
     # leaves of 32 points: 5-10 % faster than 16 for the registration's queries, as fast elsewhere
     return cKDTree(P, leafsize=leafsize, balanced_tree=False, compact_nodes=False)
 
 
+def _pykdtree():
+    """pykdtree's KDTree class, or None where it is not installed (inside Blender: module docstring)."""
+    try:
+        from pykdtree.kdtree import KDTree
+    except ImportError:
+        return None
+    return KDTree
+
+
+ENGINES = ("pykdtree", "scipy")
+_engine: list = []  # the engine of the nearest-point and radius queries, chosen at the first query
+
+
+def engine() -> str:
+    """The KD-tree that answers nearest-point and radius queries: "pykdtree" when installed, else "scipy"."""
+    if not _engine:
+        _engine.append("pykdtree" if _pykdtree() is not None else "scipy")
+    return _engine[0]
+
+
+@contextlib.contextmanager
+def using_engine(name: str):
+    """Answer nearest-point and radius queries with the engine ``name`` (one of ``ENGINES``) inside the
+    block (tests compare the two; the answers are the same)."""
+    if name not in ENGINES:
+        raise ValueError(f"unknown KD-tree engine {name!r}; use one of {ENGINES}")
+    if name == "pykdtree" and _pykdtree() is None:
+        raise ImportError("pykdtree is not installed (pip install pykdtree)")
+    before = engine()
+    _engine[0] = name
+    try:
+        yield
+    finally:
+        _engine[0] = before
+
+
+class _KnnTree:
+    """A KD-tree over P (n, 3) float64 for k-nearest queries, by the current ``engine()``.
+
+    ``query(Q, k, bound)`` -> (distance, index) as scipy's ``cKDTree.query`` gives them: shapes (m,)
+    for k = 1, (m, k) otherwise, nearest first; distance inf and index n past the neighbours within
+    ``bound`` (or past the n points)."""
+
+    def __init__(self, P: np.ndarray):
+        self.n = len(P)
+        self.engine = engine()
+        if self.engine == "pykdtree":
+            self._t = _pykdtree()(np.ascontiguousarray(P, dtype=np.float64), leafsize=16)
+        else:
+            self._t = _tree(P)
+
+    def query(self, Q: np.ndarray, k: int = 1, bound: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+        Q = np.ascontiguousarray(Q, dtype=np.float64).reshape(-1, 3)
+        if self.engine == "scipy":
+            d, j = self._t.query(Q, k=k, distance_upper_bound=bound, workers=1)
+            return d, j.astype(np.int64)
+        kk = min(k, self.n)  # pykdtree asks k <= n; the columns beyond n stay empty, as scipy's
+        if len(Q) == 0:
+            d, j = np.empty((0, kk)), np.empty((0, kk), np.int64)
+        else:
+            d, j = self._t.query(Q, k=kk, distance_upper_bound=None if bound == np.inf else float(bound))
+            j = j.astype(np.int64).reshape(len(Q), kk)
+            d = np.where(j < self.n, np.asarray(d, np.float64).reshape(len(Q), kk), np.inf)
+        if kk < k:
+            d = np.concatenate([d, np.full((len(Q), k - kk), np.inf)], axis=1)
+            j = np.concatenate([j, np.full((len(Q), k - kk), self.n, np.int64)], axis=1)
+        return (d[:, 0], j[:, 0]) if k == 1 else (d, j)
+
+
 class PointIndex:
-    """A KD-tree over the points T (n, 3) float64, built once, for many nearest-point and radius
-    queries against the same set."""
+    """A KD-tree over the points T (n, 3) float64, built once, for many nearest-point queries against
+    the same set."""
 
     def __init__(self, T: np.ndarray):
         self.points = np.ascontiguousarray(T, dtype=np.float64).reshape(-1, 3)
-        self._tree = _tree(self.points) if len(self.points) else None
+        self._tree = _KnnTree(self.points) if len(self.points) else None
 
     def __len__(self) -> int:
         return len(self.points)
@@ -80,7 +164,7 @@ class PointIndex:
         lead = Q.shape[:-1]
         if self._tree is None:
             return np.full(lead, -1, np.int64), np.full(lead, np.inf)
-        d, j = self._tree.query(Q.reshape(-1, 3), k=1, distance_upper_bound=bound, workers=1)
+        d, j = self._tree.query(Q.reshape(-1, 3), 1, bound)
         j = np.where(j < len(self.points), j, -1).astype(np.int64)
         return j.reshape(lead), (d * d).reshape(lead)
 
@@ -92,30 +176,8 @@ class PointIndex:
             return np.full(Q.shape[:2], -1, np.int64), np.full(Q.shape[:2], np.inf)
         d, j = np.empty(Q.shape[:2]), np.empty(Q.shape[:2], np.intp)
         for b in range(len(Q)):
-            d[b], j[b] = self._tree.query(Q[b], k=1, distance_upper_bound=bound[b], workers=1)
+            d[b], j[b] = self._tree.query(Q[b], 1, bound[b])
         return np.where(j < len(self.points), j, -1).astype(np.int64), d * d
-
-    def within(self, Q: np.ndarray, radius) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Every pair (query i, point j of T) closer than ``radius`` (scalar or (m,) per query).
-
-        Q : (m, 3) float64. Returns (i, j, distance): (k,) int64, (k,) int64, (k,) float64, ordered
-        by i then j."""
-        Q = np.asarray(Q, dtype=np.float64).reshape(-1, 3)
-        rad = np.broadcast_to(np.asarray(radius, np.float64), (len(Q),))
-        if self._tree is None or not np.any(rad > 0):
-            return np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0)
-        # queries grouped by radius, each group searched at its largest radius in one call (no Python
-        # loop over queries; a few large radii do not widen the search of all the others), then
-        # each query's own radius (strictly closer)
-        found = []
-        for q in _radius_groups(rad):
-            pairs = _tree(Q[q]).sparse_distance_matrix(self._tree, float(rad[q].max()), output_type="ndarray")
-            found.append((q[pairs["i"]], pairs["j"].astype(np.int64), pairs["v"]))
-        i, j, d = (np.concatenate(x) for x in zip(*found))
-        keep = d < rad[i]
-        i, j, d = i[keep], j[keep], d[keep]
-        order = np.lexsort((j, i))
-        return i[order], j[order], d[order]
 
 
 class MovingNearest:
@@ -169,7 +231,7 @@ class MovingNearest:
         for r in np.flatnonzero(todo.any(axis=1)):
             i = np.flatnonzero(todo[r])
             Qi = np.take(Q[r], i, axis=0)
-            d, jq = index._tree.query(Qi, k=2, distance_upper_bound=bound[r], workers=1)
+            d, jq = index._tree.query(Qi, 2, bound[r])
             first = np.where(jq[:, 0] < n, jq[:, 0], -1)
             tie = np.isfinite(d[:, 0]) & (d[:, 0] == d[:, 1])
             if tie.any():  # two nearest at one distance: the one a single-neighbour search picks
@@ -205,32 +267,55 @@ def pairs_within(P: np.ndarray, Q: np.ndarray, radius, by_j: bool = False
     P : (n, 3), Q : (m, 3) float64; radius : scalar or (n,) per point of P.
     Returns (i, j, distance): (k,) int64, (k,) int64, (k,) float64, ordered by i then j (by j then
     i with ``by_j``). The tree is built over the smaller set (over P in groups of radii within a
-    factor of 2).
+    factor of 2, each searched at its largest radius, so that a few large radii do not widen every
+    search) and the other set's points ask it for their neighbours within the radius.
     """
     P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
     Q = np.asarray(Q, dtype=np.float64).reshape(-1, 3)
-    if len(P) <= len(Q) or not len(Q):
-        i, j, d = PointIndex(Q).within(P, radius)
-        if by_j:
-            order = np.lexsort((i, j))
-            i, j, d = i[order], j[order], d[order]
-        return i, j, d
     rad = np.broadcast_to(np.asarray(radius, np.float64), (len(P),))
     found = [(np.empty(0, np.int64), np.empty(0, np.int64))]
-    for p in _radius_groups(rad):
-        # a tree over many points (faces) for a few balls (sites): large leaves build and search faster
-        hits = _tree(P[p], leafsize=256).query_ball_point(Q, float(rad[p].max()), workers=1,
-                                                          return_sorted=False)  # (sorted below)
-        counts = np.fromiter(map(len, hits), np.int64, count=len(hits))
-        found.append((np.take(p, np.fromiter(itertools.chain.from_iterable(hits), np.int64,
-                                             count=int(counts.sum()))),
-                      np.repeat(np.arange(len(Q), dtype=np.int64), counts)))
+    if len(P) and len(Q):
+        if len(P) <= len(Q):
+            for p in _radius_groups(rad):
+                q, t = _neighbours_within(_KnnTree(P[p]), Q, float(rad[p].max()))
+                found.append((np.take(p, t), q))
+        else:
+            tree = _KnnTree(Q)
+            for p in _radius_groups(rad):
+                q, t = _neighbours_within(tree, P[p], float(rad[p].max()))
+                found.append((np.take(p, q), t))
     i, j = (np.concatenate(x) for x in zip(*found))
     d = np.sqrt(_sq3(np.take(P, i, axis=0) - np.take(Q, j, axis=0)))  # (np.take: as P[i], faster)
     keep = d < np.take(rad, i)
     i, j, d = i[keep], j[keep], d[keep]
     order = np.lexsort((i, j) if by_j else (j, i))
     return i[order], j[order], d[order]
+
+
+FIRST_K = 8  # neighbours asked first by a radius query; a point that gets them all asks 4 times more
+
+
+def _neighbours_within(tree: _KnnTree, X: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """(x, t): every pair of a point X[x] (X (m, 3)) and a tree point t within distance ``r`` of it, and
+    perhaps a few just beyond (the bound is widened by 1e-9 of itself: the caller's exact test decides).
+    Each point asks for its FIRST_K nearest within the bound; those that got as many ask again for 4
+    times more, until each has fewer than it asked for (or the whole tree)."""
+    bound = r * (1.0 + 1e-9)
+    xs, ts = [np.empty(0, np.int64)], [np.empty(0, np.int64)]
+    todo = np.arange(len(X))
+    k = min(FIRST_K, tree.n)
+    while len(todo):
+        _, j = tree.query(np.take(X, todo, axis=0), k, bound)
+        j = j.reshape(len(todo), k)
+        more = (j[:, -1] < tree.n) if k < tree.n else np.zeros(len(todo), bool)
+        done = np.flatnonzero(~more)
+        jd = np.take(j, done, axis=0)
+        hit = jd < tree.n
+        xs.append(np.repeat(np.take(todo, done), hit.sum(axis=1)))
+        ts.append(jd[hit])
+        todo = np.take(todo, np.flatnonzero(more))
+        k = min(4 * k, tree.n)
+    return np.concatenate(xs), np.concatenate(ts)
 
 
 def _radius_groups(rad: np.ndarray) -> list[np.ndarray]:
@@ -245,7 +330,7 @@ def min_spacing(P: np.ndarray) -> float:
     P = np.asarray(P, dtype=np.float64).reshape(-1, 3)
     if len(P) < 2:
         return float("inf")
-    d, _ = _tree(P).query(P, k=2, workers=1)
+    d, _ = _KnnTree(P).query(P, 2)
     return float(d[:, 1].min())
 
 
