@@ -4,7 +4,9 @@
     BLENDER_USER_RESOURCES=DIR python install_check.py use WORKDIR
 
 ``install`` installs and enables the zip. ``use`` is a restarted Blender: it enables the installed
-extension, imports pmwm, trimesh and scipy, and runs watermark + verify with the installed operators.
+extension, imports pmwm, trimesh and scipy, and runs watermark + verify with the installed operators,
+with pykdtree out of reach as in a real Blender (the zip does not bundle it; this test's Python has it
+installed beside bpy), so that scipy's KD-tree answers, as it does there.
 Each prints one line ``RESULT:{json}`` that test_install.py checks. BLENDER_USER_RESOURCES must be
 set before ``import bpy`` and a process imports bpy once, hence subprocesses. Blender puts the
 wheels' site-packages in front of Python's own only at start-up (an install appends it), so which
@@ -43,7 +45,17 @@ def install(zip_path: str) -> dict:
     return _common(bpy, addon_utils)
 
 
+class _NoPykdtree:
+    """A meta path finder that refuses pykdtree, as a Blender without it in its Python."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "pykdtree" or name.startswith("pykdtree."):
+            raise ImportError(f"No module named {name!r} (out of reach, as in Blender)")
+        return None
+
+
 def use(workdir: str) -> dict:
+    sys.meta_path.insert(0, _NoPykdtree())
     import bpy
     import addon_utils
 
@@ -54,8 +66,10 @@ def use(workdir: str) -> dict:
     import trimesh
 
     result = _common(bpy, addon_utils)
+    from pmwm import spatial
+
     result.update(pmwm_file=pmwm.__file__, trimesh_file=trimesh.__file__, numpy_file=numpy.__file__,
-                  scipy_file=scipy.spatial.__file__)
+                  scipy_file=scipy.spatial.__file__, kdtree_engine=spatial.engine())
 
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.mesh.primitive_monkey_add()

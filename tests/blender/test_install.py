@@ -35,6 +35,7 @@ def test_zip_holds_manifest_addon_and_the_wheels_for_this_platform(built_zip, bu
     assert {"__init__.py", "operators.py", "panel.py", "props.py", "examples/watermark_all.py"} <= names
     assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
     wheels = sorted(n for n in names if n.startswith("wheels/"))
+    # (no pykdtree: its macOS OpenMP runtime would abort Blender; scipy answers there, pmwm.spatial)
     assert [w.split("/")[1].split("-")[0] for w in wheels] == ["pmwm", "scipy", "trimesh"]
     pure = [w for w in wheels if "scipy" not in w]
     assert all(w.endswith("-py3-none-any.whl") for w in pure)
@@ -106,6 +107,7 @@ def test_install_into_isolated_user_resources(built_zip, tmp_path):
     assert used["pmwm_file"].startswith(str(site)), used["pmwm_file"]
     assert used["trimesh_file"].startswith(str(site)), used["trimesh_file"]
     assert used["scipy_file"].startswith(str(site)), used["scipy_file"]  # the bundled platform wheel
+    assert used["kdtree_engine"] == "scipy"  # pykdtree is not bundled: scipy's KD-tree answers in Blender
     assert not used["numpy_file"].startswith(str(resources))  # numpy is Blender's own
     assert "operator_error" not in used, used.get("operator_error")
     assert used["verdict"] == {"marked": True, "payload": "Hi"}
