@@ -111,6 +111,9 @@ def using_engine(name: str):
         _engine[0] = before
 
 
+PYKDTREE_LEAF = 16  # points per leaf of pykdtree's trees
+
+
 class _KnnTree:
     """A KD-tree over P (n, 3) float64 for k-nearest queries, by the current ``engine()``.
 
@@ -122,7 +125,7 @@ class _KnnTree:
         self.n = len(P)
         self.engine = engine()
         if self.engine == "pykdtree":
-            self._t = _pykdtree()(np.ascontiguousarray(P, dtype=np.float64), leafsize=16)
+            self._t = _pykdtree()(np.ascontiguousarray(P, dtype=np.float64), leafsize=PYKDTREE_LEAF)
         else:
             self._t = _tree(P)
 
@@ -292,7 +295,7 @@ def pairs_within(P: np.ndarray, Q: np.ndarray, radius, by_j: bool = False
     return i[order], j[order], d[order]
 
 
-FIRST_K = 8  # neighbours asked first by a radius query; a point that gets them all asks 4 times more
+FIRST_K = 4  # neighbours asked first by a radius query; a point that gets them all asks 4 times more
 
 
 def _neighbours_within(tree: _KnnTree, X: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray]:
