@@ -12,16 +12,24 @@ from pmwm.adjacency import build_adjacency, is_closed, stable_order
 import meshes
 
 
-@pytest.mark.parametrize("case", ["ties", "wide", "negative", "empty", "one"])
-def test_stable_order_is_the_stable_argsort(case):
+@pytest.mark.parametrize("case", ["ties", "16-bit", "32-bit", "packed", "wide", "negative", "empty", "one"])
+@pytest.mark.parametrize("own", [False, True])
+def test_stable_order_is_the_stable_argsort(case, own):
+    """Every path: one and two 16-bit radix passes (ties across the 2^16 boundary), the packed sort,
+    the plain stable argsort (keys too wide, or negative)."""
     rng = np.random.default_rng(3)
-    keys = {"ties": rng.integers(0, 50, 5000), "wide": rng.integers(0, 2**62, 5000),
+    keys = {"ties": rng.integers(0, 50, 5000), "16-bit": rng.integers(0, 2**16, 5000),
+            "32-bit": np.concatenate([rng.integers(0, 2**32, 3000), rng.integers(2**16 - 40, 2**16 + 40, 2000),
+                                      [2**32 - 1, 0, 2**16]]),
+            "packed": rng.integers(0, 2**40, 5000) // 7, "wide": rng.integers(0, 2**62, 5000),
             "negative": rng.integers(-20, 20, 5000), "empty": np.zeros(0, np.int64),
-            "one": np.array([7])}[case]
-    order, sorted_keys = stable_order(keys)
+            "one": np.array([7])}[case].astype(np.int64)
     expected = np.argsort(keys, kind="stable")
+    want = keys[expected]
+    order, sorted_keys = adjacency._stable_order(keys.copy(), own) if own else stable_order(keys)
     assert np.array_equal(order, expected)
-    assert np.array_equal(sorted_keys, keys[expected])
+    assert np.array_equal(sorted_keys, want)
+    assert order.dtype == np.int64 and sorted_keys.dtype == np.int64
 
 
 def _pinched_variants():

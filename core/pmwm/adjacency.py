@@ -111,20 +111,30 @@ def unique_values(values: np.ndarray) -> np.ndarray:
 
 def stable_order(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(order, keys[order]): the stable argsort of integer ``keys`` (k,) and the sorted keys, both
-    (k,) int64.
+    (k,) int64: the same permutation as ``np.argsort(keys, kind="stable")`` (a stable order is
+    unique), found faster.
 
-    When every key is non-negative and fits in 63 bits together with its position, one plain sort
-    of ``key << s | position`` gives both: the same permutation as ``np.argsort(keys,
-    kind="stable")``, several times faster (numpy sorts plain integers with SIMD, index arrays
-    not); otherwise that stable argsort."""
+    Non-negative keys below 2^32 (vertex, face and record ids): a least-significant-digit radix sort
+    on their 16-bit halves (numpy sorts 16-bit integers stably by counting, in linear time), one pass
+    when they are below 2^16. Larger non-negative keys that fit in 63 bits together with their
+    position: one plain sort of ``key << s | position`` (numpy sorts plain integers with SIMD, index
+    arrays not). Otherwise the stable argsort itself."""
     return _stable_order(np.asarray(keys, dtype=np.int64), False)
 
 
 def _stable_order(keys: np.ndarray, own: bool) -> tuple[np.ndarray, np.ndarray]:
     """``stable_order`` of int64 keys; ``own``: keys may be overwritten (one array less)."""
     k = len(keys)
+    if k == 0:
+        return np.zeros(0, np.int64), keys.copy()
+    low, high = int(keys.min()), int(keys.max())
+    if low >= 0 and high < 1 << 32:
+        order = np.argsort((keys & 0xFFFF).astype(np.uint16), kind="stable")
+        if high >= 1 << 16:
+            order = np.take(order, np.argsort((np.take(keys, order) >> 16).astype(np.uint16), kind="stable"))
+        return order, np.take(keys, order)
     shift = max(int(k - 1).bit_length(), 1)
-    if k and int(keys.min()) >= 0 and int(keys.max()).bit_length() + shift <= 63:
+    if low >= 0 and high.bit_length() + shift <= 63:
         if own:
             keys <<= shift
             packed = keys
