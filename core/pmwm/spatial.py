@@ -98,7 +98,8 @@ def engine() -> str:
 @contextlib.contextmanager
 def using_engine(name: str):
     """Answer nearest-point and radius queries with the engine ``name`` (one of ``ENGINES``) inside the
-    block (tests compare the two; the answers are the same)."""
+    block (tests and benchmarks compare the two; the answers are the same). It sets the engine of the
+    whole process, not of the calling thread: not for code that queries from several threads at once."""
     if name not in ENGINES:
         raise ValueError(f"unknown KD-tree engine {name!r}; use one of {ENGINES}")
     if name == "pykdtree" and _pykdtree() is None:
