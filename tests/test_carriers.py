@@ -139,6 +139,8 @@ def test_vertex_areas_and_row_norms_are_bit_for_bit_those_of_np_linalg_norm():
     v = rng.standard_normal((500, 3)) * rng.random((500, 1)) * 1e3
     f = rng.integers(0, 500, (2000, 3))
     np.testing.assert_array_equal(row_norms(v), np.linalg.norm(v, axis=1))
+    rows = v.reshape(20, 25, 3)  # any leading shape (the registration's rows of moving points)
+    np.testing.assert_array_equal(row_norms(rows), np.linalg.norm(rows, axis=-1))
     third = 0.5 * np.linalg.norm(face_cross(v, f), axis=1) / 3.0
     np.testing.assert_array_equal(vertex_areas(v, f), np.bincount(f.ravel(), weights=np.repeat(third, 3),
                                                                    minlength=len(v)))

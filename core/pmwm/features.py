@@ -41,12 +41,19 @@ def face_cross(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return cross
 
 
-def row_norms(x: np.ndarray) -> np.ndarray:
-    """The Euclidean norms of the rows of x (k, 3), (k,) float64: the bits of np.linalg.norm(x, axis=1)
-    (its sum of a row's three squares, in the same order), a column at a time: faster, without its
-    (k, 3) temporary and row-wise reduction (BENCHMARKS.md, ``blind-s18``)."""
+def squared_norms(x: np.ndarray) -> np.ndarray:
+    """The squared Euclidean lengths of the vectors x (..., 3), shape (...,) float64, summed
+    (x^2 + y^2) + z^2 a coordinate at a time: the bits of np.linalg.norm's sum of squares and of the
+    KD-trees' distances (``pmwm.spatial``), without a (..., 3) temporary or a reduction over a short axis."""
     x = np.asarray(x, dtype=np.float64)
-    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2])
+    a, b, c = x[..., 0], x[..., 1], x[..., 2]
+    return (a * a + b * b) + c * c
+
+
+def row_norms(x: np.ndarray) -> np.ndarray:
+    """The Euclidean lengths of the vectors x (..., 3), (...,) float64: the bits of
+    np.linalg.norm(x, axis=-1), faster (``squared_norms``; BENCHMARKS.md, ``blind-s18``)."""
+    return np.sqrt(squared_norms(x))
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray,

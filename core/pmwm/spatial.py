@@ -39,6 +39,7 @@ import threading
 import numpy as np
 
 from .adjacency import unique_values
+from .features import row_norms, squared_norms
 
 __all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
            "closest_point_on_triangles"]
@@ -221,8 +222,8 @@ class MovingNearest:
         x0, j0, d0, l0 = (np.take(a, rows, axis=0) for a in (self._x0, self._j0, self._d0, self._l0))
         # rounding of the distances below: far below 1e-9 of the coordinates' size
         tol = 1e-9 * (self._big + float(np.abs(Q).max(initial=0.0)))
-        delta = np.sqrt(_sq3(Q - x0))
-        s = _sq3(Q - np.take(T, np.maximum(j0, 0), axis=0))  # as the tree sums it: the same bits
+        delta = row_norms(Q - x0)
+        s = squared_norms(Q - np.take(T, np.maximum(j0, 0), axis=0))  # as the tree sums it: the same bits
         dj = np.sqrt(s)
         ub = bound[:, None]
         unique = (j0 >= 0) & (dj < l0 - delta - tol)  # j0 is still the nearest
@@ -246,12 +247,6 @@ class MovingNearest:
             self._l0[row, i] = np.where(np.isfinite(d[:, 1]), d[:, 1], bound[r])
             j[r, i], d2[r, i] = first, d[:, 0] * d[:, 0]
         return j, d2
-
-
-def _sq3(d: np.ndarray) -> np.ndarray:
-    """Squared length of each vector d (..., 3), summed in the KD-tree's order (same bits)."""
-    x, y, z = d[..., 0], d[..., 1], d[..., 2]
-    return (x * x + y * y) + z * z
 
 
 def nearest(T: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -289,7 +284,7 @@ def pairs_within(P: np.ndarray, Q: np.ndarray, radius, by_j: bool = False
                 q, t = _neighbours_within(tree, P[p], float(rad[p].max()))
                 found.append((np.take(p, q), t))
     i, j = (np.concatenate(x) for x in zip(*found))
-    d = np.sqrt(_sq3(np.take(P, i, axis=0) - np.take(Q, j, axis=0)))  # (np.take: as P[i], faster)
+    d = row_norms(np.take(P, i, axis=0) - np.take(Q, j, axis=0))  # (np.take: as P[i], faster)
     keep = d < np.take(rad, i)
     i, j, d = i[keep], j[keep], d[keep]
     order = np.lexsort((i, j) if by_j else (j, i))
