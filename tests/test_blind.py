@@ -80,8 +80,8 @@ def test_whole_payload_survives(marked, attack):
 
 @pytest.mark.parametrize("attack", [
     lambda v, f: A.smooth_laplacian(v, f, lam=0.1, iterations=8, seed=0),
-    lambda v, f: A.noise_benchmark(v, f, 0.008, seed=2),
-], ids=["smoothing8", "noise0.8%"])
+    lambda v, f: A.noise_benchmark(v, f, 0.01, seed=2),
+], ids=["smoothing8", "noise1%"])
 def test_refined_frame_reads_what_the_own_frame_loses(marked, attack, monkeypatch):
     """These attacks move the suspect's frame by a fraction of a bin; read in its own frame alone the
     payload is lost, the key-free frame refinement finds it, with p still below 1e-6 (the smoothed copy
@@ -196,6 +196,44 @@ def test_the_push_keeps_every_vertex_in_its_bin():
         assert np.all(np.diff(out) > 0)  # monotone: the order of the radii, and the bins, stay
 
 
+def test_a_vertex_reaches_its_new_radius_moving_partly_along_the_surface():
+    """Each vertex lands at the radius asked for; across its surface (its normal) it moves less than along
+    its radius, by the share where the surface is oblique to the radius; without a normal, or with share 1,
+    it moves along its radius."""
+    rng = np.random.default_rng(2)
+    V = rng.normal(size=(500, 3))
+    centre = np.array([0.1, -0.2, 0.05])
+    bv = radial.bin_vertices(V, radial.Frame(centre, 0.1, 5.0, 8))
+    N = rng.normal(size=(500, 3))
+    N /= np.linalg.norm(N, axis=1)[:, None]
+    rho_new = bv.rho * (1.0 + rng.uniform(-0.02, 0.02, 500))
+    X = radial.moved_to_radius(V, centre, bv, rho_new, N, 0.25)
+    assert np.allclose(np.linalg.norm(X - centre, axis=1), rho_new, rtol=1e-12)
+    along_radius = centre + bv.unit * rho_new[:, None]
+    assert np.allclose(radial.moved_to_radius(V, centre, bv, rho_new, N, 1.0), along_radius)
+    assert np.allclose(radial.moved_to_radius(V, centre, bv, rho_new, np.zeros_like(N), 0.25), along_radius)
+    across = np.abs(np.einsum("ij,ij->i", X - V, N))
+    across_radius = np.abs(np.einsum("ij,ij->i", along_radius - V, N))
+    assert np.all(across <= 1.001 * across_radius + 1e-12)
+    assert across.sum() < 0.6 * across_radius.sum()
+
+
+def test_the_push_marks_the_same_bins_with_less_distortion_moving_partly_along_the_surface(bunny):
+    """At the same margin the bins read the same signs, and the surface is less distorted (the MRMS the
+    calibration spends), when vertices move partly along it (radial.NORMAL_SHARE) than along their radius."""
+    V, F = bunny
+    signs = np.where(np.random.default_rng(5).random(64) < 0.5, 1, -1)
+    along = radial.embed_signs(V, F, signs, 0.08)
+    straight = radial.embed_signs(V, F, signs, 0.08, share=1.0)
+    for X in (along, straight):
+        fr, a = radial.frame_of(X, F, 64)
+        stat, _ = radial.statistics_in(X, a, fr, [64])[0]
+        assert np.array_equal(np.sign(stat), signs)
+    d_along = pmwm.metrics.surface_distance(V, F, along, F, 20000, seed=1)[0]
+    d_straight = pmwm.metrics.surface_distance(V, F, straight, F, 20000, seed=1)[0]
+    assert d_along < 0.85 * d_straight
+
+
 def test_frame_refinement_does_not_use_the_pass_phrase(marked):
     V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.005, seed=1)
     stats = blind.bin_statistics(V, F)
@@ -206,11 +244,14 @@ def test_frame_refinement_does_not_use_the_pass_phrase(marked):
 
 
 def test_default_strength_spends_the_distortion_budget(bunny, marked):
-    """Without a strength the margin is calibrated to MRMS ~TARGET_MRMS % of the bbox diagonal; an
-    explicit strength is used as given."""
+    """Without a strength the margin is calibrated to MRMS ~TARGET_MRMS % of the bbox diagonal (rescaled
+    twice: once left the blob 23 % short of it); an explicit strength is used as given."""
     mrms = pmwm.metrics.surface_distance(*bunny, marked.vertices, marked.faces, 20000, seed=1)[0]
-    assert mrms == pytest.approx(blind.TARGET_MRMS, rel=0.15)
+    assert mrms == pytest.approx(blind.TARGET_MRMS, rel=0.1)
     V, F = meshes.blob()
+    cal = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, progressive=False))
+    mrms = pmwm.metrics.surface_distance(V, F, cal.vertices, cal.faces, 20000, seed=1)[0]
+    assert mrms == pytest.approx(blind.TARGET_MRMS, rel=0.1)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, strength=0.05))
     assert res.key.strength == 0.05
     assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "x"
@@ -354,12 +395,13 @@ def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(s
 
 
 @pytest.mark.parametrize("scheme", ["loop", "catmull-clark"])
-@pytest.mark.parametrize("attack", [None, lambda v, f: A.quantize(v, f, bits=8)], ids=["intact", "quantize8"])
+@pytest.mark.parametrize("attack", [None, lambda v, f: A.quantize(v, f, bits=7)], ids=["intact", "quantize7"])
 def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, scheme):
     """A mesh that is itself a subdivision (a modeller's output), marked: the mark is on every vertex,
     so the suspect, not the coarse mesh under it, shows it (intact: in full view, no coarse mesh looked
-    for; quantized: its coarse mesh, solved or as it is, shows no more energy per vertex, far from the
-    factor COARSE_GAIN that a subdivided copy's shows)."""
+    for; quantized to 7 bits: its coarse mesh, solved or as it is, shows no more energy per vertex, far
+    from the factor COARSE_GAIN that a subdivided copy's shows; the suspect is read, as it is or a few
+    steps smoothed)."""
     V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), scheme)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4,
                                              progressive=False))
@@ -368,7 +410,7 @@ def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, schem
     assert (own.energy >= frames.FULL_VIEW) == (attack is None)
     assert frames.coarse_mesh(*S).rule == scheme  # the structure is there either way
     v = pmwm.verify(*S, passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "suspect"
+    assert v.marked and v.payload == "Acme" and v.extra["mesh"] in ("suspect", f"smoothing:-{frames.DENOISE_STEPS}")
 
 
 def test_cut_planes_find_the_plane_of_a_crop():
@@ -579,10 +621,10 @@ def test_bench_method_reads_its_bits(bunny):
 
 
 def test_equalizing_the_radial_neighbours_reads_what_the_plain_reading_loses(marked, monkeypatch):
-    """Noise of 0.75 % spills each bin's pushed vertices into its radial neighbours: read bin by bin,
+    """Noise of 0.95 % spills each bin's pushed vertices into its radial neighbours: read bin by bin,
     more bits come out wrong than the search can correct; with the neighbours' interference removed
     (``radial.equalized``, no pass phrase involved) the whole payload reads, p < 1e-6."""
-    V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.0075, seed=0)
+    V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.0095, seed=0)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
     monkeypatch.setattr(radial, "equalized", lambda stat: stat)
@@ -591,16 +633,16 @@ def test_equalizing_the_radial_neighbours_reads_what_the_plain_reading_loses(mar
     assert not (plain.marked and plain.payload == "Acme")
 
 
-@pytest.mark.parametrize("copy", ["bunny quantized to 7 bits", "14,000 vertices, 0.75 % noise"])
+@pytest.mark.parametrize("copy", ["bunny quantized to 7 bits", "14,000 vertices, 0.95 % noise"])
 def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marked, copy, monkeypatch):
-    """7-bit quantization of the bunny and 0.75 % noise of a 14,000-vertex copy move every vertex by a good
+    """7-bit quantization of the bunny and 0.95 % noise of a 14,000-vertex copy move every vertex by a good
     part of a bin: read as they are, the bins lose the payload; after a few steps of Laplacian smoothing
     (``frames.with_denoised``, key-free) the "denoised" frames read it, p < 1e-6 with their frames counted
     in the union bound."""
     if copy.startswith("bunny"):
         V, F = A.quantize(marked.vertices, marked.faces, bits=7)
     else:
-        V, F = A.noise_benchmark(small_marked.vertices, small_marked.faces, 0.0075, seed=2)
+        V, F = A.noise_benchmark(small_marked.vertices, small_marked.faces, 0.0095, seed=3)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["frame"].startswith("denoised")
     assert v.extra["mesh"] == f"smoothing:-{frames.DENOISE_STEPS}"
