@@ -365,7 +365,8 @@ def test_heights_by_position_are_the_crossings_of_every_face(runs, monkeypatch):
     every (site, face, sample) triple, on a bumpy sheet with a fold, one huge face and flipped faces;
     the same when the (face, sample) candidates are tested in runs of a few dozen and the crossings held
     are cut down to each line's nearest every few dozen (what bounds the memory on a crumpled copy: an
-    11,000-vertex mesh with 1 % noise asked for 24 GB before)."""
+    11,000-vertex mesh with noise of a tenth of its size asked for 24 GB before); and nothing read when
+    every line meets MAX_FACES_PER_LINE candidate faces (that copy: 10,000-12,000, half an hour of work)."""
     from pmwm.schemes.robust import fields
 
     if runs == "in small runs":
@@ -418,6 +419,9 @@ def test_heights_by_position_are_the_crossings_of_every_face(runs, monkeypatch):
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)  # (the same faces; rounding of the projection)
     if runs == "in small runs":
         assert len(calls) > 5  # the crossings held were cut down along the way, not only at the end
+    # a site whose lines each meet MAX_FACES_PER_LINE candidate faces or more (a crumpled copy) is not read
+    monkeypatch.setattr(fields, "MAX_FACES_PER_LINE", 1)
+    assert np.isnan(fields.heights(V, F, origin, normal, t1, t2, uv, reach, expect)).all()
 
 
 def test_both_kdtree_engines_mark_and_read_alike(bunny, marked):

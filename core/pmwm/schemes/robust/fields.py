@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...adjacency import unique_values
 from ...spatial import pairs_within
 
 SWIRL_PEAK = 0.2862  # max of (rho / r) (1 - (rho / r)^2)^2: the swirl field peaks at 1
@@ -58,7 +59,8 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     Sample k of site s is the line origin[s] + u t1[s] + v t2[s] + h normal[s]; every triangle
     within ``reach`` of the site is projected into the site frame, and of the crossings the one
     nearest to either expected height ``expect`` (S, K, 2) is kept (either face orientation, so
-    flipped copies still read). Padding samples have u, v far outside any face.
+    flipped copies still read). Padding samples have u, v far outside any face. A site whose lines would
+    each meet MAX_FACES_PER_LINE candidate faces (a crumpled copy) gets none.
     """
     S, K = uv.shape[:2]
     out = np.full((S, K), np.nan)
@@ -79,7 +81,7 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     key = key[by_u]
     expect = expect.reshape(S * K, 2)
     found, held = [], 0
-    for c in _chunks(len(si), PAIR_CHUNK):
+    for c in _site_chunks(si, PAIR_CHUNK):
         for got in _crossings(np.take(tri, fi[c], axis=0) - origin[si[c]][:, None, :], si[c], t1, t2, normal,
                               uv, key, by_u, band, reach):
             found.append(got)
@@ -117,8 +119,11 @@ def _sq(d: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", d, d)
 
 
-def _chunks(n: int, size: int) -> list[slice]:
-    return [slice(a, a + size) for a in range(0, n, size)]
+def _site_chunks(si: np.ndarray, size: int) -> list[slice]:
+    """Runs of about ``size`` of the pairs, sorted by site si (p,), each holding whole sites (a site with
+    more pairs is a run of its own)."""
+    cut = unique_values(np.r_[np.searchsorted(si, np.take(si, np.arange(0, len(si), size))), len(si)])
+    return [slice(a, b) for a, b in zip(cut[:-1], cut[1:])]
 
 
 def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float):
@@ -138,9 +143,17 @@ def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float
     margin = 1e-6 * (hi_u - lo_u) + 1e-9 * reach + 1e-14 * (si + 1) * band  # (+ the keys' rounding)
     lo = np.searchsorted(key, si * band + lo_u - margin, "left")
     n = np.searchsorted(key, si * band + hi_u + margin, "right") - lo
+    # a site whose lines would each be tested against MAX_FACES_PER_LINE faces or more is not read (its
+    # heights stay NaN): a crumpled copy, whose faces span many samples (an 11,000-vertex mesh with noise
+    # of a tenth of its size: 10,000-12,000 per line, half an hour of work; at most 65 measured on the
+    # bunny and Igea marked, Loop-subdivided or 90 % simplified)
+    crowded = np.bincount(si, weights=n, minlength=uv.shape[0]) >= MAX_FACES_PER_LINE * uv.shape[1]
+    if crowded.any():
+        keep = np.flatnonzero(~np.take(crowded, si))
+        si, x, y, z, det, lo, n = (np.take(a, keep, axis=0) for a in (si, x, y, z, det, lo, n))
     # the pairs in runs of at most about CANDIDATE_CHUNK candidates (a crumpled copy's faces span many
-    # samples each: 86 million candidates in one chunk of pairs, 24 GB, on an 11,000-vertex mesh with 1 %
-    # noise); the same crossings in the same order
+    # samples each: 86 million candidates in one chunk of pairs, 24 GB, on that mesh); the same crossings
+    # in the same order
     start = np.cumsum(n) - n
     run = start // CANDIDATE_CHUNK
     cut = np.flatnonzero(np.r_[True, run[1:] != run[:-1], True])
@@ -149,6 +162,7 @@ def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float
 
 
 CANDIDATE_CHUNK = 1 << 20  # (pair, sample) candidates tested at once: bounds the memory of ``heights``
+MAX_FACES_PER_LINE = 1000  # a site whose sample lines meet this many candidate faces each is not read
 
 
 def _inside(x, y, z, det, si, lo, n, uv, by_u):
