@@ -37,8 +37,9 @@ simplification of the dragon gives BER 0 against 0.14 in its own frame.
 
 Strength: without an explicit ``strength`` the margin is calibrated per mesh to the distortion budget
 (``TARGET_MRMS``; ``_calibrated``): 0.07 everywhere gave MRMS 0.012 % on the Venus head and Igea
-against 0.019 % on the bunny and dragon; calibrated, the margin (of a bin of median count,
-``radial.bin_margins``) is about 0.07 on the bunny and dragon, 0.09-0.10 on the heads.
+against 0.019 % on the bunny and dragon (vertices moved along their radius); calibrated, the margin (of a
+bin of median count, ``radial.bin_margins``) is about 0.09 on the bunny and dragon, 0.11-0.13 on the heads
+(moved partly along the surface, ``radial.moved_to_radius``; 0.07 and 0.09-0.10 along the radius).
 
 Cropping: a 10 % plane crop moves the area centroid by 5-21 bin widths and lo/hi by up to 9, far
 outside the refinement's reach (no cropped copy read before). When the suspect has a planar cut, the

@@ -10,8 +10,10 @@ Everything here is computed from the mesh alone, so the reader needs no original
   radius r in [0, 1] and the bin's statistic, the mean of r over its vertices (unit weights).
 
 Embedding (Cho et al.'s method I, with another push): within every bin r -> r + beta sin^2(pi r) moves
-the mean above 1/2 + alpha_j (bit 1, beta > 0) or below 1/2 - alpha_j (bit 0, beta < 0); vertices move
-along their radius. The margin alpha_j is alpha * sqrt(median count / count of bin j) (clipped,
+the mean above 1/2 + alpha_j (bit 1, beta > 0) or below 1/2 - alpha_j (bit 0, beta < 0); a vertex moves
+to its new radius partly along the surface (``moved_to_radius``: its radial direction with the part across
+the surface scaled by NORMAL_SHARE), which the distortion measures see less of than a move along the radius.
+The margin alpha_j is alpha * sqrt(median count / count of bin j) (clipped,
 ``bin_margins``): the same signal-to-noise ratio in every bin at the distortion of one margin for
 all. The push is monotone for |beta| < 1/pi and leaves r = 0 and r = 1 in place with slope 1 there,
 so no vertex changes bin and the density at the bin edges, where noise and remeshing move vertices
@@ -270,13 +272,16 @@ def moved_to_radius(V: np.ndarray, centre: np.ndarray, bv: Binned, rho_new: np.n
     ``share``; (n, 3) float64. ``share`` 1 moves along the radius (Cho's); a vertex at the centre, or one that
     cannot reach its radius that way, moves along its radius.
 
-    Why: the distortion a mark is judged by (MRMS and Hausdorff, distances between the two surfaces) sees a
-    vertex's move across the surface and, to first order, not its move along it; the reader sees its change of
-    radius. Where the surface is oblique to the radius, moving partly along it reaches the same radius with less
-    distortion: at the same MRMS the margins grow (Venus head 0.103 -> 0.139 at share 0.25). Along the surface a
-    vertex moves farther (vertex RMSE about 1.5 times as large at the same MRMS), and remeshing, which resamples
-    the surface, keeps less of that part: with share 0.1 a 50 % simplification of the Venus head read 8 of 10
-    whole payloads instead of 10 (BENCHMARKS.md, ``blind-along-surface``)."""
+    Why: the distortion a mark is judged by (MRMS, the distance between the two surfaces) sees a vertex's move
+    across the surface and, to first order, not its move along it; the reader sees its change of radius. Where
+    the surface is oblique to the radius, moving partly along it reaches the same radius with less distortion,
+    so at the same MRMS the margins grow: by 1.21-1.39 times on the benchmark's four models at share 0.4 (the
+    dragon, whose surface is most oblique to its radii, the most). The price: a vertex slides farther along
+    the surface (vertex RMSE 1.27-1.42 times as large at the same MRMS on the dragon, Venus head and Igea,
+    the Hausdorff distance 1.06-1.24 times), and what resamples the surface (simplification, Laplacian
+    smoothing) keeps less of that part:
+    with share 0.1 a 50 % simplification of the Venus head read 8 of 10 whole payloads instead of 10, with
+    0.25 one of the dragon's was lost; at 0.4 none (BENCHMARKS.md, ``blind-along-surface``)."""
     u = bv.unit
     c = np.einsum("ij,ij->i", u, normals)
     e = u - (1.0 - share) * c[:, None] * normals
