@@ -129,9 +129,10 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     build = job.options.progressive
     with beside(build, build_progressive_mesh, V, F, base_vertices=base) as building:
         job.report(0.0, "marking the radial distribution")
-        marked = radial.embed_signs(V, F, signs, job.strength)
+        host = radial.Host.of(V, F, n_bins)  # (the unmarked mesh's frame and normals, for every marking)
+        marked = radial.embed_signs(V, F, signs, job.strength, host=host)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
-            job.strength, marked = _calibrated(V, F, signs, job.strength, marked)
+            job.strength, marked = _calibrated(V, F, signs, job.strength, marked, host)
         adj = build_adjacency(F, len(V))  # the key's (mean edge), while the worker still builds
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
@@ -144,7 +145,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
                             data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
 
 
-def _calibrated(V, F, signs, alpha, marked) -> tuple[float, np.ndarray]:
+def _calibrated(V, F, signs, alpha, marked, host: radial.Host) -> tuple[float, np.ndarray]:
     """(margin, marked vertices) with the margin rescaled up to CALIBRATION_ROUNDS times so that the
     embedding's MRMS (the benchmark's surface distance on ``CALIBRATION_SAMPLES`` points;
     ``metrics.displaced_surface_distance`` measures it without a spatial index: the same figure as
@@ -162,7 +163,7 @@ def _calibrated(V, F, signs, alpha, marked) -> tuple[float, np.ndarray]:
         new = float(np.clip(alpha * TARGET_MRMS / mrms, *ALPHA_RANGE))
         if abs(new - alpha) < 1e-3:
             break
-        alpha, marked = new, radial.embed_signs(V, F, signs, new)
+        alpha, marked = new, radial.embed_signs(V, F, signs, new, host=host)
     return alpha, marked
 
 

@@ -297,16 +297,33 @@ def moved_to_radius(V: np.ndarray, centre: np.ndarray, bv: Binned, rho_new: np.n
     return np.where(ok[:, None], V + s[:, None] * e, centre + u * rho_new[:, None])
 
 
+@dataclass
+class Host:
+    """What ``embed_signs`` needs of the unmarked mesh, computed once for the calibration's several markings
+    of it: its frame for n_bins bins, the reader's vertex weights (n,), its vertices binned in that frame and
+    their unit normals (n, 3)."""
+
+    frame: Frame
+    weights: np.ndarray
+    binned: Binned
+    normals: np.ndarray
+
+    @staticmethod
+    def of(V: np.ndarray, F: np.ndarray, n_bins: int) -> "Host":
+        fr, a = frame_of(V, F, n_bins)
+        return Host(fr, a, bin_vertices(V, fr), vertex_normals(V, F))
+
+
 def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, rounds: int = 8,
-                share: float = NORMAL_SHARE) -> np.ndarray:
+                share: float = NORMAL_SHARE, host: Optional[Host] = None) -> np.ndarray:
     """Marked vertices (n, 3) float64 (float32-exact) whose bins read ``signs`` (M,) (+1 / -1; 0 =
     leave the bin alone) with margin ``alpha`` on the bin mean of r in a bin of the median count of
-    vertices (``bin_margins``). An empty bin carries nothing (the reader sees an erasure)."""
+    vertices (``bin_margins``). An empty bin carries nothing (the reader sees an erasure). ``host``:
+    ``Host.of(V, F, len(signs))``, when the caller marks the same mesh more than once."""
     n_bins = len(signs)
-    fr, a = frame_of(V, F, n_bins)
-    normals = vertex_normals(V, F)
+    host = Host.of(V, F, n_bins) if host is None else host
+    fr, a, bv, normals = host.frame, host.weights, host.binned, host.normals
     one = signs > 0
-    bv = bin_vertices(V, fr)
     base = float(alpha) * bin_margins(bin_statistics(bv.r, bv.bin, a, n_bins)[1])
     margin = base.copy()
     marked = V
