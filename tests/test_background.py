@@ -144,6 +144,39 @@ def test_the_embedders_progressive_mesh_decodes_to_the_marked_mesh_and_reports_o
     assert np.array_equal(back.decode()[0], Vd)
 
 
+def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma(tmp_path):
+    """`pmwm verify` of a robust copy cut in half and moved (registration from the cut starts, heights by
+    position), in a fresh process as the command line runs it, imports neither scipy (pykdtree answers the
+    spatial queries; scipy's package import was most of a verify's time beyond reading its files) nor
+    numpy.ma (np.quantile imports it: 12 ms), and reads the payload."""
+    import subprocess
+    import sys
+
+    from pmwm import attacks
+    from pmwm.key import write_key
+    from pmwm.meshio import write_mesh
+
+    V, F = meshes.bunny()
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(payload="fresh", seed=4, progressive=False))
+    write_mesh(tmp_path / "cut.ply", *attacks.similarity(*attacks.crop_plane(res.vertices, res.faces, 0.5, seed=2),
+                                                          seed=2))
+    write_key(tmp_path / "key.json", res.key)
+    code = (
+        "import sys\n"
+        "import pmwm\n"
+        "from pmwm.meshio import read_mesh\n"
+        f"m = read_mesh({str(tmp_path / 'cut.ply')!r})\n"
+        f"v = pmwm.verify(m.vertices, m.faces, pmwm.read_key({str(tmp_path / 'key.json')!r}))\n"
+        "assert v.marked and v.payload == 'fresh' and v.extra['heights'].startswith('by position'), v.extra\n"
+        "loaded = sorted(m for m in sys.modules if m.split('.')[0] == 'scipy' or m.startswith(('numpy.ma.',))\n"
+        "                or m == 'numpy.ma')\n"
+        "assert not loaded, loaded\n")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.join(root, "core"), os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+
+
 @pytest.mark.parametrize("engine", ["pykdtree", "scipy"])
 def test_a_fresh_process_embeds_with_its_kdtree_and_no_thread_left_behind(engine):
     """In a fresh process the robust embedder imports no scipy when pykdtree answers its spatial
