@@ -144,14 +144,24 @@ def test_the_embedders_progressive_mesh_decodes_to_the_marked_mesh_and_reports_o
     assert np.array_equal(back.decode()[0], Vd)
 
 
+def _fresh_process(code: str):
+    """Run ``code`` in a fresh Python with this checkout's pmwm (cwd: the checkout); its completed process,
+    asserted to have succeeded."""
+    import subprocess
+    import sys
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.join(root, "core"), os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return out
+
+
 def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma(tmp_path):
     """`pmwm verify` of a robust copy cut in half and moved (registration from the cut starts, heights by
     position), in a fresh process as the command line runs it, imports neither scipy (pykdtree answers the
     spatial queries; scipy's package import was most of a verify's time beyond reading its files) nor
     numpy.ma (np.quantile imports it: 12 ms), and reads the payload."""
-    import subprocess
-    import sys
-
     from pmwm import attacks
     from pmwm.key import write_key
     from pmwm.meshio import write_mesh
@@ -171,10 +181,7 @@ def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma
         "loaded = sorted(m for m in sys.modules if m.split('.')[0] == 'scipy' or m.startswith(('numpy.ma.',))\n"
         "                or m == 'numpy.ma')\n"
         "assert not loaded, loaded\n")
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.join(root, "core"), os.environ.get("PYTHONPATH", "")]))
-    out = subprocess.run([sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
+    _fresh_process(code)
 
 
 @pytest.mark.parametrize("engine", ["pykdtree", "scipy"])
@@ -185,8 +192,6 @@ def test_a_fresh_process_embeds_with_its_kdtree_and_no_thread_left_behind(engine
     same as in a process that had its engine loaded, the same for both engines, and no thread outlives
     the call."""
     import hashlib
-    import subprocess
-    import sys
 
     block = ("class NoPykdtree:\n"
              "    def find_spec(self, name, path=None, target=None):\n"
@@ -206,10 +211,7 @@ def test_a_fresh_process_embeds_with_its_kdtree_and_no_thread_left_behind(engine
         "b = pmwm.embed(V, F, pmwm.EmbedOptions(payload='fresh', seed=4)).vertices\n"
         "assert np.array_equal(a, b)\n"
         "print(hashlib.sha256(a.tobytes()).hexdigest())\n")
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.path.join(root, "core"), os.environ.get("PYTHONPATH", "")]))
-    out = subprocess.run([sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
+    out = _fresh_process(code)
     V, F = meshes.blob()
     with spatial.using_engine("scipy" if engine == "pykdtree" else "pykdtree"):  # the other engine, here
         other = pmwm.embed(V, F, pmwm.EmbedOptions(payload="fresh", seed=4)).vertices

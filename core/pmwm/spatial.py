@@ -380,7 +380,8 @@ def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) ->
     """
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     cen = (a + b + c) / 3.0
-    rad = np.sqrt(np.maximum(np.maximum(_sq(a - cen), _sq(b - cen)), _sq(c - cen)))
+    rad = np.sqrt(np.maximum(np.maximum(squared_norms(a - cen), squared_norms(b - cen)),
+                             squared_norms(c - cen)))
     everything = _tree(cen)
     groups = [(g, _tree(cen[g]), float(rad[g].max())) for g in _radius_groups(np.maximum(rad, 1e-300))]
     k = min(4, len(tri))
@@ -400,7 +401,7 @@ def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) ->
             qs.append(np.repeat(np.arange(len(p)), n))
             fs.append(g[np.fromiter(itertools.chain.from_iterable(hits), np.int64, count=int(n.sum()))])
         q, f = np.concatenate(qs), np.concatenate(fs)
-        keep = np.sqrt(_sq(p[q] - cen[f])) <= (upper[q] + rad[f]) * (1 + 1e-9) + 1e-300
+        keep = row_norms(p[q] - cen[f]) <= (upper[q] + rad[f]) * (1 + 1e-9) + 1e-300
         q, f = q[keep], f[keep]
         best = upper.copy()
         np.minimum.at(best, q, _to_triangles(p[q], a[f], b[f], c[f]))
@@ -412,7 +413,3 @@ def _to_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) ->
     """Distance from p[i] to triangle (a[i], b[i], c[i]), (k,)."""
     return np.linalg.norm(closest_point_on_triangles(p, a, b, c) - p, axis=1)
 
-
-def _sq(d: np.ndarray) -> np.ndarray:
-    """Squared length of each row of d (n, 3)."""
-    return np.einsum("ij,ij->i", d, d)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...adjacency import unique_values
+from ...features import squared_norms
 from ...spatial import pairs_within
 
 SWIRL_PEAK = 0.2862  # max of (rho / r) (1 - (rho / r)^2)^2: the swirl field peaks at 1
@@ -70,7 +71,7 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     tri = np.take(V, F, axis=0)  # (np.take: as V[F], faster)
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     cen = (a + b + c) / 3.0  # (reductions over axes of 3 are slow in numpy: corner by corner)
-    rad = np.sqrt(np.maximum(np.maximum(_sq(a - cen), _sq(b - cen)), _sq(c - cen)))
+    rad = np.sqrt(np.maximum(np.maximum(squared_norms(a - cen), squared_norms(b - cen)), squared_norms(c - cen)))
     # site-face pairs: the face's bounding sphere meets the ball of radius reach around the site
     fi, si, _ = pairs_within(cen, origin, reach + rad, by_j=True)  # by site, then face
     # the samples in order of (site, u): the samples inside a face projected into its site's frame
@@ -114,10 +115,6 @@ def _nearest_crossings(slot: np.ndarray, h: np.ndarray, back: np.ndarray, expect
     return slot[first], h[first], back[first]
 
 
-def _sq(d: np.ndarray) -> np.ndarray:
-    """Squared length of each row of d (n, 3)."""
-    return np.einsum("ij,ij->i", d, d)
-
 
 def _site_chunks(si: np.ndarray, size: int) -> list[slice]:
     """Runs of about ``size`` of the pairs, sorted by site si (p,), each holding whole sites (a site with
@@ -128,8 +125,9 @@ def _site_chunks(si: np.ndarray, size: int) -> list[slice]:
 
 def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float):
     """Where the sample lines of pairs' sites cross the pairs' faces: (slot = site * K + sample,
-    height, back-facing), in the order of the pairs, yielded for runs of pairs. rel (p, 3, 3): the faces' corners about their
-    site; si (p,): the site; key, by_u: the samples sorted by site, then u (``heights``)."""
+    height, back-facing), in the order of the pairs, yielded for runs of pairs. rel (p, 3, 3): the
+    faces' corners about their site; si (p,): the site; key, by_u: the samples sorted by site, then u
+    (``heights``)."""
     x = np.einsum("pvj,pj->pv", rel, np.take(t1, si, axis=0))  # (np.take: as t1[si], faster)
     y = np.einsum("pvj,pj->pv", rel, np.take(t2, si, axis=0))
     z = np.einsum("pvj,pj->pv", rel, np.take(normal, si, axis=0))
