@@ -193,3 +193,22 @@ def test_surface_distances_are_the_brute_force_minimum_over_every_triangle():
     cp = spatial.closest_point_on_triangles(P[q], tri[f, 0], tri[f, 1], tri[f, 2])
     d = np.linalg.norm(cp - P[q], axis=1)
     np.testing.assert_array_equal(got, d.reshape(len(P), len(tri)).min(axis=1))
+
+
+@pytest.mark.parametrize("shape", ["two corners equal", "last two equal", "in a line", "all equal"])
+def test_the_closest_point_of_a_triangle_of_no_area_is_on_the_segment_it_spans(shape):
+    """A triangle without area is a segment (or a point): the region tests divide by zero there (they
+    gave NaN); the closest point is the segment's, as its projection finds it."""
+    rng = np.random.default_rng(3)
+    a, c, P = rng.normal(size=(300, 3)), rng.normal(size=(300, 3)), 2 * rng.normal(size=(300, 3))
+    if shape == "all equal":
+        c = a.copy()
+    b = {"two corners equal": a.copy(), "last two equal": c.copy(), "in a line": 0.3 * a + 0.7 * c,
+         "all equal": a.copy()}[shape]
+    if shape == "last two equal":
+        b, c = c, c.copy()
+    with np.errstate(all="raise"):
+        got = spatial.closest_point_on_triangles(P, a, b, c)
+    d = c - a
+    t = np.clip(np.einsum("ij,ij->i", P - a, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300), 0, 1)
+    np.testing.assert_allclose(got, a + t[:, None] * d, atol=1e-12)

@@ -333,6 +333,9 @@ def min_spacing(P: np.ndarray) -> float:
     return float(d[:, 1].min())
 
 
+FLAT_SINE2 = 1e-12  # closest_point_on_triangles: a triangle whose squared sine at a corner is below this is flat
+
+
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Closest point of triangle (a[i], b[i], c[i]) to p[i], vectorised (Ericson 5.1.5)."""
     ab, ac, ap = b - a, c - a, p - a
@@ -367,7 +370,29 @@ def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
     for cond, value in conds:
         if cond.any():
             out = np.where(cond[:, None], value(), out)
+    # a triangle of no area (corners equal or in a line; up to rounding: the sine of its angle at a below
+    # 1e-6, so that it lies within a millionth of its sides of them) is its edges, where the region tests
+    # divide by zero or by rounding errors (measured: points 0.1 off on triangles 1e-16 from a line)
+    flat = ~(squared_norms(np.cross(ab, ac)) > FLAT_SINE2 * squared_norms(ab) * squared_norms(ac))
+    flat |= ~np.isfinite(out).all(axis=1)
+    if flat.any():
+        out[flat] = _closest_point_on_edges(p[flat], a[flat], b[flat], c[flat])
     return out
+
+
+def _closest_point_on_edges(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Closest point to p[i] (k, 3) on the three edges of triangle (a[i], b[i], c[i]), each (k, 3): the
+    closest point of the triangle when it has no area (the region tests divide by zero there)."""
+    best, best_d = a.copy(), np.full(len(p), np.inf)
+    for s, e in ((a, b), (b, c), (c, a)):
+        d = e - s
+        t = np.clip(np.einsum("ij,ij->i", p - s, d) / np.maximum(squared_norms(d), np.finfo(np.float64).tiny),
+                    0.0, 1.0)
+        q = s + t[:, None] * d
+        dist = squared_norms(p - q)
+        closer = dist < best_d
+        best[closer], best_d[closer] = q[closer], dist[closer]
+    return best
 
 
 def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) -> np.ndarray:

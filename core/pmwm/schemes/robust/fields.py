@@ -17,10 +17,12 @@ OUTER = 1.6  # samples reach OUTER * r from the site (the annulus beyond r is no
 
 
 def tangent_frames(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit tangents per unit normal, a deterministic function of the normal."""
+    """Two unit tangents per unit normal N (k, 3), a deterministic function of the normal; NaN for a
+    zero normal (a site whose disc's normals cancel: its readings are NaN, and it is left out)."""
     helper = np.eye(3)[np.argmin(np.abs(N), axis=1)]
     t1 = np.cross(N, helper)
-    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    with np.errstate(invalid="ignore"):
+        t1 /= np.linalg.norm(t1, axis=1)[:, None]
     return t1, np.cross(N, t1)
 
 
