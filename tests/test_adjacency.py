@@ -115,3 +115,45 @@ def test_unique_values_are_those_of_np_unique():
     for x in cases:
         got = adjacency.unique_values(x)
         assert got.dtype == x.dtype and np.array_equal(got, np.unique(x))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_component_labels_are_scipys_components_named_by_their_least_vertex(seed):
+    """Random graphs of cycles, paths and stray edges over scattered vertex ids: every edge gets its
+    component's least vertex id, the same partition as scipy's connected_components."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(seed)
+    ids = rng.permutation(5000)
+    parts, at = [], 0
+    for length in rng.integers(2, 300, 12):
+        p = ids[at:at + length]
+        at += length
+        parts.append(np.stack([p, np.roll(p, -1)], 1) if length > 2 and rng.random() < 0.7
+                     else np.stack([p[:-1], p[1:]], 1))
+    E = np.concatenate(parts)[rng.permutation(sum(len(q) for q in parts))]
+    got = adjacency.component_labels(E)
+    _, comp = connected_components(coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(5000, 5000)),
+                                   directed=False)
+    least = np.full(comp.max() + 1, 1 << 40)
+    np.minimum.at(least, comp[E.ravel()], E.ravel())
+    np.testing.assert_array_equal(got, least[comp[E[:, 0]]])
+    assert len(adjacency.component_labels(np.zeros((0, 2), np.int64))) == 0
+
+
+def test_component_labels_of_one_long_cycle():
+    p = np.random.default_rng(1).permutation(200_000)[:50_000]
+    got = adjacency.component_labels(np.stack([p, np.roll(p, -1)], 1))
+    assert np.all(got == p.min())
+
+
+@pytest.mark.parametrize("kind", ["distinct", "ties", "nan"])
+def test_stable_argsort_is_numpys_stable_argsort(kind):
+    x = np.random.default_rng(2).random(5000)
+    if kind == "ties":
+        x = np.round(x * 50) / 50
+    if kind == "nan":
+        x[[3, 70, 900]] = np.nan
+    np.testing.assert_array_equal(adjacency.stable_argsort(x), np.argsort(x, kind="stable"))
+    assert adjacency.stable_argsort(np.zeros(0)).tolist() == [] and adjacency.stable_argsort([2.0]).tolist() == [0]

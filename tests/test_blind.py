@@ -368,7 +368,7 @@ def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, sch
     V, F = A.reorder(*A.subdivide(small_marked.vertices, small_marked.faces, scheme), seed=2)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == scheme and v.p_value < 1e-6
-    monkeypatch.setattr(frames, "coarse_mesh", lambda V, F: None)
+    monkeypatch.setattr(frames, "coarse_mesh", lambda V, F, *counts: None)
     monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)  # (a Loop copy reads with smoothing undone too)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert not (v.marked and v.payload == "Acme") and v.extra["mesh"] == "suspect"
@@ -858,3 +858,19 @@ def test_cli_says_when_it_read_a_smoothed_copy_with_its_smoothing_undone(marked,
     v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
     assert v.returncode == 0 and "MARKED" in v.stdout and "'Acme'" in v.stdout
     assert "steps of Laplacian smoothing (0.1 each) undone" in v.stdout
+
+
+def test_a_fresh_process_reads_a_cropped_copy_without_scipys_graph_module(marked, tmp_path):
+    """The cut planes' boundary loops are labelled in numpy (``adjacency.component_labels``):
+    ``scipy.sparse.csgraph`` is 0.09 s of a fresh process's imports, and `pmwm verify` of a cropped copy
+    (the crop search) no longer loads it."""
+    from test_background import _fresh_process
+
+    write_mesh(tmp_path / "cut.ply", *A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=1))
+    code = ("import sys, pmwm\n"
+            "from pmwm.meshio import read_mesh\n"
+            f"m = read_mesh({str(tmp_path / 'cut.ply')!r})\n"
+            f"v = pmwm.verify(m.vertices, m.faces, passphrase={PHRASE!r})\n"
+            "assert v.marked and v.payload == 'Acme' and v.extra['frame'].startswith('crop'), v.extra\n"
+            "assert 'scipy.sparse.csgraph' not in sys.modules\n")
+    _fresh_process(code)

@@ -149,6 +149,44 @@ def _stable_order(keys: np.ndarray, own: bool) -> tuple[np.ndarray, np.ndarray]:
     return order, keys[order]
 
 
+def stable_argsort(values: np.ndarray) -> np.ndarray:
+    """``np.argsort(values, kind="stable")`` of a float array (k,), (k,) int64, found faster when no two
+    values are equal (distances, as a rule): then there is one sorted order, and numpy's default sort
+    finds it in about half the time of the stable one (134,000 float64: 7 against 13 ms). With a tie or
+    a NaN (after which numpy's sorts may order the NaNs differently), the stable sort itself."""
+    x = np.asarray(values)
+    order = np.argsort(x)
+    if len(x) > 1:
+        xs = x[order]
+        if np.isnan(xs[-1]) or bool(np.any(xs[1:] == xs[:-1])):
+            return np.argsort(x, kind="stable")
+    return order
+
+
+def component_labels(edges: np.ndarray) -> np.ndarray:
+    """The connected component of each edge of a graph, edges (k, 2) int64 vertex ids: (k,) int64, the
+    smallest vertex id of its component (so the components rank as scipy's ``connected_components``
+    numbers them). Roots hook onto the smaller root across every edge, then every vertex jumps to its
+    root, until no edge joins two roots: a few rounds for a cycle of thousands of edges (11 for 100,000),
+    where passing the least label along an edge at a time takes half its length. For small graphs
+    (boundary loops) without importing ``scipy.sparse.csgraph`` (0.09 s of a fresh process)."""
+    E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    nodes = unique_values(E)
+    e = np.searchsorted(nodes, E)
+    root = np.arange(len(nodes))
+    while True:
+        ru, rv = root[e[:, 0]], root[e[:, 1]]
+        joined = ru != rv
+        if not joined.any():
+            return nodes[root[e[:, 0]]]
+        np.minimum.at(root, np.maximum(ru, rv)[joined], np.minimum(ru, rv)[joined])
+        while True:  # every vertex to its root
+            up = root[root]
+            if np.array_equal(up, root):
+                break
+            root = up
+
+
 def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     """The undirected edges of the faces (m, 3), (e, 2) int64 with edges[:, 0] < edges[:, 1], sorted,
     and how many face sides lie on each, (e,) int64: the ``edges`` and ``edge_face_count`` of

@@ -22,7 +22,7 @@ BENCHMARKS.md, ``blind-unsmoothing``).
 from __future__ import annotations
 
 from itertools import islice
-from typing import Iterator
+from typing import Iterator, Optional
 
 import numpy as np
 
@@ -31,12 +31,14 @@ from .adjacency import edge_face_counts
 __all__ = ["neighbour_pairs", "mean_operator", "unsmoothing_steps", "smoothed"]
 
 
-def neighbour_pairs(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+def neighbour_pairs(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """Whom each vertex averages: pairs (owner, neighbour), each (p,) int64, for the n vertices of the
     faces (m, 3): an interior vertex's 1-ring, a boundary vertex's neighbours along boundary edges (an
     edge of one face); each pair once, a vertex never its own neighbour (a degenerate face's repeated
-    corner). The edges from ``adjacency.edge_face_counts``."""
-    edges, count = edge_face_counts(faces, n)
+    corner). The edges from ``adjacency.edge_face_counts`` (``edge_counts``: its answer, when the caller
+    has it)."""
+    edges, count = edge_face_counts(faces, n) if edge_counts is None else edge_counts
     lo, hi = edges[:, 0], edges[:, 1]
     one_face = count == 1
     boundary = np.zeros(n, bool)
@@ -47,12 +49,13 @@ def neighbour_pairs(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([owner[interior], bl, bh]), np.concatenate([nbr[interior], bh, bl])
 
 
-def mean_operator(faces: np.ndarray, n: int):
+def mean_operator(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None):
     """The neighbour-mean operator M, a sparse (n, n) CSR matrix: row i averages vertex i's neighbours
-    (``neighbour_pairs``); a vertex with none keeps itself (M V = V there: it never moves)."""
+    (``neighbour_pairs``, and its ``edge_counts``); a vertex with none keeps itself (M V = V there: it
+    never moves)."""
     from scipy.sparse import coo_matrix
 
-    owner, nbr = neighbour_pairs(faces, n)
+    owner, nbr = neighbour_pairs(faces, n, edge_counts)
     count = np.bincount(owner, minlength=n).astype(np.float64)
     alone = np.flatnonzero(count == 0)
     rows = np.concatenate([owner, alone])

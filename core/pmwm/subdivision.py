@@ -62,9 +62,11 @@ class Coarse:
     residual: float
 
 
-def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
+def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
+                ) -> Optional[Coarse]:
     """The coarse mesh the mesh V (n, 3) float64, F (m, 3) int64 is one step of subdivision of (module
-    docstring), or None for a mesh that is not one (0.02-0.1 s on 29k-270k faces)."""
+    docstring), or None for a mesh that is not one (0.02-0.1 s on 29k-270k faces). ``edge_counts``: the
+    mesh's ``adjacency.edge_face_counts``, when the caller has them."""
     n, m = len(V), len(F)
     kinds = [k for k in (("1-to-4", 3, 4), ("sqrt3", 2, 3)) if m % k[2] == 0]
     if m < 8 or not (kinds or m % 6 == 0):
@@ -77,7 +79,7 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
         if c is not None:
             return c
     if kinds:  # a necessary count before the structure
-        sixes, fewest = np.count_nonzero(count == 6), _fewest_sixes(F, n)
+        sixes, fewest = np.count_nonzero(count == 6), _fewest_sixes(F, n, edge_counts)
         kinds = [k for k in kinds if sixes >= fewest[k[0]]]
     if not kinds:
         return None
@@ -95,7 +97,8 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray) -> Optional[Coarse]:
     return None
 
 
-def _fewest_sixes(F: np.ndarray, n: int) -> dict[str, float]:
+def _fewest_sixes(F: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
+                  ) -> dict[str, float]:
     """The fewest vertices in exactly six faces that a 1-to-4 or a sqrt(3) step leaves in a mesh of the
     faces F (m, 3) over n vertices: a necessary count, checked before the structure: many meshes that are no
     subdivision (scanned or remeshed ones) fall short of it (BENCHMARKS.md, ``verify-first-call``).
@@ -103,7 +106,7 @@ def _fewest_sixes(F: np.ndarray, n: int) -> dict[str, float]:
     of the boundary's edges); every face vertex of a sqrt(3) step in a triangle whose edges all flipped is
     (m / 3, less one per boundary edge); an edge of more than two faces takes one per face, counted
     generously."""
-    _, sides = edge_face_counts(F, n)
+    _, sides = edge_face_counts(F, n) if edge_counts is None else edge_counts
     m = len(F)
     boundary = np.count_nonzero(sides == 1)
     extra = int(sides[sides > 2].sum())

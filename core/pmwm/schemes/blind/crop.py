@@ -64,7 +64,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...adjacency import edge_face_counts, is_closed, unique_values
+from ...adjacency import component_labels, edge_face_counts, is_closed, unique_values
 from ...background import parallel_map
 from ...metrics import bbox_diagonal
 from ...spatial import pairs_within
@@ -115,12 +115,7 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
     E = edges[sides == 1]
     if len(E) < MIN_EDGES:
         return []
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    graph = coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(len(V), len(V)))
-    _, label = connected_components(graph, directed=False)
-    loop = label[E[:, 0]]
+    loop = component_labels(E)
     mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]])
     length = np.linalg.norm(V[E[:, 1]] - V[E[:, 0]], axis=1)
     loops, size = np.unique(loop, return_counts=True)

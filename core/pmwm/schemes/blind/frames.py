@@ -58,6 +58,7 @@ from typing import Optional
 
 import numpy as np
 
+from ...adjacency import edge_face_counts
 from ...errors import MeshError
 from ...features import vertex_areas
 from ...metrics import bbox_diagonal
@@ -135,9 +136,12 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     area = vertex_areas(V, F)
     got = read_statistics_frames(V, F, bin_counts, area)
     V0, F0 = V, F
+    # the suspect's edges, for the coarse mesh's first look and the smoothing operator: both are looked for
+    # when the mark is not in full view
+    counts0 = edge_face_counts(F0, len(V0)) if got.energy < FULL_VIEW else None
     rules: list[str] = []
     while got.energy < FULL_VIEW and len(rules) < MAX_UNDO:
-        coarse = coarse_mesh(V, F)
+        coarse = coarse_mesh(V, F, None if rules else counts0)
         if coarse is None:
             break
         tries = [(coarse.vertices, rules + [coarse.rule])]
@@ -150,7 +154,7 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
         rules.append(coarse.rule)
         V, F = coarse.vertices, coarse.faces
     if got.energy < FULL_VIEW:
-        operator = mean_operator(F0, len(V0))
+        operator = mean_operator(F0, len(V0), counts0)
         steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area, operator)
         if steps is not None:
             got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")

@@ -53,6 +53,7 @@ from typing import Optional
 
 import numpy as np
 
+from ...adjacency import stable_argsort
 from ...errors import MeshError
 from ...features import row_norms, vertex_areas, vertex_normals
 
@@ -478,7 +479,7 @@ def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
 def by_distance(V: np.ndarray, a: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """The vertices of positive weight a (n,), nearest ``centre`` first (ties in index order), (k,) int64."""
     keep = np.flatnonzero(a > 0)
-    return keep[np.argsort(row_norms(V[keep] - centre), kind="stable")]
+    return keep[stable_argsort(row_norms(V[keep] - centre))]
 
 
 def thinned(order: np.ndarray, k: int) -> np.ndarray:
