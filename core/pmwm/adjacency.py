@@ -169,7 +169,8 @@ def component_labels(edges: np.ndarray) -> np.ndarray:
     numbers them). Roots hook onto the smaller root across every edge, then every vertex jumps to its
     root, until no edge joins two roots: a few rounds for a cycle of thousands of edges (11 for 100,000),
     where passing the least label along an edge at a time takes half its length. For small graphs
-    (boundary loops) without importing ``scipy.sparse.csgraph`` (0.09 s of a fresh process)."""
+    (boundary loops) without importing ``scipy.sparse.csgraph`` (0.09 s of a fresh process, 0.045 s where
+    ``scipy.sparse`` is loaded already)."""
     E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     nodes = unique_values(E)
     e = np.searchsorted(nodes, E)
