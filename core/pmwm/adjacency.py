@@ -153,7 +153,8 @@ def stable_argsort(values: np.ndarray) -> np.ndarray:
     """``np.argsort(values, kind="stable")`` of a float array (k,), (k,) int64, found faster when no two
     values are equal (distances, as a rule): then there is one sorted order, and numpy's default sort
     finds it in about half the time of the stable one (134,000 float64: 7 against 13 ms). With a tie or
-    a NaN (after which numpy's sorts may order the NaNs differently), the stable sort itself."""
+    a NaN (after which numpy's sorts may order the NaNs differently), the stable sort itself. (Integer
+    keys: ``stable_order``, a radix sort.)"""
     x = np.asarray(values)
     order = np.argsort(x)
     if len(x) > 1:
@@ -170,7 +171,9 @@ def component_labels(edges: np.ndarray) -> np.ndarray:
     root, until no edge joins two roots: a few rounds for a cycle of thousands of edges (11 for 100,000),
     where passing the least label along an edge at a time takes half its length. For small graphs
     (boundary loops) without importing ``scipy.sparse.csgraph`` (0.09 s of a fresh process, 0.045 s where
-    ``scipy.sparse`` is loaded already)."""
+    ``scipy.sparse`` is loaded already). Large graphs stay with scipy's ``connected_components``
+    (``subdivision``): on the rings of a Loop-subdivided Igea, 2.9 million edges, 0.09 s against 0.89 s
+    here (0.06 against 0.42 s on its Catmull-Clark copy, 0.02 against 0.17 s on a sqrt(3) bunny)."""
     E = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     nodes = unique_values(E)
     e = np.searchsorted(nodes, E)
