@@ -8,16 +8,31 @@ import trimesh
 
 import pmwm
 from pmwm.pmfile import from_bytes, to_bytes
+from pmwm import progressive
 from pmwm.progressive import build_progressive_mesh, with_positions
 
 import meshes
 from conftest import canonical_faces, quad_torus_obj
 
 
-def _check_every_level(V, F, base_ratio=0.03, protected=None, forced=None):
+def _oriented_manifold(F: np.ndarray) -> bool:
+    """No face repeats a vertex and every directed edge appears once (so every edge has at most two
+    faces, consistently oriented)."""
+    if np.any((F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 0] == F[:, 2])):
+        return False
+    e = np.stack([F.ravel(), F[:, [1, 2, 0]].ravel()], axis=1)
+    return len(np.unique(e, axis=0)) == len(e)
+
+
+def _euler(F: np.ndarray, n: int) -> int:
+    e = np.sort(np.stack([F.ravel(), F[:, [1, 2, 0]].ravel()], axis=1), axis=1)
+    return n - len(np.unique(e, axis=0)) + len(F)
+
+
+def _check_every_level(V, F, base_ratio=0.03, protected=None, forced=None, **kw):
     trace: list = []
     pm, done = build_progressive_mesh(V, F, base_vertices=int(base_ratio * len(V)), protected=protected,
-                                      forced=forced, trace=trace)
+                                      forced=forced, trace=trace, **kw)
     if forced is not None:
         # every applied forced collapse happened: its u is a record that splits from its v
         rec_of = np.full(len(V), -1)
@@ -39,6 +54,10 @@ def _check_every_level(V, F, base_ratio=0.03, protected=None, forced=None):
         Vk, Fk = pm.decode(records=k)
         assert np.array_equal(Vk, V[order[: len(Vk)]])
         assert np.array_equal(canonical_faces(order[Fk]), canonical_faces(expect))
+        # (the collapses of a pass together keep the mesh an oriented manifold: no edge gets three
+        # faces, no face comes twice)
+        assert _oriented_manifold(Fk) or not _oriented_manifold(F)
+        assert _euler(Fk, len(Vk)) == _euler(F, len(V))
     Vb, Fb = pm.decode(records=0)
     assert np.array_equal(canonical_faces(order[Fb]), canonical_faces(trace[-1]))
     # and the file stores exactly the same progressive mesh
@@ -58,6 +77,19 @@ def test_bunny_every_level_exact(bunny):
     base = trimesh.Trimesh(Vb, Fb, process=False)
     assert base.is_watertight and base.is_winding_consistent
     assert base.euler_number == trimesh.Trimesh(V, F, process=False).euler_number
+
+
+@pytest.mark.parametrize("rounds", [1, 4])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_rough_shapes_every_level_exact_and_manifold(seed, rounds, monkeypatch):
+    # noisy, unevenly sampled closed shapes: many collapses with overlapping 1-rings in one pass; with
+    # more than one selection round, later rounds must respect the collapses accepted before
+    monkeypatch.setattr(progressive, "_ROUNDS", rounds)
+    rng = np.random.default_rng(seed)
+    m = trimesh.creation.icosphere(subdivisions=4)
+    V = m.vertices * (1 + 0.2 * rng.random((len(m.vertices), 1))) + 0.01 * rng.standard_normal(m.vertices.shape)
+    pm = _check_every_level(V, np.asarray(m.faces), base_ratio=0.02)
+    assert len(pm.level_records) >= 4
 
 
 def test_open_boundary_every_level_exact():

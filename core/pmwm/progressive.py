@@ -3,9 +3,10 @@
 Encoding. Each pass picks a set of independent half-edge collapses u -> v (u vanishes,
 v keeps its position) in quadric-error order: a vertex u is collapsed when the
 priority of its cheapest valid collapse (the cost's quantile bucket, then a fixed
-pseudo-random order, Luby-style) is the best among all vertices within two rings,
-so the closed 1-rings of the collapsed vertices are disjoint and the whole pass can
-be applied (and undone) at once with numpy. One pass is one level of detail.
+pseudo-random order, Luby-style) is the best in its closed 1-ring and the collapse shares
+no vertex of its vanishing faces with a better one (``_select`` gives the rule), so that
+the whole pass can be applied (and undone) at once with numpy. One pass is one level of
+detail.
 
 How it stays fast in numpy (issue 13): nothing is rebuilt per pass. The live faces
 carry their candidates per corner (corner j of face f: collapse F[f, j] into F[f, j+1],
@@ -14,14 +15,11 @@ Q_a(V_b) + E_b (E the vertices' own errors), one dot product of Q_a with the fix
 monomials of V_b; after a pass it is recomputed on the half-edges from v and into v from
 u's former faces, and shifted by v's change of E into v from v's own faces. A candidate
 found invalid gets an infinite cost and waits in a list until a collapse comes near it.
-Per selection round, the 2-ring minima of the priorities come from two face-wise
-minimum scatters (``np.minimum.at``, faster here than sorted segment reductions); the
-first of them also names the winners' closed 1-rings (w is in u's when its 1-ring
-minimum is u's priority), so one scan over the faces in play finds every corner the
-round needs (at u, at v, around the ring). Rounds after the second scan only the faces
-within one ring of a vertex still in play. Removed faces point to a sink vertex until a
-quarter of the rows are dead, and the vertices are renumbered whenever half of them are
-gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with 32-bit
+Per pass, one selection round: the 1-ring minima of the priorities come from a face-wise
+minimum scatter (``np.minimum.at``, faster here than sorted segment reductions), and two
+scans over the faces find the corners at the winners' u and at their v. Removed faces point
+to a sink vertex until a quarter of the rows are dead, and the vertices are renumbered
+whenever half of them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with 32-bit
 indices, which it first copies to 64 bits).
 
 Why not a compiled dependency: numba 0.68.1 (numpy 1.26.4, Python 3.11; it also imports
@@ -306,8 +304,9 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
 
     Record r moves the corners of its vertex v whose rank among v's faces (in face order) is set
     in ``mask[r]`` to the new vertex u = nv + r - a; its new faces [u, v, p] and/or [u, q, v]
-    (already in F but for p and q) take the ends p, q of the moved arc. The records' closed
-    1-rings are disjoint: the chunk is one batch.
+    (already in F but for p and q) take the ends p, q of the moved arc. The records' v, p and q
+    are distinct, no moved face holds another record's v (``_select``'s rule): the chunk is one
+    batch.
     """
     cnt = b - a
     v = rec.v[a:b]
@@ -699,7 +698,7 @@ class _Chosen:
     ru: np.ndarray  # their record
     cv: np.ndarray  # corners at v
     rv: np.ndarray
-    near: np.ndarray  # faces touching the closed 1-ring of u (failed candidates there get a new chance)
+    near: np.ndarray  # u's faces (failed candidates on faces touching their vertices get a new chance)
 
     @staticmethod
     def join(parts: list["_Chosen"]) -> "_Chosen":
@@ -855,6 +854,7 @@ def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple
 
 
 _BUCKETS = 16
+_SAMPLE = 4096  # costs the bucket bounds are taken from
 _BIG = np.iinfo(np.int64).max
 
 
@@ -871,9 +871,9 @@ def _best(ctx: _Ctx, live: _Live) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return best, fwd, rev
 
 
-def _around(live: _Live, nn: int, wv, cu, ru, rows) -> tuple[np.ndarray, ...]:
+def _around(live: _Live, nn: int, wv, cu, ru) -> tuple[np.ndarray, ...]:
     """Corners at each winner's v, the faces touching each winner's closed 1-ring by record, and
-    the table giving each vertex of a closed 1-ring its record (-1 elsewhere).
+    who holds each vertex in a 1-ring (``_owners``' triple).
 
     The winners' closed 1-rings are disjoint (their u are three edges apart), so one tag table
     labels them all.
@@ -881,102 +881,216 @@ def _around(live: _Live, nn: int, wv, cu, ru, rows) -> tuple[np.ndarray, ...]:
     F = live.F
     tag = np.full(nn, -1, np.int64)
     tag[np.take(F, cu // 3, axis=0)] = ru[:, None]
-    c2, r2 = _corners_of(F, tag, rows)
+    c2, r2 = _corners_of(F, tag)
     at_v = np.take(F.ravel(), c2) == np.take(wv, r2)
-    return c2[at_v], r2[at_v], c2 // 3, r2, tag
+    return c2[at_v], r2[at_v], c2 // 3, r2, (tag, tag, np.zeros(nn, bool))
 
 
-def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: int = 4) -> _Chosen:
-    """Independent valid collapses, cheapest first, whose u are at least three edges apart.
+def _owners(nn: int, x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Who holds each vertex in their 1-ring: the least and the greatest record ``r`` paired with it in
+    ``x`` ((nn + 1,) int64 each, -1 for none) and whether a third record also does ((nn + 1,) bool).
 
-    Each round, a vertex whose cheapest remaining candidate has the best priority within
-    two rings wins (priority: cost quantile bucket, then a fixed pseudo-random order,
-    Luby-style); winners are validated, valid ones accepted (blocking their 2-rings),
-    failed candidates are marked so the vertex tries its next one. Later rounds work on
-    the faces around the vertices still in play only.
+    The winners' 1-rings may overlap (their u are only non-adjacent), so one tag per vertex is not
+    enough; two are, but for vertices between three winners (few), where membership is undecided.
     """
+    lo = np.full(nn + 1, _BIG, np.int64)
+    np.minimum.at(lo, x, r)
+    hi = np.full(nn + 1, -1, np.int64)
+    np.maximum.at(hi, x, r)
+    lo[lo == _BIG] = -1
+    many = np.zeros(nn + 1, bool)
+    many[x[(r != np.take(lo, x)) & (r != np.take(hi, x))]] = True
+    return lo, hi, many
+
+
+def _member(own: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether vertex x[i] is in record r[i]'s 1-ring (by ``_owners``), and whether that is undecided."""
+    lo, hi, many = own
+    yes = (np.take(lo, x) == r) | (np.take(hi, x) == r)
+    return yes, ~yes & np.take(many, x)
+
+
+_ROUNDS = 1  # Luby rounds per pass (more are only run while none was accepted)
+
+
+@dataclass
+class _Round:
+    """What the selection rounds of one pass share (arrays updated in place)."""
+
+    ctx: _Ctx
+    live: _Live
+    cnt: np.ndarray  # (nn + 1,) faces per vertex at the start of the pass
+    best: np.ndarray  # (nn,) each vertex's cheapest candidate cost (inf: out of play)
+    key: np.ndarray  # (nn,) priorities
+    thr: np.ndarray  # cost bucket bounds
+    held: np.ndarray  # (nn + 1,) bool: K vertices of the accepted collapses (entry nn: no vertex)
+    acc_v: np.ndarray  # (nn,) v of each accepted u, else -1
+    parts: list
+
+
+def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray) -> None:
+    """Try each winner's cheapest candidate (winners: pairwise non-adjacent vertices of ``Fr``, the
+    faces in play, rows ``rows`` of the live faces or all when None; ``val``: their priorities by
+    vertex). Accepted collapses go to ``s.parts``."""
+    take = np.take
+    ctx, live, best = s.ctx, s.live, s.best
+    fwd, rev = live.cost, live.rcost
     nn = len(ctx.go)
     F = live.F
-    Fl = F.ravel()
+    Fl = F.reshape(-1)
+    k = len(wu)
+    # the corners at the winners
+    tag = np.full(nn + 1, -1, np.int32)
+    tag[wu] = np.arange(k, dtype=np.int32)
+    t = take(tag, Fr.reshape(-1))
+    cu = np.flatnonzero(t >= 0)
+    ru = take(t, cu).astype(np.int64)
+    if rows is not None:
+        cu = take(rows, cu // 3) * 3 + cu % 3
+    # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
+    pc = cu + take(_TO_PREV, cu % 3)  # the corner of the half-edge arriving at u
+    cf, cr = take(fwd, cu), take(rev, pc)
+    bw = take(take(best, wu), ru)
+    cand = np.concatenate([np.where(cf == bw, 2 * cu, _BIG), np.where(cr == bw, 2 * pc + 1, _BIG)])
+    pick = np.full(k, _BIG, np.int64)
+    np.minimum.at(pick, np.concatenate([ru, ru]), cand)
+    rev_pick = (pick & 1).astype(bool)
+    pcorner = pick >> 1
+    wv = take(Fl, np.where(rev_pick, pcorner, pcorner + take(_TO_NEXT, pcorner % 3)))
+    # K = v, a, b (nn where a face is absent, on the boundary)
+    f3 = cu - cu % 3
+    nxt = take(Fl, f3 + take(_NEXT, cu % 3))
+    prv = take(Fl, f3 + take(_PREV, cu % 3))
+    K = np.full((3, k), nn, np.int64)
+    K[0] = wv
+    vu = take(wv, ru)
+    i = np.flatnonzero(nxt == vu)
+    K[1, take(ru, i)] = take(prv, i)
+    i = np.flatnonzero(prv == vu)
+    K[2, take(ru, i)] = take(nxt, i)
+    pri = take(val, wu)
+    least = np.full(nn + 1, _BIG, np.int64)
+    np.minimum.at(least, K.reshape(-1), np.tile(pri, 3))
+    Kv = take(least, K) == pri
+    Kv |= K == nn
+    free = Kv[0] & Kv[1] & Kv[2]  # no winner of a better priority shares a K vertex
+    sel = free
+    if s.parts:  # (later rounds) not a K vertex of an accepted collapse
+        hk = take(s.held, K)
+        sel = sel & ~(hk[0] | hk[1] | hk[2])
+    if not sel.any():
+        return
+    # go on with the selected winners (renumbered)
+    new = np.cumsum(sel) - 1
+    (ku,) = np.nonzero(take(sel, ru))
+    cu, ru, nxt, prv, pc = (take(x, ku) for x in (cu, ru, nxt, prv, pc))
+    ru = take(new, ru)
+    wu, wv, pcorner, rev_pick, pri = _pick(sel, wu, wv, pcorner, rev_pick, pri)
+    K = K[:, np.flatnonzero(sel)]
+    k = len(wu)
+    # the corners at their v (distinct)
+    tag[:] = -1
+    tag[wv] = np.arange(k, dtype=np.int32)
+    t = take(tag, Fr.reshape(-1))
+    cv = np.flatnonzero(t >= 0)
+    rv = take(t, cv).astype(np.int64)
+    if rows is not None:
+        cv = take(rows, cv // 3) * 3 + cv % 3
+    own = _owners(nn, np.concatenate([nxt, prv]), np.concatenate([ru, ru]))
+    ok, undecided = _valid(ctx, live, s.cnt, wu, wv, cu, ru, cv, rv, own, check_flips=True)
+    # the third rule: v_i by u_j and v_j by u_i, with j accepted or a winner of a better priority
+    late = np.zeros(k, bool)
+    if s.parts:
+        fv3 = cv - cv % 3
+        y = np.concatenate([take(Fl, fv3 + take(_NEXT, cv % 3)), take(Fl, fv3 + take(_PREV, cv % 3))])
+        yr = np.concatenate([rv, rv])
+        (i,) = np.nonzero(take(s.acc_v, y) >= 0)  # an accepted u by v_i: does its v lie by u_i?
+        yes, unsure = _member(own, take(s.acc_v, take(y, i)), take(yr, i))
+        late[take(yr, i)[yes | unsure]] = True
+    lo, hi, many = own
+    lose = take(many, wv)  # v_i held by a third winner: left for later
+    for oj in (lo, hi):
+        j = take(oj, wv)  # a winner holding v_i in its 1-ring
+        i = np.flatnonzero((j >= 0) & (j != np.arange(k)))
+        j = take(j, i)
+        yes, unsure = _member(own, take(wv, j), i)
+        lose[i[(yes | unsure) & take(ok, j) & (take(pri, j) < take(pri, i))]] = True
+    acc = ok & ~lose & ~late
+    # failed candidates leave the running; their vertices try their next candidate
+    bad = ~ok & ~undecided
+    live.failed.append(pcorner[bad])
+    fwd.ravel()[pcorner[bad & ~rev_pick]] = np.inf
+    rev.ravel()[pcorner[bad & rev_pick]] = np.inf
+    best[wu[bad]] = np.inf
+    sb = bad[ru]
+    if sb.any():
+        np.minimum.at(best, wu[ru[sb]], np.minimum(fwd.ravel()[cu[sb]], rev.ravel()[pc[sb]]))
+        wb = wu[bad]
+        s.key[wb] = (_bucket(s.thr, best[wb]).astype(np.int64) << 32) | ctx.order[wb]
+    if acc.any():
+        (fa,) = _pick(take(acc, ru), cu // 3)
+        best[take(F, fa, axis=0)] = np.inf  # the accepted u's closed 1-rings leave the running
+        ka = np.flatnonzero(acc)
+        s.held[take(K, ka, axis=1)] = True
+        s.held[nn] = False
+        s.acc_v[take(wu, ka)] = take(wv, ka)
+        s.parts.append(_Chosen(wu, wv, cu, ru, cv, rv, fa).subset(acc))
+
+
+def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: Optional[int] = None) -> _Chosen:
+    """Independent valid collapses u -> v, cheapest first.
+
+    Independent: for any two collapses i and j of a pass, u_i and u_j are not adjacent; their
+    vertices K = {v, a, b} (a, b: the third vertices of the faces that vanish) are disjoint; and
+    not both v_i is a neighbour of u_j and v_j one of u_i (both would create the edge v_i v_j).
+    Then no face holds two u, nothing one collapse changes is read by another's tests, and the
+    vertex splits of a level touch disjoint vertex lists, so the pass is applied, and its splits
+    undone, at once (``_collapse``, ``_split_chunk``). The former rule (the closed 1-rings of
+    the u disjoint) took four rounds per pass for about 10 % of the vertices; this one takes
+    about as many in one round (BENCHMARKS.md, pm-speed).
+
+    A round: a vertex in play whose priority (its cheapest candidate's cost quantile bucket,
+    then a fixed pseudo-random order, Luby-style) is the least in its closed 1-ring wins; winners
+    sharing a K vertex with one of a better priority or with an accepted collapse drop out; the
+    rest are validated (``_valid``) and the pairs of the third rule settled by priority
+    (``_attempt``). Accepted collapses take their closed 1-ring out of play; failed candidates
+    are marked, so that the vertex tries its next one. Rounds go on (up to ``rounds``, or while
+    none was accepted) on the faces around the vertices still in play.
+    """
+    rounds = _ROUNDS if rounds is None else rounds
+    nn = len(ctx.go)
+    F = live.F
+    take = np.take
     best, fwd, rev = _best(ctx, live)
     fin = best[np.isfinite(best)]
     if len(fin) == 0:
         return _Chosen.join([])
-    step = max(1, len(fin) // 20000)  # bucket bounds from a fixed subsample: they need not be exact
+    step = max(1, len(fin) // _SAMPLE)  # bucket bounds from a fixed subsample: they need not be exact
     # (sorted first: numpy's SIMD sort and a selection in sorted data beat the selection alone)
     thr = np.quantile(np.sort(fin[::step]), np.arange(1, _BUCKETS) / _BUCKETS)
     key = (_bucket(thr, best).astype(np.int64) << 32) | ctx.order  # priority
-    parts: list[_Chosen] = []
+    s = _Round(ctx, live, cnt, best, key, thr, np.zeros(nn + 1, bool), np.full(nn, -1, np.int64), [])
     rows = None  # faces in play (None: all)
-    inv = np.empty(int(ctx.order[-1]) + 1, np.int64)  # order -> vertex (the sink's order is the largest)
-    inv[ctx.order] = np.arange(nn)
+    Fr = F
     for r in range(64):
-        if r >= rounds and parts:
+        if r >= rounds and s.parts:
             break
         bu = np.flatnonzero(np.isfinite(best))
         if len(bu) == 0:
             break
-        if r < 2:  # (filtering for round 1 costs more than it saves: most faces are still in play)
-            Fr = F
-        else:  # keep the faces within one ring of a vertex still in play
+        if r >= 2:  # keep the faces within one ring of a vertex still in play
             in_play = np.zeros(nn, bool)
             in_play[bu] = True
-            in_play[np.take(Fr, np.flatnonzero(_any3(np.take(in_play, Fr))), axis=0)] = True
-            keep = np.flatnonzero(_any3(np.take(in_play, Fr)))
-            rows = keep if rows is None else np.take(rows, keep)
-            Fr = np.take(Fr, keep, axis=0)
+            in_play[take(Fr, np.flatnonzero(_any3(take(in_play, Fr))), axis=0)] = True
+            keep = np.flatnonzero(_any3(take(in_play, Fr)))
+            rows = keep if rows is None else take(rows, keep)
+            Fr = take(Fr, keep, axis=0)
         salt = _SALTS[r % len(_SALTS)]
         val = np.full(nn, _BIG, np.int64)
-        val[bu] = np.take(key, bu) ^ salt
-        m1 = _ring_min(Fr, val)
-        m2 = _ring_min(Fr, m1)
-        (wu,) = _pick(np.take(val, bu) == np.take(m2, bu), bu)
-        # the winners' closed 1-rings: w is in u's when m1[w] == val[u] (u is the least in its 2-ring)
-        tag = np.full(nn + 1, -1, np.int32)  # (the sink's entry: no winner)
-        tag[wu] = np.arange(len(wu), dtype=np.int32)
-        near = np.flatnonzero(m1 < _BIG)
-        ring = np.full(nn, -1, np.int32)
-        ring[near] = np.take(tag, np.take(inv, (np.take(m1, near) & 0xFFFFFFFF) ^ salt))
-        # one scan: the corners at the rings' vertices
-        t = np.take(ring, Fr.reshape(-1))
-        c = np.flatnonzero(t >= 0)
-        r2 = np.take(t, c).astype(np.int64)
-        at = np.take(Fr.reshape(-1), c)  # their vertices
-        if rows is not None:
-            c = np.take(rows, c // 3) * 3 + c % 3
-        is_u = at == np.take(wu, r2)
-        cu, ru = _pick(is_u, c, r2)
-        # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
-        pc = cu + np.take(_TO_PREV, cu % 3)  # the corner of the half-edge arriving at u
-        cf, cr = np.take(fwd, cu), np.take(rev, pc)
-        bw = np.take(np.take(best, wu), ru)
-        cand = np.concatenate([np.where(cf == bw, 2 * cu, _BIG), np.where(cr == bw, 2 * pc + 1, _BIG)])
-        pick = np.full(len(wu), _BIG, np.int64)
-        np.minimum.at(pick, np.concatenate([ru, ru]), cand)
-        rev_pick = (pick & 1).astype(bool)
-        pcorner = pick >> 1
-        wv = np.take(Fl, np.where(rev_pick, pcorner, pcorner + np.take(_TO_NEXT, pcorner % 3)))
-        at_v = at == np.take(wv, r2)
-        cv, rv = _pick(at_v, c, r2)
-        near_f, near_r = c // 3, r2
-        ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=True)
-        # failed candidates leave the running; their vertices try their next candidate
-        bad = ~ok
-        live.failed.append(pcorner[bad])
-        fwd.ravel()[pcorner[bad & ~rev_pick]] = np.inf
-        rev.ravel()[pcorner[bad & rev_pick]] = np.inf
-        best[wu[bad]] = np.inf
-        sel = bad[ru]
-        if sel.any():
-            np.minimum.at(best, wu[ru[sel]], np.minimum(fwd.ravel()[cu[sel]], rev.ravel()[pc[sel]]))
-            wb = wu[bad]
-            key[wb] = (_bucket(thr, best[wb]).astype(np.int64) << 32) | ctx.order[wb]
-        if ok.any():
-            (near_acc,) = _pick(np.take(ok, near_r), near_f)
-            # block the 2-rings of the accepted u: every vertex of a face touching their 1-rings
-            best[np.take(F, near_acc, axis=0)] = np.inf
-            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_acc).subset(ok))
-    return _Chosen.join(parts)
+        val[bu] = take(key, bu) ^ salt
+        (wu,) = _pick(take(val, bu) == take(_ring_min(Fr, val), bu), bu)
+        _attempt(s, Fr, rows, wu, val)
+    return _Chosen.join(s.parts)
 
 
 def _select_forced(ctx: _Ctx, live: _Live, cnt: np.ndarray, pairs: np.ndarray) -> _Chosen:
@@ -996,30 +1110,32 @@ def _select_forced(ctx: _Ctx, live: _Live, cnt: np.ndarray, pairs: np.ndarray) -
         tag = np.full(nn, -1, np.int64)
         tag[wu] = np.arange(len(wu))
         cu, ru = _corners_of(F, tag)
-        cv, rv, near_f, near_r, ring = _around(live, nn, wv, cu, ru, None)
+        cv, rv, near_f, near_r, own = _around(live, nn, wv, cu, ru)
         Fl = F.ravel()
         fu, ju = cu // 3, cu % 3
         edge = (Fl[fu * 3 + _NEXT[ju]] == wv[ru]) | (Fl[fu * 3 + _PREV[ju]] == wv[ru])
         if np.any(np.bincount(ru[edge], minlength=len(wu)) == 0):
             raise MeshError("internal error: a forced collapse is not an edge of the mesh")
-        ok = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, ring, check_flips=False)
+        ok, _ = _valid(ctx, live, cnt, wu, wv, cu, ru, cv, rv, own, check_flips=False)
         rank[wu[~ok]] = _BIG
         if ok.any():
             acc = ok[near_r]
             rank[F[near_f[acc]]] = _BIG
-            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, near_f[acc]).subset(ok))
+            parts.append(_Chosen(wu, wv, cu, ru, cv, rv, (cu // 3)[ok[ru]]).subset(ok))
     return _Chosen.join(parts)
 
 
-def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=True) -> np.ndarray:
+def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, own, check_flips=True) -> tuple[np.ndarray, np.ndarray]:
     """Link condition, enough edges left, no new boundary, no flipped faces (optionally).
 
     ``cu``, ``ru`` / ``cv``, ``rv``: the flat corners at the u / at the v and their record;
-    ``ring``: per vertex, the record whose u's closed 1-ring holds it (they are disjoint), else -1.
+    ``own``: which records hold each vertex in their u's 1-ring (``_owners``). Returns which
+    collapses are valid, and which could not be decided (a common neighbour of u and v held by
+    three records: not valid, but not found invalid either).
     """
     k = len(u)
     if k == 0:
-        return np.zeros(0, bool)
+        return np.zeros(0, bool), np.zeros(0, bool)
     take = np.take
     Fl = live.F.ravel()
     bl = live.bnd.ravel()
@@ -1037,8 +1153,10 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
     pbb, rvb = _pick(on_b, pb, rv)
     w = np.concatenate([w, take(Fl, pbb)])
     wr = np.concatenate([rv, rvb])
-    com = (take(ring, w) == wr) & (w != take(u, wr))
-    w, crec = _pick(com, w, wr)
+    yes, unsure = _member(own, w, wr)
+    undecided = np.zeros(k, bool)
+    undecided[wr[unsure]] = True
+    w, crec = _pick(yes & (w != take(u, wr)), w, wr)
     n_common = np.bincount(crec, minlength=k)
     bedge = ndead == 1
     ok = (ndead >= 1) & (n_common == np.where(bedge, 1, 2))
@@ -1076,7 +1194,7 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, ring, check_flips=
         prod = np.sqrt(nb2 * na2)
         bad = (dot < 0.2 * prod) | (prod == 0) | (na2 < ctx.area_eps * ctx.area_eps)
         ok[r[bad]] = False
-    return ok
+    return ok & ~undecided, undecided
 
 
 def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
@@ -1141,10 +1259,13 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     _update_costs(ctx, live, np.concatenate([at, into[:n_arc], *_pick(on_b, own)]))
     if live.failed:
         c = np.concatenate(live.failed)
-        near = np.zeros(len(F), bool)
-        near[ch.near] = True
-        near[fv] = True
-        again = np.take(near, c // 3)
+        ring = np.zeros(n + 1, bool)  # the u's former 1-rings (their faces now hold v)
+        ring[np.take(F, ch.near, axis=0)] = True
+        ring[n] = False
+        at_v = np.zeros(len(F), bool)
+        at_v[fv] = True
+        f = c // 3
+        again = _any3(np.take(ring, np.take(F, f, axis=0))) | np.take(at_v, f)
         _update_costs(ctx, live, *_pick(again, c))
         live.failed = list(_pick(~again, c))
     if live.n_dead * 4 > len(F):
