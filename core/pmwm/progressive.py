@@ -928,10 +928,10 @@ class _Round:
     parts: list
 
 
-def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray) -> None:
+def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray, last: bool) -> None:
     """Try each winner's cheapest candidate (winners: pairwise non-adjacent vertices of ``Fr``, the
     faces in play, rows ``rows`` of the live faces or all when None; ``val``: their priorities by
-    vertex). Accepted collapses go to ``s.parts``."""
+    vertex). Accepted collapses go to ``s.parts``; ``last``: no round follows if any is accepted."""
     take = np.take
     ctx, live, best = s.ctx, s.live, s.best
     fwd, rev = live.cost, live.rcost
@@ -1021,6 +1021,11 @@ def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray) -
     live.failed.append(pcorner[bad])
     fwd.ravel()[pcorner[bad & ~rev_pick]] = np.inf
     rev.ravel()[pcorner[bad & rev_pick]] = np.inf
+    if acc.any():
+        (fa,) = _pick(take(acc, ru), cu // 3)
+    if last and acc.any():  # (what follows only serves later rounds of the pass)
+        s.parts.append(_Chosen(wu, wv, cu, ru, cv, rv, fa).subset(acc))
+        return
     best[wu[bad]] = np.inf
     sb = bad[ru]
     if sb.any():
@@ -1028,7 +1033,6 @@ def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray) -
         wb = wu[bad]
         s.key[wb] = (_bucket(s.thr, best[wb]).astype(np.int64) << 32) | ctx.order[wb]
     if acc.any():
-        (fa,) = _pick(take(acc, ru), cu // 3)
         best[take(F, fa, axis=0)] = np.inf  # the accepted u's closed 1-rings leave the running
         ka = np.flatnonzero(acc)
         s.held[take(K, ka, axis=1)] = True
@@ -1047,7 +1051,8 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: Optional[int] = Non
     vertex splits of a level touch disjoint vertex lists, so the pass is applied, and its splits
     undone, at once (``_collapse``, ``_split_chunk``). The former rule (the closed 1-rings of
     the u disjoint) took four rounds per pass for about 10 % of the vertices; this one takes
-    about as many in one round (BENCHMARKS.md, pm-speed).
+    9-10 % in one round, at a fraction of the cost (more rounds take more per pass but cost more
+    than the passes they save: BENCHMARKS.md, pm-speed).
 
     A round: a vertex in play whose priority (its cheapest candidate's cost quantile bucket,
     then a fixed pseudo-random order, Luby-style) is the least in its closed 1-ring wins; winners
@@ -1089,7 +1094,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: Optional[int] = Non
         val = np.full(nn, _BIG, np.int64)
         val[bu] = take(key, bu) ^ salt
         (wu,) = _pick(take(val, bu) == take(_ring_min(Fr, val), bu), bu)
-        _attempt(s, Fr, rows, wu, val)
+        _attempt(s, Fr, rows, wu, val, last=r + 1 >= rounds)
     return _Chosen.join(s.parts)
 
 
