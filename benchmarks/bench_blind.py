@@ -109,6 +109,15 @@ def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False) -> R
     return Reading(ber, float(np.mean(returned != want)), bool(v.marked and v.bits == bits), own)
 
 
+def marked(V: np.ndarray, F: np.ndarray, seed: int):
+    """The benchmark's blind-marked copy for key ``seed`` (its payload and pass phrase follow from it):
+    (EmbedResult, payload (64,) uint8)."""
+    payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
+                                             passphrase=f"pmwm-bench:{seed}"))
+    return res, payload
+
+
 def pm_first_level(pm, secret: str, payload: np.ndarray) -> tuple[int, int]:
     """(vertices of the coarsest level from which every finer level reads the whole payload, or -1;
     vertices of the full mesh)."""
@@ -201,7 +210,19 @@ def main(argv=None) -> int:
     ap.add_argument("--no-write", action="store_true", help="print only")
     ap.add_argument("--equal", metavar="MODELS", help="only the equal-MRMS comparison with Cho I/II on these "
                                                       "models (section blind-equal-mrms)")
+    ap.add_argument("--pm-levels", action="store_true", help="only the progressive-mesh rows (first 3 keys), printed")
     a = ap.parse_args(argv)
+    if a.pm_levels:
+        print(f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.")
+        for model in a.models.split(","):
+            V, F = load(model)
+            cells = []
+            for k in range(min(3, a.keys)):
+                res, payload = marked(V, F, 1000 + k)
+                f, n = pm_first_level(res.pm, res.key.secret, payload)
+                cells.append(f"{f:,} of {n:,}" if f > 0 else f"none of {n:,}")
+            print(f"| {model} | {'; '.join(cells)} ({len(res.pm.level_records)} levels) |", flush=True)
+        return 0
     if a.equal:
         body = f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.\n\n" + \
             equal_mrms(a.equal.split(","), a.keys)
@@ -220,9 +241,7 @@ def main(argv=None) -> int:
         mrms, haus, levels, margins = [], [], [], []
         for k in range(a.keys):
             seed = 1000 + k
-            payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
-            res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
-                                                     passphrase=f"pmwm-bench:{seed}"))
+            res, payload = marked(V, F, seed)
             secret = res.key.secret
             margins.append(res.key.strength)
             m, h = metrics.surface_distance(V, F, res.vertices, F, 100000, seed=seed)
