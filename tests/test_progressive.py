@@ -92,6 +92,20 @@ def test_rough_shapes_every_level_exact_and_manifold(seed, rounds, monkeypatch):
     assert len(pm.level_records) >= 4
 
 
+def test_levels_of_detail_stay_close_to_the_input(bunny):
+    # a pass collapses the cheap vertices first: halfway and three quarters of the way up, no point of
+    # the bunny's level is more than 0.1 % / 0.06 % of the bounding-box diagonal from the full mesh
+    # (about twice that, or four times, when expensive collapses win a pass among more expensive ones)
+    V, F = bunny
+    pm, _ = build_progressive_mesh(V, F, base_vertices=int(0.03 * len(V)))
+    ends = np.r_[0, pm.level_records]
+    for share, bound in [(0.5, 0.1), (0.75, 0.06)]:
+        k = int(ends[np.argmin(np.abs(ends - share * pm.n_records))])
+        Vk, Fk = pm.decode(records=k)
+        mrms, hausdorff = pmwm.metrics.surface_distance(V, F, Vk, Fk, n_samples=20000, seed=0)
+        assert hausdorff < bound, (share, mrms, hausdorff)
+
+
 def test_open_boundary_every_level_exact():
     V, F = meshes.open_cap()
     pm = _check_every_level(V, F)

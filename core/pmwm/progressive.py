@@ -854,6 +854,7 @@ def _compact(ctx: _Ctx, live: _Live, ids: np.ndarray, keep: np.ndarray) -> tuple
 
 
 _BUCKETS = 16
+_PLAY_BUCKETS = 8  # a pass's winners come from the cheaper buckets only
 _SAMPLE = 4096  # costs the bucket bounds are taken from
 _BIG = np.iinfo(np.int64).max
 
@@ -1055,7 +1056,10 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: Optional[int] = Non
     than the passes they save: BENCHMARKS.md, pm-speed).
 
     A round: a vertex in play whose priority (its cheapest candidate's cost quantile bucket,
-    then a fixed pseudo-random order, Luby-style) is the least in its closed 1-ring wins; winners
+    then a fixed pseudo-random order, Luby-style) is the least in its closed 1-ring wins, if its
+    bucket is among the cheaper half (without that, a 1-ring minimum is often an expensive
+    collapse among more expensive ones: the levels' Hausdorff distances were up to 12 times
+    larger; BENCHMARKS.md, pm-speed); winners
     sharing a K vertex with one of a better priority or with an accepted collapse drop out; the
     rest are validated (``_valid``) and the pairs of the third rule settled by priority
     (``_attempt``). Accepted collapses take their closed 1-ring out of play; failed candidates
@@ -1090,10 +1094,13 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: Optional[int] = Non
             keep = np.flatnonzero(_any3(take(in_play, Fr)))
             rows = keep if rows is None else take(rows, keep)
             Fr = take(Fr, keep, axis=0)
+        # only the cheaper half of the costs may win: the levels stay close to a greedy order
+        cheap = bu[(take(key, bu) >> 32) < _PLAY_BUCKETS]
+        cheap = cheap if len(cheap) else bu
         salt = _SALTS[r % len(_SALTS)]
         val = np.full(nn, _BIG, np.int64)
-        val[bu] = take(key, bu) ^ salt
-        (wu,) = _pick(take(val, bu) == take(_ring_min(Fr, val), bu), bu)
+        val[cheap] = take(key, cheap) ^ salt
+        (wu,) = _pick(take(val, cheap) == take(_ring_min(Fr, val), cheap), cheap)
         _attempt(s, Fr, rows, wu, val, last=r + 1 >= rounds)
     return _Chosen.join(s.parts)
 

@@ -123,17 +123,16 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
     V, F = job.vertices, job.faces
     base = base_vertex_count(opts.base_ratio, len(V))
-    # the progressive mesh of the unmarked mesh, built beside the marking (from the start: the worker
-    # finds the adjacency itself); the marked positions go in after. None built when the options ask
-    # for none.
+    # the progressive mesh of the unmarked mesh, built beside the marking, with the adjacency the key
+    # needs too (built once); the marked positions go in after. None built when the options ask for none.
     build = job.options.progressive
-    with beside(build, build_progressive_mesh, V, F, base_vertices=base) as building:
+    adj = build_adjacency(F, len(V))
+    with beside(build, build_progressive_mesh, V, F, base_vertices=base, adjacency=adj) as building:
         job.report(0.0, "marking the radial distribution")
         host = radial.Host.of(V, F, n_bins)  # (the unmarked mesh's frame and normals, for every marking)
         marked = radial.embed_signs(V, F, signs, job.strength, host=host)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
             job.strength, marked = _calibrated(V, F, signs, job.strength, marked, host)
-        adj = build_adjacency(F, len(V))  # the key's (mean edge), while the worker still builds
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
             pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
