@@ -666,12 +666,21 @@ def _any3(m: np.ndarray) -> np.ndarray:
 
 
 def _corners_of(F: np.ndarray, tag: np.ndarray, rows: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
-    """Flat corner ids (into F) whose vertex has tag >= 0, and their tags; only faces ``rows`` if given."""
+    """Flat corner ids (into F) whose vertex has tag >= 0, and their tags (int64); only faces ``rows``
+    if given."""
     t = np.take(tag, F.ravel() if rows is None else np.take(F, rows, axis=0).ravel())
     c = np.flatnonzero(t >= 0)
+    tc = np.take(t, c).astype(np.int64, copy=False)
     if rows is None:
-        return c, t[c]
-    return rows[c // 3] * 3 + c % 3, t[c]
+        return c, tc
+    return rows[c // 3] * 3 + c % 3, tc
+
+
+def _tags(nn: int, x: np.ndarray) -> np.ndarray:
+    """(nn + 1,) int32: i at vertex x[i] (x distinct), -1 elsewhere (entry nn: the sink's, or none)."""
+    tag = np.full(nn + 1, -1, np.int32)
+    tag[x] = np.arange(len(x), dtype=np.int32)
+    return tag
 
 
 def _ring_min(F: np.ndarray, val: np.ndarray) -> np.ndarray:
@@ -929,10 +938,9 @@ class _Round:
     parts: list
 
 
-def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray, last: bool) -> None:
-    """Try each winner's cheapest candidate (winners: pairwise non-adjacent vertices of ``Fr``, the
-    faces in play, rows ``rows`` of the live faces or all when None; ``val``: their priorities by
-    vertex). Accepted collapses go to ``s.parts``; ``last``: no round follows if any is accepted."""
+def _attempt(s: _Round, rows, wu: np.ndarray, val: np.ndarray, last: bool) -> None:
+    """Try each winner's cheapest candidate (winners: pairwise non-adjacent vertices of the faces in
+    play, rows ``rows`` of the live faces or all when None; ``val``: their priorities by vertex). Accepted collapses go to ``s.parts``; ``last``: no round follows if any is accepted."""
     take = np.take
     ctx, live, best = s.ctx, s.live, s.best
     fwd, rev = live.cost, live.rcost
@@ -940,14 +948,7 @@ def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray, l
     F = live.F
     Fl = F.reshape(-1)
     k = len(wu)
-    # the corners at the winners
-    tag = np.full(nn + 1, -1, np.int32)
-    tag[wu] = np.arange(k, dtype=np.int32)
-    t = take(tag, Fr.reshape(-1))
-    cu = np.flatnonzero(t >= 0)
-    ru = take(t, cu).astype(np.int64)
-    if rows is not None:
-        cu = take(rows, cu // 3) * 3 + cu % 3
+    cu, ru = _corners_of(F, _tags(nn, wu), rows)  # the corners at the winners
     # each winner's cheapest candidate, among its corners: forward u -> next, reverse u -> previous
     pc = cu + take(_TO_PREV, cu % 3)  # the corner of the half-edge arriving at u
     cf, cr = take(fwd, cu), take(rev, pc)
@@ -989,14 +990,7 @@ def _attempt(s: _Round, Fr: np.ndarray, rows, wu: np.ndarray, val: np.ndarray, l
     wu, wv, pcorner, rev_pick, pri = _pick(sel, wu, wv, pcorner, rev_pick, pri)
     K = K[:, np.flatnonzero(sel)]
     k = len(wu)
-    # the corners at their v (distinct)
-    tag[:] = -1
-    tag[wv] = np.arange(k, dtype=np.int32)
-    t = take(tag, Fr.reshape(-1))
-    cv = np.flatnonzero(t >= 0)
-    rv = take(t, cv).astype(np.int64)
-    if rows is not None:
-        cv = take(rows, cv // 3) * 3 + cv % 3
+    cv, rv = _corners_of(F, _tags(nn, wv), rows)  # the corners at their v (distinct)
     own = _owners(nn, np.concatenate([nxt, prv]), np.concatenate([ru, ru]))
     ok, undecided = _valid(ctx, live, s.cnt, wu, wv, cu, ru, cv, rv, own, check_flips=True)
     # the third rule: v_i by u_j and v_j by u_i, with j accepted or a winner of a better priority
@@ -1101,7 +1095,7 @@ def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: Optional[int] = Non
         val = np.full(nn, _BIG, np.int64)
         val[cheap] = take(key, cheap) ^ salt
         (wu,) = _pick(take(val, cheap) == take(_ring_min(Fr, val), cheap), cheap)
-        _attempt(s, Fr, rows, wu, val, last=r + 1 >= rounds)
+        _attempt(s, rows, wu, val, last=r + 1 >= rounds)
     return _Chosen.join(s.parts)
 
 
