@@ -92,6 +92,18 @@ def test_rough_shapes_every_level_exact_and_manifold(seed, rounds, monkeypatch):
     assert len(pm.level_records) >= 4
 
 
+@pytest.mark.parametrize("seed", [1, 14, 25])
+def test_a_sphere_full_of_holes_keeps_its_topology_at_every_level(seed):
+    # a quarter of the faces dropped: many triangles with two boundary edges (ears). Collapsing an
+    # ear's edge would close a hole; the check counted an ear's two boundary edges as one (seed 14 then
+    # changed the Euler number at some level)
+    rng = np.random.default_rng(seed)
+    m = trimesh.creation.icosphere(subdivisions=3)
+    F = m.faces[rng.random(len(m.faces)) > 0.25]
+    V = m.vertices + 0.02 * rng.standard_normal(m.vertices.shape)
+    _check_every_level(V, F, base_ratio=0.016)
+
+
 def test_levels_of_detail_stay_close_to_the_input(bunny):
     # a pass collapses the cheap vertices first: halfway and three quarters of the way up, no point of
     # the bunny's level is more than 0.1 % / 0.06 % of the bounding-box diagonal from the full mesh

@@ -1172,8 +1172,8 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, own, check_flips=T
     ok &= cnt[u] > ndead  # an arc of faces remains to hand back
     ok &= cnt[u] + cnt[v] - 2 * ndead <= MAX_FAN
     # the removed faces hold no boundary edge but the collapsed one (the boundary stays as it is)
-    nbd = np.bincount(rd, weights=take(bl, fd * 3) + take(bl, fd * 3 + 1) + take(bl, fd * 3 + 2),
-                      minlength=k)
+    # (counted as integers: a face with two boundary edges, an ear, must not pass for one with one)
+    nbd = np.bincount(rd, weights=np.take(live.bnd, fd, axis=0).sum(axis=1), minlength=k)
     ok &= nbd == bedge
     if check_flips:
         # a face (u, b, c) that stays becomes (v, b, c): its normal (b - u) x (c - b) turns into
