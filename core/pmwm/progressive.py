@@ -19,8 +19,8 @@ Per pass, one selection round: the 1-ring minima of the priorities come from a f
 minimum scatter (``np.minimum.at``, faster here than sorted segment reductions), and two
 scans over the faces find the corners at the winners' u and at their v. Removed faces point
 to a sink vertex until a quarter of the rows are dead, and the vertices are renumbered
-whenever half of them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing here, except with 32-bit
-indices, which it first copies to 64 bits).
+whenever half of them are gone. Gathers use ``np.take`` (2-4x faster than fancy indexing
+here, except with 32-bit indices, which it first copies to 64 bits).
 
 Why not a compiled dependency: numba 0.68.1 (numpy 1.26.4, Python 3.11; it also imports
 with numpy 2.5.5 on Python 3.13) ran two kernels of one igea pass (all corners' costs with
@@ -913,7 +913,8 @@ def _owners(nn: int, x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return lo, hi, many
 
 
-def _member(own: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _member(own: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray,
+            r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Whether vertex x[i] is in record r[i]'s 1-ring (by ``_owners``), and whether that is undecided."""
     lo, hi, many = own
     yes = (np.take(lo, x) == r) | (np.take(hi, x) == r)
@@ -940,7 +941,8 @@ class _Round:
 
 def _attempt(s: _Round, rows, wu: np.ndarray, val: np.ndarray, last: bool) -> None:
     """Try each winner's cheapest candidate (winners: pairwise non-adjacent vertices of the faces in
-    play, rows ``rows`` of the live faces or all when None; ``val``: their priorities by vertex). Accepted collapses go to ``s.parts``; ``last``: no round follows if any is accepted."""
+    play, rows ``rows`` of the live faces or all when None; ``val``: their priorities by vertex).
+    Accepted collapses go to ``s.parts``; ``last``: no round follows if any is accepted."""
     take = np.take
     ctx, live, best = s.ctx, s.live, s.best
     fwd, rev = live.cost, live.rcost
