@@ -107,3 +107,35 @@ def test_a_catmull_clark_copy_with_some_quads_split_the_other_way_is_still_undon
     err = np.linalg.norm(c.vertices - V[ids], axis=1) / diag
     assert err.max() < 1e-6
     assert len(c.faces) >= 0.99 * len(F) and triangles(ids[c.faces]) <= triangles(F)
+
+
+def _turn(F: np.ndarray, x: int, y: int) -> np.ndarray:
+    """F with the edge (x, y) of its two faces (x, y, a), (y, x, b) flipped to (a, b)."""
+    e = np.stack([F, np.roll(F, -1, axis=1)], axis=2)  # (m, 3, 2) half-edges
+    f1 = np.flatnonzero(((e[..., 0] == x) & (e[..., 1] == y)).any(1))[0]
+    f2 = np.flatnonzero(((e[..., 0] == y) & (e[..., 1] == x)).any(1))[0]
+    a, b = F[f1].sum() - x - y, F[f2].sum() - x - y
+    out = F.copy()
+    out[f1], out[f2] = [x, b, a], [b, y, a]
+    return out
+
+
+def test_a_one_to_four_copy_with_quads_turned_is_still_undone():
+    # two levels of Blender's Subdivision Surface read as a 1-to-4 step of the first level, but Blender
+    # splits a concave quad along its other diagonal (one of 336,000 quads on a 14,000-vertex bunny): a
+    # midpoint-subdivided sphere whose vertices are all in an even number of faces (an octahedron split
+    # three times), with two such turned quads (an original vertex's edge to a new one flipped), is still
+    # undone, to the sphere
+    V0 = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    F0 = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    for _ in range(3):
+        V0, F0 = A.subdivide(V0, F0, "midpoint")
+    V0 = V0 / np.linalg.norm(V0, axis=1, keepdims=True) * (1 + 0.1 * np.sin(5 * V0[:, :1]))
+    V, F = A.subdivide(V0, F0, "midpoint")
+    n0 = len(V0)
+    for c in (7, 150):  # (original vertices come first)
+        nb = np.unique(F[(F == c).any(1)])
+        F = _turn(F, c, int(nb[nb >= n0][0]))
+    c = coarse_mesh(V, F)
+    assert c is not None and c.rule == "midpoint" and len(c.vertices) == n0 and c.residual < 1e-9
+    assert np.array_equal(c.vertices, V[c.original]) and np.allclose(np.sort(c.vertices, axis=0), np.sort(V0, axis=0))

@@ -43,6 +43,7 @@ LOOP_ODD = (0.375, 0.125)  # a Loop edge vertex: 3/8 of each end of its edge, 1/
 SOLVE_TOL = 1e-9  # the least-squares solve's relative residual (positions to about 1e-8 of the size)
 KIND_ROUNDS = 4  # rounds of the neighbour rule that names a Catmull-Clark step's kinds of vertex
 CC_LOOSE = 0.02  # the share of a Catmull-Clark copy's triangles whose quads may be left out (turned ones)
+TURNED = 0.01  # a mesh with more vertices in an odd number of faces has no turned quads to put back
 EXACT = 1e-9  # a rule fits exactly when its RMS residual is below this share of the bounding-box diagonal
 
 
@@ -62,11 +63,12 @@ class Coarse:
     residual: float
 
 
-def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
-                ) -> Optional[Coarse]:
+def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None,
+                untangle: bool = True) -> Optional[Coarse]:
     """The coarse mesh the mesh V (n, 3) float64, F (m, 3) int64 is one step of subdivision of (module
     docstring), or None for a mesh that is not one (0.02-0.1 s on 29k-270k faces). ``edge_counts``: the
-    mesh's ``adjacency.edge_face_counts``, when the caller has them."""
+    mesh's ``adjacency.edge_face_counts``, when the caller has them. ``untangle``: when no step is found,
+    look again with the quads Blender's triangulation turned put back (``_unturned``)."""
     n, m = len(V), len(F)
     kinds = [k for k in (("1-to-4", 3, 4), ("sqrt3", 2, 3)) if m % k[2] == 0]
     if m < 8 or not (kinds or m % 6 == 0):
@@ -94,7 +96,52 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.nda
         c = _one_to_four(V, F, old, new, diag) if kind == "1-to-4" else _sqrt3(V, F, old, new, y, ring, diag)
         if c is not None:
             return c
-    return None
+    turned = _unturned(F, count) if untangle else None
+    return None if turned is None else coarse_mesh(V, turned, untangle=False)
+
+
+def _unturned(F: np.ndarray, count: np.ndarray) -> Optional[np.ndarray]:
+    """F with the quads Blender's triangulation turned put back, or None when there is none.
+
+    Two levels of Subdivision Surface on a triangle mesh read as a 1-to-4 step of the first level split
+    along its quads' corner-to-centre diagonals, but Blender splits a concave quad along the other
+    diagonal (a few per 100,000). Every vertex there is in an even number of faces, and a turned quad
+    makes its four corners odd: an interior edge whose two ends and two opposite vertices are all in an
+    odd number of faces, each vertex in one such edge, is flipped to the other diagonal. A mesh with no
+    such edge (every exact 1-to-4 step: a new vertex is in 6 faces), or with more than TURNED of its
+    vertices odd, is left alone."""
+    odd = count % 2 == 1
+    n = len(count)
+    if not odd.any() or np.count_nonzero(odd) > TURNED * n:
+        return None
+    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()
+    h = np.flatnonzero(odd[a] & odd[b])  # half-edges between two odd vertices
+    key, twin_key = a[h] * n + b[h], b[h] * n + a[h]
+    order = np.argsort(key)
+    at = np.searchsorted(key[order], twin_key)
+    has = at < len(h)
+    has[has] = key[order[at[has]]] == twin_key[has]
+    h1 = h[has]
+    h2 = h[order[at[has]]]
+    keep = h1 < h2  # each edge once
+    h1, h2 = h1[keep], h2[keep]
+    f1, f2 = h1 // 3, h2 // 3
+    x, y = a[h1], b[h1]
+    pa = F[f1].sum(1) - x - y  # f1 = (x, y, pa), f2 = (y, x, pb)
+    pb = F[f2].sum(1) - x - y
+    ok = odd[pa] & odd[pb] & (f1 != f2)
+    x, y, pa, pb, f1, f2 = x[ok], y[ok], pa[ok], pb[ok], f1[ok], f2[ok]
+    if len(x) == 0:
+        return None
+    quad = np.stack([x, y, pa, pb], 1)  # each vertex in one flip only
+    once = (np.bincount(quad.ravel(), minlength=n)[quad] == 1).all(1)
+    if not once.any():
+        return None
+    x, y, pa, pb, f1, f2 = x[once], y[once], pa[once], pb[once], f1[once], f2[once]
+    out = F.copy()
+    out[f1] = np.stack([x, pb, pa], 1)  # the quad x -> pb -> y -> pa split along (pa, pb)
+    out[f2] = np.stack([pb, y, pa], 1)
+    return out
 
 
 def _fewest_sixes(F: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
