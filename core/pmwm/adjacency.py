@@ -208,6 +208,35 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np
     return edges, E.data.astype(np.int64)
 
 
+def twin_half_edges(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (h1, h2) of half-edges (h = 3 * face + corner, from faces[face, corner] to the next
+    corner) that are the two opposite sides of an edge with exactly two faces, consistently oriented."""
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    n = int(n_vertices)
+    he_from, he_to = f.ravel(), f[:, [1, 2, 0]].ravel()
+    keys = np.minimum(he_from, he_to) * n + np.maximum(he_from, he_to)
+    order = np.argsort(keys, kind="stable")
+    sk = keys[order]
+    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+    counts = np.diff(np.r_[starts, len(sk)])
+    pair = starts[counts == 2]
+    h1, h2 = order[pair], order[pair + 1]
+    ok = he_from[h1] == he_to[h2]  # opposite directions: consistently oriented two-face edge
+    return h1[ok], h2[ok]
+
+
+def flip_edges(faces: np.ndarray, h1: np.ndarray, h2: np.ndarray) -> None:
+    """Flip, in place, the edges of twin half-edges h1, h2 (``twin_half_edges``; no face in two pairs):
+    a -> b in face (a, b, c) and b -> a in face (b, a, d) become the faces (a, d, c) and (d, b, c), the
+    quad a, d, b, c split along its other diagonal, same orientation."""
+    fl = faces.reshape(-1)
+    a, b = fl[h1], fl[h2]
+    c = fl[h1 - h1 % 3 + (h1 % 3 + 2) % 3]
+    d = fl[h2 - h2 % 3 + (h2 % 3 + 2) % 3]
+    faces[h1 // 3] = np.stack([a, d, c], 1)
+    faces[h2 // 3] = np.stack([d, b, c], 1)
+
+
 def is_closed(faces: np.ndarray, n_vertices: int) -> bool:
     """Whether every half-edge (a, b) of the faces (m, 3) has its twin (b, a), so that no edge is on a
     boundary, without building the adjacency: the sums of x_a y_b and of x_b y_a over the half-edges

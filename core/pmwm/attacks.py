@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from .adjacency import build_adjacency, gather_rows, segment_owner, unique_values
+from .adjacency import build_adjacency, flip_edges, gather_rows, segment_owner, twin_half_edges, unique_values
 from .errors import ParameterError
 from .features import vertex_areas
 from .smoothing import neighbour_pairs
@@ -360,7 +360,7 @@ def _subdivide_sqrt3(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     centroid_idx = n + np.arange(m)
     centroids = v[f].mean(axis=1)
     he_from, he_to, he_face = f.ravel(), f[:, [1, 2, 0]].ravel(), np.repeat(np.arange(m), 3)
-    h1, h2 = _twin_half_edges(f, n)
+    h1, h2 = twin_half_edges(f, n)
     flipped = np.zeros(len(he_from), bool)
     flipped[h1] = True
     flipped[h2] = True
@@ -423,21 +423,6 @@ def _subdivide_catmull_clark(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     return np.vstack([vp, ep, fp]), tris.astype(np.int64)
 
 
-def _twin_half_edges(f: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs (h1, h2) of half-edges (h = 3 * face + corner, from f[face, corner] to the next
-    corner) that are the two opposite sides of an edge with exactly two faces, consistently oriented."""
-    he_from, he_to = f.ravel(), f[:, [1, 2, 0]].ravel()
-    keys = np.minimum(he_from, he_to) * n + np.maximum(he_from, he_to)
-    order = np.argsort(keys, kind="stable")
-    sk = keys[order]
-    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
-    counts = np.diff(np.r_[starts, len(sk)])
-    pair = starts[counts == 2]
-    h1, h2 = order[pair], order[pair + 1]
-    ok = he_from[h1] == he_to[h2]  # opposite directions: consistently oriented two-face edge
-    return h1[ok], h2[ok]
-
-
 def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = None) -> MeshArrays:
     """Join adjacent triangles into quads and split each along its other diagonal (edge flips).
 
@@ -452,7 +437,7 @@ def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = Non
     rng = np.random.default_rng(seed)
     free = rng.random(m) < fraction  # faces that may still be paired
     for _ in range(4):
-        h1, h2 = _twin_half_edges(f, n)
+        h1, h2 = twin_half_edges(f, n)
         fa, fb = h1 // 3, h2 // 3
         ok = free[fa] & free[fb] & (fa != fb)
         h1, h2, fa, fb = h1[ok], h2[ok], fa[ok], fb[ok]
@@ -463,8 +448,7 @@ def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = Non
         np.minimum.at(best, fb, pri)
         pick = (pri == best[fa]) & (pri == best[fb])
         h1, h2, fa, fb = h1[pick], h2[pick], fa[pick], fb[pick]
-        # edge a->b in face fa = (a, b, c), b->a in face fb = (b, a, d): new faces (a, d, c), (d, b, c)
-        a, b = f.ravel()[h1], f.ravel()[h2]
+        # edge a->b in face fa = (a, b, c), b->a in face fb = (b, a, d): the new edge (c, d) must be new
         c = f[fa, (h1 % 3 + 2) % 3]
         d = f[fb, (h2 % 3 + 2) % 3]
         edge_keys = unique_values(np.sort(np.stack([f.ravel(), f[:, [1, 2, 0]].ravel()], 1), axis=1) @ [n, 1])
@@ -473,8 +457,7 @@ def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = Non
         uniq = np.zeros(len(new_keys), bool)
         uniq[np.unique(new_keys, return_index=True)[1]] = True
         go = (edge_keys[pos] != new_keys) & uniq & (c != d)
-        f[fa[go]] = np.stack([a[go], d[go], c[go]], 1)
-        f[fb[go]] = np.stack([d[go], b[go], c[go]], 1)
+        flip_edges(f, h1[go], h2[go])
         free[fa[go]] = free[fb[go]] = False
     return v, f
 

@@ -36,7 +36,7 @@ from typing import Optional
 
 import numpy as np
 
-from .adjacency import edge_face_counts, unique_values
+from .adjacency import edge_face_counts, flip_edges, twin_half_edges, unique_values
 from .metrics import bbox_diagonal, vertex_rmse
 
 LOOP_ODD = (0.375, 0.125)  # a Loop edge vertex: 3/8 of each end of its edge, 1/8 of each opposite vertex
@@ -114,33 +114,18 @@ def _unturned(F: np.ndarray, count: np.ndarray) -> Optional[np.ndarray]:
     n = len(count)
     if not odd.any() or np.count_nonzero(odd) > TURNED * n:
         return None
-    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()
-    h = np.flatnonzero(odd[a] & odd[b])  # half-edges between two odd vertices
-    key, twin_key = a[h] * n + b[h], b[h] * n + a[h]
-    order = np.argsort(key)
-    at = np.searchsorted(key[order], twin_key)
-    has = at < len(h)
-    has[has] = key[order[at[has]]] == twin_key[has]
-    h1 = h[has]
-    h2 = h[order[at[has]]]
-    keep = h1 < h2  # each edge once
-    h1, h2 = h1[keep], h2[keep]
-    f1, f2 = h1 // 3, h2 // 3
-    x, y = a[h1], b[h1]
-    pa = F[f1].sum(1) - x - y  # f1 = (x, y, pa), f2 = (y, x, pb)
-    pb = F[f2].sum(1) - x - y
-    ok = odd[pa] & odd[pb] & (f1 != f2)
-    x, y, pa, pb, f1, f2 = x[ok], y[ok], pa[ok], pb[ok], f1[ok], f2[ok]
-    if len(x) == 0:
-        return None
-    quad = np.stack([x, y, pa, pb], 1)  # each vertex in one flip only
-    once = (np.bincount(quad.ravel(), minlength=n)[quad] == 1).all(1)
+    near = np.flatnonzero(odd[F].sum(1) >= 2)  # the faces that may hold such an edge (few)
+    h1, h2 = twin_half_edges(F[near], n)
+    h1, h2 = near[h1 // 3] * 3 + h1 % 3, near[h2 // 3] * 3 + h2 % 3  # (into F)
+    Fl = F.ravel()
+    quad = np.stack([Fl[h1], Fl[h2]] + [Fl[h - h % 3 + (h % 3 + 2) % 3] for h in (h1, h2)], 1)
+    sel = odd[quad].all(1)  # both ends and both opposite vertices odd
+    quad, h1, h2 = quad[sel], h1[sel], h2[sel]
+    once = (np.bincount(quad.ravel(), minlength=n)[quad] == 1).all(1)  # each vertex in one flip only
     if not once.any():
         return None
-    x, y, pa, pb, f1, f2 = x[once], y[once], pa[once], pb[once], f1[once], f2[once]
     out = F.copy()
-    out[f1] = np.stack([x, pb, pa], 1)  # the quad x -> pb -> y -> pa split along (pa, pb)
-    out[f2] = np.stack([pb, y, pa], 1)
+    flip_edges(out, h1[once], h2[once])
     return out
 
 
