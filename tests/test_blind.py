@@ -329,6 +329,28 @@ def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, mon
     assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
 
 
+def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_read(marked, monkeypatch):
+    """A 30 % crop can leave the lost centre several bin widths off the family's plane (up to 5 on the
+    benchmark models): the search follows copies of the family up to 3.6 bin widths either side. Two
+    posed 30 % crops of the bunny whose lost centre lies more than 1.8 bin widths off the plane are read
+    with the whole payload; with copies up to 1.8 bin widths (the former search), neither is."""
+    crops = []
+    for seed in (1, 14):
+        Vs, Fs = A.similarity(marked.vertices, marked.faces, seed=seed)
+        fr0, _ = radial.frame_of(Vs, Fs, 64)  # the marked mesh's frame, posed
+        V, F = A.crop_plane(Vs, Fs, fraction=0.3, seed=seed)
+        fr, _ = radial.frame_of(V, F, 64)
+        (h, n), = crop.cut_planes(V, F, fr.centre)
+        normal = np.cross(h - fr.centre, n)
+        off = abs((fr0.centre - fr.centre) @ normal) / np.linalg.norm(normal)
+        assert off > 1.8 * (fr.hi - fr.lo) / 64
+        v = pmwm.verify(V, F, passphrase=PHRASE)
+        assert v.marked and v.payload == "Acme" and v.extra["frame"].startswith("crop") and v.p_value < 1e-6
+        crops.append((V, F))
+    monkeypatch.setattr(crop, "LAYERS", (-1.8, -0.9, 0.0, 0.9, 1.8))
+    assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
+
+
 def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marked, monkeypatch):
     """The search for the longer word can find the shorter mark's own bins (lo and bin width): read with
     the longer word's count, those bins hold the mark and the bins beyond it, so the frame is read at
