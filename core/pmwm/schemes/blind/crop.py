@@ -58,7 +58,8 @@ much time again as the three layers. On the benchmark's 160 cropped copies (10 m
 reads with all 32 check bits right in the original's frame, so what it misses is the frame: its lost
 centre lies up to 5 bin widths off the family's plane, and with copies 2.7 and 3.6 bin widths either
 side as well (9 layers) 147 of the 160 are read against 134 with 5 (none lost; the 30 % crops in a
-random pose 33 of 40 against 25), for 12-34 % more CPU time per cut suspect; 11 layers, or t up to
+random pose 33 of 40 against 25; of another 16 posed 30 % crops, one lost to a false peak and none
+gained), for 12-34 % more CPU time per cut suspect; 11 layers, or t up to
 0.35 diagonals, read fewer (BENCHMARKS.md, ``blind-crop-layers``). On 20,000 vertices the width fit can
 peak about 10 % off the mark's width, with nearly the energy of the right one, where every vertex
 shows the right one (dragon crops).
