@@ -111,7 +111,7 @@ def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False) -> R
 
 def marked(V: np.ndarray, F: np.ndarray, seed: int):
     """The benchmark's blind-marked copy for key ``seed`` (its payload and pass phrase follow from it):
-    (EmbedResult, payload (64,) uint8)."""
+    (EmbedResult, payload (PAYLOAD_BITS,) uint8)."""
     payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
                                              passphrase=f"pmwm-bench:{seed}"))

@@ -1020,9 +1020,9 @@ def _attempt(s: _Round, rows, wu: np.ndarray, val: np.ndarray, last: bool) -> No
     rev.ravel()[pcorner[bad & rev_pick]] = np.inf
     if acc.any():
         (fa,) = _pick(take(acc, ru), cu // 3)
-    if last and acc.any():  # (what follows only serves later rounds of the pass)
         s.parts.append(_Chosen(wu, wv, cu, ru, cv, rv, fa).subset(acc))
-        return
+        if last:  # (what follows only serves later rounds of the pass)
+            return
     best[wu[bad]] = np.inf
     sb = bad[ru]
     if sb.any():
@@ -1035,7 +1035,6 @@ def _attempt(s: _Round, rows, wu: np.ndarray, val: np.ndarray, last: bool) -> No
         s.held[take(K, ka, axis=1)] = True
         s.held[nn] = False
         s.acc_v[take(wu, ka)] = take(wv, ka)
-        s.parts.append(_Chosen(wu, wv, cu, ru, cv, rv, fa).subset(acc))
 
 
 def _select(ctx: _Ctx, live: _Live, cnt: np.ndarray, rounds: Optional[int] = None) -> _Chosen:
