@@ -886,7 +886,8 @@ def _around(live: _Live, nn: int, wv, cu, ru) -> tuple[np.ndarray, ...]:
     who holds each vertex in a 1-ring (``_owners``' triple).
 
     The winners' closed 1-rings are disjoint (their u are three edges apart), so one tag table
-    labels them all.
+    labels them all: as ``_owners``' triple, the least and the greatest holder are both that tag, and no
+    vertex has a third.
     """
     F = live.F
     tag = np.full(nn, -1, np.int64)
