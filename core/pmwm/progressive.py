@@ -628,14 +628,15 @@ def _update_block(ctx: _Ctx, live: _Live, corners: np.ndarray) -> None:
     take = np.take
     Fl = live.F.ravel()
     a = take(Fl, corners)
-    b = take(Fl, corners - corners % 3 + take(_NEXT, corners % 3))
+    b = take(Fl, corners + take(_TO_NEXT, corners % 3))
     bnd = take(live.bnd.ravel(), corners)
     allowed = take(ctx.go, a) & ~take(ctx.locked, b) & (bnd == take(ctx.bvert, a))
     into_b = np.einsum("ij,ij->i", take(ctx.Q, a, axis=0), take(ctx.M, b, axis=0)) + take(ctx.E, b)
     into_b[~allowed] = np.inf
     live.cost.ravel()[corners] = into_b
+    # (off the boundary the reverse cost stays inf, as it was made: a corner's side of the boundary
+    # never changes)
     rc = live.rcost.ravel()
-    rc[corners] = np.inf
     on = np.flatnonzero(bnd)
     if len(on):
         a, b = a[on], b[on]
@@ -777,7 +778,7 @@ def build_progressive_mesh(
                go=~locked & ~keep, locked=locked, bvert=np.r_[adj0.boundary_vertex, False], area_eps=(1e-12 * bbox) ** 2)
     m = len(F0)
     live = _Live(F=F0.copy(), fid=np.arange(m, dtype=np.int64), bnd=bnd, cost=np.empty((m, 3)),
-                 rcost=np.empty((m, 3)))
+                 rcost=np.full((m, 3), np.inf))
     _update_costs(ctx, live, np.arange(3 * m))
     if callable(protected):
         _protect(ctx, live, np.asarray(protected(), bool))
@@ -791,13 +792,13 @@ def build_progressive_mesh(
     forced_done = np.zeros(len(forced_pairs), bool)
     total = max(n_alive - target, 1)
     stalls = 0
+    cnt = np.bincount(live.F.ravel(), minlength=n + 1)  # faces per vertex (kept up to date by _collapse)
     while True:
         todo = np.flatnonzero(~forced_done)
         forced_phase = len(todo) > 0 and stalls < 4
         if not forced_phase and n_alive <= target:
             break
         nl = len(ids)  # local vertices; nl is the sink
-        cnt = np.bincount(live.F.ravel(), minlength=nl + 1)
         if forced_phase:
             local = np.full(n, nl, np.int64)  # a removed vertex maps to the sink: no edge
             local[ids] = np.arange(nl)
@@ -819,7 +820,7 @@ def build_progressive_mesh(
             if not forced_phase:
                 break
             continue
-        p = _collapse(ctx, live, ch)
+        p = _collapse(ctx, live, ch, cnt)
         p.u, p.v = ids[p.u], ids[p.v]
         passes.append(p)
         alive[p.u] = False
@@ -830,6 +831,7 @@ def build_progressive_mesh(
             trace.append(ids[live.faces(nl)])
         if 2 * n_alive < nl:
             ctx, ids = _compact(ctx, live, ids, alive[ids])
+            cnt = np.bincount(live.F.ravel(), minlength=len(ids) + 1)
     F_end = live.F[:, 0] < len(ids)
     pm = _assemble(V, F0, ids[live.F[F_end]], live.fid[F_end], alive, passes)
     return pm, forced_done
@@ -899,7 +901,8 @@ def _around(live: _Live, nn: int, wv, cu, ru) -> tuple[np.ndarray, ...]:
 
 def _owners(nn: int, x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Who holds each vertex in their 1-ring: the least and the greatest record ``r`` paired with it in
-    ``x`` ((nn + 1,) int64 each, -1 for none) and whether a third record also does ((nn + 1,) bool).
+    ``x`` ((nn + 1,) int64 each; for none, outside 0..k-1: _BIG and -1) and whether a third record also
+    does ((nn + 1,) bool).
 
     The winners' 1-rings may overlap (their u are only non-adjacent), so one tag per vertex is not
     enough; two are, but for vertices between three winners (few), where membership is undecided.
@@ -908,7 +911,6 @@ def _owners(nn: int, x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarr
     np.minimum.at(lo, x, r)
     hi = np.full(nn + 1, -1, np.int64)
     np.maximum.at(hi, x, r)
-    lo[lo == _BIG] = -1
     many = np.zeros(nn + 1, bool)
     many[x[(r != np.take(lo, x)) & (r != np.take(hi, x))]] = True
     return lo, hi, many
@@ -1009,7 +1011,7 @@ def _attempt(s: _Round, rows, wu: np.ndarray, val: np.ndarray, last: bool) -> No
     lose = take(many, wv)  # v_i held by a third winner: left for later
     for oj in (lo, hi):
         j = take(oj, wv)  # a winner holding v_i in its 1-ring
-        i = np.flatnonzero((j >= 0) & (j != np.arange(k)))
+        i = np.flatnonzero((j >= 0) & (j < k) & (j != np.arange(k)))
         j = take(j, i)
         yes, unsure = _member(own, take(wv, j), i)
         lose[i[(yes | unsure) & take(ok, j) & (take(pri, j) < take(pri, i))]] = True
@@ -1205,8 +1207,9 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, own, check_flips=T
     return ok & ~undecided, undecided
 
 
-def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
-    """Apply independent collapses u -> v to the live mesh; returns the records' data."""
+def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
+    """Apply independent collapses u -> v to the live mesh, and to ``cnt`` (nn + 1,) int64, the faces
+    per vertex (the sink's entry left as it is); returns the records' data."""
     u, v = ch.u, ch.v
     k = len(u)
     n = len(ctx.go) - 1
@@ -1244,6 +1247,11 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen) -> _Pass:
     # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
     Fl[cu_a] = np.take(v, ru_a)
     g3 = (gone * 3)[:, None] + np.arange(3)
+    # faces per vertex: the vanishing faces leave their vertices, u's others go to v (each face holds
+    # one u at most; the v are distinct, and no vanishing face of one collapse holds another's u or v)
+    np.subtract.at(cnt, np.take(Fl, g3).ravel(), 1)
+    cnt[v] += np.take(cnt, u)
+    cnt[u] = 0
     Fl[g3] = n
     live.cost.reshape(-1)[g3] = np.inf
     live.rcost.reshape(-1)[g3] = np.inf
