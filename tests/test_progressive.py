@@ -126,6 +126,28 @@ def _thin_tube(per_ring: int, rings: int, seed: int) -> tuple[np.ndarray, np.nda
     return V, np.concatenate([quads, caps])
 
 
+def test_the_passes_count_the_faces_per_vertex_exactly(bunny, monkeypatch):
+    # the link and valence checks read each vertex's face count, which the collapses keep up to date
+    # instead of recounting: after every pass it must be the count itself (holes, protected vertices,
+    # the paper scheme's forced collapses)
+    collapse = progressive._collapse
+    checked = []
+
+    def counted(ctx, live, ch, cnt):
+        p = collapse(ctx, live, ch, cnt)
+        checked.append(np.array_equal(cnt, np.bincount(live.F.ravel(), minlength=len(cnt))))
+        return p
+
+    monkeypatch.setattr(progressive, "_collapse", counted)
+    rng = np.random.default_rng(14)
+    m = trimesh.creation.icosphere(subdivisions=3)
+    build_progressive_mesh(m.vertices, m.faces[rng.random(len(m.faces)) > 0.25], base_vertices=40)
+    V, F = bunny
+    build_progressive_mesh(V, F, base_vertices=len(V) // 10, protected=rng.random(len(V)) < 0.05)
+    pmwm.embed(V, F, pmwm.EmbedOptions(scheme="paper", payload="x", seed=1))
+    assert len(checked) > 30 and all(checked)
+
+
 @pytest.mark.parametrize("per_ring, rings, seed", [(4, 13, 30), (4, 14, 138), (4, 13, 159), (4, 19, 278)])
 def test_thin_tubes_keep_every_level_manifold(per_ring, rings, seed):
     # rings of 4 vertices: two opposite vertices of a ring share both their neighbours in it, so one pass

@@ -792,7 +792,7 @@ def build_progressive_mesh(
     forced_done = np.zeros(len(forced_pairs), bool)
     total = max(n_alive - target, 1)
     stalls = 0
-    cnt = np.bincount(live.F.ravel(), minlength=n + 1)  # faces per vertex (kept up to date by _collapse)
+    cnt = np.bincount(live.F.ravel(), minlength=n + 1)  # faces per vertex (_collapse keeps it up to date)
     while True:
         todo = np.flatnonzero(~forced_done)
         forced_phase = len(todo) > 0 and stalls < 4
@@ -1208,8 +1208,9 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, own, check_flips=T
 
 
 def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
-    """Apply independent collapses u -> v to the live mesh, and to ``cnt`` (nn + 1,) int64, the faces
-    per vertex (the sink's entry left as it is); returns the records' data."""
+    """Apply independent collapses u -> v to the live mesh, and to ``cnt`` (nn + 1,) int64, its corners
+    per vertex (as ``np.bincount(live.F.ravel())``: the sink's entry counts the retired faces' corners);
+    returns the records' data."""
     u, v = ch.u, ch.v
     k = len(u)
     n = len(ctx.go) - 1
@@ -1252,6 +1253,7 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     np.subtract.at(cnt, np.take(Fl, g3).ravel(), 1)
     cnt[v] += np.take(cnt, u)
     cnt[u] = 0
+    cnt[n] += 3 * len(gone)
     Fl[g3] = n
     live.cost.reshape(-1)[g3] = np.inf
     live.rcost.reshape(-1)[g3] = np.inf
@@ -1287,6 +1289,7 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     if live.n_dead * 4 > len(F):
         live.keep(F[:, 0] < n)
         live.n_dead = 0
+        cnt[n] = 0
     return p
 
 
