@@ -25,6 +25,7 @@ import numpy as np
 from . import spatial
 from .errors import MeshError, PayloadError
 from .adjacency import ranges, stable_order
+from .background import parallel_map
 from .sampling import sample_faces, sample_surface
 from .features import squared_norms
 from .spatial import closest_point_on_triangles
@@ -209,8 +210,9 @@ def displaced_surface_distance(v1, v2, faces, n_samples: int = 20000, seed: int 
     if a.shape != b.shape:
         raise MeshError(f"a displaced copy has the same vertices; got {len(a)} and {len(b)}. Use surface_distance")
     s1, s2 = _sample_seeds(seed)
-    d12 = _distance_near_own_face(a, b, F, *sample_faces(a, F, n_samples, s1))
-    d21 = _distance_near_own_face(b, a, F, *sample_faces(b, F, n_samples, s2))
+    # the two directions side by side (independent; numpy releases the GIL in their loops)
+    d12, d21 = parallel_map(lambda job: _distance_near_own_face(*job[:3], *sample_faces(job[0], F, n_samples, job[3])),
+                            [(a, b, F, s1), (b, a, F, s2)])
     return _mrms_hausdorff(d12, d21, a)
 
 
