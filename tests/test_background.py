@@ -144,6 +144,34 @@ def test_the_embedders_progressive_mesh_decodes_to_the_marked_mesh_and_reports_o
     assert np.array_equal(back.decode()[0], Vd)
 
 
+def test_the_blind_embedder_raises_the_error_of_a_build_that_fails_before_its_adjacency(monkeypatch):
+    """The blind embedder's build thread makes the adjacency and hands it to the marking: when making it
+    fails, the embed raises that error (it does not wait for an adjacency that will not come), and the
+    mesh given stays as it was."""
+    from pmwm.schemes import blind
+
+    def no_adjacency(F, n):
+        raise MeshError("no adjacency here")
+
+    monkeypatch.setattr(blind, "build_adjacency", no_adjacency)
+    V, F = meshes.blob()
+    before = V.copy()
+    outcome = []
+
+    def run():
+        try:
+            pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="pm", seed=3, passphrase="p"))
+        except MeshError as exc:
+            outcome.append(str(exc))
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(120)
+    assert not t.is_alive(), "the embed waits for an adjacency that will not come"
+    assert outcome == ["no adjacency here"]
+    assert np.array_equal(V, before)
+
+
 def _fresh_process(code: str):
     """Run ``code`` in a fresh Python with this checkout's pmwm (cwd: the checkout); its completed process,
     asserted to have succeeded."""

@@ -73,7 +73,7 @@ import numpy as np
 
 from ... import metrics
 from ...adjacency import build_adjacency
-from ...background import beside
+from ...background import Later, beside
 from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
 from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
@@ -125,9 +125,11 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     base = base_vertex_count(opts.base_ratio, len(V))
     # the progressive mesh of the unmarked mesh, built beside the marking, with the adjacency the key
     # needs too (built once); the marked positions go in after. None built when the options ask for none.
+    # The build's thread makes the adjacency first and hands it over (``built``): the marking does not
+    # need it, so it starts at once.
     build = job.options.progressive
-    adj = build_adjacency(F, len(V))
-    with beside(build, build_progressive_mesh, V, F, base_vertices=base, adjacency=adj) as building:
+    built = Later()
+    with beside(build, _adjacency_and_pm, V, F, base, built) as building:
         job.report(0.0, "marking the radial distribution")
         host = radial.Host.of(V, F, n_bins)  # (the unmarked mesh's frame and normals, for every marking)
         marked = radial.embed_signs(V, F, signs, job.strength, host=host)
@@ -139,9 +141,25 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
             return with_positions(pm, marked)
 
         job.secret, job.bits, job.payload_kind = secret, payload, kind
+        adj = built() if build else build_adjacency(F, len(V))
+        if adj is None:  # the build's thread failed before it had the adjacency: raise its error
+            building.result()
         none = np.zeros(0, np.int64)
         return finish_embed(job, NAME, marked, adj, marked_pm if build else None, none, none,
                             data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
+
+
+def _adjacency_and_pm(V: np.ndarray, F: np.ndarray, base: int, built: Later,
+                      progress: Progress = None) -> tuple[ProgressiveMesh, np.ndarray]:
+    """The build's thread: the adjacency of V (n, 3), F (m, 3), handed over through ``built`` as soon as
+    it is made (None if that fails), then the progressive mesh of ``base`` vertices built with it
+    (``build_progressive_mesh``'s result)."""
+    adj = None
+    try:
+        adj = build_adjacency(F, len(V))
+    finally:
+        built.set(adj)
+    return build_progressive_mesh(V, F, base_vertices=base, adjacency=adj, progress=progress)
 
 
 def _calibrated(V, F, signs, alpha, marked, host: radial.Host) -> tuple[float, np.ndarray]:
