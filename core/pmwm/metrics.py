@@ -210,9 +210,13 @@ def displaced_surface_distance(v1, v2, faces, n_samples: int = 20000, seed: int 
     if a.shape != b.shape:
         raise MeshError(f"a displaced copy has the same vertices; got {len(a)} and {len(b)}. Use surface_distance")
     s1, s2 = _sample_seeds(seed)
+
+    def one_way(way: tuple[np.ndarray, np.ndarray, int]) -> np.ndarray:
+        src, dst, s = way
+        return _distance_near_own_face(src, dst, F, *sample_faces(src, F, n_samples, s))
+
     # the two directions side by side (independent; numpy releases the GIL in their loops)
-    d12, d21 = parallel_map(lambda job: _distance_near_own_face(*job[:3], *sample_faces(job[0], F, n_samples, job[3])),
-                            [(a, b, F, s1), (b, a, F, s2)])
+    d12, d21 = parallel_map(one_way, [(a, b, s1), (b, a, s2)])
     return _mrms_hausdorff(d12, d21, a)
 
 
