@@ -123,10 +123,9 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
     V, F = job.vertices, job.faces
     base = base_vertex_count(opts.base_ratio, len(V))
-    # the progressive mesh of the unmarked mesh, built beside the marking, with the adjacency the key
-    # needs too (built once); the marked positions go in after. None built when the options ask for none.
-    # The build's thread makes the adjacency first and hands it over (``built``): the marking does not
-    # need it, so it starts at once.
+    # the progressive mesh of the unmarked mesh, built beside the marking; the marked positions go in
+    # after. None built when the options ask for none. The build's thread makes the adjacency first and
+    # hands it over (``built``) for the key: the marking does not need it, so it starts at once.
     build = job.options.progressive
     built = Later()
     with beside(build, _adjacency_and_pm, V, F, base, built) as building:
