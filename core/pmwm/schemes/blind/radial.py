@@ -59,6 +59,7 @@ from ...features import row_norms, vertex_areas, vertex_normals
 
 QUANTILES = (0.02, 0.98)  # the range of rho the bins cover, as area-weighted quantiles
 K_GRID = 1e-3  # the step of the exponent k (Cho's)
+K_NEWTON = 4  # Newton steps towards a bin's exponent, the search's guess
 BETA_GRID = 1e-4  # the step of the push beta
 BETA_MAX = 0.999 / np.pi  # |beta| below 1/pi: the push stays monotone
 MARGIN_SPREAD = (0.5, 3.0)  # a bin's margin is alpha * sqrt(median count / its count), clipped to this
@@ -176,27 +177,51 @@ def _bins(t: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
 
 def bin_statistics(r: np.ndarray, b: np.ndarray, a: np.ndarray, n_bins: int) -> tuple[np.ndarray, np.ndarray]:
     """Per bin: the weighted mean of r (NaN when empty) and the bin's total weight, both (M,)."""
-    # the vertices outside (b = -1) go to one extra bin, dropped: cheaper than compressing the arrays,
-    # and each bin sums the same values in the same order
-    idx = np.where(b >= 0, b, n_bins)
-    wsum = np.bincount(idx, weights=a, minlength=n_bins + 1)[:n_bins]
-    s = np.bincount(idx, weights=a * r, minlength=n_bins + 1)[:n_bins]
-    return np.divide(s, wsum, out=np.full(n_bins, np.nan), where=wsum > 0), wsum
+    means = BinMeans(b, a, n_bins)
+    return means(r), means.weight
+
+
+class BinMeans:
+    """The weighted means per bin of values over fixed bins b (n,) int64 (-1 outside the n_bins) with
+    weights a (n,): ``bin_statistics``'s means, for a search that reads the same bins many times (the bins'
+    indices and total weights, ``weight`` (M,), made once)."""
+
+    def __init__(self, b: np.ndarray, a: np.ndarray, n_bins: int):
+        # the vertices outside (b = -1) go to one extra bin, dropped: cheaper than compressing the arrays,
+        # and each bin sums the same values in the same order
+        self.index = np.where(b >= 0, b, n_bins)
+        self.a, self.n_bins = a, n_bins
+        self.weight = np.bincount(self.index, weights=a, minlength=n_bins + 1)[:n_bins]
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """The mean of x (n,) in each bin (M,), NaN in an empty one (the values outside play no part)."""
+        s = np.bincount(self.index, weights=self.a * x, minlength=self.n_bins + 1)[:self.n_bins]
+        return np.divide(s, self.weight, out=np.full(self.n_bins, np.nan), where=self.weight > 0)
 
 
 def _least_step(reached, j_max: np.ndarray, guess: Optional[np.ndarray] = None) -> np.ndarray:
     """Per bin, the smallest step j in 0 .. j_max (M,) int64 for which ``reached(j)`` ((M,) -> (M,)
     bool, monotone in j) holds; j_max where none does. Bisection, all bins at once; a ``guess`` (M,)
-    int64 of the answer is tried first (with the step below it), so that a right guess settles its
-    bin in two readings instead of about log2(j_max)."""
+    int64 of the answer is tried first, then the steps 1, 2, 4, ... from it (down where the guess
+    reaches, up where it does not) until they bracket the answer, and the bisection searches the bracket:
+    a right guess settles its bin in two readings, one d off in about 2 log2(d), instead of about
+    log2(j_max)."""
     lo = np.zeros_like(j_max)
     hi = j_max.copy()
-    if guess is not None:  # reached at g: the answer is at most g, and g itself unless reached at g - 1
+    if guess is not None:
         g = np.clip(guess, 0, j_max)
-        at = reached(g)
-        below = (g > 0) & reached(np.maximum(g - 1, 0))
-        lo = np.where(at, np.where(below, lo, g), np.minimum(g + 1, hi))
-        hi = np.where(at, np.where(below, g - 1, g), hi)
+        down = reached(g)  # the answer is at most g where g reaches, above it where it does not
+        hi = np.where(down, g, hi)
+        lo = np.where(down, lo, np.minimum(g + 1, hi))
+        step = np.ones_like(g)
+        galloping = lo < hi
+        while galloping.any():  # the answer in [lo, hi]: steps away from g close the bracket
+            probe = np.clip(np.where(down, g - step, g + step), lo, hi)
+            sat = reached(np.where(galloping, probe, lo))  # (a bin not galloping: its reading is not used)
+            hi = np.where(galloping & sat, probe, hi)
+            lo = np.where(galloping & ~sat, np.minimum(probe + 1, hi), lo)
+            galloping &= (sat == down) & (lo < hi)  # down while it reaches, up while it does not
+            step *= 2
     while np.any(lo < hi):
         mid = (lo + hi) // 2
         sat = reached(mid)
@@ -205,22 +230,37 @@ def _least_step(reached, j_max: np.ndarray, guess: Optional[np.ndarray] = None) 
     return lo
 
 
-def _meets(r_new, b, a, n_bins, one, targets) -> np.ndarray:
-    """Per bin (M,) bool: its mean of the moved radii r_new (n,) is past its target (above for the
-    bins ``one``, below for the others), or the bin is empty."""
-    mean, _ = bin_statistics(np.where(b >= 0, r_new, 0.0), b, a, n_bins)
+def _meets(means: BinMeans, r_new, one, targets) -> np.ndarray:
+    """Per bin (M,) bool: its mean of the moved radii r_new (n,) (``means``) is past its target (above for
+    the bins ``one``, below for the others), or the bin is empty."""
+    mean = means(r_new)
     return np.where(one, mean > targets, mean < targets) | np.isnan(mean)
 
 
 def _solve_k(r, b, a, n_bins, one, targets) -> np.ndarray:
-    """Per bin, the exponent on the grid 1 -+ j*K_GRID nearest 1 meeting its target."""
+    """Per bin, the exponent on the grid 1 -+ j*K_GRID nearest 1 meeting its target. The search starts
+    from the exponent Newton's method gives for the bin mean of r**k (K_NEWTON steps from k = 1)."""
     j_max = np.where(one, int(np.floor((1.0 - K_GRID) / K_GRID)), int(round(50.0 / K_GRID))).astype(np.int64)
     bb = np.where(b >= 0, b, 0)
+    means = BinMeans(b, a, n_bins)
 
     def k_of(j):
         return np.where(one, 1.0 - j * K_GRID, 1.0 + j * K_GRID)
 
-    return k_of(_least_step(lambda j: _meets(r ** k_of(j)[bb], b, a, n_bins, one, targets), j_max))
+    # the log of the bin mean of r**k falls with k, convex and nearly straight: Newton's steps on it
+    log_r = np.log(np.where(r > 0, r, 1.0))  # (r = 0 adds nothing to the slope: taken as 1)
+    k = np.ones(n_bins)
+    k_min, k_max = 1.0 - j_max[one].max(initial=0) * K_GRID, 1.0 + j_max.max(initial=0) * K_GRID
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(K_NEWTON):
+            rk = r ** k[bb]
+            mean, slope = means(rk), means(rk * log_r)
+            k = np.clip(k - (np.log(mean) - np.log(targets)) * mean / slope, k_min, k_max)
+            k = np.where(np.isfinite(k), k, 1.0)
+        steps = np.ceil(np.where(one, 1.0 - k, k - 1.0) / K_GRID)
+    guess = np.where(np.isfinite(steps), np.clip(steps, 0, j_max), 0).astype(np.int64)
+    guess = np.where(np.where(one, targets >= 1.0, targets <= 0.0), j_max, guess)  # (out of any exponent's reach)
+    return k_of(_least_step(lambda j: _meets(means, r ** k_of(j)[bb], one, targets), j_max, guess))
 
 
 def _push(r: np.ndarray, beta: np.ndarray) -> np.ndarray:
@@ -233,15 +273,16 @@ def _solve_beta(r, b, a, n_bins, one, targets) -> tuple[np.ndarray, np.ndarray]:
     does (M,) bool: at BETA_MAX a bin mean moves by about 0.155 at most."""
     bb = np.where(b >= 0, b, 0)
     sign = np.where(one, 1.0, -1.0)
+    means = BinMeans(b, a, n_bins)
+
+    lift = np.sin(np.pi * r) ** 2  # (``_push``'s, made once)
 
     def reached(j: np.ndarray) -> np.ndarray:
-        return _meets(_push(r, (sign * j * BETA_GRID)[bb]), b, a, n_bins, one, targets)
+        return _meets(means, r + (sign * j * BETA_GRID)[bb] * lift, one, targets)
 
     # a bin's mean of the pushed radii is linear in beta: its mean of r plus beta times its mean of
     # sin^2(pi r); the step that line gives is the guess, read as the bisection reads it
-    inside = b >= 0
-    mean_r, _ = bin_statistics(np.where(inside, r, 0.0), b, a, n_bins)
-    mean_s, _ = bin_statistics(np.where(inside, np.sin(np.pi * r) ** 2, 0.0), b, a, n_bins)
+    mean_r, mean_s = means(r), means(lift)
     with np.errstate(divide="ignore", invalid="ignore"):
         steps = np.ceil(sign * (targets - mean_r) / (mean_s * BETA_GRID))
     j_max = np.full(n_bins, int(np.floor(BETA_MAX / BETA_GRID)), np.int64)
@@ -295,7 +336,11 @@ def moved_to_radius(V: np.ndarray, centre: np.ndarray, bv: Binned, rho_new: np.n
     disc = pe * pe + gap
     ok = (pe > 0) & (disc > 0)
     s = np.divide(gap, pe + np.sqrt(np.maximum(disc, 0.0)), out=np.zeros_like(pe), where=ok)
-    return np.where(ok[:, None], V + s[:, None] * e, centre + u * rho_new[:, None])
+    out = V + s[:, None] * e
+    far = ~ok
+    if far.any():
+        out[far] = centre + u[far] * rho_new[far, None]
+    return out
 
 
 @dataclass
@@ -336,11 +381,11 @@ def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, r
         beta = np.where(pushed & (signs != 0), beta, 0.0)
         inside = bv.bin >= 0
         bi = np.where(inside, bv.bin, 0)
-        k = np.ones(n_bins)
+        r_new = np.where(inside, _push(bv.r, beta[bi]), bv.r)
         if use_k.any():  # (on the vertices of those bins only: a bin's mean is its own vertices')
             sub = np.flatnonzero(use_k[bi] & inside)
-            k = np.where(use_k, _solve_k(bv.r[sub], bv.bin[sub], a[sub], n_bins, one, targets), 1.0)
-        r_new = np.where(inside, _push(bv.r, beta[bi]) ** k[bi], bv.r)
+            k = _solve_k(bv.r[sub], bv.bin[sub], a[sub], n_bins, one, targets)
+            r_new[sub] = bv.r[sub] ** k[bv.bin[sub]]  # (their push is 0)
         rho_new = fr.lo + fr.width * (bi + r_new)
         moved = inside & (r_new != bv.r)
         marked = np.where(moved[:, None], moved_to_radius(V, fr.centre, bv, rho_new, normals, share), V)
