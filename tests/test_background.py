@@ -144,16 +144,15 @@ def test_the_embedders_progressive_mesh_decodes_to_the_marked_mesh_and_reports_o
     assert np.array_equal(back.decode()[0], Vd)
 
 
-def test_the_blind_embedder_raises_the_error_of_a_build_that_fails_before_its_adjacency(monkeypatch):
-    """The blind embedder's build thread makes the adjacency and hands it to the marking: when making it
-    fails, the embed raises that error (it does not wait for an adjacency that will not come), and the
-    mesh given stays as it was."""
+def test_the_blind_embedder_raises_the_error_of_its_failed_build(monkeypatch):
+    """The blind embedder builds the progressive mesh beside its marking: when the build fails, the embed
+    raises that error (it does not wait for a mesh that will not come), and the mesh given stays as it was."""
     from pmwm.schemes import blind
 
-    def no_adjacency(F, n):
-        raise MeshError("no adjacency here")
+    def no_build(V, F, **kwargs):
+        raise MeshError("no progressive mesh here")
 
-    monkeypatch.setattr(blind, "build_adjacency", no_adjacency)
+    monkeypatch.setattr(blind, "build_progressive_mesh", no_build)
     V, F = meshes.blob()
     before = V.copy()
     outcome = []
@@ -167,8 +166,8 @@ def test_the_blind_embedder_raises_the_error_of_a_build_that_fails_before_its_ad
     t = threading.Thread(target=run, daemon=True)
     t.start()
     t.join(120)
-    assert not t.is_alive(), "the embed waits for an adjacency that will not come"
-    assert outcome == ["no adjacency here"]
+    assert not t.is_alive(), "the embed waits for a progressive mesh that will not come"
+    assert outcome == ["no progressive mesh here"]
     assert np.array_equal(V, before)
 
 

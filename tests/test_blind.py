@@ -770,10 +770,29 @@ def test_the_equalizer_finds_the_most_likely_signs():
             assert np.array_equal(radial._most_likely_signs(x, g, c), np.array(best))
 
 
+def test_a_blind_key_holds_nothing_of_the_mesh(tmp_path):
+    """Issue 14: a key file, if written at all, holds no coordinate and nothing else derived from the mesh,
+    under 1 KB. Two different meshes marked with the same pass phrase, payload and margin (one with its
+    progressive mesh) give the same key file byte for byte, and it reads both marks."""
+    written = []
+    for (V, F), pm in ((meshes.blob(), True), (meshes.cad_part(), False)):
+        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", passphrase=PHRASE, payload="Acme", strength=0.1,
+                                                 progressive=pm))
+        assert (res.pm is not None) == pm
+        path = tmp_path / f"{len(written)}.json"
+        pmwm.write_key(path, res.key)
+        written.append((path.read_bytes(), res))
+    assert written[0][0] == written[1][0] and len(written[0][0]) < 1024
+    key = pmwm.read_key(tmp_path / "0.json")
+    for _, res in written:
+        assert pmwm.verify(res.vertices, res.faces, key).payload == "Acme"
+
+
 def test_the_marking_search_finds_the_same_steps_whatever_its_guess():
     """The push's step per bin is searched from a guess (the bin mean is linear in the push): a right
     guess settles it at once, a wrong one (too high, too low, out of range) must still give the step
-    the plain bisection gives, including 0 and 'none reaches' (j_max)."""
+    the plain bisection gives, including 0 and 'none reaches' (j_max); one a few steps off settles in a few
+    more readings (the steps from it double until they bracket the answer)."""
     rng = np.random.default_rng(3)
     M = 40
     j_max = rng.integers(0, 3000, M)
@@ -794,6 +813,35 @@ def test_the_marking_search_finds_the_same_steps_whatever_its_guess():
     reads.clear()
     radial._least_step(reached, j_max, np.minimum(least, j_max))
     assert len(reads) == 2 < plain  # a right guess: two readings
+    for off in (1, -1, 5, -5):  # a guess a few steps off: a few readings more, not a bisection of the range
+        reads.clear()
+        assert np.array_equal(radial._least_step(reached, j_max, np.minimum(least, j_max) + off), want)
+        assert len(reads) <= 8 < plain
+
+
+def test_the_exponent_search_finds_the_exponents_of_the_plain_bisection():
+    """Bins beyond the push's reach get Cho's exponent, searched from a Newton guess: the exponents must
+    be those the plain bisection finds, for targets reached near k = 1, far from it, and out of reach."""
+    rng = np.random.default_rng(11)
+    M = 48
+    b = rng.integers(-1, M, 20000)
+    r = np.where(b >= 0, rng.random(len(b)) ** rng.uniform(0.5, 2.0, M)[np.maximum(b, 0)], 0.0)
+    a = np.ones(len(b))
+    one = rng.random(M) < 0.5
+    gap = rng.uniform(0.02, 0.7, M)  # up to 0.7 from the middle: some targets outside (0, 1)
+    targets = np.where(one, 0.5 + gap, 0.5 - gap)
+    got = radial._solve_k(r, b, a, M, one, targets)
+    j_max = np.where(one, int(np.floor((1.0 - radial.K_GRID) / radial.K_GRID)),
+                     int(round(50.0 / radial.K_GRID))).astype(np.int64)
+    bb = np.maximum(b, 0)
+    means = radial.BinMeans(b, a, M)
+
+    def k_of(j):
+        return np.where(one, 1.0 - j * radial.K_GRID, 1.0 + j * radial.K_GRID)
+
+    want = k_of(radial._least_step(lambda j: radial._meets(means, r ** k_of(j)[bb], one, targets), j_max))
+    assert np.array_equal(got, want)
+    assert np.sum(np.abs(want - 1.0) > 0.5) >= 5 and np.sum(want == k_of(j_max)) >= 3  # far and out of reach
 
 
 def test_the_equalizer_reads_each_sign_with_its_neighbours_summed_out():

@@ -37,9 +37,7 @@ class _Stopped(Exception):
 class Later:
     """A value the caller supplies after the worker has started (``set``); the worker calls the
     ``Later`` to wait for it. A ``Background`` whose caller leaves before supplying it releases the
-    waiting worker, which then stops (it never waits for a value that will not come). The other way
-    round, a worker may hand the caller a value it makes early (the blind embedder's adjacency): it
-    then sets it whatever happens (None on failure), so that the caller never waits in vain."""
+    waiting worker, which then stops (it never waits for a value that will not come)."""
 
     def __init__(self) -> None:
         self._ready = threading.Event()

@@ -229,20 +229,23 @@ def _pm_fields(pm: Optional[ProgressiveMesh], faces: np.ndarray, key_carriers: n
     return dict(carrier_pm_index=pm_of[key_carriers], pm_faces_fingerprint=face_fingerprint(pm_of[faces]))
 
 
-def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency,
+def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Optional[Adjacency],
                  pm: Union[None, ProgressiveMesh, Callable[[], ProgressiveMesh]], key_carriers: np.ndarray,
-                 carriers: np.ndarray, data: object = None) -> EmbedResult:
+                 carriers: np.ndarray, data: object = None, key: Optional[WatermarkKey] = None) -> EmbedResult:
     """The key and the result, the last step of every embedder. marked : (n, 3) float64 the marked
     mesh; key_carriers : (k,) int64 the vertices the key records (k = 0 or one per bit); carriers :
     the vertices reported as carrying the mark; data: the scheme's typed key data (``make_key``).
     ``pm`` may be a callable giving the progressive mesh (a build still running in another thread):
-    everything else is done before it is called; None when none was built."""
+    everything else is done before it is called; None when none was built. ``key``: the scheme's own
+    key when it records nothing of the mesh (the blind scheme's); then adj (None), key_carriers and
+    data play no part."""
     V, F = job.vertices, job.faces
-    fields = _key_fields(job.secret, job.bits, job.payload_kind, job.strength, V, F, marked, adj, key_carriers,
-                         scheme, data)
+    fields = None if key is not None else _key_fields(job.secret, job.bits, job.payload_kind, job.strength, V, F,
+                                                      marked, adj, key_carriers, scheme, data)
     vsnr_db, rmse = metrics.vsnr(V, marked), metrics.vertex_rmse(V, marked)
     pm = pm() if callable(pm) else pm
-    key = WatermarkKey(**fields, **_pm_fields(pm, F, key_carriers))
+    if key is None:
+        key = WatermarkKey(**fields, **_pm_fields(pm, F, key_carriers))
     job.report(1.0, "done")
     return EmbedResult(vertices=marked, faces=F, pm=pm, key=key, carriers=carriers, bits=job.bits,
                        vsnr_db=vsnr_db, rmse=rmse)

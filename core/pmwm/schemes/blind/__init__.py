@@ -72,8 +72,7 @@ from typing import Optional
 import numpy as np
 
 from ... import metrics
-from ...adjacency import build_adjacency
-from ...background import Later, beside
+from ...background import beside
 from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
 from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
@@ -107,7 +106,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     if passphrase is None:
         raise PayloadError("the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file "
                            "or PMWM_PASSPHRASE)")
-    secret = word.derive_secret(passphrase)
+    word.check_passphrase(passphrase)  # (its secret is derived once the build has started: scrypt takes a while)
     # the generic first steps with an explicit-bits stand-in (the blind payload has its own lengths)
     job = start_embed(vertices, faces, EmbedOptions(bits="0", strength=opts.strength, base_ratio=opts.base_ratio,
                                                     seed=opts.seed, scheme=NAME, progressive=opts.progressive),
@@ -117,48 +116,32 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     payload_seed = job.secret  # fresh randomness, or from the seed: one payload per mesh
     payload, kind = word.payload_of(opts.payload, opts.bits, opts.n_bits,
                                     lambda n: keyed_bits(payload_seed, "blind-random-payload", n))
-    w = word.word_of(secret, kind, payload)
-    n_bins = _n_bins(len(w))
-    bit_of_bin, scramble = word.layout(secret, len(w), n_bins)
-    signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
     V, F = job.vertices, job.faces
     base = base_vertex_count(opts.base_ratio, len(V))
-    # the progressive mesh of the unmarked mesh, built beside the marking; the marked positions go in
-    # after. None built when the options ask for none. The build's thread makes the adjacency first and
-    # hands it over (``built``) for the key: the marking does not need it, so it starts at once.
+    # the progressive mesh of the unmarked mesh, built beside the marking (its thread makes its own
+    # adjacency: the marking and the key need none); the marked positions go in after. None built when
+    # the options ask for none.
     build = job.options.progressive
-    built = Later()
-    with beside(build, _adjacency_and_pm, V, F, base, built) as building:
+    with beside(build, build_progressive_mesh, V, F, base_vertices=base) as building:
+        secret = word.derive_secret(passphrase)
+        w = word.word_of(secret, kind, payload)
+        n_bins = _n_bins(len(w))
+        bit_of_bin, scramble = word.layout(secret, len(w), n_bins)
+        signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
         job.report(0.0, "marking the radial distribution")
         host = radial.Host.of(V, F, n_bins)  # (the unmarked mesh's frame and normals, for every marking)
         marked = radial.embed_signs(V, F, signs, job.strength, host=host)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
             job.strength, marked = _calibrated(V, F, signs, job.strength, marked, host)
 
-        def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
+        def marked_pm() -> ProgressiveMesh:  # awaited last: the key is made meanwhile
             pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
             return with_positions(pm, marked)
 
         job.secret, job.bits, job.payload_kind = secret, payload, kind
-        adj = built() if build else build_adjacency(F, len(V))
-        if adj is None:  # the build's thread failed before it had the adjacency: raise its error
-            building.result()
         none = np.zeros(0, np.int64)
-        return finish_embed(job, NAME, marked, adj, marked_pm if build else None, none, none,
-                            data=BlindKeyData(len(payload), word.CHECK_BITS, job.strength))
-
-
-def _adjacency_and_pm(V: np.ndarray, F: np.ndarray, base: int, built: Later,
-                      progress: Progress = None) -> tuple[ProgressiveMesh, np.ndarray]:
-    """The build's thread: the adjacency of V (n, 3), F (m, 3), handed over through ``built`` as soon as
-    it is made (None if that fails), then the progressive mesh of ``base`` vertices built with it
-    (``build_progressive_mesh``'s result)."""
-    adj = None
-    try:
-        adj = build_adjacency(F, len(V))
-    finally:
-        built.set(adj)
-    return build_progressive_mesh(V, F, base_vertices=base, adjacency=adj, progress=progress)
+        return finish_embed(job, NAME, marked, None, marked_pm if build else None, none, none,
+                            key=_key(secret, payload, kind, job.strength))
 
 
 def _calibrated(V, F, signs, alpha, marked, host: radial.Host) -> tuple[float, np.ndarray]:
@@ -320,11 +303,17 @@ def mesh_read(mesh: str) -> str:
 
 def key_from_passphrase(passphrase: str) -> WatermarkKey:
     """An in-memory key for ``pmwm.verify`` that holds only the secret derived from ``passphrase``."""
+    return _key(word.derive_secret(passphrase), np.zeros(word.PAYLOAD_BITS[0], np.uint8), "bits", DEFAULT_ALPHA)
+
+
+def _key(secret: str, payload: np.ndarray, kind: str, margin: float) -> WatermarkKey:
+    """The blind scheme's key: the secret, the payload (N,) uint8 and its kind, the margin; nothing of the
+    mesh (no size, no fingerprint, no coordinate: the reader needs none, and a key file written from it
+    tells nothing of the asset)."""
     return WatermarkKey(
-        secret=word.derive_secret(passphrase), bits=np.zeros(word.PAYLOAD_BITS[0], np.uint8), payload_kind="bits",
-        strength=DEFAULT_ALPHA, carrier_index=np.zeros(0, np.int64), carrier_pm_index=np.zeros(0, np.int64),
-        carrier_position=np.zeros((0, 3)), n_vertices=1, n_faces=1, mean_edge=1.0, bbox_diagonal=1.0,
-        scheme=NAME, data=BlindKeyData(word.PAYLOAD_BITS[0], word.CHECK_BITS, DEFAULT_ALPHA),
+        secret=secret, bits=payload, payload_kind=kind, strength=margin, carrier_index=np.zeros(0, np.int64),
+        carrier_pm_index=np.zeros(0, np.int64), carrier_position=np.zeros((0, 3)), n_vertices=1, n_faces=1,
+        mean_edge=1.0, bbox_diagonal=1.0, scheme=NAME, data=BlindKeyData(len(payload), word.CHECK_BITS, margin),
     )
 
 

@@ -85,10 +85,16 @@ def likely_flips(reliability: np.ndarray, count: int) -> np.ndarray:
 
 def derive_secret(passphrase: str) -> str:
     """The scheme's secret (64 hex digits) from the pass phrase (scrypt, public salt)."""
-    if not isinstance(passphrase, str) or not passphrase:
-        raise PayloadError("the blind scheme needs a non-empty pass phrase")
+    check_passphrase(passphrase)
     raw = hashlib.scrypt(passphrase.encode("utf-8"), salt=SALT, dklen=32, maxmem=64 * 1024 * 1024, **SCRYPT)
     return raw.hex()
+
+
+def check_passphrase(passphrase: str) -> None:
+    """PayloadError unless ``passphrase`` is a non-empty text (``derive_secret``'s check, for a caller that
+    derives the secret later)."""
+    if not isinstance(passphrase, str) or not passphrase:
+        raise PayloadError("the blind scheme needs a non-empty pass phrase")
 
 
 def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[np.ndarray, str]:
