@@ -169,6 +169,32 @@ def test_keys_without_a_fingerprint_still_read_by_index_when_carriers_are_in_pla
     assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.bit_errors == 0
 
 
+def test_the_faces_fingerprint_is_its_documented_hash():
+    """Key files hold the faces' SHA-256 (each triangle rotated to start at its first smallest index, the
+    rows in lexicographic order, little-endian int64), so keys written before must keep matching: the
+    fingerprint equals that definition computed plainly (degenerate rows and indices past the packed
+    path's 21 bits included), whatever the order and rotation of the triangles, and not for flipped ones."""
+    import hashlib
+
+    from pmwm.key import face_fingerprint
+
+    def plain(F):
+        G = np.take_along_axis(F, (np.argmin(F, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
+        return hashlib.sha256(np.ascontiguousarray(G[np.lexsort(G.T[::-1])], dtype="<i8").tobytes()).hexdigest()
+
+    rng = np.random.default_rng(5)
+    for n, top in ((0, 5), (1, 3), (400, 6), (3000, 1 << 23)):
+        F = rng.integers(0, top, (n, 3))
+        F[: n // 8, 1] = F[: n // 8, 0]  # rows with a repeated index
+        F[n // 8: n // 4, 2] = F[n // 8: n // 4, 1]
+        assert face_fingerprint(F) == plain(F)
+        E = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])]  # (a triangle's own rotations)
+        shuffled = np.roll(E[rng.permutation(len(E))], rng.integers(0, 3), axis=1)
+        assert face_fingerprint(shuffled) == face_fingerprint(E)
+    V, F = meshes.blob()
+    assert face_fingerprint(F) == plain(F) != face_fingerprint(F[:, ::-1])
+
+
 @pytest.mark.parametrize("scheme", ["robust", "blind", "cho1"])
 def test_without_a_progressive_mesh_the_same_mesh_is_marked_and_read(scheme, tmp_path):
     """``EmbedOptions(progressive=False)`` skips the build: no ``pm``, the very same marked mesh as with

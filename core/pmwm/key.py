@@ -186,8 +186,13 @@ def face_fingerprint(faces: np.ndarray) -> str:
     of where each triangle's vertex list starts (its orientation counts): equal for two meshes with
     the same connectivity over the same vertex numbering."""
     F = np.asarray(faces, np.int64).reshape(-1, 3)
-    G = np.take_along_axis(F, (np.argmin(F, axis=1)[:, None] + np.arange(3)) % 3, axis=1)
-    if len(G) and G.min() >= 0 and G.max() < 1 << 21:  # rows packed in one int64: the same order, one sort
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    # each row rotated to start at its first smallest entry (argmin's): a, b or c
+    at_a = (a <= b) & (a <= c)
+    at_b = ~at_a & (b <= c)
+    G = np.stack([np.where(at_a, a, np.where(at_b, b, c)), np.where(at_a, b, np.where(at_b, c, a)),
+                  np.where(at_a, c, np.where(at_b, a, b))], axis=1)
+    if len(G) and F.min() >= 0 and F.max() < 1 << 21:  # rows packed in one int64: the same order, one sort
         packed = np.sort((G[:, 0] << 42) | (G[:, 1] << 21) | G[:, 2])  # equal keys are equal rows
         G = np.empty((len(packed), 3), "<i8")
         G[:, 0] = packed >> 42
@@ -195,7 +200,7 @@ def face_fingerprint(faces: np.ndarray) -> str:
         G[:, 2] = packed & ((1 << 21) - 1)
     else:
         G = np.ascontiguousarray(G[np.lexsort(G.T[::-1])], dtype="<i8")
-    return hashlib.sha256(G.tobytes()).hexdigest()
+    return hashlib.sha256(G).hexdigest()  # (the rows' bytes, little-endian int64)
 
 
 def mesh_sha256(vertices, faces, float_type: str = "<f4") -> str:
