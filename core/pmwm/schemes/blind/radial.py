@@ -250,12 +250,11 @@ def _solve_k(r, b, a, n_bins, one, targets) -> np.ndarray:
     # the log of the bin mean of r**k falls with k, convex and nearly straight: Newton's steps on it
     log_r = np.log(np.where(r > 0, r, 1.0))  # (r = 0 adds nothing to the slope: taken as 1)
     k = np.ones(n_bins)
-    k_min, k_max = 1.0 - j_max[one].max(initial=0) * K_GRID, 1.0 + j_max.max(initial=0) * K_GRID
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(K_NEWTON):
             rk = r ** k[bb]
             mean, slope = means(rk), means(rk * log_r)
-            k = np.clip(k - (np.log(mean) - np.log(targets)) * mean / slope, k_min, k_max)
+            k = np.clip(k - (np.log(mean) - np.log(targets)) * mean / slope, K_GRID, 51.0)  # (the grid's ends)
             k = np.where(np.isfinite(k), k, 1.0)
         steps = np.ceil(np.where(one, 1.0 - k, k - 1.0) / K_GRID)
     guess = np.where(np.isfinite(steps), np.clip(steps, 0, j_max), 0).astype(np.int64)
@@ -263,9 +262,10 @@ def _solve_k(r, b, a, n_bins, one, targets) -> np.ndarray:
     return k_of(_least_step(lambda j: _meets(means, r ** k_of(j)[bb], one, targets), j_max, guess))
 
 
-def _push(r: np.ndarray, beta: np.ndarray) -> np.ndarray:
-    """The edge-preserving push r + beta sin^2(pi r) of normalised radii r (n,) by beta (n,)."""
-    return r + beta * np.sin(np.pi * r) ** 2
+def _push(r: np.ndarray, beta: np.ndarray, lift: Optional[np.ndarray] = None) -> np.ndarray:
+    """The edge-preserving push r + beta sin^2(pi r) of normalised radii r (n,) by beta (n,); ``lift``, the
+    sin^2(pi r) of r when the caller pushes the same radii many times."""
+    return r + beta * (np.sin(np.pi * r) ** 2 if lift is None else lift)
 
 
 def _solve_beta(r, b, a, n_bins, one, targets) -> tuple[np.ndarray, np.ndarray]:
@@ -274,11 +274,10 @@ def _solve_beta(r, b, a, n_bins, one, targets) -> tuple[np.ndarray, np.ndarray]:
     bb = np.where(b >= 0, b, 0)
     sign = np.where(one, 1.0, -1.0)
     means = BinMeans(b, a, n_bins)
-
     lift = np.sin(np.pi * r) ** 2  # (``_push``'s, made once)
 
     def reached(j: np.ndarray) -> np.ndarray:
-        return _meets(means, r + (sign * j * BETA_GRID)[bb] * lift, one, targets)
+        return _meets(means, _push(r, (sign * j * BETA_GRID)[bb], lift), one, targets)
 
     # a bin's mean of the pushed radii is linear in beta: its mean of r plus beta times its mean of
     # sin^2(pi r); the step that line gives is the guess, read as the bisection reads it
