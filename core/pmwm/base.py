@@ -27,7 +27,7 @@ from .validate import MAX_COORDINATE, check_mesh, parse_bits
 
 __all__ = ["Progress", "DEFAULT_BITS", "EmbedOptions", "EmbedResult", "Verdict", "payload_bits",
            "decode_text", "check_options", "verdict_from_scores", "no_progress", "Scheme", "EmbedJob",
-           "start_embed", "finish_embed"]
+           "start_embed", "finish_embed", "mesh_key"]
 
 Progress = Optional[Callable[[float, str], None]]
 DEFAULT_BITS = 64
@@ -229,25 +229,33 @@ def _pm_fields(pm: Optional[ProgressiveMesh], faces: np.ndarray, key_carriers: n
     return dict(carrier_pm_index=pm_of[key_carriers], pm_faces_fingerprint=face_fingerprint(pm_of[faces]))
 
 
-def finish_embed(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Optional[Adjacency],
-                 pm: Union[None, ProgressiveMesh, Callable[[], ProgressiveMesh]], key_carriers: np.ndarray,
-                 carriers: np.ndarray, data: object = None, key: Optional[WatermarkKey] = None) -> EmbedResult:
-    """The key and the result, the last step of every embedder. marked : (n, 3) float64 the marked
-    mesh; key_carriers : (k,) int64 the vertices the key records (k = 0 or one per bit); carriers :
-    the vertices reported as carrying the mark; data: the scheme's typed key data (``make_key``).
-    ``pm`` may be a callable giving the progressive mesh (a build still running in another thread):
-    everything else is done before it is called; None when none was built. ``key``: the scheme's own
-    key when it records nothing of the mesh (the blind scheme's); then adj (None), key_carriers and
-    data play no part."""
-    V, F = job.vertices, job.faces
-    fields = None if key is not None else _key_fields(job.secret, job.bits, job.payload_kind, job.strength, V, F,
-                                                      marked, adj, key_carriers, scheme, data)
+KeyOf = Callable[[Optional[ProgressiveMesh]], WatermarkKey]  # a key made from the progressive mesh (None: none)
+
+
+def mesh_key(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, key_carriers: np.ndarray,
+             data: object = None) -> KeyOf:
+    """The key of a scheme whose key records the mesh (robust, paper, Cho: ``make_key``), as a function of
+    the progressive mesh: the fields of the mesh made now (while a build may still run), those of the
+    progressive mesh's numbering when it is given. marked : (n, 3) float64 the marked mesh; key_carriers
+    : (k,) int64 the vertices the key records (k = 0 or one per bit); data: the scheme's typed key data."""
+    F = job.faces
+    fields = _key_fields(job.secret, job.bits, job.payload_kind, job.strength, job.vertices, F, marked, adj,
+                         key_carriers, scheme, data)
+    return lambda pm: WatermarkKey(**fields, **_pm_fields(pm, F, key_carriers))
+
+
+def finish_embed(job: EmbedJob, marked: np.ndarray, pm: Union[None, ProgressiveMesh, Callable[[], ProgressiveMesh]],
+                 carriers: np.ndarray, key: Union[WatermarkKey, KeyOf]) -> EmbedResult:
+    """The result, the last step of every embedder. marked : (n, 3) float64 the marked mesh; carriers :
+    the vertices reported as carrying the mark; ``pm``: the progressive mesh, None when none was built,
+    or a callable giving it (a build still running in another thread: everything else is done before
+    it is called); ``key``: the key, or a function of the progressive mesh making it (``mesh_key``)."""
+    V = job.vertices
     vsnr_db, rmse = metrics.vsnr(V, marked), metrics.vertex_rmse(V, marked)
     pm = pm() if callable(pm) else pm
-    if key is None:
-        key = WatermarkKey(**fields, **_pm_fields(pm, F, key_carriers))
+    key = key(pm) if callable(key) else key
     job.report(1.0, "done")
-    return EmbedResult(vertices=marked, faces=F, pm=pm, key=key, carriers=carriers, bits=job.bits,
+    return EmbedResult(vertices=marked, faces=job.faces, pm=pm, key=key, carriers=carriers, bits=job.bits,
                        vsnr_db=vsnr_db, rmse=rmse)
 
 

@@ -34,7 +34,8 @@ from typing import Optional
 import numpy as np
 
 from ..adjacency import build_adjacency
-from ..base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed, verdict_from_scores
+from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, mesh_key, start_embed,
+                   verdict_from_scores)
 from ..errors import KeyFileError, MeshError, PayloadError
 from ..key import WatermarkKey, keyed_bits
 from ..progressive import base_vertex_count, build_progressive_mesh
@@ -193,7 +194,7 @@ def _embed(method: str, name: str):
                                            progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
         data = ChoKeyData(method, job.strength, bins.rho_min, bins.rho_max, STRENGTH_STEP)
         none = np.zeros(0, np.int64)
-        return finish_embed(job, name, marked, adj, pm, none, none, data=data)
+        return finish_embed(job, marked, pm, none, mesh_key(job, name, marked, adj, none, data))
 
     return embed
 

@@ -39,7 +39,7 @@ from typing import Optional
 import numpy as np
 
 from ..adjacency import Adjacency, build_adjacency, gather_rows, unique_values
-from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed,
+from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, mesh_key, start_embed,
                     verdict_from_scores)
 from ..carriers import eligible_carriers, select_carriers
 from ..errors import KeyFileError
@@ -124,7 +124,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
 
     pm, _ = build_progressive_mesh(marked, F, base_vertices=base, protected=protected, forced=forced,
                                    progress=pm_progress, adjacency=adj)
-    return finish_embed(job, NAME, marked, adj, pm, carriers, carriers)
+    return finish_embed(job, marked, pm, carriers, mesh_key(job, NAME, marked, adj, carriers))
 
 
 # --------------------------------------------------------------------------- extraction

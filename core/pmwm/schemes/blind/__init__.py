@@ -139,9 +139,8 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
             return with_positions(pm, marked)
 
         job.secret, job.bits, job.payload_kind = secret, payload, kind
-        none = np.zeros(0, np.int64)
-        return finish_embed(job, NAME, marked, None, marked_pm if build else None, none, none,
-                            key=_key(secret, payload, kind, job.strength))
+        return finish_embed(job, marked, marked_pm if build else None, np.zeros(0, np.int64),
+                            _key(secret, payload, kind, job.strength))
 
 
 def _calibrated(V, F, signs, alpha, marked, host: radial.Host) -> tuple[float, np.ndarray]:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ...adjacency import Adjacency, build_adjacency
 from ...background import Later, beside
-from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, no_progress, start_embed
+from ...base import EmbedOptions, EmbedResult, Progress, finish_embed, mesh_key, no_progress, start_embed
 from ...carriers import eligible_carriers, select_carriers
 from ...errors import PayloadError
 from ...features import face_cross, mean_edge_length, vertex_normals
@@ -324,6 +324,7 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
             return with_positions(pm, marked)
 
         # the key read back from its stored form, so that it reads exactly as the key file will
-        return finish_embed(job, NAME, marked, adj, marked_pm if build else None, sites[first_site], sites,
-                            data=RobustKeyData.from_extra(data.to_extra(), nb, len(V)))
+        return finish_embed(job, marked, marked_pm if build else None, sites,
+                            mesh_key(job, NAME, marked, adj, sites[first_site],
+                                     data=RobustKeyData.from_extra(data.to_extra(), nb, len(V))))
 
