@@ -17,16 +17,18 @@ family and copies of it off its plane (``crop_frames``, for each word length):
    plane that cuts two ears leaves two loops);
 2. candidate centres on the family (lam <= LAMBDA_MAX, t in T_RANGE, within REACH bin widths of c) and
    on its copies LAYERS bin widths off its plane, on a lattice of LATTICE bin widths;
-3. for each candidate, lo from the area quantile of what is left that is the original's 2 % quantile if
-   the cap held none of the innermost vertices (2 % / (1 - lam)), and the bin width over -40 % .. +60 %
-   (a crop moves hi by several bins), scored by the mark's energy on COARSE_SAMPLE vertices over a few
-   widths and phases (SCREEN_*): first candidates SCREEN_LATTICE apart, then those LATTICE apart near
-   the best of them; then the best of these (SCREEN_KEEP of one layer's count) over more widths and
-   phases (COARSE_*);
+3. the screening (SCREEN_*): each candidate scored by how strongly the distances of COARSE_SAMPLE
+   vertices add up in phase at one bin width within -40 % .. +60 % of the suspect's own (a crop moves
+   hi by several bins; ``radial.in_phase``: one FFT per candidate gives every width, and no lo is
+   needed), first the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them;
+   then the best of these (SCREEN_KEEP of one layer's count) scored by the mark's energy (COARSE_*):
+   lo from the area quantile of what is left that is the original's 2 % quantile if the cap held none
+   of the innermost vertices (2 % / (1 - lam)), over widths and phases;
 4. the TOP best candidates: the best of OFF_PLANE offsets off the family's plane, then the width and lo
-   again, finely, on every vertex of positive weight; the REFINED best of those through
-   ``radial.refine_frame_on`` (on REFINE_SAMPLE vertices), and the FINAL best of these once more from
-   their refined centre; the frame whose reading shows the most energy wins.
+   again, finely, on every vertex of positive weight (the widths near the one where all their radii add
+   up in phase); the REFINED best of those through ``radial.refine_frame_on`` (on REFINE_SAMPLE
+   vertices), and the FINAL best of these once more from their refined centre; the frame whose reading
+   shows the most energy wins.
 
 The word lengths are searched independently, in parallel threads (``background.parallel_map``; numpy
 releases the GIL in its loops): the frames are the same as one after the other.
@@ -65,7 +67,12 @@ peak about 10 % off the mark's width, with nearly the energy of the right one, w
 shows the right one (dragon crops).
 The reader also reads the frame found one and two bins off either way (``frames``; the counts above include
 one bin, from an earlier run).
-"""
+
+The screening scores a candidate by its radii's phase (``radial.in_phase``, one histogram and one FFT)
+rather than by the bin energy over 21 widths x 3 lo offsets, and the fine fit tries the widths within 3 %
+of the one where all the radii add up in phase rather than all 801 of -40 % .. +60 %: on the same 160
+copies 150 are read against 147 (5 gained, 2 lost), the search for one word length taking 0.30-0.48
+times as long (BENCHMARKS.md, ``session-26``)."""
 
 from __future__ import annotations
 
@@ -76,7 +83,8 @@ from ...background import parallel_map
 from ...metrics import bbox_diagonal
 from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
-                     distances, excess_energy, low_quantile, refine_frame_on, scale_energies, statistics_in, thinned)
+                     distances, excess_energy, in_phase, low_quantile, refine_frame_on, scale_energies, statistics_in,
+                     thinned)
 
 LAMBDA_MAX = 0.55  # the largest share of the area a crop may have taken (by the family's model)
 T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in bounding-box diagonals
@@ -85,18 +93,19 @@ LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows
 COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
 LAYERS = tuple(0.9 * k for k in range(-4, 5))  # the family's plane and copies of it this many bin widths off it
 SCREEN_LATTICE = 0.9  # the screening looks first at candidates this far apart (3 LATTICE, in bin widths)
-SCREEN_TOP = 0.05  # then, near the best share of those (SCREEN_MIN at least),
+SCREEN_TOP = 0.02  # then, near the best share of those (SCREEN_MIN at least),
 EXPAND = 0.65  # at the candidates LATTICE apart within this many bin widths
-SCREEN_WIDTHS = np.linspace(0.6, 1.6, 21)  # every candidate: bin widths, relative to the suspect's own
-SCREEN_PHASES = np.arange(3) / 3  # and lo offsets, in bin widths (one bin's worth)
-SCREEN_CELLS = 8  # cells per bin width of the screening's histograms
+SCREEN_WIDTHS = (0.6, 1.6)  # every candidate: the bin widths, relative to the suspect's own, where its
+SCREEN_CELLS = 4  # radii may add up in phase (``radial.in_phase``; cells per smallest width, counts
+SCREEN_PAD = 2  # zero-padded to twice their length)
 SCREEN_KEEP = 0.05  # the share of the candidates (SCREEN_MIN at least) scored again, over
 SCREEN_MIN = 64
 COARSE_WIDTHS = np.linspace(0.6, 1.6, 51)  # these widths
 COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # and these lo offsets
 TOP = 10  # candidates searched finely
 OFF_PLANE = np.linspace(-1.5, 1.5, 11)  # offsets of a candidate off its family's plane, in bin widths
-FINE_WIDTHS = np.linspace(0.6, 1.6, 801)  # the fine fit's relative widths (steps of 0.125 %)
+FINE_CELLS, FINE_PAD = 16, 8  # the fine fit's in-phase width (``radial.in_phase``) over COARSE_WIDTHS' range,
+FINE_STEP, FINE_HALF = 0.00125, 24  # and the widths it tries: 0.125 % steps, 3 % either side of it
 FINE_PHASES = np.linspace(-0.5, 0.5, 33)  # within half a bin: a whole bin off reads the word shifted
 FINE_KEEP = 8  # widths of most energy at the phases FINE_PHASES[::4], tried at every phase
 REFINED = 4  # of the TOP, the best (by the fine fit's energy) refined
@@ -201,6 +210,18 @@ def _spread(D: np.ndarray, spacing: float) -> np.ndarray:
     return first
 
 
+def _screen(P: np.ndarray, C: np.ndarray, width: float) -> np.ndarray:
+    """The screening's score of candidate centres C (K, 3): how strongly the distances of the vertices
+    P (k, 3) add up in phase at a bin width within SCREEN_WIDTHS times ``width`` (``radial.in_phase``).
+    P and C relative to a point near them (``radial.distances``), float32 is enough."""
+    w_min, w_max = width * SCREEN_WIDTHS[0], width * SCREEN_WIDTHS[1]
+    score = np.empty(len(C))
+    for s0 in range(0, len(C), _BATCH):
+        score[s0:s0 + _BATCH] = in_phase(distances(P, C[s0:s0 + _BATCH]), w_min / SCREEN_CELLS, w_min, w_max,
+                                         SCREEN_PAD)[0]
+    return score
+
+
 def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, width: float, n_bins: int,
             widths: np.ndarray = COARSE_WIDTHS, phases: np.ndarray = COARSE_PHASES,
             cells: int = SCALE_CELLS) -> np.ndarray:
@@ -258,11 +279,10 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         Cc = (C - own.centre).astype(np.float32)
         # screening: the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them
         s = _spread(C - own.centre, SCREEN_LATTICE * width)
-        first = _coarse(Pc, area_c, Cc[s], L[s], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES, SCREEN_CELLS)
+        first = _screen(Pc, Cc[s], width)
         top = C[s[np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_TOP * len(s)))]]]
         near = unique_values(pairs_within(top, C, EXPAND * width)[1])
-        second = _coarse(Pc, area_c, Cc[near], L[near], width, n_bins, SCREEN_WIDTHS, SCREEN_PHASES,
-                         SCREEN_CELLS)
+        second = _screen(Pc, Cc[near], width)
         keep = max(SCREEN_MIN, int(SCREEN_KEEP * len(C) / len(LAYERS)))  # (a share of one layer's candidates)
         kept = near[np.argsort(-second, kind="stable")[:keep]]
         score = np.full(len(C), -np.inf)
@@ -293,15 +313,20 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
 def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarray, lam: float, width: float,
                n_bins: int) -> tuple[float, Frame]:
     """The frame around ``centre`` whose lo (near the area quantile the crop left of the original's,
-    ``lam`` its share taken) and bin width (``width`` times FINE_WIDTHS) show the most mark energy on
-    the vertices P (k, 3) with reader weights a (k,) and areas (k,); and that energy."""
+    ``lam`` its share taken) and bin width (within FINE_HALF steps of FINE_STEP of the width where the
+    radii add up in phase, within COARSE_WIDTHS' range times ``width``) show the most mark energy on the
+    vertices P (k, 3) with reader weights a (k,) and areas (k,); and that energy."""
     rho = np.linalg.norm(P - centre, axis=1)[None]
     lo = np.array([low_quantile(rho[0], area, QUANTILES[0] / (1.0 - lam))])
-    # every width at a few phases; then the widths of most energy at every phase
-    e = scale_energies(rho, a, lo, width * FINE_WIDTHS, FINE_PHASES[::4], n_bins)[0].max(1)
-    rel = FINE_WIDTHS[np.sort(np.argsort(-e, kind="stable")[:FINE_KEEP])]
-    e = scale_energies(rho, a, lo, width * rel, FINE_PHASES, n_bins)[0]
+    # the widths near the one where the radii add up in phase, at a few phases; then the widths of
+    # most energy at every phase
+    w_min, w_max = width * float(COARSE_WIDTHS[0]), width * float(COARSE_WIDTHS[-1])
+    w_phase = float(in_phase(rho, w_min / FINE_CELLS, w_min, w_max, FINE_PAD)[1][0])
+    widths = w_phase * (1.0 + FINE_STEP * np.arange(-FINE_HALF, FINE_HALF + 1))
+    e = scale_energies(rho, a, lo, widths, FINE_PHASES[::4], n_bins)[0].max(1)
+    rel = widths[np.sort(np.argsort(-e, kind="stable")[:FINE_KEEP])]
+    e = scale_energies(rho, a, lo, rel, FINE_PHASES, n_bins)[0]
     wi, pi = np.unravel_index(int(np.argmax(e)), e.shape)
-    w = width * float(rel[wi])
+    w = float(rel[wi])
     start = float(lo[0] + FINE_PHASES[pi] * w)
     return float(e.max()), Frame(centre, start, start + n_bins * w, n_bins)

@@ -510,6 +510,33 @@ def scale_energies(rho: np.ndarray, a: np.ndarray, lo: np.ndarray, widths: np.nd
     return cell_energies(cum_w, cum_wx, edges, mids, wc[None, :, None])
 
 
+def in_phase(rho: np.ndarray, cell: float, w_min: float, w_max: float, pad: int) -> tuple[np.ndarray, np.ndarray]:
+    """How strongly each row's distances add up in phase at one bin width in [w_min, w_max], and that
+    width: rho (B, n) the distances of n vertices to B centres (every vertex counts 1). Returns the
+    power max_w |sum_i exp(2 pi i rho_i / w)|^2 (B,) and the w of the maximum (B,).
+
+    Why: the push r -> r + beta sin^2(pi r), of either sign, raises a bin's mean of cos(2 pi r) (by
+    about pi^2 beta^2 / 2, the same for bits 0 and 1), so that a marked mesh's radii add up in phase
+    at its centre and bin width whatever the word, where the bin energy (``scale_energies``) needs every
+    width and lo apart. Measured in the marked meshes' own frames: |sum| / n 0.13 (bunny), 0.24 (Venus
+    head), 0.20 (Igea) against 0.004-0.006 unmarked, the noise 1 / sqrt(n) 0.003-0.009. Each row is
+    counted in cells of ``cell`` from its nearest vertex, and one FFT of the counts (zero-padded to
+    ``pad`` times their length: a peak between two of its frequencies loses less) gives every width at
+    once."""
+    x = (rho - rho.min(1)[:, None]) / cell
+    n_cells = int(x.max()) + 1
+    flat = x.astype(np.int64)
+    flat += n_cells * np.arange(len(rho))[:, None]
+    counts = np.bincount(flat.ravel(), minlength=len(rho) * n_cells).reshape(len(rho), n_cells)
+    n_fft = 1 << int(np.ceil(np.log2(pad * n_cells)))
+    k_lo = int(np.floor(n_fft * cell / w_max))  # frequency k: a width of n_fft * cell / k
+    k_hi = int(np.ceil(n_fft * cell / w_min)) + 1
+    band = np.fft.rfft(counts, n=n_fft, axis=1)[:, max(k_lo, 1):k_hi]
+    power = band.real ** 2 + band.imag ** 2
+    k = max(k_lo, 1) + np.argmax(power, axis=1)
+    return power.max(1), n_fft * cell / k
+
+
 def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
     """The frame near ``fr`` (centre, lo, hi within ``REFINE_BOUND`` bin widths of n_bins bins) that
     maximises the mark's ``energies``: a compass search over the 5 parameters on a subsample of the
