@@ -1,5 +1,5 @@
 """The whole test suite on a fresh machine, from a clone alone (README "On a fresh machine"; .ci/run runs
-this, the README's test command ``python3.11 tests/run_all.py``, after checking the README gives it):
+the README's test command, ``python3.11 tests/run_all.py``):
 
 1. Debian's chromium and tesseract, for the verification report's browser test (installed with apt-get
    when missing and run as root; otherwise it asks you to install them, and that test fails rather than

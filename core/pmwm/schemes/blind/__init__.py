@@ -138,7 +138,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
             pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
             return with_positions(pm, marked)
 
-        job.secret, job.bits, job.payload_kind = secret, payload, kind
+        job.bits = payload  # (the result's bits: the payload embedded; the key holds the secret and its kind)
         return finish_embed(job, marked, marked_pm if build else None, np.zeros(0, np.int64),
                             _key(secret, payload, kind, job.strength))
 

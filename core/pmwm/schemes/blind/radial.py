@@ -442,6 +442,15 @@ def distances(P: np.ndarray, C: np.ndarray) -> np.ndarray:
 SCALE_CELLS = 16  # scale_energies: cells per bin width of the cumulative histograms
 
 
+def _cell_ids(x: np.ndarray, n_cells: int) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """For B rows of positions x (B, n) in cells: the flat cell id (row * n_cells + cell) of each point in
+    [0, n_cells), raveled, and the mask (B, n) of those points (None when every point is in)."""
+    ok = (x >= 0) & (x < n_cells)
+    flat = x.astype(np.int64)  # (the floor, for x >= 0)
+    flat += n_cells * np.arange(len(x))[:, None]
+    return (flat.ravel(), None) if ok.all() else (flat[ok], ok)
+
+
 def cumulative_cells(x: np.ndarray, n_cells: int, weights: Optional[np.ndarray], *more: np.ndarray
                      ) -> list[np.ndarray]:
     """Cumulative per-cell sums of B rows of points, for many frames' bins at once (``cell_energies``).
@@ -452,16 +461,12 @@ def cumulative_cells(x: np.ndarray, n_cells: int, weights: Optional[np.ndarray],
     entry k is the sum over the row's points in cells below k of w, of w x (the positions, in cells),
     and of each further weight."""
     B = len(x)
-    ok = (x >= 0) & (x < n_cells)
-    everywhere = bool(ok.all())
-    flat = x.astype(np.int64)  # (the floor, for x >= 0)
-    flat += n_cells * np.arange(B)[:, None]
-    flat = flat.ravel() if everywhere else flat[ok]
+    flat, ok = _cell_ids(x, n_cells)
 
     def cum(w: Optional[np.ndarray]) -> np.ndarray:
         if w is not None:
             w = np.broadcast_to(w, x.shape)
-            w = w.ravel() if everywhere else w[ok]
+            w = w.ravel() if ok is None else w[ok]
         out = np.zeros((B, n_cells + 1))
         out[:, 1:] = np.bincount(flat, weights=w, minlength=B * n_cells).reshape(B, n_cells)
         return np.cumsum(out, axis=1, out=out)
@@ -525,16 +530,13 @@ def in_phase(rho: np.ndarray, cell: float, w_min: float, w_max: float, pad: int)
     once."""
     x = (rho - rho.min(1)[:, None]) / cell
     n_cells = int(x.max()) + 1
-    flat = x.astype(np.int64)
-    flat += n_cells * np.arange(len(rho))[:, None]
-    counts = np.bincount(flat.ravel(), minlength=len(rho) * n_cells).reshape(len(rho), n_cells)
+    counts = np.bincount(_cell_ids(x, n_cells)[0], minlength=len(rho) * n_cells).reshape(len(rho), n_cells)
     n_fft = 1 << int(np.ceil(np.log2(pad * n_cells)))
-    k_lo = int(np.floor(n_fft * cell / w_max))  # frequency k: a width of n_fft * cell / k
+    k_lo = max(int(np.floor(n_fft * cell / w_max)), 1)  # frequency k: a width of n_fft * cell / k
     k_hi = int(np.ceil(n_fft * cell / w_min)) + 1
-    band = np.fft.rfft(counts, n=n_fft, axis=1)[:, max(k_lo, 1):k_hi]
+    band = np.fft.rfft(counts, n=n_fft, axis=1)[:, k_lo:k_hi]
     power = band.real ** 2 + band.imag ** 2
-    k = max(k_lo, 1) + np.argmax(power, axis=1)
-    return power.max(1), n_fft * cell / k
+    return power.max(1), n_fft * cell / (k_lo + np.argmax(power, axis=1))
 
 
 def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
