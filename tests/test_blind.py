@@ -315,10 +315,10 @@ def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, mon
     follows (the cap's centroid off the hole's axis), too far for the mark to show on the plane: the search
     also follows copies of the family ``crop.LAYERS`` bin widths off its plane. Two bunny crops whose
     lost centre lies more than a bin width off it are read; with the plane alone, neither is (of the 20
-    such crops among seeds 0-119, 16 are read, 9 with the plane alone: BENCHMARKS.md, ``session-26``)."""
+    such crops among seeds 0-119, 17 are read, 10 with the plane alone: BENCHMARKS.md, ``session-27``)."""
     fr0, _ = radial.frame_of(marked.vertices, marked.faces, 64)
     width = (fr0.hi - fr0.lo) / 64
-    crops = [A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=seed) for seed in (71, 76)]
+    crops = [A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=seed) for seed in (71, 78)]
     for V, F in crops:
         fr, _ = radial.frame_of(V, F, 64)
         (h, n), = crop.cut_planes(V, F, fr.centre)
@@ -336,7 +336,7 @@ def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_r
     posed 30 % crops of the bunny whose lost centre lies more than 1.8 bin widths off the plane are read
     with the whole payload; with copies up to 1.8 bin widths (the former search), neither is."""
     crops = []
-    for seed in (1, 14):
+    for seed in (1, 11):
         Vs, Fs = A.similarity(marked.vertices, marked.faces, seed=seed)
         fr0, _ = radial.frame_of(Vs, Fs, 64)  # the marked mesh's frame, posed
         V, F = A.crop_plane(Vs, Fs, fraction=0.3, seed=seed)
@@ -535,6 +535,21 @@ def test_a_marked_meshs_radii_add_up_in_phase_at_its_bin_width(bunny, marked):
     assert phase(marked.vertices, fr.centre + np.array([3 * w, 0.0, 0.0]))[0] < 0.5 * z
 
 
+def test_distances_to_many_centres_are_exact_in_the_callers_precision():
+    """``radial.distances`` (every search's distances, without a matrix product) gives each point's
+    distance to each centre, rows by centre, in float64 to rounding and in float32 (the screening's)
+    to a few parts in 10 million of the distance."""
+    rng = np.random.default_rng(5)
+    P, C = rng.normal(size=(500, 3)) * 40, rng.normal(size=(7, 3))
+    want = np.linalg.norm(P[None] - C[:, None], axis=2)
+    got = radial.distances(P, C)
+    assert got.shape == (7, 500) and got.dtype == np.float64
+    np.testing.assert_allclose(got, want, rtol=1e-14)
+    got32 = radial.distances(P.astype(np.float32), C.astype(np.float32))
+    assert got32.dtype == np.float32
+    np.testing.assert_allclose(got32, want, rtol=5e-7, atol=1e-5)
+
+
 def test_crop_search_scores_are_the_energy_of_the_best_frame():
     """Each candidate centre's coarse score is the largest energy of the frames it tries, lo the cell of
     the area quantile 2 % / (1 - lam): equal to a direct binning where the bins' edges fall on cells."""
@@ -543,16 +558,17 @@ def test_crop_search_scores_are_the_energy_of_the_best_frame():
     area = rng.random(3000)
     C, lam = rng.normal(size=(3, 3)) * 0.1, np.array([0.0, 0.2, 0.35])
     width, n_bins, cells = 0.04, 32, 16
-    widths, phases = np.array([1.0, 1.5]), np.array([0.0, 0.25, 0.5])  # edges on cells of width / 16
-    got = crop._coarse(P, area, C, lam, width, n_bins, widths, phases, cells)
+    # each candidate's own widths, edges on cells of width / 16 (the smallest of the batch)
+    widths, phases = width * np.array([[1.0, 1.5], [1.25, 2.0], [1.75, 1.0]]), np.array([0.0, 0.25, 0.5])
+    got = crop._coarse(P, area, C, lam, widths, n_bins, phases, cells)
     cell = width / cells
     for b in range(3):
         rho = np.linalg.norm(P - C[b], axis=1)
         q = radial.weighted_quantiles(rho[None], area, [[radial.QUANTILES[0] / (1 - lam[b])]])[0, 0]
         lo = rho.min() + np.floor((q - rho.min()) / cell) * cell
-        want = max(radial.energies(P, np.ones(3000), C[b][None], np.array([lo + p * w * width]),
-                                   np.array([lo + (p + n_bins) * w * width]), n_bins)[0]
-                   for w in widths for p in phases)
+        want = max(radial.energies(P, np.ones(3000), C[b][None], np.array([lo + p * w]),
+                                   np.array([lo + (p + n_bins) * w]), n_bins)[0]
+                   for w in widths[b] for p in phases)
         assert got[b] == pytest.approx(want, rel=1e-9)
 
 

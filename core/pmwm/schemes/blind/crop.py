@@ -23,12 +23,13 @@ family and copies of it off its plane (``crop_frames``, for each word length):
    needed), first the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them;
    then the best of these (SCREEN_KEEP of one layer's count) scored by the mark's energy (COARSE_*):
    lo from the area quantile of what is left that is the original's 2 % quantile if the cap held none
-   of the innermost vertices (2 % / (1 - lam)), over widths and phases;
+   of the innermost vertices (2 % / (1 - lam)), over the widths within 6 % of the one where its radii
+   add up in phase (COARSE_AROUND) and over phases;
 4. the TOP best candidates: the best of OFF_PLANE offsets off the family's plane, then the width and lo
    again, finely, on every vertex of positive weight (the widths near the one where all their radii add
-   up in phase); the REFINED best of those through ``radial.refine_frame_on`` (on REFINE_SAMPLE
-   vertices), and the FINAL best of these once more from their refined centre; the frame whose reading
-   shows the most energy wins.
+   up in phase); the REFINED best of those through ``radial.refine_frame_on`` (on REFINE_FIRST
+   vertices), and the FINAL best of these once more from their refined centre (on REFINE_SAMPLE); the
+   frame whose reading shows the most energy wins.
 
 The word lengths are searched independently, in parallel threads (``background.parallel_map``; numpy
 releases the GIL in its loops): the frames are the same as one after the other.
@@ -72,7 +73,10 @@ The screening scores a candidate by its radii's phase (``radial.in_phase``, one 
 rather than by the bin energy over 21 widths x 3 lo offsets, and the fine fit tries the widths within 3 %
 of the one where all the radii add up in phase rather than all 801 of -40 % .. +60 %: on the same 160
 copies 150 are read against 147 (5 gained, 2 lost), the search for one word length taking 0.30-0.48
-times as long (BENCHMARKS.md, ``session-26``)."""
+times as long (BENCHMARKS.md, ``session-26``). The coarse stage then tried a candidate's energy over 51
+widths (-40 % .. +60 %, 2 % apart) and the first refinements looked at REFINE_SAMPLE vertices; the 13
+widths around its in-phase width and 8,000 vertices read the same 150 of the 160 copies (2 gained, 2
+lost), the two word lengths' searches one after the other taking 0.74 times as long (``session-27``)."""
 
 from __future__ import annotations
 
@@ -100,15 +104,16 @@ SCREEN_CELLS = 4  # radii may add up in phase (``radial.in_phase``; cells per sm
 SCREEN_PAD = 2  # zero-padded to twice their length)
 SCREEN_KEEP = 0.05  # the share of the candidates (SCREEN_MIN at least) scored again, over
 SCREEN_MIN = 64
-COARSE_WIDTHS = np.linspace(0.6, 1.6, 51)  # these widths
+COARSE_AROUND = 1.0 + 0.01 * np.arange(-6, 7)  # the widths within 6 % of each one's in-phase width
 COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # and these lo offsets
 TOP = 10  # candidates searched finely
 OFF_PLANE = np.linspace(-1.5, 1.5, 11)  # offsets of a candidate off its family's plane, in bin widths
-FINE_CELLS, FINE_PAD = 16, 8  # the fine fit's in-phase width (``radial.in_phase``) over COARSE_WIDTHS' range,
+FINE_CELLS, FINE_PAD = 16, 8  # the fine fit's in-phase width (``radial.in_phase``) over SCREEN_WIDTHS,
 FINE_STEP, FINE_HALF = 0.00125, 24  # and the widths it tries: 0.125 % steps, 3 % either side of it
 FINE_PHASES = np.linspace(-0.5, 0.5, 33)  # within half a bin: a whole bin off reads the word shifted
 FINE_KEEP = 8  # widths of most energy at the phases FINE_PHASES[::4], tried at every phase
-REFINED = 4  # of the TOP, the best (by the fine fit's energy) refined
+REFINED = 4  # of the TOP, the best (by the fine fit's energy) refined, on REFINE_FIRST vertices
+REFINE_FIRST = 8000
 FINAL = 2  # of those, the best fitted again at their refined centre
 MIN_EDGES = 12  # a boundary loop of fewer edges is not a cut
 MAX_LOOPS = 32  # the largest loops are looked at, no more (a mesh may have thousands of holes)
@@ -210,41 +215,40 @@ def _spread(D: np.ndarray, spacing: float) -> np.ndarray:
     return first
 
 
-def _screen(P: np.ndarray, C: np.ndarray, width: float) -> np.ndarray:
+def _screen(P: np.ndarray, C: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
     """The screening's score of candidate centres C (K, 3): how strongly the distances of the vertices
-    P (k, 3) add up in phase at a bin width within SCREEN_WIDTHS times ``width`` (``radial.in_phase``).
-    P and C relative to a point near them (``radial.distances``), float32 is enough."""
+    P (k, 3) add up in phase at a bin width within SCREEN_WIDTHS times ``width`` (``radial.in_phase``),
+    (K,), and that bin width, (K,). P and C relative to a point near them (``radial.distances``),
+    float32 is enough."""
     w_min, w_max = width * SCREEN_WIDTHS[0], width * SCREEN_WIDTHS[1]
-    score = np.empty(len(C))
+    score, at = np.empty(len(C)), np.empty(len(C))
     for s0 in range(0, len(C), _BATCH):
-        score[s0:s0 + _BATCH] = in_phase(distances(P, C[s0:s0 + _BATCH]), w_min / SCREEN_CELLS, w_min, w_max,
-                                         SCREEN_PAD)[0]
-    return score
+        score[s0:s0 + _BATCH], at[s0:s0 + _BATCH] = in_phase(distances(P, C[s0:s0 + _BATCH]),
+                                                             w_min / SCREEN_CELLS, w_min, w_max, SCREEN_PAD)
+    return score, at
 
 
-def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, width: float, n_bins: int,
-            widths: np.ndarray = COARSE_WIDTHS, phases: np.ndarray = COARSE_PHASES,
-            cells: int = SCALE_CELLS) -> np.ndarray:
+def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, widths: np.ndarray, n_bins: int,
+            phases: np.ndarray = COARSE_PHASES, cells: int = SCALE_CELLS) -> np.ndarray:
     """The coarse score of candidate centres C (K, 3) with their lam (K,): the most mark energy over
-    ``widths`` (times ``width``) x ``phases`` (in bin widths) from lo, on the vertices P (k, 3) of areas
-    (k,); P and C relative to a point near them (``radial.distances``), float32 is enough.
+    each one's bin ``widths`` (K, W) x ``phases`` (in bin widths) from lo, on the vertices P (k, 3) of
+    areas (k,); P and C relative to a point near them (``radial.distances``), float32 is enough.
 
     lo is the area quantile that the original's 2 % would be if the cap held none of the area. Each
-    centre's distances are counted once in cells of 1/``cells`` of the smallest width, from its nearest
-    vertex out (``radial.cumulative_cells``: count, sum of positions and area); lo is a cell, and every
-    frame's bins come from the cells at their edges, rounded to the nearest cell edge
+    centre's distances are counted once in cells of 1/``cells`` of the smallest width of its batch, from
+    its nearest vertex out (``radial.cumulative_cells``: count, sum of positions and area); lo is a cell,
+    and every frame's bins come from the cells at their edges, rounded to the nearest cell edge
     (``radial.cell_energies``, as in ``radial.scale_energies``)."""
-    cell = width * float(widths.min()) / cells
-    wc = width * widths / cell  # bin widths in cells (W,)
     j = np.arange(n_bins + 1)
-    start = phases[None, :, None] * wc[:, None, None]  # (W, P, 1) from lo, in cells
-    offs = np.rint(start + j * wc[:, None, None]).astype(np.int64)  # (W, P, J + 1) the edges from lo
-    mid = start + (j[:-1] + 0.5) * wc[:, None, None]  # (W, P, J) the bins' centres from lo
-    shift = int(max(0, -offs.min()))  # empty cells below the nearest vertex, for negative phases
     score = np.empty(len(C))
     for s0 in range(0, len(C), _BATCH):
         rho = distances(P, C[s0:s0 + _BATCH])
         B = len(rho)
+        cell = float(widths[s0:s0 + B].min()) / cells
+        wc = widths[s0:s0 + B, :, None, None] / cell  # (B, W, 1, 1) bin widths in cells
+        start = phases[:, None] * wc  # (B, W, P, 1) from lo, in cells
+        offs = np.rint(start + j * wc).astype(np.int64)  # (B, W, P, J + 1) the edges from lo
+        shift = int(max(0, -offs.min()))  # empty cells below the nearest vertex, for negative phases
         x = (rho - rho.min(1)[:, None]) / cell + shift
         # cells up to the farthest vertex: an edge beyond it reads the last entry, the row's total (the
         # outermost edges reach up to twice as far: those cells would only repeat it)
@@ -252,8 +256,9 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
         cum_n, cum_x, cum_a = cumulative_cells(x, n_cells, None, area)
         # the cell of the area quantile the original's 2 % would be if the cap held none of the area
         lo = (cum_a[:, 1:] < (QUANTILES[0] / (1.0 - lam[s0:s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
-        edges = np.minimum(lo[:, None, None, None] + offs[None], n_cells)
-        en = cell_energies(cum_n, cum_x, edges, lo[:, None, None, None] + mid[None], wc[None, :, None])
+        lo = lo[:, None, None, None]
+        # the bins' centres from lo: (B, W, P, J)
+        en = cell_energies(cum_n, cum_x, np.minimum(lo + offs, n_cells), lo + start + (j[:-1] + 0.5) * wc, wc[..., 0])
         score[s0:s0 + B] = en.reshape(B, -1).max(1)
     return score
 
@@ -269,6 +274,7 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     # the coarse stages in float32: distances of a few hundred bin widths, accurate to 1e-5 bins
     Pc, area_c = (V[sub] - own.centre).astype(np.float32), area[sub]
     Pf, af = V[fine], a[fine]
+    first_sample = V[thinned(by_rho, REFINE_FIRST)], a[thinned(by_rho, REFINE_FIRST)]
     Pw, aw, area_w = V[by_rho], a[by_rho], area[by_rho]  # the fine width fit: every vertex of positive weight
     diag = bbox_diagonal(V)
     total = float(a.sum())
@@ -279,31 +285,35 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         Cc = (C - own.centre).astype(np.float32)
         # screening: the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them
         s = _spread(C - own.centre, SCREEN_LATTICE * width)
-        first = _screen(Pc, Cc[s], width)
+        first = _screen(Pc, Cc[s], width)[0]
         top = C[s[np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_TOP * len(s)))]]]
         near = unique_values(pairs_within(top, C, EXPAND * width)[1])
-        second = _screen(Pc, Cc[near], width)
+        second, at = _screen(Pc, Cc[near], width)
         keep = max(SCREEN_MIN, int(SCREEN_KEEP * len(C) / len(LAYERS)))  # (a share of one layer's candidates)
-        kept = near[np.argsort(-second, kind="stable")[:keep]]
-        score = np.full(len(C), -np.inf)
-        score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], width, n_bins)
+        best = np.argsort(-second, kind="stable")[:keep]
+        kept = near[best]
+        score, w_phase = np.full(len(C), -np.inf), np.zeros(len(C))
+        w_phase[kept] = at[best]  # each one's in-phase width, around which the coarse stage tries widths
+        score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], np.outer(at[best], COARSE_AROUND), n_bins)
 
-        def refined(fr: Frame) -> tuple[float, Frame]:
-            fr = refine_frame_on(Pf, af, fr, n_bins)
+        def refined(fr: Frame, sample: tuple[np.ndarray, np.ndarray]) -> tuple[float, Frame]:
+            fr = refine_frame_on(*sample, fr, n_bins)
             return excess_energy(*statistics_in(V, a, fr, [n_bins])[0], total), fr
 
         scaled = []
         for i in np.argsort(-score, kind="stable")[:TOP]:
             # off the family's plane (the cap's centroid off the hole's axis), then the scale
             off = C[i] - own.centre + np.outer(OFF_PLANE * width, N[i])
-            e = _coarse(Pc, area_c, off.astype(np.float32), np.full(len(off), L[i]), width, n_bins)
+            e = _coarse(Pc, area_c, off.astype(np.float32), np.full(len(off), L[i]),
+                        np.tile(w_phase[i] * COARSE_AROUND, (len(off), 1)), n_bins)
             best_off = off[int(np.argmax(e))]
             scaled.append((*_fit_scale(Pw, aw, area_w, own.centre + best_off, L[i], width, n_bins), L[i]))
         scaled.sort(key=lambda f: -f[0])
-        fits = sorted(((*refined(fr), lam) for _, fr, lam in scaled[:REFINED]), key=lambda f: -f[0])
+        fits = sorted(((*refined(fr, first_sample), lam) for _, fr, lam in scaled[:REFINED]), key=lambda f: -f[0])
         # the FINAL best, and each fitted again at its refined centre: the one of most energy
         finals = [f for z, fr, lam in fits[:FINAL]
-                  for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins)[1]))]
+                  for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins)[1],
+                                             (Pf, af)))]
         return max(finals, key=lambda f: f[0])[1]
 
     # the word lengths are searched independently, each in its own thread
@@ -314,13 +324,13 @@ def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarra
                n_bins: int) -> tuple[float, Frame]:
     """The frame around ``centre`` whose lo (near the area quantile the crop left of the original's,
     ``lam`` its share taken) and bin width (within FINE_HALF steps of FINE_STEP of the width where the
-    radii add up in phase, within COARSE_WIDTHS' range times ``width``) show the most mark energy on the
+    radii add up in phase, within SCREEN_WIDTHS times ``width``) show the most mark energy on the
     vertices P (k, 3) with reader weights a (k,) and areas (k,); and that energy."""
     rho = np.linalg.norm(P - centre, axis=1)[None]
     lo = np.array([low_quantile(rho[0], area, QUANTILES[0] / (1.0 - lam))])
     # the widths near the one where the radii add up in phase, at a few phases; then the widths of
     # most energy at every phase
-    w_min, w_max = width * float(COARSE_WIDTHS[0]), width * float(COARSE_WIDTHS[-1])
+    w_min, w_max = width * SCREEN_WIDTHS[0], width * SCREEN_WIDTHS[1]
     w_phase = float(in_phase(rho, w_min / FINE_CELLS, w_min, w_max, FINE_PAD)[1][0])
     widths = w_phase * (1.0 + FINE_STEP * np.arange(-FINE_HALF, FINE_HALF + 1))
     e = scale_energies(rho, a, lo, widths, FINE_PHASES[::4], n_bins)[0].max(1)

@@ -418,7 +418,7 @@ def energies(V: np.ndarray, a: np.ndarray, centres: np.ndarray, lo: np.ndarray, 
     i.e. S_j^2 / n_j with S_j the bin's sum of (r - 1/2). V (n, 3), a (n,) weights, centres (K, 3),
     lo, hi (K,). Under no mark it is about n_bins / 12 whatever the frame; the pass phrase plays no part."""
     K = len(centres)
-    rho = distances(V - centres[0], centres - centres[0])
+    rho = distances(V, centres)
     t = (rho - lo[:, None]) * (n_bins / (hi - lo))[:, None]
     b = np.floor(t)
     ok = (b >= 0) & (b < n_bins)
@@ -432,11 +432,19 @@ def energies(V: np.ndarray, a: np.ndarray, centres: np.ndarray, lo: np.ndarray, 
 
 
 def distances(P: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """The distances of points P (n, 3) to centres C (K, 3), (K, n) float64, from a matrix product:
-    |p|^2 + |c|^2 - 2 c.p (a third of the time of the differences). P and C should be relative to a
-    point near the centres: the error is then about 1e-16 of the squared distance, far below a bin."""
-    return np.sqrt(np.maximum(np.einsum("ij,ij->i", P, P)[None] + np.einsum("ij,ij->i", C, C)[:, None]
-                              - 2.0 * (C @ P.T), 0.0))
+    """The distances of points P (n, 3) to centres C (K, 3), (K, n), in their dtype (float32 is enough
+    for the searches when P and C are relative to a point near the centres: distances of a few hundred
+    bin widths to 1e-5 bins). The coordinates' differences, broadcast: no matrix product, whose BLAS
+    threads, for products this thin, fight the reader's own threads (the word lengths' crop searches,
+    ``background.parallel_map``) and made two searches side by side slower than one after the other."""
+    PT = P.T
+    d = np.subtract(C[:, 0:1], PT[0])
+    r = d * d
+    for k in (1, 2):
+        np.subtract(C[:, k:k + 1], PT[k], out=d)
+        d *= d
+        r += d
+    return np.sqrt(r, out=r)
 
 
 SCALE_CELLS = 16  # scale_energies: cells per bin width of the cumulative histograms
