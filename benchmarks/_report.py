@@ -2,7 +2,7 @@
 
 The provenance every section states (``commit``, ``machine``) and the section writer live in
 ``pmwm_bench.report``; the model catalogue in ``pmwm_bench.models``. The scripts look meshes up in
-$PMWM_TEST_DATA (or $PMWM_BENCH_DATA), else in ../shared/data beside the checkout.
+$PMWM_TEST_DATA, $PMWM_BENCH_DATA, then ../shared/data beside the checkout.
 """
 
 from __future__ import annotations
@@ -26,9 +26,14 @@ REPORT = ROOT / "BENCHMARKS.md"
 
 
 def data_dirs() -> list[Path]:
-    """Where the scripts look for meshes, before $PMWM_BENCH_DATA: $PMWM_TEST_DATA, ../shared/data."""
-    dirs = [Path(os.environ["PMWM_TEST_DATA"])] if os.environ.get("PMWM_TEST_DATA") else []
-    return dirs + [ROOT.parent / "shared" / "data"]
+    """Where the scripts look for meshes: $PMWM_TEST_DATA, $PMWM_BENCH_DATA, ../shared/data, each folder
+    once (``bench_blind`` reads every mesh in them for its false positives)."""
+    dirs = [Path(os.environ[v]) for v in ("PMWM_TEST_DATA", models.DATA_ENV) if os.environ.get(v)]
+    dirs.append(ROOT.parent / "shared" / "data")
+    first: dict[Path, Path] = {}
+    for d in dirs:
+        first.setdefault(d.resolve(), d)
+    return list(first.values())
 
 
 def mesh_path(name: str) -> Path:

@@ -76,7 +76,7 @@ copies 150 are read against 147 (5 gained, 2 lost), the search for one word leng
 times as long (BENCHMARKS.md, ``session-26``). The coarse stage then tried a candidate's energy over 51
 widths (-40 % .. +60 %, 2 % apart) and the first refinements looked at REFINE_SAMPLE vertices; the 13
 widths around its in-phase width and 8,000 vertices read the same 150 of the 160 copies (2 gained, 2
-lost), the two word lengths' searches one after the other taking 0.74 times as long (``session-27``)."""
+lost), the two word lengths' searches one after the other taking 0.73 times as long (``session-27``)."""
 
 from __future__ import annotations
 
@@ -257,8 +257,8 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
         # the cell of the area quantile the original's 2 % would be if the cap held none of the area
         lo = (cum_a[:, 1:] < (QUANTILES[0] / (1.0 - lam[s0:s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
         lo = lo[:, None, None, None]
-        # the bins' centres from lo: (B, W, P, J)
-        en = cell_energies(cum_n, cum_x, np.minimum(lo + offs, n_cells), lo + start + (j[:-1] + 0.5) * wc, wc[..., 0])
+        mids = lo + start + (j[:-1] + 0.5) * wc  # (B, W, P, J) the bins' centres
+        en = cell_energies(cum_n, cum_x, np.minimum(lo + offs, n_cells), mids, wc[..., 0])
         score[s0:s0 + B] = en.reshape(B, -1).max(1)
     return score
 
@@ -274,7 +274,8 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     # the coarse stages in float32: distances of a few hundred bin widths, accurate to 1e-5 bins
     Pc, area_c = (V[sub] - own.centre).astype(np.float32), area[sub]
     Pf, af = V[fine], a[fine]
-    first_sample = V[thinned(by_rho, REFINE_FIRST)], a[thinned(by_rho, REFINE_FIRST)]
+    sub_first = thinned(by_rho, REFINE_FIRST)
+    first_sample = V[sub_first], a[sub_first]
     Pw, aw, area_w = V[by_rho], a[by_rho], area[by_rho]  # the fine width fit: every vertex of positive weight
     diag = bbox_diagonal(V)
     total = float(a.sum())
