@@ -278,6 +278,21 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     assert not pmwm.verify(V, F, passphrase=PHRASE).marked
 
 
+def test_a_stray_part_far_from_a_cropped_copy_leaves_its_reading_alone(marked):
+    """A crop with a tiny triangle a million model sizes away (a stray part in a scan) is read in the same
+    crop frame as without it: the crop search leaves out what no frame it tries reaches. Its histograms
+    and FFTs would otherwise stretch to that distance (tens of GB for the candidates' counts)."""
+    V, F = A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=0)
+    size = float(np.ptp(V, axis=0).max())
+    far = V.mean(0) + np.array([1e6 * size, 0.0, 0.0])
+    tri = far + 1e-7 * size * np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    Vs, Fs = np.vstack([V, tri]), np.vstack([F, len(V) + np.array([[0, 1, 2]])])
+    want, got = pmwm.verify(V, F, passphrase=PHRASE), pmwm.verify(Vs, Fs, passphrase=PHRASE)
+    assert want.marked and want.payload == "Acme" and want.extra["frame"].startswith("crop")
+    assert got.marked and got.payload == "Acme" and got.extra["frame"] == want.extra["frame"]
+    assert got.p_value == pytest.approx(want.p_value, rel=1e-6)
+
+
 def test_a_cropped_copy_is_not_read_after_its_border_blew_up(marked):
     """Steps of smoothing undone amplify what smoothing never damped, a crop's zigzag border first (1.2
     times per step): past the count a smoothed copy needs, the mesh grows without bound and its own frame

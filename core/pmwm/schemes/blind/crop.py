@@ -84,6 +84,7 @@ import numpy as np
 
 from ...adjacency import component_labels, edge_face_counts, is_closed, unique_values
 from ...background import parallel_map
+from ...features import row_norms
 from ...metrics import bbox_diagonal
 from ...spatial import pairs_within
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
@@ -115,6 +116,7 @@ FINE_KEEP = 8  # widths of most energy at the phases FINE_PHASES[::4], tried at 
 REFINED = 4  # of the TOP, the best (by the fine fit's energy) refined, on REFINE_FIRST vertices
 REFINE_FIRST = 8000
 FINAL = 2  # of those, the best fitted again at their refined centre
+BEYOND = 2.0  # vertices beyond the suspect's hi + 2 REACH bin widths + this many ranges are left out
 MIN_EDGES = 12  # a boundary loop of fewer edges is not a cut
 MAX_LOOPS = 32  # the largest loops are looked at, no more (a mesh may have thousands of holes)
 MAX_PLANES = 4  # the cut planes searched, those of the largest loops first
@@ -268,8 +270,18 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     """For each count in ``bin_counts``, the frame of that many bins where a cropped copy shows the most
     mark energy (``excess_energy``) near the families of the cut ``planes`` (``cut_planes``, not empty).
     V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``; ``own`` the suspect's own
-    frame (its centre and range)."""
+    frame (its centre and range).
+
+    The vertices farther from the centroid than own.hi + 2 REACH bin widths (of the fewest bins) + BEYOND
+    ranges (hi - lo) are left out: no frame the search tries reaches them (its centre within REACH bin
+    widths of the centroid, its lo below the distance of the innermost 2 / (1 - LAMBDA_MAX) of the area,
+    below own.hi + REACH bin widths, its bins at most SCREEN_WIDTHS[1] bin widths each, 1.6 ranges, and
+    its phase under one bin), and its histograms would reach them: a stray part far from the model would
+    make every candidate's counts and FFT as long as its distance. A model has none there."""
+    dist = row_norms(V - own.centre)
+    within = dist <= own.hi + (2.0 * REACH / min(bin_counts) + BEYOND) * (own.hi - own.lo)
     by_rho = by_distance(V, a, own.centre)
+    by_rho = by_rho[within[by_rho]]
     sub, fine = thinned(by_rho, COARSE_SAMPLE), thinned(by_rho, REFINE_SAMPLE)
     # the coarse stages in float32: distances of a few hundred bin widths, accurate to 1e-5 bins
     Pc, area_c = (V[sub] - own.centre).astype(np.float32), area[sub]
@@ -277,7 +289,7 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     sub_first = thinned(by_rho, REFINE_FIRST)
     first_sample = V[sub_first], a[sub_first]
     Pw, aw, area_w = V[by_rho], a[by_rho], area[by_rho]  # the fine width fit: every vertex of positive weight
-    diag = bbox_diagonal(V)
+    diag = bbox_diagonal(V[within])
     total = float(a.sum())
 
     def frame_for(n_bins: int) -> Frame:

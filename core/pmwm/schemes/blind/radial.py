@@ -418,15 +418,21 @@ def energies(V: np.ndarray, a: np.ndarray, centres: np.ndarray, lo: np.ndarray, 
     i.e. S_j^2 / n_j with S_j the bin's sum of (r - 1/2). V (n, 3), a (n,) weights, centres (K, 3),
     lo, hi (K,). Under no mark it is about n_bins / 12 whatever the frame; the pass phrase plays no part."""
     K = len(centres)
-    rho = distances(V, centres)
-    t = (rho - lo[:, None]) * (n_bins / (hi - lo))[:, None]
+    t = distances(V, centres)  # (in place from here: each (K, n) array a pass fewer)
+    t -= lo[:, None]
+    t *= (n_bins / (hi - lo))[:, None]
     b = np.floor(t)
     ok = (b >= 0) & (b < n_bins)
     # out-of-range vertices go to one extra cell, dropped: cheaper than compressing (K, n) arrays
-    idx = np.where(ok, b + n_bins * np.arange(K)[:, None], K * n_bins).astype(np.int64).ravel()
-    aa = np.broadcast_to(a, t.shape).ravel()
-    n = np.bincount(idx, weights=aa, minlength=K * n_bins + 1)[:-1]
-    s = np.bincount(idx, weights=(aa * (t - b - 0.5).ravel()), minlength=K * n_bins + 1)[:-1]
+    idx = b.astype(np.int64)
+    idx += n_bins * np.arange(K)[:, None]
+    idx[~ok] = K * n_bins
+    idx = idx.ravel()
+    t -= b
+    t -= 0.5
+    t *= a
+    n = np.bincount(idx, weights=np.broadcast_to(a, t.shape).ravel(), minlength=K * n_bins + 1)[:-1]
+    s = np.bincount(idx, weights=t.ravel(), minlength=K * n_bins + 1)[:-1]
     e = np.divide(s * s, n, out=np.zeros(K * n_bins), where=n > 0)
     return e.reshape(K, n_bins).sum(1)
 
@@ -452,11 +458,14 @@ SCALE_CELLS = 16  # scale_energies: cells per bin width of the cumulative histog
 
 def _cell_ids(x: np.ndarray, n_cells: int) -> tuple[np.ndarray, Optional[np.ndarray]]:
     """For B rows of positions x (B, n) in cells: the flat cell id (row * n_cells + cell) of each point in
-    [0, n_cells), raveled, and the mask (B, n) of those points (None when every point is in)."""
-    ok = (x >= 0) & (x < n_cells)
+    [0, n_cells), raveled, and the mask (B, n) of those points (None when every point is in: two
+    reductions tell, cheaper than the mask, which only a frame reaching past the points needs)."""
     flat = x.astype(np.int64)  # (the floor, for x >= 0)
     flat += n_cells * np.arange(len(x))[:, None]
-    return (flat.ravel(), None) if ok.all() else (flat[ok], ok)
+    if x.min() >= 0 and x.max() < n_cells:
+        return flat.ravel(), None
+    ok = (x >= 0) & (x < n_cells)
+    return flat[ok], ok
 
 
 def cumulative_cells(x: np.ndarray, n_cells: int, weights: Optional[np.ndarray], *more: np.ndarray
