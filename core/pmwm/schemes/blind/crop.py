@@ -273,11 +273,12 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     frame (its centre and range).
 
     The vertices farther from the centroid than own.hi + 2 REACH bin widths (of the fewest bins) + BEYOND
-    ranges (hi - lo) are left out: no frame the search tries reaches them (its centre within REACH bin
-    widths of the centroid, its lo below the distance of the innermost 2 / (1 - LAMBDA_MAX) of the area,
-    below own.hi + REACH bin widths, its bins at most SCREEN_WIDTHS[1] bin widths each, 1.6 ranges, and
-    its phase under one bin), and its histograms would reach them: a stray part far from the model would
-    make every candidate's counts and FFT as long as its distance. A model has none there."""
+    ranges (hi - lo) are left out. No frame the search tries reaches them: its centre lies within REACH
+    bin widths of the centroid; its lo below the distance of the innermost 2 / (1 - LAMBDA_MAX) of the
+    area, so below own.hi + REACH bin widths; its bins span at most SCREEN_WIDTHS[1] = 1.6 ranges, and
+    the phases and the refinement move them by a few bins. But its histograms would reach them: a stray
+    part far from the model would make every candidate's counts and FFT as long as its distance. A model
+    has none there."""
     dist = row_norms(V - own.centre)
     within = dist <= own.hi + (2.0 * REACH / min(bin_counts) + BEYOND) * (own.hi - own.lo)
     by_rho = by_distance(V, a, own.centre)
