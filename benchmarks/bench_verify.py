@@ -31,7 +31,9 @@ a JSON file, or the pass phrase to a file), ``python -m pmwm verify`` as a whole
 that only reads the two files as ``pmwm verify`` does (the same imports, ``read_key`` or the pass phrase
 file, ``read_mesh``), the two alternating, best of ``--repeat`` each; their difference is the time
 ``pmwm verify`` takes beyond reading the two files (issue 13's wording). The section's name then ends in
-"-cli"; no baseline.
+"-cli"; no baseline. Its processes run with OMP_NUM_THREADS=1 and OPENBLAS_NUM_THREADS=1 (steadier on a
+shared machine), unless ``--threads-as-set`` leaves them as this process has them (a user's default:
+unset, every library's threads on every core); the section's name then ends in "-cli-threads".
 """
 
 from __future__ import annotations
@@ -220,6 +222,9 @@ def main() -> None:
                     help="time each case's first call in a process of its own (section ...-fresh)")
     ap.add_argument("--cli", action="store_true",
                     help="time `pmwm verify` as whole processes beside reading the files alone (section ...-cli)")
+    ap.add_argument("--threads-as-set", action="store_true",
+                    help="with --cli: leave OMP_NUM_THREADS and OPENBLAS_NUM_THREADS as set here (a user's "
+                         "default: unset) instead of 1 (section ...-cli-threads)")
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -283,7 +288,12 @@ def cli(a) -> None:
 
     blind = a.scheme == "blind"
     byte_compiled(ROOT / "core" / "pmwm")
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "core"), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "core"))
+    if a.threads_as_set:
+        threads = ", ".join(f"{v} {os.environ.get(v, 'unset')}" for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS"))
+    else:
+        env.update(OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+        threads = "OMP_NUM_THREADS=1"
     lines = []
     over_wall, over_cpu = [], []
     with tempfile.TemporaryDirectory() as tmp:
@@ -324,7 +334,7 @@ def cli(a) -> None:
         + ("its pass phrase to a file; " if blind else "its key to a JSON file; ")
         + "`python -m pmwm verify` as a whole process (Python start-up, imports, reading the files, the "
         f"verdict printed) and a process that only reads the two files as it does (the same imports), alternating, "
-        f"best of {a.repeat} each; OMP_NUM_THREADS=1. Wall-clock and CPU time (user + system) of each process; "
+        f"best of {a.repeat} each; {threads}. Wall-clock and CPU time (user + system) of each process; "
         "their difference is what `pmwm verify` takes beyond reading the two files"
         + (" (deriving the key from the pass phrase, scrypt, included)" if blind else "") + ".",
         "",
@@ -337,7 +347,8 @@ def cli(a) -> None:
         + ("met" if not over_cpu else "not met for " + "; ".join(over_cpu))
         + "; in wall-clock time " + ("met." if not over_wall else "not met for " + "; ".join(over_wall) + "."),
     ])
-    write_section(("verify-speed-blind" if blind else "verify-speed") + "-cli", body)
+    write_section(("verify-speed-blind" if blind else "verify-speed") + "-cli"
+                  + ("-threads" if a.threads_as_set else ""), body)
 
 
 def report(runs: dict[str, list[list[dict]]], a) -> None:
