@@ -327,7 +327,7 @@ def cli(a) -> None:
                 over_cpu.append(f"{m} / {case} ({cv - cr:.2f} s)")
     body = "\n".join([
         ("## Verify speed (issues 13, 14): the blind scheme" if blind else "## Verify speed (issue 13)")
-        + ", `pmwm verify` as the user runs it",
+        + ", `pmwm verify` as the user runs it" + (" (the thread variables as set)" if a.threads_as_set else ""),
         "",
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
         "Each case's suspect written to a PLY file (float32 coordinates), "
