@@ -106,6 +106,33 @@ def test_edge_face_counts_are_the_adjacencys_edges(name):
     assert not (edges[:, 0] == edges[:, 1]).any()
 
 
+@pytest.mark.parametrize("name", ["bunny", "blob", "open_cap", "cad_part", "pinched_torus"])
+def test_boundary_edges_are_the_edges_of_one_face(name):
+    """``boundary_edges`` (numpy alone) names exactly the edges ``edge_face_counts`` counts once, in its
+    order: closed and open meshes, a mesh cut by a plane, one with a face flipped (its edges then have
+    two faces that disagree), with a degenerate face, and random soups with repeated corners and edges of
+    one, two, three or more faces."""
+    def expected(F, n):
+        edges, count = adjacency.edge_face_counts(F, n)
+        return edges[count == 1]
+
+    V, F = getattr(meshes, name)()
+    n = len(V)
+    cut = F[(V[F].mean(1)[:, 0] < np.median(V[:, 0]))]
+    flipped = np.vstack([F[:1, ::-1], F[1:]])
+    degenerate = np.vstack([F, [[F[0, 0], F[0, 0], F[0, 1]]]])
+    for faces in (F, F[1:], cut, flipped, degenerate):
+        want = expected(faces, n)
+        got = adjacency.boundary_edges(faces, n)
+        assert got.dtype == np.int64 and got.shape == want.shape and np.array_equal(got, want)
+    assert len(expected(cut, n)) > 0
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        k = int(rng.integers(3, 30))
+        soup = rng.integers(0, k, size=(int(rng.integers(1, 60)), 3))
+        assert np.array_equal(adjacency.boundary_edges(soup, k), expected(soup, k))
+
+
 def test_unique_values_are_those_of_np_unique():
     """``unique_values`` (a sort, not numpy 2's hash set) gives np.unique's values: integers with many
     repeats or none, any shape, floats, one value, none."""

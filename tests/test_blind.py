@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -65,6 +66,18 @@ def test_the_key_and_the_pass_phrase_read_alike(marked):
         pmwm.verify(marked.vertices, marked.faces, marked.key, passphrase=PHRASE)
     with pytest.raises(PayloadError, match="pass phrase"):
         pmwm.verify(marked.vertices, marked.faces)
+    with pytest.raises(PayloadError, match="non-empty pass phrase"):
+        pmwm.verify(marked.vertices, marked.faces, passphrase="")
+
+
+def test_a_bad_suspect_read_with_the_pass_phrase_raises_and_leaves_no_thread(marked):
+    """The secret is derived in a worker beside the reading (``read_with_passphrase``): a suspect the
+    reading refuses raises its MeshError, and the worker is gone when it does."""
+    V = marked.vertices.copy()
+    V[3] = np.nan
+    with pytest.raises(MeshError):
+        pmwm.verify(V, marked.faces, passphrase=PHRASE)
+    assert not [t for t in threading.enumerate() if t.name.startswith("pmwm-background")]
 
 
 @pytest.mark.parametrize("attack", [

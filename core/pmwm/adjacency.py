@@ -208,6 +208,37 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np
     return edges, E.data.astype(np.int64)
 
 
+def boundary_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """The edges on exactly one face side, (b, 2) int64 with edges[:, 0] < edges[:, 1], sorted: those of
+    ``edge_face_counts`` with a count of 1, without counting every edge, in numpy alone.
+
+    A vertex whose every edge has its two half-edges, v -> w and w -> v, sends to its neighbours what it
+    receives from them: the sums, over the half-edges out of it, of its neighbours' random integers y
+    (below 2^32, from a fixed seed; float64 sums, exact below 2^53) equal those over the half-edges into
+    it. A vertex on a boundary edge breaks that but where the unmatched integers cancel (about 2^-32), and
+    an edge is missed only when both its ends are. The edges at the vertices that break it are then
+    counted exactly, by sorting the keys of the faces around them. Why: a cut suspect's boundary is a small part of
+    it, and ``edge_face_counts`` needs ``scipy.sparse``, whose import (0.14 s, most of it scipy's
+    array-API layer) is paid by every fresh process that reads a cut suspect (BENCHMARKS.md,
+    ``session-28``)."""
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    n = int(n_vertices)
+    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()
+    y = np.random.default_rng(0).integers(1, 2**32, size=n).astype(np.float64)
+    broken = np.bincount(a, y[b], n) != np.bincount(b, y[a], n)
+    near = f[broken[f].any(axis=1)]
+    a, b = near.ravel(), near[:, [1, 2, 0]].ravel()
+    side = a != b
+    keys = np.sort(np.minimum(a, b)[side] * n + np.maximum(a, b)[side])
+    alone = np.ones(len(keys), bool)
+    same = keys[1:] == keys[:-1]
+    alone[1:] &= ~same
+    alone[:-1] &= ~same
+    k = keys[alone]
+    E = np.stack([k // n, k % n], axis=1)
+    return E[broken[E].any(axis=1)]  # (an edge with neither end broken may lack its other face here)
+
+
 def twin_half_edges(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (h1, h2) of half-edges (h = 3 * face + corner, from faces[face, corner] to the next
     corner) that are the two opposite sides of an edge with exactly two faces, consistently oriented."""

@@ -15,7 +15,7 @@ from .key import WatermarkKey, read_key_json
 from .memory import reuse_freed_memory
 from .progressive import ProgressiveMesh
 from .schemes import get_scheme
-from .schemes.blind import key_from_passphrase
+from .schemes.blind import read_with_passphrase
 
 __all__ = ["embed", "verify", "verify_pm", "ber_per_level", "read_key", "load_key_data"]
 
@@ -46,9 +46,9 @@ def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: flo
     with ``passphrase`` instead of a key, with the blind scheme (the payload is read, not known)."""
     if (key is None) == (passphrase is None):
         raise PayloadError("give a key or a pass phrase (the blind scheme), not both or neither")
-    if key is None:
-        key = key_from_passphrase(passphrase)
     reuse_freed_memory()
+    if key is None:
+        return read_with_passphrase(vertices, faces, passphrase, p_threshold)
     return get_scheme(key.scheme, KeyFileError).verify(vertices, faces, key, p_threshold)
 
 

@@ -28,7 +28,7 @@ from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .pmfile import read_pm, record_size, write_pm
 from .schemes import SCHEMES
-from .schemes.blind import key_from_passphrase, mesh_read
+from .schemes.blind import mesh_read
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
 
@@ -197,7 +197,7 @@ def cmd_verify(a) -> int:
         raise UsageError(f"give --key KEY.json, or a pass phrase for a blind mark (--passphrase-file F or ${PASSPHRASE_ENV})")
     if passphrase is not None and a.report is not None:
         raise UsageError("--report needs a key file; a blind mark has none")
-    key = read_key(a.key) if a.key is not None else key_from_passphrase(passphrase)
+    key = read_key(a.key) if a.key is not None else None
     if a.suspect.lower().endswith(".pmwm"):
         pm = read_pm(a.suspect)
         records = pm.records_for_vertices(a.vertices) if a.vertices is not None else a.level
@@ -207,7 +207,7 @@ def cmd_verify(a) -> int:
             raise UsageError("--level/--vertices apply to a .pmwm progressive mesh only")
         src = read_mesh(a.suspect)
         V, F = src.vertices, src.faces
-    v = verify(V, F, key, p_threshold=a.p_threshold)
+    v = verify(V, F, key, p_threshold=a.p_threshold, passphrase=passphrase)
     if a.report is not None:
         from .verify_report import write_report
 

@@ -72,7 +72,7 @@ from typing import Optional
 import numpy as np
 
 from ... import metrics
-from ...background import beside
+from ...background import Background, beside
 from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
 from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
@@ -81,7 +81,7 @@ from ...validate import check_mesh
 from . import frames, radial, word
 from .keydata import BlindKeyData
 
-__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "bin_statistics", "decide",
+__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "read_with_passphrase", "bin_statistics", "decide",
            "Statistics", "word_read", "mesh_read", "BlindKeyData"]
 
 DEFAULT_ALPHA = 0.07
@@ -279,6 +279,21 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
     """The blind reading: the payload read, its verdict and p-value. vertices (n, 3), faces (m, 3)
     of the suspect; ``secret`` from ``word.derive_secret``."""
     return decide(bin_statistics(vertices, faces), secret, p_threshold)
+
+
+def read_with_passphrase(vertices, faces, passphrase: str, p_threshold: float = 1e-6) -> Verdict:
+    """``read`` with the secret of ``passphrase``, derived in a worker thread beside the bins' statistics,
+    which need none: hashlib's scrypt (``word.SCRYPT``, about 0.05 s) releases the GIL, so the derivation
+    costs a cut suspect's reading no time on two cores."""
+    word.check_passphrase(passphrase)
+    with Background(_secret_of, passphrase) as deriving:
+        stats = bin_statistics(vertices, faces)
+        return decide(stats, deriving.result(), p_threshold)
+
+
+def _secret_of(passphrase: str, progress) -> str:
+    """``word.derive_secret`` as a ``Background`` worker (nothing to report)."""
+    return word.derive_secret(passphrase)
 
 
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:

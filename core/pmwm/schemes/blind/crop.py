@@ -82,7 +82,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...adjacency import component_labels, edge_face_counts, is_closed, unique_values
+from ...adjacency import boundary_edges, component_labels, unique_values
 from ...background import parallel_map
 from ...features import row_norms
 from ...metrics import bbox_diagonal
@@ -132,10 +132,7 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
     the plane, so the loop zigzags within about an edge of it); loops in the same plane (the largest
     first) count together, and the plane is fitted to all of them. The MAX_LOOPS largest loops are looked
     at, and the planes of the MAX_PLANES largest are returned."""
-    if is_closed(F, len(V)):
-        return []
-    edges, sides = edge_face_counts(F, len(V))
-    E = edges[sides == 1]
+    E = boundary_edges(F, len(V))
     if len(E) < MIN_EDGES:
         return []
     loop = component_labels(E)
