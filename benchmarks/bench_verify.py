@@ -336,7 +336,7 @@ def cli(a) -> None:
         f"verdict printed) and a process that only reads the two files as it does (the same imports), alternating, "
         f"best of {a.repeat} each; {threads}. Wall-clock and CPU time (user + system) of each process; "
         "their difference is what `pmwm verify` takes beyond reading the two files"
-        + (" (deriving the key from the pass phrase, scrypt, included)" if blind else "") + ".",
+        + (" (deriving the secret from the pass phrase, scrypt, included: it runs in a thread beside the reading)" if blind else "") + ".",
         "",
         "| mesh | case | suspect vertices | verdict | `pmwm verify`: wall / CPU | reading the files: wall / CPU | "
         "beyond reading: wall / CPU |",
