@@ -133,6 +133,22 @@ def test_boundary_edges_are_the_edges_of_one_face(name):
         assert np.array_equal(adjacency.boundary_edges(soup, k), expected(soup, k))
 
 
+def test_edge_face_counts_in_numpy_are_scipys(monkeypatch):
+    """The two ways ``edge_face_counts`` counts (``adjacency.numpy_sparse``) agree on random soups:
+    repeated corners, edges of one to many faces, vertices of no face, no face at all."""
+    rng = np.random.default_rng(8)
+    soups = [rng.integers(0, k, size=(int(rng.integers(0, 60)), 3)) for k in rng.integers(3, 30, 200)]
+    for F in soups:
+        n = int(F.max(initial=0)) + 3
+        got = []
+        for numpy_path in (False, True):
+            monkeypatch.setattr(adjacency, "numpy_sparse", lambda n, on=numpy_path: on)
+            got.append(adjacency.edge_face_counts(F, n))
+        (e1, c1), (e2, c2) = got
+        assert e1.shape == e2.shape and np.array_equal(e1, e2) and np.array_equal(c1, c2)
+        assert e2.dtype == c2.dtype == np.int64
+
+
 def test_unique_values_are_those_of_np_unique():
     """``unique_values`` (a sort, not numpy 2's hash set) gives np.unique's values: integers with many
     repeats or none, any shape, floats, one value, none."""

@@ -9,6 +9,7 @@ vertex whose faces form several fans) and isolated (no face).
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -191,18 +192,39 @@ def component_labels(edges: np.ndarray) -> np.ndarray:
             root = up
 
 
+NUMPY_SPARSE = 50_000  # vertices: up to this many, the sparse work is done in numpy (``numpy_sparse``)
+
+
+def numpy_sparse(n_vertices: int) -> bool:
+    """Whether the sparse work on a mesh of ``n_vertices`` (``edge_face_counts``, the neighbour mean of
+    ``smoothing.mean_operator``) is done in numpy rather than by scipy.sparse: while scipy.sparse is not
+    loaded, for meshes up to NUMPY_SPARSE vertices. Both give the same answer, bit for bit. Why:
+    scipy.sparse's first import takes a fresh process 0.14 s (most of it scipy's array-API layer, which
+    imports numpy's lazily loaded submodules), more than numpy's sort and products lose on such a mesh
+    (a bunny cut in half, 17,000 vertices: 3 ms more); on Igea (134,000) they lose about as much as the
+    import (BENCHMARKS.md, ``session-28``)."""
+    return n_vertices <= NUMPY_SPARSE and "scipy.sparse" not in sys.modules
+
+
 def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
     """The undirected edges of the faces (m, 3), (e, 2) int64 with edges[:, 0] < edges[:, 1], sorted,
     and how many face sides lie on each, (e,) int64: the ``edges`` and ``edge_face_count`` of
-    ``build_adjacency`` (a degenerate face's repeated corner left out), from one sparse matrix whose
-    conversion to CSR sums the repeats: a third of its time, for callers that need nothing else."""
-    from scipy.sparse import coo_matrix
-
+    ``build_adjacency`` (a degenerate face's repeated corner left out), for callers that need nothing
+    else: from one sparse matrix whose conversion to CSR sums the repeats (a third of
+    ``build_adjacency``'s time), or, for a small mesh (``numpy_sparse``), by sorting the edges' keys."""
     n = int(n_vertices)
     a = np.asarray(faces, dtype=np.int64).ravel()
     b = np.roll(np.asarray(faces, dtype=np.int64).reshape(-1, 3), -1, axis=1).ravel()
     side = a != b
     a, b = a[side], b[side]
+    if numpy_sparse(n):
+        keys = np.sort(np.minimum(a, b) * n + np.maximum(a, b))
+        first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]]) if len(keys) else np.zeros(0, np.int64)
+        count = np.diff(np.r_[first, len(keys)])
+        k = keys[first]
+        return np.stack([k // n, k % n], axis=1), count.astype(np.int64)
+    from scipy.sparse import coo_matrix
+
     E = coo_matrix((np.ones(len(a)), (np.minimum(a, b), np.maximum(a, b))), shape=(n, n)).tocsr()
     edges = np.stack([np.repeat(np.arange(n), np.diff(E.indptr)), E.indices.astype(np.int64)], axis=1)
     return edges, E.data.astype(np.int64)
@@ -217,10 +239,10 @@ def boundary_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     (below 2^32, from a fixed seed; float64 sums, exact below 2^53) equal those over the half-edges into
     it. A vertex on a boundary edge breaks that but where the unmatched integers cancel (about 2^-32), and
     an edge is missed only when both its ends are. The edges at the vertices that break it are then
-    counted exactly, by sorting the keys of the faces around them. Why: a cut suspect's boundary is a small part of
-    it, and ``edge_face_counts`` needs ``scipy.sparse``, whose import (0.14 s, most of it scipy's
-    array-API layer) is paid by every fresh process that reads a cut suspect (BENCHMARKS.md,
-    ``session-28``)."""
+    counted exactly, by sorting the keys of the faces around them. Why: a cut suspect's boundary is a
+    small part of it (Igea cut by 10 %: 12 ms, against 20 ms for ``edge_face_counts`` by scipy.sparse and
+    13 ms for ``is_closed`` before it), and a fresh process reading a large cut suspect does not import
+    scipy.sparse for its cut planes (``numpy_sparse``; BENCHMARKS.md, ``session-28``)."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     n = int(n_vertices)
     a, b = f.ravel(), f[:, [1, 2, 0]].ravel()

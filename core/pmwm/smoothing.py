@@ -21,14 +21,15 @@ BENCHMARKS.md, ``blind-unsmoothing``).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from itertools import islice
 from typing import Iterator, Optional
 
 import numpy as np
 
-from .adjacency import edge_face_counts
+from .adjacency import edge_face_counts, numpy_sparse
 
-__all__ = ["neighbour_pairs", "mean_operator", "unsmoothing_steps", "smoothed"]
+__all__ = ["neighbour_pairs", "mean_operator", "NeighbourMean", "unsmoothing_steps", "smoothed"]
 
 
 def neighbour_pairs(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
@@ -50,18 +51,44 @@ def neighbour_pairs(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.nd
 
 
 def mean_operator(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None):
-    """The neighbour-mean operator M, a sparse (n, n) CSR matrix: row i averages vertex i's neighbours
-    (``neighbour_pairs``, and its ``edge_counts``); a vertex with none keeps itself (M V = V there: it
-    never moves)."""
-    from scipy.sparse import coo_matrix
-
+    """The neighbour-mean operator M, (n, n), for products ``M @ X``, X (n, k): row i averages vertex i's
+    neighbours (``neighbour_pairs``, and its ``edge_counts``); a vertex with none keeps itself (M V = V
+    there: it never moves). A scipy.sparse CSR matrix, or, for a small mesh
+    (``adjacency.numpy_sparse``), a ``NeighbourMean`` that gives its products bit for bit."""
     owner, nbr = neighbour_pairs(faces, n, edge_counts)
     count = np.bincount(owner, minlength=n).astype(np.float64)
     alone = np.flatnonzero(count == 0)
     rows = np.concatenate([owner, alone])
     cols = np.concatenate([nbr, alone])
     weight = np.concatenate([1.0 / count[owner], np.ones(len(alone))])
+    if numpy_sparse(n):
+        order = np.argsort(rows * n + cols)  # CSR's order (each pair is there once)
+        return NeighbourMean(rows[order], cols[order], weight[order], n)
+    from scipy.sparse import coo_matrix
+
     return coo_matrix((weight, (rows, cols)), shape=(n, n)).tocsr()
+
+
+@dataclass(frozen=True)
+class NeighbourMean:
+    """The neighbour-mean operator of ``mean_operator`` as its entries in CSR order (by row, then column):
+    rows, cols (p,) int64, weights (p,) float64, over n vertices. Its product sums each row's terms in
+    that order, one row at a time from zero, as scipy's CSR product does, so the two agree bit for bit."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    weights: np.ndarray
+    n: int
+
+    def __matmul__(self, X: np.ndarray) -> np.ndarray:
+        """M X for X (n, k) (or (n,)): (n, k) float64."""
+        X = np.asarray(X, dtype=np.float64)
+        if X.ndim == 1:
+            return np.bincount(self.rows, self.weights * X[self.cols], self.n)
+        out = np.empty((self.n, X.shape[1]))
+        for c in range(X.shape[1]):
+            out[:, c] = np.bincount(self.rows, self.weights * X[self.cols, c], self.n)
+        return out
 
 
 def unsmoothing_steps(vertices: np.ndarray, operator, lam: float) -> Iterator[np.ndarray]:

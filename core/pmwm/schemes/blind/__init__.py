@@ -81,8 +81,8 @@ from ...validate import check_mesh
 from . import frames, radial, word
 from .keydata import BlindKeyData
 
-__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "read_with_passphrase", "bin_statistics", "decide",
-           "Statistics", "word_read", "mesh_read", "BlindKeyData"]
+__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "read_with_passphrase",
+           "bin_statistics", "decide", "Statistics", "word_read", "mesh_read", "BlindKeyData"]
 
 DEFAULT_ALPHA = 0.07
 TARGET_MRMS = 0.019  # without an explicit strength: the margin giving this MRMS (% of the bbox diagonal)
