@@ -199,10 +199,10 @@ def numpy_sparse(n_vertices: int) -> bool:
     """Whether the sparse work on a mesh of ``n_vertices`` (``edge_face_counts``, the neighbour mean of
     ``smoothing.mean_operator``) is done in numpy rather than by scipy.sparse: while scipy.sparse is not
     loaded, for meshes up to NUMPY_SPARSE vertices. Both give the same answer, bit for bit. Why:
-    scipy.sparse's first import takes a fresh process 0.14 s (most of it scipy's array-API layer, which
-    imports numpy's lazily loaded submodules), more than numpy's sort and products lose on such a mesh
-    (a bunny cut in half, 17,000 vertices: 3 ms more); on Igea (134,000) they lose about as much as the
-    import (BENCHMARKS.md, ``session-28``)."""
+    scipy.sparse's first import takes a fresh process 0.11-0.17 s (most of it scipy's array-API layer,
+    which imports numpy's lazily loaded submodules), more than numpy's sorts and products lose on such a
+    mesh (the bundled bunny cut in half, 17,000 vertices, read as a cut suspect: about 10 ms); on Igea
+    (134,000) they would lose more than the import (BENCHMARKS.md, ``session-28``)."""
     return n_vertices <= NUMPY_SPARSE and "scipy.sparse" not in sys.modules
 
 
@@ -218,7 +218,7 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np
     side = a != b
     a, b = a[side], b[side]
     if numpy_sparse(n):
-        keys = np.sort(np.minimum(a, b) * n + np.maximum(a, b))
+        keys = stable_order(np.minimum(a, b) * n + np.maximum(a, b))[1]
         first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]]) if len(keys) else np.zeros(0, np.int64)
         count = np.diff(np.r_[first, len(keys)])
         k = keys[first]
@@ -251,7 +251,7 @@ def boundary_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     near = f[broken[f].any(axis=1)]
     a, b = near.ravel(), near[:, [1, 2, 0]].ravel()
     side = a != b
-    keys = np.sort(np.minimum(a, b)[side] * n + np.maximum(a, b)[side])
+    keys = stable_order(np.minimum(a, b)[side] * n + np.maximum(a, b)[side])[1]
     alone = np.ones(len(keys), bool)
     same = keys[1:] == keys[:-1]
     alone[1:] &= ~same

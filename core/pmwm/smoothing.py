@@ -27,7 +27,7 @@ from typing import Iterator, Optional
 
 import numpy as np
 
-from .adjacency import edge_face_counts, numpy_sparse
+from .adjacency import edge_face_counts, numpy_sparse, stable_order
 
 __all__ = ["neighbour_pairs", "mean_operator", "NeighbourMean", "unsmoothing_steps", "smoothed"]
 
@@ -62,7 +62,7 @@ def mean_operator(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndar
     cols = np.concatenate([nbr, alone])
     weight = np.concatenate([1.0 / count[owner], np.ones(len(alone))])
     if numpy_sparse(n):
-        order = np.argsort(rows * n + cols)  # CSR's order (each pair is there once)
+        order = stable_order(rows * n + cols)[0]  # CSR's order (each pair is there once)
         return NeighbourMean(rows[order], cols[order], weight[order], n)
     from scipy.sparse import coo_matrix
 
@@ -85,10 +85,8 @@ class NeighbourMean:
         X = np.asarray(X, dtype=np.float64)
         if X.ndim == 1:
             return np.bincount(self.rows, self.weights * X[self.cols], self.n)
-        out = np.empty((self.n, X.shape[1]))
-        for c in range(X.shape[1]):
-            out[:, c] = np.bincount(self.rows, self.weights * X[self.cols, c], self.n)
-        return out
+        XT = np.ascontiguousarray(X.T)  # (columns gathered from contiguous rows: a third faster)
+        return np.stack([np.bincount(self.rows, self.weights * x.take(self.cols), self.n) for x in XT], axis=1)
 
 
 def unsmoothing_steps(vertices: np.ndarray, operator, lam: float) -> Iterator[np.ndarray]:
