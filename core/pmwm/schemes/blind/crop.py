@@ -137,7 +137,7 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
         return []
     loop = component_labels(E)
     mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]])
-    length = np.linalg.norm(V[E[:, 1]] - V[E[:, 0]], axis=1)
+    length = row_norms(V[E[:, 1]] - V[E[:, 0]])
     loops, size = np.unique(loop, return_counts=True)
     flat = []
     for k in loops[np.argsort(-size, kind="stable")][:MAX_LOOPS]:
@@ -193,7 +193,7 @@ def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.nd
     off = np.asarray(LAYERS, float) * width  # the family's plane and its copies off it
     C = (C[None] + off[:, None, None] * N[None]).reshape(-1, 3)
     L, N = np.tile(L, len(off)), np.tile(N, (len(off), 1))
-    near = np.linalg.norm(C - c, axis=1) <= REACH * width
+    near = row_norms(C - c) <= REACH * width
     first = np.flatnonzero(near)[_spread(C[near] - c, LATTICE * width)]
     return C[first], L[first], N[first]
 
@@ -337,7 +337,7 @@ def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarra
     ``lam`` its share taken) and bin width (within FINE_HALF steps of FINE_STEP of the width where the
     radii add up in phase, within SCREEN_WIDTHS times ``width``) show the most mark energy on the
     vertices P (k, 3) with reader weights a (k,) and areas (k,); and that energy."""
-    rho = np.linalg.norm(P - centre, axis=1)[None]
+    rho = row_norms(P - centre)[None]
     lo = np.array([low_quantile(rho[0], area, QUANTILES[0] / (1.0 - lam))])
     # the widths near the one where the radii add up in phase, at a few phases; then the widths of
     # most energy at every phase

@@ -60,7 +60,7 @@ import numpy as np
 
 from ...adjacency import edge_face_counts
 from ...errors import MeshError
-from ...features import vertex_areas
+from ...features import row_norms, vertex_areas
 from ...metrics import bbox_diagonal
 from ...smoothing import mean_operator, smoothed, unsmoothing_steps
 from ...subdivision import coarse_mesh
@@ -242,7 +242,7 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
             if bbox_diagonal(X[sub]) >= scan_limit:  # (steps back amplifying what smoothing never damped)
                 break
             centre = weight @ X
-            lo, hi = weighted_quantiles(np.linalg.norm(X[sub] - centre, axis=1)[None], area[sub], [QUANTILES])[0]
+            lo, hi = weighted_quantiles(row_norms(X[sub] - centre)[None], area[sub], [QUANTILES])[0]
             if hi > lo:
                 scan[m] = max(excess_energy(st, share, len(sub))
                               for st, share in statistics_in(X[sub], ones, Frame(centre, lo, hi, 1), bin_counts))

@@ -160,7 +160,7 @@ class Binned:
 
 def bin_vertices(V: np.ndarray, fr: Frame) -> Binned:
     d = V - fr.centre
-    rho = np.linalg.norm(d, axis=1)
+    rho = row_norms(d)
     unit = np.divide(d, rho[:, None], out=np.zeros_like(d), where=rho[:, None] > 0)
     b, r = _bins((rho - fr.lo) / fr.width, fr.n_bins)
     return Binned(rho, unit, b, r)
