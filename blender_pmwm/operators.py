@@ -250,11 +250,13 @@ class VerifyTask(_Task):
 
         ob = _active_mesh(context)
         self.blind = context.scene.pmwm.scheme == "blind"
+        self.passphrase = None
         if self.blind:
             phrase = props.passphrase(context)
             if not phrase:
                 raise _Failed("the Blind scheme needs a Pass Phrase: type it in the Mark panel")
-            self.key = pmwm.schemes.blind.key_from_passphrase(phrase)  # the derived secret only
+            # (its secret is derived by pmwm.verify, beside the reading, off the interface's thread)
+            self.key, self.passphrase = None, phrase
             self.key_path = self.key_sha256 = ""
             self._remember_mesh(ob)
             return
@@ -271,7 +273,7 @@ class VerifyTask(_Task):
     def compute(self, progress):
         import pmwm
 
-        return pmwm.verify(self.V, self.F, self.key)
+        return pmwm.verify(self.V, self.F, self.key, passphrase=self.passphrase)
 
     def finish(self, context, verdict, report):
         ob = self.current_object()
