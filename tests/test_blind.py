@@ -1040,4 +1040,5 @@ def test_a_small_cut_suspect_is_read_without_importing_scipy_sparse(tmp_path):
     out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, env=env,
                          timeout=300)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["False", "crop", "False"]
+    marked, frame, loaded = out.stdout.split()
+    assert marked == "False" and frame.startswith("crop") and loaded == "False"  # (read in a crop frame)
