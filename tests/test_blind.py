@@ -1026,19 +1026,17 @@ def test_a_fresh_process_reads_a_cropped_copy_without_scipys_graph_module(marked
 
 
 def test_a_small_cut_suspect_is_read_without_importing_scipy_sparse(tmp_path):
-    """``pmwm verify`` of a small suspect cut by a plane (the bundled bunny's half, unmarked: the crop
-    search, then the subdivision and smoothing looks) needs no scipy.sparse, whose first import costs a
-    fresh process 0.14 s (``adjacency.boundary_edges``, ``adjacency.numpy_sparse``); a larger one
-    still uses it, with the same answer (``test_smoothing``)."""
-    V, F = A.crop_plane(*meshes.bunny(), 0.5, seed=2)
-    path = tmp_path / "half.ply"
-    write_mesh(path, V, F)
-    code = ("import sys, pmwm\nfrom pmwm.meshio import read_mesh\nm = read_mesh(sys.argv[1])\n"
+    """``pmwm verify`` of a small suspect cut by a plane and not read (the bundled bunny's half, unmarked:
+    the crop search, then the subdivision and smoothing looks) needs no scipy.sparse, whose first import
+    costs a fresh process 0.11-0.17 s (``adjacency.boundary_edges``, ``adjacency.numpy_sparse``); a larger
+    one still uses it, with the same answer (``test_smoothing``)."""
+    from test_background import _fresh_process
+
+    write_mesh(tmp_path / "half.ply", *A.crop_plane(*meshes.bunny(), 0.5, seed=2))
+    code = ("import sys, pmwm\n"
+            "from pmwm.meshio import read_mesh\n"
+            f"m = read_mesh({str(tmp_path / 'half.ply')!r})\n"
             "v = pmwm.verify(m.vertices, m.faces, passphrase='a phrase')\n"
-            "print(v.marked, v.extra['frame'], 'scipy.sparse' in sys.modules)")
-    env = dict(os.environ, PYTHONPATH=str(Path(pmwm.__file__).parent.parent))
-    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, env=env,
-                         timeout=300)
-    assert out.returncode == 0, out.stderr
-    marked, frame, loaded = out.stdout.split()
-    assert marked == "False" and frame.startswith("crop") and loaded == "False"  # (read in a crop frame)
+            "assert not v.marked and v.extra['frame'].startswith('crop'), v.extra\n"
+            "assert 'scipy.sparse' not in sys.modules\n")
+    _fresh_process(code)

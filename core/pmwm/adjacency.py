@@ -218,16 +218,22 @@ def edge_face_counts(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np
     side = a != b
     a, b = a[side], b[side]
     if numpy_sparse(n):
-        keys = stable_order(np.minimum(a, b) * n + np.maximum(a, b))[1]
-        first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]]) if len(keys) else np.zeros(0, np.int64)
-        count = np.diff(np.r_[first, len(keys)])
-        k = keys[first]
-        return np.stack([k // n, k % n], axis=1), count.astype(np.int64)
+        return _counted_edges(a, b, n)
     from scipy.sparse import coo_matrix
 
     E = coo_matrix((np.ones(len(a)), (np.minimum(a, b), np.maximum(a, b))), shape=(n, n)).tocsr()
     edges = np.stack([np.repeat(np.arange(n), np.diff(E.indptr)), E.indices.astype(np.int64)], axis=1)
     return edges, E.data.astype(np.int64)
+
+
+def _counted_edges(a: np.ndarray, b: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct undirected edges of the sides a -> b (s,) int64 (a != b), (e, 2) int64 sorted, and
+    how many sides lie on each, (e,) int64: by sorting their keys (``stable_order``'s radix passes)."""
+    keys = stable_order(np.minimum(a, b) * n + np.maximum(a, b))[1]
+    first = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]]) if len(keys) else np.zeros(0, np.int64)
+    count = np.diff(np.r_[first, len(keys)]).astype(np.int64)
+    k = keys[first]
+    return np.stack([k // n, k % n], axis=1), count
 
 
 def boundary_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -251,13 +257,8 @@ def boundary_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     near = f[broken[f].any(axis=1)]
     a, b = near.ravel(), near[:, [1, 2, 0]].ravel()
     side = a != b
-    keys = stable_order(np.minimum(a, b)[side] * n + np.maximum(a, b)[side])[1]
-    alone = np.ones(len(keys), bool)
-    same = keys[1:] == keys[:-1]
-    alone[1:] &= ~same
-    alone[:-1] &= ~same
-    k = keys[alone]
-    E = np.stack([k // n, k % n], axis=1)
+    E, count = _counted_edges(a[side], b[side], n)
+    E = E[count == 1]
     return E[broken[E].any(axis=1)]  # (an edge with neither end broken may lack its other face here)
 
 

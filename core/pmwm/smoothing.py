@@ -81,12 +81,11 @@ class NeighbourMean:
     n: int
 
     def __matmul__(self, X: np.ndarray) -> np.ndarray:
-        """M X for X (n, k) (or (n,)): (n, k) float64."""
+        """M X for X (n, k) or (n,): float64 of X's shape."""
         X = np.asarray(X, dtype=np.float64)
-        if X.ndim == 1:
-            return np.bincount(self.rows, self.weights * X[self.cols], self.n)
-        XT = np.ascontiguousarray(X.T)  # (columns gathered from contiguous rows: a third faster)
-        return np.stack([np.bincount(self.rows, self.weights * x.take(self.cols), self.n) for x in XT], axis=1)
+        XT = np.ascontiguousarray(X.reshape(self.n, -1).T)  # (columns gathered from contiguous rows: faster)
+        out = np.stack([np.bincount(self.rows, self.weights * x.take(self.cols), self.n) for x in XT], axis=1)
+        return out.reshape(X.shape)
 
 
 def unsmoothing_steps(vertices: np.ndarray, operator, lam: float) -> Iterator[np.ndarray]:
