@@ -756,6 +756,25 @@ def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marke
     assert not (plain.marked and plain.payload == "Acme")
 
 
+@pytest.mark.parametrize("case", [3, 29, 34])
+def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny, case, monkeypatch):
+    """The bundled bunny marked at the fixed margin DEFAULT_ALPHA (weaker than the calibrated default), then
+    0.5 % noise: read in its "denoised" frames refined on all of its 34,835 vertices
+    (``frames.DENOISE_REFINE_SAMPLE``), the whole payload; refined on the 17,418 of the other frames'
+    sample (``radial.REFINE_SAMPLE``), not: its bins are blurred, and the sample's own noise moves the
+    frame off the mark."""
+    v, f = bunny
+    phrase = f"case {case}"
+    res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", passphrase=phrase, payload="studio", seed=case,
+                                             strength=blind.DEFAULT_ALPHA, progressive=False))
+    V, F = A.noise_benchmark(res.vertices, f, amplitude=0.005, seed=case)
+    got = pmwm.verify(V, F, passphrase=phrase)
+    assert got.marked and got.payload == "studio" and got.extra["frame"] == "denoised-refined"
+    monkeypatch.setattr(frames, "DENOISE_REFINE_SAMPLE", radial.REFINE_SAMPLE)
+    sampled = pmwm.verify(V, F, passphrase=phrase)
+    assert not (sampled.marked and sampled.payload == "studio")
+
+
 def test_the_equalizer_recovers_signs_blurred_into_their_neighbours_and_leaves_clean_bins_alone():
     rng = np.random.default_rng(2)
     s = rng.choice([-1.0, 1.0], 64)

@@ -65,8 +65,8 @@ from ...metrics import bbox_diagonal
 from ...smoothing import mean_operator, smoothed, unsmoothing_steps
 from ...subdivision import coarse_mesh
 from .crop import crop_frames, cut_planes
-from .radial import (QUANTILES, Frame, by_distance, excess_energy, frame_of_areas, in_standard_errors, interferes,
-                     refine_frame, statistics_in, thinned, weighted_quantiles)
+from .radial import (QUANTILES, REFINE_SAMPLE, Frame, by_distance, excess_energy, frame_of_areas, in_standard_errors,
+                     interferes, refine_frame, statistics_in, thinned, weighted_quantiles)
 
 CROP_MAX_BINS = 96  # the crop search reads words of up to this many bins (payloads up to 64 bits)
 FULL_VIEW = 2.5e-3  # the mark in full view: the own or refined frame shows this much excess energy per vertex
@@ -87,6 +87,8 @@ UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count ar
 UNSMOOTH_GROWTH = 1.1  # no count at which the steps back have grown the mesh's bounding box by this factor
 DENOISE_LAM = 0.1  # a reading whose bins show interference is also read after DENOISE_STEPS steps of smoothing
 DENOISE_STEPS = 3  # of this share
+DENOISE_REFINE_SAMPLE = 60000  # and its refined frame is searched on this many vertices at most (REFINE_SAMPLE
+# for the others): its bins are blurred, so the sample's own noise moves the frame more
 
 
 @dataclass
@@ -181,10 +183,19 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
     iterations, 50 and 70 % simplification, Loop, Loop then 8-bit, a 10 % plane crop, none): 231 read
     against 219, none lost, the same with the extra frames on every copy not in full view or on the 49
     whose bins show the blur; 2 or 4 steps instead of 3 read 226 and 223. Not after a crop frame: its 6
-    frames already spend the p-value's budget down to 8 Chase bits."""
+    frames already spend the p-value's budget down to 8 Chase bits.
+
+    The denoised refined frame is searched on up to DENOISE_REFINE_SAMPLE vertices, where the other frames'
+    search takes REFINE_SAMPLE: with the mark blurred, the sample's own noise moves the frame the search
+    finds. Measured on the bundled bunny (34,835 vertices: every vertex against every second one) marked
+    at margins 0.05, 0.06 and 0.07 with 80 pass phrases, the 395 copies of 8-bit quantization and 0.5 %
+    noise read in these frames: 215 whole payloads against 195 (24 gained, 4 lost); Igea's 8-bit copy of the
+    benchmark's key 1008 is read (every vertex's third; not with every fourth). It costs a suspect that
+    takes this path about 0.03 s on Igea (134,345 vertices), an unmarked Igea among them; every vertex would
+    cost 0.13-0.2 s (BENCHMARKS.md, ``session-29``)."""
     X = smoothed(V, operator, DENOISE_LAM, DENOISE_STEPS)
     try:
-        more = read_statistics_frames(X, F, bin_counts, crop=False)
+        more = read_statistics_frames(X, F, bin_counts, crop=False, refine_sample=DENOISE_REFINE_SAMPLE)
     except MeshError:  # (smoothing flattened the surface to no area or no range: nothing more to read)
         return got
     names = tuple("denoised" if n == "own" else f"denoised-{n}" for n in more.names)
@@ -294,10 +305,12 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, limi
 
 
 def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
-                           area: Optional[np.ndarray] = None, crop: bool = True) -> Frames:
+                           area: Optional[np.ndarray] = None, crop: bool = True,
+                           refine_sample: int = REFINE_SAMPLE) -> Frames:
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
-    frames of the module docstring (with ``crop`` False, the own and refined frames only). ``area`` (n,):
-    its ``vertex_areas``, when the caller has them."""
+    frames of the module docstring (with ``crop`` False, the own and refined frames only; the refined
+    one searched on ``refine_sample`` vertices at most, ``radial.refine_frame``). ``area`` (n,): its
+    ``vertex_areas``, when the caller has them."""
     counts = list(bin_counts)
     area = vertex_areas(V, F) if area is None else area
     fr, a = frame_of_areas(V, area, 1)
@@ -306,7 +319,7 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
     z_own = [excess_energy(stat, share, total) for stat, share in own]
     index = int(np.argmax(z_own))
     second, name, z = None, "", z_own[index]
-    ref = refine_frame(V, a, fr, counts[index])
+    ref = refine_frame(V, a, fr, counts[index], refine_sample)
     if not (np.array_equal(ref.centre, fr.centre) and ref.lo == fr.lo and ref.hi == fr.hi):
         second, name = ref, "refined"
         z = excess_energy(*statistics_in(V, a, ref, [counts[index]])[0], total)

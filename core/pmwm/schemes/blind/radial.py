@@ -556,13 +556,14 @@ def in_phase(rho: np.ndarray, cell: float, w_min: float, w_max: float, pad: int)
     return power.max(1), n_fft * cell / (k_lo + np.argmax(power, axis=1))
 
 
-def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int) -> Frame:
+def refine_frame(V: np.ndarray, a: np.ndarray, fr: Frame, n_bins: int, sample: int = REFINE_SAMPLE) -> Frame:
     """The frame near ``fr`` (centre, lo, hi within ``REFINE_BOUND`` bin widths of n_bins bins) that
     maximises the mark's ``energies``: a compass search over the 5 parameters on a subsample of the
-    vertices. Attacks that move the frame by a fraction of a bin (simplification, noise,
-    quantisation) leave the marked bins' bias in place; this finds the frame that shows it again.
-    Key-independent: the reader may use it without counting it as a choice made with the secret."""
-    sub = thinned(by_distance(V, a, fr.centre), REFINE_SAMPLE)
+    vertices (every k-th by distance to the centre, ``sample`` of them at most). Attacks that move the
+    frame by a fraction of a bin (simplification, noise, quantisation) leave the marked bins' bias in
+    place; this finds the frame that shows it again. Key-independent: the reader may use it without
+    counting it as a choice made with the secret."""
+    sub = thinned(by_distance(V, a, fr.centre), sample)
     return refine_frame_on(V[sub], a[sub], fr, n_bins)
 
 
