@@ -59,6 +59,7 @@ from typing import Optional
 import numpy as np
 
 from ...adjacency import edge_face_counts
+from ...background import Background, beside
 from ...errors import MeshError
 from ...features import row_norms, vertex_areas
 from ...metrics import bbox_diagonal
@@ -157,19 +158,32 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
         V, F = coarse.vertices, coarse.faces
     if got.energy < FULL_VIEW:
         operator = mean_operator(F0, len(V0), counts0)
-        steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area, operator)
-        if steps is not None:
-            got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
-        if "crop" not in got.names and interferes(in_standard_errors(*got.statistics[0][got.index])):
-            got = with_denoised(got, V0, F0, bin_counts, operator)
+        # a reading that shows the blur already has its denoised frames measured in a worker beside the
+        # unsmoothing scan (which seldom replaces the reading): on two cores the two overlap
+        blurred = _blurred(got)
+        with beside(blurred, denoised_frames, V0, F0, bin_counts, operator) as measuring:
+            steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area, operator)
+            if steps is not None:
+                got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
+                blurred = _blurred(got)
+            if blurred:
+                got = with_denoised(got, V0, F0, bin_counts, operator, measuring)
     return got
 
 
-def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operator) -> Frames:
+def _blurred(got: Frames) -> bool:
+    """Whether the reading ``got`` is also read in denoised frames: its own frame's bins show their
+    neighbours' interference (``radial.interferes``) and no crop frame was taken."""
+    return "crop" not in got.names and interferes(in_standard_errors(*got.statistics[0][got.index]))
+
+
+def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operator,
+                  measuring: Optional[Background] = None) -> Frames:
     """``got`` with the own and refined frames of the suspect V (n, 3), F (m, 3) after DENOISE_STEPS steps of
     uniform Laplacian smoothing (``pmwm.smoothing.smoothed``, DENOISE_LAM each; ``operator``, its
     ``mean_operator``) read too, named "denoised" and "denoised-refined" (their mesh: ``mesh_of``); the
-    word length read stays ``got``'s.
+    word length read stays ``got``'s. ``measuring``: a ``Background`` already measuring them
+    (``denoised_frames``), else they are measured here.
 
     Why: 8-bit quantization and 0.5 % noise move every vertex by a good part of a bin, independently of
     its neighbours, and blur the radii across the bins' edges; the mark is smooth over the surface, so a
@@ -193,13 +207,23 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
     benchmark's key 1008 is read (every vertex's third; not with every fourth). It costs a suspect that
     takes this path about 0.03 s on Igea (134,345 vertices), an unmarked Igea among them; every vertex would
     cost 0.13-0.2 s (BENCHMARKS.md, ``session-29``)."""
-    X = smoothed(V, operator, DENOISE_LAM, DENOISE_STEPS)
-    try:
-        more = read_statistics_frames(X, F, bin_counts, crop=False, refine_sample=DENOISE_REFINE_SAMPLE)
-    except MeshError:  # (smoothing flattened the surface to no area or no range: nothing more to read)
+    more = measuring.result() if measuring is not None else denoised_frames(V, F, bin_counts, operator)
+    if more is None:
         return got
     names = tuple("denoised" if n == "own" else f"denoised-{n}" for n in more.names)
     return dataclasses.replace(got, names=got.names + names, statistics=got.statistics + more.statistics)
+
+
+def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator, progress=None) -> Optional[Frames]:
+    """The own and refined frames (``read_statistics_frames``, no crop search) of the suspect V (n, 3), F (m, 3)
+    after DENOISE_STEPS steps of smoothing (``operator``: its ``mean_operator``), for ``with_denoised``;
+    None when smoothing flattened the surface to no area or no range. ``progress`` is not called (a
+    ``Background`` worker's keyword)."""
+    X = smoothed(V, operator, DENOISE_LAM, DENOISE_STEPS)
+    try:
+        return read_statistics_frames(X, F, bin_counts, crop=False, refine_sample=DENOISE_REFINE_SAMPLE)
+    except MeshError:
+        return None
 
 
 def mesh_of(name: str, mesh: str) -> str:
