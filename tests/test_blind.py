@@ -3,6 +3,7 @@ no key file; the same pass phrase over many meshes; the command line and its err
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -773,6 +774,36 @@ def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny
     monkeypatch.setattr(frames, "DENOISE_REFINE_SAMPLE", radial.REFINE_SAMPLE)
     sampled = pmwm.verify(V, F, passphrase=phrase)
     assert not (sampled.marked and sampled.payload == "studio")
+
+
+def test_a_blurred_readings_denoised_frames_are_measured_in_a_worker_with_the_same_result(marked, monkeypatch):
+    """A copy whose bins show the blur (the bunny quantized to 7 bits) has its denoised frames measured in a
+    worker thread beside the unsmoothing scan (``frames.denoised_frames``): the same statistics, frames and
+    verdict as measured in the caller's thread, and no thread outlives the reading."""
+    V, F = A.quantize(marked.vertices, marked.faces, bits=7)
+    where = []
+    measure = frames.denoised_frames
+
+    def recorded(*args, **kwargs):
+        where.append(threading.current_thread().name)
+        return measure(*args, **kwargs)
+
+    monkeypatch.setattr(frames, "denoised_frames", recorded)
+    before = threading.active_count()
+    beside = blind.bin_statistics(V, F)
+    assert threading.active_count() == before
+    assert len(where) == 1 and where[0].startswith("pmwm-background")
+    assert any(n.startswith("denoised") for n in beside.frame_names)
+    monkeypatch.setattr(frames, "beside", lambda enabled, fn, *a, **k: contextlib.nullcontext())
+    alone = blind.bin_statistics(V, F)
+    assert len(where) == 2 and where[1] == threading.current_thread().name
+    assert alone.frame_names == beside.frame_names and alone.n_word == beside.n_word
+    for n in alone.words:
+        np.testing.assert_array_equal(alone.words[n], beside.words[n])
+        np.testing.assert_array_equal(alone.shares[n], beside.shares[n])
+    a, b = blind.decide(alone, marked.key.secret), blind.decide(beside, marked.key.secret)
+    assert (a.marked, a.bits, a.p_value, a.extra["frame"]) == (b.marked, b.bits, b.p_value, b.extra["frame"])
+    assert a.marked and a.payload == "Acme"
 
 
 def test_the_equalizer_recovers_signs_blurred_into_their_neighbours_and_leaves_clean_bins_alone():
