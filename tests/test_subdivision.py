@@ -139,3 +139,26 @@ def test_a_one_to_four_copy_with_quads_turned_is_still_undone():
     c = coarse_mesh(V, F)
     assert c is not None and c.rule == "midpoint" and len(c.vertices) == n0 and c.residual < 1e-9
     assert np.array_equal(c.vertices, V[c.original]) and np.allclose(np.sort(c.vertices, axis=0), np.sort(V0, axis=0))
+
+
+@pytest.mark.parametrize("mesh", ["bunny", "open_cap", "cad_part", "pinched_torus", "blob"])
+def test_the_components_in_numpy_and_in_scipy_undo_the_same_steps(mesh, monkeypatch):
+    """A small mesh's components come from numpy (``adjacency.component_labels``: no scipy.sparse import),
+    a large one's from scipy's ``connected_components``: the same coarse mesh either way, for every kind
+    of step, shuffled, and none for a mesh that is no subdivision."""
+    from pmwm import subdivision
+
+    V, F = getattr(meshes, mesh)()
+    copies = [(V, F)] + [reordered(*A.subdivide(V, F, s), seed=2)[:2] for s in ("midpoint", "loop", "sqrt3",
+                                                                                "catmull-clark")]
+    for S, SF in copies:
+        got = []
+        for small in (True, False):
+            monkeypatch.setattr(subdivision, "numpy_sparse", lambda n, small=small: small)
+            got.append(coarse_mesh(S, SF))
+        a, b = got
+        assert (a is None) == (b is None)
+        if a is not None:
+            assert a.rule == b.rule and a.residual == b.residual
+            for x, y in ((a.vertices, b.vertices), (a.faces, b.faces), (a.original, b.original)):
+                np.testing.assert_array_equal(x, y)
