@@ -21,11 +21,11 @@ edge (a, b) runs a, new, new, b, new, new); two steps apart, both original or bo
 step (a face vertex's ring alternates original and new). The connected components of those pairs
 (``_components``: numpy's on a small mesh, ``scipy.sparse.csgraph``'s on a large one) that hold no edge
 of the mesh between two of their vertices (interior edges: a sqrt(3) step may keep the boundary's
-original edges) are the candidates, and the structure is
-then checked in full (``coarse_mesh``); a mesh that is not a subdivision fails the check. After a
-Catmull-Clark step no vertex touches one of its own kind, and the kinds follow from the face counts and
-the neighbours (``_catmull_clark``); looked for only when at least a fifth as many vertices as faces are
-in 4 faces or 2 (the edge points), which few meshes have.
+original edges) are the candidates, and the structure is then checked in full (``coarse_mesh``); a
+mesh that is not a subdivision fails the check. After a Catmull-Clark step no vertex touches one of its
+own kind, and the kinds follow from the face counts and the neighbours (``_catmull_clark``); looked for
+only when at least a fifth as many vertices as faces are in 4 faces or 2 (the edge points), which few
+meshes have.
 
 Everything here is from the suspect alone (no key, no pass phrase).
 """

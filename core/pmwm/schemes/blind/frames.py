@@ -204,7 +204,7 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
     finds. Measured on the bundled bunny (34,835 vertices: every vertex against every second one) marked
     at margins 0.05, 0.06 and 0.07 with 80 pass phrases, the 395 copies of 8-bit quantization and 0.5 %
     noise read in these frames: 215 whole payloads against 195 (24 gained, 4 lost); Igea's 8-bit copy of the
-    benchmark's key 1008 is read (every vertex's third; not with every fourth). It costs a suspect that
+    benchmark's key 1008 is read (searched on every third vertex; not on every fourth). It costs a suspect that
     takes this path about 0.03 s on Igea (134,345 vertices), an unmarked Igea among them; every vertex would
     cost 0.13-0.2 s (BENCHMARKS.md, ``session-29``)."""
     more = measuring.result() if measuring is not None else denoised_frames(V, F, bin_counts, operator)
