@@ -12,7 +12,7 @@ import pytest
 
 import pmwm
 from pmwm import spatial
-from pmwm.background import Background, Later, parallel_map
+from pmwm.background import Background, Later, parallel_map, silent
 from pmwm.errors import MeshError
 from pmwm.pmfile import from_bytes, to_bytes
 
@@ -97,6 +97,21 @@ def test_a_worker_waiting_for_a_value_the_caller_never_supplies_stops_when_the_c
             raise RuntimeError("no value for the worker")
     assert got == []  # released without a value, and joined: no thread is left waiting
     assert not [t for t in threading.enumerate() if t.name.startswith("pmwm-background")]
+
+
+def test_a_silent_worker_runs_a_function_that_takes_no_progress_and_gives_its_result():
+    calls = []
+
+    def plain(x, y=0):  # (no progress keyword: Background would pass one)
+        calls.append(threading.current_thread().name)
+        return x + y
+
+    with pytest.raises(TypeError):
+        with Background(plain, 1) as job:
+            job.result()
+    with Background(silent(plain), 2, y=3) as job:
+        assert job.result() == 5
+    assert calls[-1].startswith("pmwm-background") and calls[-1] != threading.current_thread().name
 
 
 def test_parallel_map_keeps_the_order_of_its_items_whatever_order_the_calls_end_in():

@@ -115,6 +115,15 @@ class Background:
             self._pool.shutdown(wait=True)
 
 
+def silent(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``fn`` as a ``Background`` worker that reports no progress: the wrapper takes the ``progress`` keyword
+    and drops it (such a worker cannot be stopped early: the caller's leaving waits for it to end)."""
+    def worker(*args: Any, progress: Callable[[float, str], None], **kwargs: Any) -> Any:
+        return fn(*args, **kwargs)
+
+    return worker
+
+
 def beside(enabled: bool, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> AbstractContextManager:
     """``Background(fn, *args, **kwargs)`` when ``enabled``, else a context that gives None: the
     embedders build a progressive mesh beside their work only when one is asked for

@@ -72,7 +72,7 @@ from typing import Optional
 import numpy as np
 
 from ... import metrics
-from ...background import Background, beside
+from ...background import Background, beside, silent
 from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
 from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
@@ -286,14 +286,9 @@ def read_with_passphrase(vertices, faces, passphrase: str, p_threshold: float = 
     which need none: hashlib's scrypt (``word.SCRYPT``, about 0.05 s) releases the GIL, so the derivation
     costs a cut suspect's reading no time on two cores."""
     word.check_passphrase(passphrase)
-    with Background(_secret_of, passphrase) as deriving:
+    with Background(silent(word.derive_secret), passphrase) as deriving:
         stats = bin_statistics(vertices, faces)
         return decide(stats, deriving.result(), p_threshold)
-
-
-def _secret_of(passphrase: str, progress) -> str:
-    """``word.derive_secret`` as a ``Background`` worker (nothing to report)."""
-    return word.derive_secret(passphrase)
 
 
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:

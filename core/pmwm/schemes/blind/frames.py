@@ -59,7 +59,7 @@ from typing import Optional
 import numpy as np
 
 from ...adjacency import edge_face_counts
-from ...background import Background, beside
+from ...background import Background, beside, silent
 from ...errors import MeshError
 from ...features import row_norms, vertex_areas
 from ...metrics import bbox_diagonal
@@ -161,7 +161,7 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
         # a reading that shows the blur already has its denoised frames measured in a worker beside the
         # unsmoothing scan (which seldom replaces the reading): on two cores the two overlap
         blurred = _blurred(got)
-        with beside(blurred, denoised_frames, V0, F0, bin_counts, operator) as measuring:
+        with beside(blurred, silent(denoised_frames), V0, F0, bin_counts, operator) as measuring:
             steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area, operator)
             if steps is not None:
                 got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
@@ -214,11 +214,10 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
     return dataclasses.replace(got, names=got.names + names, statistics=got.statistics + more.statistics)
 
 
-def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator, progress=None) -> Optional[Frames]:
+def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator) -> Optional[Frames]:
     """The own and refined frames (``read_statistics_frames``, no crop search) of the suspect V (n, 3), F (m, 3)
     after DENOISE_STEPS steps of smoothing (``operator``: its ``mean_operator``), for ``with_denoised``;
-    None when smoothing flattened the surface to no area or no range. ``progress`` is not called (a
-    ``Background`` worker's keyword)."""
+    None when smoothing flattened the surface to no area or no range."""
     X = smoothed(V, operator, DENOISE_LAM, DENOISE_STEPS)
     try:
         return read_statistics_frames(X, F, bin_counts, crop=False, refine_sample=DENOISE_REFINE_SAMPLE)
