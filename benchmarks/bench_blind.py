@@ -8,8 +8,9 @@ Benchmark protocol: 64 bits in total per embedding (32 random payload bits + 32 
 phrase per key ("pmwm-bench:<seed>"), the attacks and their seeds of ``pmwm_bench.protocols``. BER is
 over the 64-bit word as read at that length (hard decisions, before the Chase search); the BER of the
 word returned is over the word the reader gives the user: when the verdict is marked, the word it decoded
-(its payload and check bits: 0 errors when the whole payload is read), else the hard decisions as above
-(the anchors' papers report the bits their extractors return, with no code to correct them). "whole"
+(its payload and check bits: 0 errors when the whole payload is read), else the hard decisions of the
+reader's guess (the verdict's "guess", chosen without the pass phrase), as the BER counts them (the anchors'
+papers report the bits their extractors return, with no code to correct them). "whole"
 counts the copies whose verdict is marked (p < 1e-6) with the exact payload.
 
 False positives: every mesh of the data folder and procedurally made shapes (ellipsoids with keyed
@@ -74,8 +75,9 @@ def true_word(secret: str, payload: np.ndarray) -> np.ndarray:
 class Reading:
     """What the reader made of one suspect: ``ber``, the BER of the 64-bit word read (hard decisions) in
     the frame whose reading the verdict kept (own, refined, crop or a neighbour of it, denoised) when
-    marked, else in the own frame; ``ber_returned``, the BER of the word the reader returns (the decoded
-    word when marked, else those hard decisions); ``whole``, the whole payload recovered with p < 1e-6;
+    marked, else the reader's guess (``blind._guess``: the own frame's, or for a copy on a coarse grid, the
+    copy as it is or smoothed, whichever shows the most mark energy); ``ber_returned``, the BER of the word
+    the reader returns (the decoded word when marked, else those hard decisions); ``whole``, the whole payload recovered with p < 1e-6;
     ``whole_own``, the same from the suspect's own frame alone (the reader before the refinement), None
     when not asked for."""
 
@@ -92,10 +94,13 @@ def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False) -> R
     except pmwm.PmwmError:
         return Reading(0.5, 0.5, False, False if own_too else None)
     v = blind.decide(stats, secret)
-    # the BER of the reading the verdict kept when it is marked; otherwise of the suspect's own frame
-    # (an unmarked verdict keeps whichever frame's candidate happened to match best: no measure)
+    # the BER of the reading the verdict kept when it is marked; otherwise of the reader's guess, chosen
+    # without the check bits (an unmarked verdict's own word is whichever frame's candidate happened to match
+    # them best: no measure), or of the suspect's own frame when the guess has another length
     fi = v.extra["frame_index"] if v.marked else 0
     got, _ = blind.word_read(stats.words[N_WORD][fi], secret, N_WORD)
+    if not v.marked and len(v.extra["guess"]) == N_WORD:
+        got = parse_bits(v.extra["guess"])
     want = true_word(secret, payload)
     ber = float(np.mean(got != want))
     # the word the verdict returns: its decoded word (after the Chase search) when marked at this length
@@ -168,7 +173,7 @@ def equal_mrms(models: list[str], keys: int) -> str:
 
     out = ["## Blind scheme against Cho I and II at several strengths (equal MRMS)", "",
            f"{keys} keys per row; 64 bits (blind: 32 payload + 32 check; the word read in the frame the verdict kept "
-           "when marked, else in the suspect's own frame). BER per attack, mean over the keys.", "",
+           "when marked, else the reader's guess, as in section blind). BER per attack, mean over the keys.", "",
            "| model | method | strength | MRMS % | " + " | ".join(lbl for lbl, _, _ in EQUAL_ATTACKS) + " |",
            "|---|---|---|---|" + "---|" * len(EQUAL_ATTACKS)]
     for model in models:
@@ -319,8 +324,10 @@ def main(argv=None) -> int:
            f"{blind.TARGET_MRMS} % (``blind.TARGET_MRMS``).", "",
            "Embedding distortion (% of the bounding-box diagonal, mean over the keys):", "",
            "| model | vertices | margin (mean) | MRMS % | Hausdorff % |", "|---|---|---|---|---|", *dist_rows, "",
-           "BER of the 64-bit word read (hard decisions in the frame the verdict kept when marked, else in the "
-           "suspect's own frame; mean over the keys), benchmark protocol:", "",
+           "BER of the 64-bit word read (hard decisions in the frame the verdict kept when marked, else the reader's "
+           "guess: the suspect's own frame, or for a copy on a coarse grid the copy as it is or smoothed by 3 to 16 "
+           "steps, whichever shows the most mark energy, no pass phrase involved; mean over the keys), benchmark "
+           "protocol:", "",
            "| attack | " + " | ".join(m for m, _, _ in rows) + " |", "|---|" + "---|" * len(rows)]
     for g, label in groups:
         out.append(f"| {g} {label} | " + " | ".join(f"{r[(g, label)]:.3f}" for _, r, _ in rows) + " |")

@@ -776,6 +776,60 @@ def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny
     assert not (sampled.marked and sampled.payload == "studio")
 
 
+def _errors(bits: str, want: np.ndarray) -> int:
+    return int(np.sum(np.array([int(c) for c in bits], np.uint8) != want))
+
+
+def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny, monkeypatch):
+    """The bundled bunny marked at the fixed margin DEFAULT_ALPHA, then quantized to 7 bits: no whole payload
+    is read, and the verdict's guess (chosen without the pass phrase) comes from the copy smoothed by the count
+    of steps that shows the most mark energy (``frames.guess_statistics``). Over three phrases it errs on fewer
+    bits of the word written than the hard decisions of the copy as it is, which are the guess without the
+    smoothing (GUESS_STEPS emptied)."""
+    v, f = bunny
+    smoothed_errors, plain_errors = 0, 0
+    for case in (3, 5, 6):
+        phrase = f"guess test {case}"
+        res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=phrase, seed=case,
+                                                 strength=blind.DEFAULT_ALPHA, progressive=False))
+        want = word.word_of(res.key.secret, "text", word.payload_of("Acme", None, 0, None)[0])
+        V, F = A.quantize(res.vertices, f, bits=7)
+        assert frames.on_grid(V) and not frames.on_grid(res.vertices)
+        got = pmwm.verify(V, F, passphrase=phrase)
+        assert not got.marked and got.extra["guess_mesh"].startswith("smoothing:-")
+        smoothed_errors += _errors(got.extra["guess"], want)
+        with monkeypatch.context() as m:
+            m.setattr(frames, "GUESS_STEPS", ())
+            plain = pmwm.verify(V, F, passphrase=phrase)
+        assert plain.extra["guess_mesh"] == "suspect" and plain.bits == got.bits
+        plain_errors += _errors(plain.extra["guess"], want)
+    assert smoothed_errors < plain_errors
+
+
+def test_a_verdict_guesses_the_word_only_when_it_reads_no_mark(bunny, marked):
+    """A copy read has no guess; a suspect off any grid that shows no mark is guessed in its reading's own
+    frame: the hard decisions of that frame (``word_read``), whatever the check bits matched."""
+    assert "guess" not in pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE).extra
+    V, F = A.noise_benchmark(marked.vertices, marked.faces, amplitude=0.02, seed=1)
+    assert not frames.on_grid(V)
+    stats = blind.bin_statistics(V, F)
+    v = blind.decide(stats, marked.key.secret)
+    assert not v.marked and v.extra["guess_mesh"] == stats.mesh
+    own, _ = blind.word_read(stats.words[stats.n_word][0], marked.key.secret, stats.n_word,
+                             stats.shares[stats.n_word][0])
+    assert v.extra["guess"] == "".join(map(str, own.tolist()))
+
+
+def test_a_grid_is_coarse_at_12_bits_or_fewer_and_only_on_the_copys_own_axes(marked):
+    """``frames.on_grid``: quantized to 12 bits or fewer per axis, yes; to 13 bits, as marked, or quantized and
+    then rotated, no."""
+    V, F = marked.vertices, marked.faces
+    assert frames.on_grid(A.quantize(V, F, bits=7)[0]) and frames.on_grid(A.quantize(V, F, bits=12)[0])
+    assert not frames.on_grid(A.quantize(V, F, bits=13)[0]) and not frames.on_grid(V)
+    turned = A.quantize(V, F, bits=7)[0] @ np.array([[0.6, -0.8, 0.0], [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]])
+    assert not frames.on_grid(turned)
+
+
 def test_a_blurred_readings_denoised_frames_are_measured_in_a_worker_with_the_same_result(marked, monkeypatch):
     """A copy whose bins show the blur (the bunny quantized to 7 bits) has its denoised frames measured in a
     worker thread beside the unsmoothing scan (``frames.denoised_frames``): the same statistics, frames and

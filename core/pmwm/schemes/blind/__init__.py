@@ -67,7 +67,7 @@ reads the count of steps that shows twice the mark energy per vertex.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -174,19 +174,22 @@ class Statistics:
     reader reads;
     ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
-    subdivided suspect was made from: ``frames.Frames.mesh``; the "denoised" frames': ``frames.mesh_of``)."""
+    subdivided suspect was made from: ``frames.Frames.mesh``; the "denoised" frames': ``frames.mesh_of``);
+    ``guess``, called only for a verdict that finds no mark (``frames.Frames.guess``: for a suspect on a coarse
+    grid, the statistics of the suspect as it is or smoothed at the length read, else None; ``_guess``)."""
 
     words: dict[int, np.ndarray]
     n_word: int
     frame_names: tuple[str, ...]
     shares: Optional[dict[int, np.ndarray]] = None
     mesh: str = "suspect"
+    guess: Optional[Callable[[], Optional[tuple[int, np.ndarray, np.ndarray]]]] = None
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
         shares = None if self.shares is None else {n: s[:1] for n, s in self.shares.items()}
         return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1], shares,
-                          self.mesh)
+                          self.mesh, self.guess)
 
 
 def bin_statistics(vertices, faces) -> Statistics:
@@ -200,7 +203,7 @@ def bin_statistics(vertices, faces) -> Statistics:
     return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
                       words[got.index], got.names,
                       {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)},
-                      got.mesh)
+                      got.mesh, got.guess)
 
 
 def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None
@@ -256,8 +259,10 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
     payload = cand[:L]
     text = word.text_of(payload) if kind == "text" else None
     expected = word.check_bits(secret, kind, payload)
+    marked = bool(p < p_threshold)
+    guessed = {} if marked else _guess(stats, secret, per_frame[0], shares[0])
     return Verdict(
-        marked=bool(p < p_threshold), p_value=p, bits="".join(map(str, payload.tolist())), payload=text,
+        marked=marked, p_value=p, bits="".join(map(str, payload.tolist())), payload=text,
         # matches / bit_errors / carriers_*: over the check bits (what the p-value counts)
         matches=m, bit_errors=word.CHECK_BITS - m,
         correlation=float(metrics.correlation(expected, cand[L:])),
@@ -269,10 +274,30 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
                "mesh": frames.mesh_of(stats.frame_names[fi], stats.mesh),
                "frame": stats.frame_names[fi], "frame_index": fi, "frames": n_frames, "chase_bits": chase,
                "word": "".join(map(str, cand.tolist())),  # after the Chase search
-               "word_read": "".join(map(str, raw.tolist()))},  # the hard decisions, before it
+               "word_read": "".join(map(str, raw.tolist())),  # the hard decisions, before it
+               **guessed},  # no mark found: the word guessed without the check bits (``_guess``)
         scores=score,  # (N,) sign = the scrambled bit read, as every scheme's scores
         places=np.zeros((0, 3)), place_bits=np.zeros(0, np.int64),
     )
+
+
+def _guess(stats: Statistics, secret: str, own: np.ndarray, own_share: Optional[np.ndarray]) -> dict[str, str]:
+    """For a verdict that finds no mark, the reader's best guess of the word, chosen without the check bits:
+    {"guess": the hard decisions (``word_read``) of the reading's own frame (``own`` (M,), ``own_share``), or for
+    a suspect on a coarse grid those of ``Statistics.guess`` (the suspect as it is or smoothed, whichever shows
+    the most mark energy: ``frames.guess_statistics``); "guess_mesh": the mesh they were read on}. The
+    verdict's ``bits`` and "word" are the candidate whose check bits matched best, which, when nothing is
+    read, the check bits chose; a guess is what an owner can compare with the payloads they marked. At 7-bit
+    quantization it errs on 0.02-0.20 of the bits where the own frame errs on 0.06-0.42 (four models, 20 keys
+    each; BENCHMARKS.md, ``session-30``)."""
+    found = None if stats.guess is None else stats.guess()
+    if found is None:
+        stat, share, mesh = own, own_share, stats.mesh
+    else:
+        steps, stat, share = found
+        mesh = f"smoothing:-{steps}" if steps else "suspect"
+    got, _ = word_read(stat, secret, stats.n_word, share)
+    return {"guess": "".join(map(str, got.tolist())), "guess_mesh": mesh}
 
 
 def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
