@@ -806,6 +806,21 @@ def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny,
     assert smoothed_errors < plain_errors
 
 
+def test_cli_prints_the_guess_when_it_reads_no_mark(bunny, tmp_path):
+    """``pmwm verify`` of a copy on a coarse grid that it cannot read: not marked (exit 1), and the payload bits
+    it guessed without the check, with the smoothing they were read after, in place of a candidate the check
+    bits chose."""
+    v, f = bunny
+    res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase="guess test 3", seed=3,
+                                             strength=blind.DEFAULT_ALPHA, progressive=False))
+    path = meshes.write_off(tmp_path / "q7.off", *A.quantize(res.vertices, f, bits=7))
+    got = run("verify", path, env={"PMWM_PASSPHRASE": "guess test 3"})
+    assert got.returncode == 1 and "not marked" in got.stdout
+    line = next(x for x in got.stdout.splitlines() if x.startswith("payload bits guessed without the check"))
+    assert len(line.rsplit(" ", 1)[1]) == 32 and set(line.rsplit(" ", 1)[1]) <= {"0", "1"}
+    assert "guess read after" in got.stdout and "steps of Laplacian smoothing" in got.stdout
+
+
 def test_a_verdict_guesses_the_word_only_when_it_reads_no_mark(bunny, marked):
     """A copy read has no guess; a suspect off any grid that shows no mark is guessed in its reading's own
     frame: the hard decisions of that frame (``word_read``), whatever the check bits matched."""

@@ -176,6 +176,13 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
         read_on = mesh_read(v.extra.get("mesh", "suspect"))
         if read_on:
             print(read_on)
+        if not v.marked and "guess" in v.extra:  # (the candidate the check bits chose says nothing here)
+            L = v.extra.get("payload_bits", 0)
+            print(f"payload bits guessed without the check (no mark read): {v.extra['guess'][:L]}")
+            how = mesh_read(v.extra["guess_mesh"])
+            if how:
+                print(f"guess {how}")
+            return
         print(f"payload: {v.payload!r}" if v.payload is not None else f"payload bits: {v.bits}")
         return
     print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "

@@ -58,6 +58,11 @@ radii across the bins' edges), the reader also reads the suspect after three ste
 smoothing, which take out more of the blur than of the mark (``frames.with_denoised``), its frames
 counted in the union bound.
 
+No mark read: the verdict also returns the reader's best guess of the word, chosen without the check bits
+(``_guess``): the hard decisions of its reading's own frame, or for a copy quantized to a coarse grid, of the
+copy smoothed by the count of steps that shows the most mark energy (``frames.guess_statistics``): at 7 bits
+it errs on 0.02-0.21 of the bits against 0.06-0.39 (an owner can compare it with the payloads they marked).
+
 Smoothing: a copy smoothed by uniform Laplacian steps still holds the mark, damped with the rest of its
 detail, but its radii are blurred; when the suspect does not show the mark in full view, the reader
 also takes the smoothing back step by step (``pmwm.smoothing``, ``frames.unsmoothing``), key-free, and
@@ -288,8 +293,8 @@ def _guess(stats: Statistics, secret: str, own: np.ndarray, own_share: Optional[
     the most mark energy: ``frames.guess_statistics``); "guess_mesh": the mesh they were read on}. The
     verdict's ``bits`` and "word" are the candidate whose check bits matched best, which, when nothing is
     read, the check bits chose; a guess is what an owner can compare with the payloads they marked. At 7-bit
-    quantization it errs on 0.02-0.20 of the bits where the own frame errs on 0.06-0.42 (four models, 20 keys
-    each; BENCHMARKS.md, ``session-30``)."""
+    quantization it errs on 0.02-0.21 of the bits where the own frame errs on 0.06-0.39 (mean per model; four
+    models, 20 keys each; BENCHMARKS.md, ``session-30``)."""
     found = None if stats.guess is None else stats.guess()
     if found is None:
         stat, share, mesh = own, own_share, stats.mesh

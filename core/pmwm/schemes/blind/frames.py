@@ -255,10 +255,11 @@ def guess_statistics(V: np.ndarray, F: np.ndarray, n_bins: int, operator=None
     Why: quantization to 7 bits moves every vertex by up to half a grid step, several bins' worth of radius,
     independently of its neighbours; the mark is smooth over the surface, so smoothing takes out more of the
     blur than of the mark, and how much depends on the mesh (its density against the grid step). The energy,
-    which involves no pass phrase, picks the count: on the benchmark's four models at 7 bits (20 keys each, 3
-    to 16 steps: 3 on the bunny, 3-6 on the dragon, 6 on the Venus head, 10 on Igea), the own frame's hard
-    decisions err on 0.02-0.20 of the bits against 0.06-0.42 as the copy is; at 9 bits it keeps the copy as
-    it is, and at 6 bits nothing helps (BENCHMARKS.md, ``session-30``). The reader's verdict does not use it."""
+    which involves no pass phrase, picks the count: on the benchmark's four models at 7 bits (20 keys each; it
+    picked 3 steps on the bunny, 3 or 6 on the dragon and the Venus head, 6 or 10 on Igea), the own frame's hard
+    decisions err on 0.02-0.21 of the bits (mean per model) against 0.06-0.39 as the copy is; at 8 bits 0.005-0.064
+    against 0.005-0.073; at 9 bits it keeps the copy as it is, and at 6 bits nothing helps (BENCHMARKS.md,
+    ``session-30``). The reader's verdict does not use it: only the word it returns when it reads no mark."""
     operator = mean_operator(F, len(V)) if operator is None else operator
     X = np.asarray(V, dtype=np.float64)
     views = zip(range(1, max(GUESS_STEPS, default=0) + 1), unsmoothing_steps(X, operator, -DENOISE_LAM))  # (``smoothed``'s steps)
