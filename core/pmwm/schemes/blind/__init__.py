@@ -181,14 +181,15 @@ class Statistics:
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
     subdivided suspect was made from: ``frames.Frames.mesh``; the "denoised" frames': ``frames.mesh_of``);
     ``guess``, called only for a verdict that finds no mark (``frames.Frames.guess``: for a suspect on a coarse
-    grid, the statistics of the suspect as it is or smoothed at the length read, else None; ``_guess``)."""
+    grid, the statistics of the suspect as it is or smoothed, and the length (an index into ``words``) whose bins
+    show the most energy, else None; ``_guess``)."""
 
     words: dict[int, np.ndarray]
     n_word: int
     frame_names: tuple[str, ...]
     shares: Optional[dict[int, np.ndarray]] = None
     mesh: str = "suspect"
-    guess: Optional[Callable[[], Optional[tuple[int, np.ndarray, np.ndarray]]]] = None
+    guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
@@ -288,20 +289,21 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
 
 def _guess(stats: Statistics, secret: str, own: np.ndarray, own_share: Optional[np.ndarray]) -> dict[str, str]:
     """For a verdict that finds no mark, the reader's best guess of the word, chosen without the check bits:
-    {"guess": the hard decisions (``word_read``) of the reading's own frame (``own`` (M,), ``own_share``), or for
-    a suspect on a coarse grid those of ``Statistics.guess`` (the suspect as it is or smoothed, whichever shows
-    the most mark energy: ``frames.guess_statistics``); "guess_mesh": the mesh they were read on}. The
+    {"guess": the hard decisions (``word_read``) of the reading's own frame (``own`` (M,), ``own_share``) at the
+    length read, or for a suspect on a coarse grid those of ``Statistics.guess`` (the suspect as it is or
+    smoothed, and the length, whichever shows the most mark energy: ``frames.guess_statistics``); "guess_mesh":
+    the mesh they were read on}. The
     verdict's ``bits`` and "word" are the candidate whose check bits matched best, which, when nothing is
     read, the check bits chose; a guess is what an owner can compare with the payloads they marked. At 7-bit
     quantization it errs on 0.02-0.21 of the bits where the own frame errs on 0.06-0.39 (mean per model; four
     models, 20 keys each; BENCHMARKS.md, ``session-30``)."""
     found = None if stats.guess is None else stats.guess()
     if found is None:
-        stat, share, mesh = own, own_share, stats.mesh
+        n_word, stat, share, mesh = stats.n_word, own, own_share, stats.mesh
     else:
-        steps, stat, share = found
-        mesh = f"smoothing:-{steps}" if steps else "suspect"
-    got, _ = word_read(stat, secret, stats.n_word, share)
+        steps, index, stat, share = found
+        n_word, mesh = list(stats.words)[index], f"smoothing:-{steps}" if steps else "suspect"
+    got, _ = word_read(stat, secret, n_word, share)
     return {"guess": "".join(map(str, got.tolist())), "guess_mesh": mesh}
 
 

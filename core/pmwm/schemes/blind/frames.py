@@ -109,14 +109,14 @@ class Frames:
     by " + "), or the suspect with k steps of smoothing undone ("smoothing:k", ``unsmoothing``); the
     "denoised" frames' own mesh: ``mesh_of``; ``guess`` (from ``read_statistics``), called only when the reader
     finds no mark (it measures once, then caches): for a suspect on a coarse grid (``on_grid``),
-    ``guess_statistics`` at the count read, else None."""
+    ``guess_statistics`` over the counts, else None."""
 
     index: int
     names: tuple[str, ...]
     statistics: list[list[tuple[np.ndarray, np.ndarray]]]
     energy: float = 0.0
     mesh: str = "suspect"
-    guess: Optional[Callable[[], Optional[tuple[int, np.ndarray, np.ndarray]]]] = None
+    guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
 
 
 def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
@@ -176,9 +176,8 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
                 blurred = _blurred(got)
             if blurred:
                 got = with_denoised(got, V0, F0, bin_counts, operator, measuring)
-    n_bins = list(bin_counts)[got.index]
     return dataclasses.replace(got, guess=functools.cache(
-        lambda: guess_statistics(V0, F0, n_bins, operator) if on_grid(V0) else None))
+        lambda: guess_statistics(V0, F0, bin_counts, operator) if on_grid(V0) else None))
 
 
 def _blurred(got: Frames) -> bool:
@@ -245,35 +244,39 @@ def on_grid(V: np.ndarray) -> bool:
         all(len(unique_values(c)) <= limit for c in cols)
 
 
-def guess_statistics(V: np.ndarray, F: np.ndarray, n_bins: int, operator=None
-                     ) -> Optional[tuple[int, np.ndarray, np.ndarray]]:
-    """(steps, stat (n_bins,), share (n_bins,)): the own frame's statistics (``statistics_in``) of the suspect
+def guess_statistics(V: np.ndarray, F: np.ndarray, bin_counts, operator=None
+                     ) -> Optional[tuple[int, int, np.ndarray, np.ndarray]]:
+    """(steps, index, stat (M,), share (M,)): the own frame's statistics (``statistics_in``) of the suspect
     V (n, 3), F (m, 3) as it is or after each of GUESS_STEPS steps of smoothing (DENOISE_LAM each; ``operator``:
-    its ``mean_operator``, when the caller has it), the one whose bins show the most excess energy; None when
-    no surface has area and range. For the word a reader returns when it finds no mark (``blind.decide``).
+    its ``mean_operator``, when the caller has it), at each bin count of ``bin_counts``: the copy and count
+    (``index`` into ``bin_counts``, M bins) whose bins show the most excess energy; None when no surface has
+    area and range. For the word a reader returns when it finds no mark (``blind.decide``).
 
     Why: quantization to 7 bits moves every vertex by up to half a grid step, several bins' worth of radius,
     independently of its neighbours; the mark is smooth over the surface, so smoothing takes out more of the
     blur than of the mark, and how much depends on the mesh (its density against the grid step). The energy,
-    which involves no pass phrase, picks the count: on the benchmark's four models at 7 bits (20 keys each; it
-    picked 3 steps on the bunny, 3 or 6 on the dragon and the Venus head, 6 or 10 on Igea), the own frame's hard
-    decisions err on 0.02-0.21 of the bits (mean per model) against 0.06-0.39 as the copy is; at 8 bits 0.005-0.064
-    against 0.005-0.073; at 9 bits it keeps the copy as it is, and at 6 bits nothing helps (BENCHMARKS.md,
-    ``session-30``). The reader's verdict does not use it: only the word it returns when it reads no mark."""
+    which involves no pass phrase, picks the count of steps, and the word length with it, as the reader picks
+    its length (the blurred copy as it is can name another). On the benchmark's four models at 7 bits (20 keys
+    each; 3 steps on the bunny, 3 or 6 on the dragon and the Venus head, 6 or 10 on Igea), the own frame's hard
+    decisions of the 64-bit word err on 0.02-0.21 of the bits (mean per model) against 0.06-0.39 as the copy
+    is; at 8 bits 0.005-0.064 against 0.005-0.073; at 9 bits it keeps the copy as it is, and at 6 bits
+    nothing helps (BENCHMARKS.md, ``session-30``). The reader's verdict does not use it: only the word it
+    returns when it reads no mark."""
+    counts = list(bin_counts)
     operator = mean_operator(F, len(V)) if operator is None else operator
     X = np.asarray(V, dtype=np.float64)
     views = zip(range(1, max(GUESS_STEPS, default=0) + 1), unsmoothing_steps(X, operator, -DENOISE_LAM))  # (``smoothed``'s steps)
-    best: Optional[tuple[float, int, np.ndarray, np.ndarray]] = None
+    best: Optional[tuple[float, int, int, np.ndarray, np.ndarray]] = None
     for steps, X in itertools.chain([(0, X)], ((k, Y) for k, Y in views if k in GUESS_STEPS)):
         area = vertex_areas(X, F)
         try:
             fr, a = frame_of_areas(X, area, 1)
         except MeshError:
             continue
-        stat, share = statistics_in(X, a, fr, [n_bins])[0]
-        e = excess_energy(stat, share, float(a.sum()))
-        if best is None or e > best[0]:
-            best = (e, steps, stat, share)
+        for index, (stat, share) in enumerate(statistics_in(X, a, fr, counts)):
+            e = excess_energy(stat, share, float(a.sum()))
+            if best is None or e > best[0]:
+                best = (e, steps, index, stat, share)
     return None if best is None else best[1:]
 
 
