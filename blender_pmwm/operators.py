@@ -281,10 +281,12 @@ class VerifyTask(_Task):
         s.verdict_object = ob.name
         s.verdict_marked = bool(verdict.marked)
         s.verdict_p_value = f"{verdict.p_value:.3g}"
-        s.verdict_payload = verdict.payload if verdict.payload is not None else verdict.bits
+        guess = verdict.extra.get("guess", "")[:verdict.extra.get("payload_bits", 0)] if self.blind else ""
+        s.verdict_payload = verdict.payload if verdict.payload is not None else (guess or verdict.bits)
         s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total if self.blind else len(verdict.bits)}"
         if self.blind:  # no key file: nothing for the HTML report to cite
-            found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
+            found = (f"payload '{verdict.payload}'" if verdict.payload is not None else
+                     f"bits guessed without the check {guess}" if guess else f"bits {verdict.bits}")
             from pmwm.schemes.blind import mesh_read
 
             read_on = mesh_read(verdict.extra.get("mesh", "suspect"))
