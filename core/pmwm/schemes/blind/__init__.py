@@ -60,7 +60,7 @@ counted in the union bound.
 
 No mark read: the verdict also returns the reader's best guess of the word, chosen without the check bits
 (``_guess``): the hard decisions of its reading's own frame, or for a copy quantized to a coarse grid, of the
-copy smoothed by the count of steps that shows the most mark energy (``frames.guess_statistics``): at 7 bits
+copy smoothed by the count of steps, at the length, that shows the most mark energy (``frames.guess_statistics``): at 7 bits
 it errs on 0.02-0.21 of the bits against 0.06-0.39 (an owner can compare it with the payloads they marked).
 
 Smoothing: a copy smoothed by uniform Laplacian steps still holds the mark, damped with the rest of its
@@ -292,11 +292,10 @@ def _guess(stats: Statistics, secret: str, own: np.ndarray, own_share: Optional[
     {"guess": the hard decisions (``word_read``) of the reading's own frame (``own`` (M,), ``own_share``) at the
     length read, or for a suspect on a coarse grid those of ``Statistics.guess`` (the suspect as it is or
     smoothed, and the length, whichever shows the most mark energy: ``frames.guess_statistics``); "guess_mesh":
-    the mesh they were read on}. The
-    verdict's ``bits`` and "word" are the candidate whose check bits matched best, which, when nothing is
-    read, the check bits chose; a guess is what an owner can compare with the payloads they marked. At 7-bit
-    quantization it errs on 0.02-0.21 of the bits where the own frame errs on 0.06-0.39 (mean per model; four
-    models, 20 keys each; BENCHMARKS.md, ``session-30``)."""
+    the mesh they were read on}. The verdict's ``bits`` and "word" are the candidate whose check bits matched
+    best, which, when nothing is read, the check bits chose; a guess is what an owner can compare with the
+    payloads they marked. At 7-bit quantization it errs on 0.02-0.21 of the bits where the own frame errs on
+    0.06-0.39 (mean per model; four models, 20 keys each; BENCHMARKS.md, ``session-30``)."""
     found = None if stats.guess is None else stats.guess()
     if found is None:
         n_word, stat, share, mesh = stats.n_word, own, own_share, stats.mesh

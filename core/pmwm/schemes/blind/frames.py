@@ -265,7 +265,8 @@ def guess_statistics(V: np.ndarray, F: np.ndarray, bin_counts, operator=None
     counts = list(bin_counts)
     operator = mean_operator(F, len(V)) if operator is None else operator
     X = np.asarray(V, dtype=np.float64)
-    views = zip(range(1, max(GUESS_STEPS, default=0) + 1), unsmoothing_steps(X, operator, -DENOISE_LAM))  # (``smoothed``'s steps)
+    # ``smoothed``'s steps, one at a time
+    views = zip(range(1, max(GUESS_STEPS, default=0) + 1), unsmoothing_steps(X, operator, -DENOISE_LAM))
     best: Optional[tuple[float, int, int, np.ndarray, np.ndarray]] = None
     for steps, X in itertools.chain([(0, X)], ((k, Y) for k, Y in views if k in GUESS_STEPS)):
         area = vertex_areas(X, F)
