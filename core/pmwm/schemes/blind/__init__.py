@@ -60,8 +60,9 @@ counted in the union bound.
 
 No mark read: the verdict also returns the reader's best guess of the word, chosen without the check bits
 (``_guess``): the hard decisions of its reading's own frame, or for a copy quantized to a coarse grid, of the
-copy smoothed by the count of steps, at the length, that shows the most mark energy (``frames.guess_statistics``): at 7 bits
-it errs on 0.02-0.21 of the bits against 0.06-0.39 (an owner can compare it with the payloads they marked).
+copy smoothed by the count of steps, at the length, that shows the most mark energy
+(``frames.guess_statistics``): at 7 bits it errs on 0.02-0.21 of the bits against 0.06-0.39 (an owner can
+compare it with the payloads they marked).
 
 Smoothing: a copy smoothed by uniform Laplacian steps still holds the mark, damped with the rest of its
 detail, but its radii are blurred; when the suspect does not show the mark in full view, the reader
