@@ -78,8 +78,8 @@ class Reading:
     marked, else the reader's guess (``blind._guess``: the own frame's, or for a copy on a coarse grid, the
     copy as it is or smoothed, whichever shows the most mark energy); ``ber_returned``, the BER of the word
     the reader returns (the decoded word when marked, else those hard decisions); ``whole``, the whole
-    payload recovered with p < 1e-6; ``whole_own``, the same from the suspect's own frame alone (the reader before the refinement), None
-    when not asked for."""
+    payload recovered with p < 1e-6; ``whole_own``, the same from the suspect's own frame alone (the reader
+    before the refinement), None when not asked for."""
 
     ber: float
     ber_returned: float
