@@ -276,19 +276,19 @@ class VerifyTask(_Task):
         return pmwm.verify(self.V, self.F, self.key, passphrase=self.passphrase)
 
     def finish(self, context, verdict, report):
+        from pmwm.schemes.blind import guessed_payload, mesh_read
+
         ob = self.current_object()
         s = context.scene.pmwm
         s.verdict_object = ob.name
         s.verdict_marked = bool(verdict.marked)
         s.verdict_p_value = f"{verdict.p_value:.3g}"
-        guess = verdict.extra.get("guess", "")[:verdict.extra.get("payload_bits", 0)] if self.blind else ""
+        guess = guessed_payload(verdict)  # (a blind verdict that read no mark)
         s.verdict_payload = verdict.payload if verdict.payload is not None else (guess or verdict.bits)
         s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total if self.blind else len(verdict.bits)}"
         if self.blind:  # no key file: nothing for the HTML report to cite
             found = (f"payload '{verdict.payload}'" if verdict.payload is not None else
                      f"bits guessed without the check {guess}" if guess else f"bits {verdict.bits}")
-            from pmwm.schemes.blind import mesh_read
-
             read_on = mesh_read(verdict.extra.get("mesh", "suspect"))
             under = f" ({read_on})" if read_on else ""
             report({"INFO"}, f"'{ob.name}' is {'MARKED' if verdict.marked else 'not marked'} (blind): p-value "

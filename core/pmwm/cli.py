@@ -28,7 +28,7 @@ from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .pmfile import read_pm, record_size, write_pm
 from .schemes import SCHEMES
-from .schemes.blind import mesh_read
+from .schemes.blind import guessed_payload, mesh_read
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
 
@@ -176,9 +176,9 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
         read_on = mesh_read(v.extra.get("mesh", "suspect"))
         if read_on:
             print(read_on)
-        if not v.marked and "guess" in v.extra:  # (the candidate the check bits chose says nothing here)
-            L = v.extra.get("payload_bits", 0)
-            print(f"payload bits guessed without the check (no mark read): {v.extra['guess'][:L]}")
+        guess = guessed_payload(v)
+        if guess:  # no mark read (the candidate the check bits chose says nothing here)
+            print(f"payload bits guessed without the check (no mark read): {guess}")
             how = mesh_read(v.extra["guess_mesh"])
             if how:
                 print(f"guess {how}")

@@ -88,7 +88,7 @@ from . import frames, radial, word
 from .keydata import BlindKeyData
 
 __all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "read_with_passphrase",
-           "bin_statistics", "decide", "Statistics", "word_read", "mesh_read", "BlindKeyData"]
+           "bin_statistics", "decide", "Statistics", "word_read", "mesh_read", "guessed_payload", "BlindKeyData"]
 
 DEFAULT_ALPHA = 0.07
 TARGET_MRMS = 0.019  # without an explicit strength: the margin giving this MRMS (% of the bbox diagonal)
@@ -340,6 +340,12 @@ def mesh_read(mesh: str) -> str:
             return f"read after {-steps} steps of Laplacian smoothing ({frames.DENOISE_LAM:g} each) against noise"
         return f"read with {steps} steps of Laplacian smoothing ({frames.UNSMOOTH_LAM:g} each) undone"
     return f"read on the mesh it was subdivided from: {mesh} undone"
+
+
+def guessed_payload(verdict: Verdict) -> str:
+    """The payload bits of a verdict's guess (``_guess``: a verdict that read no mark), for the command line
+    and the add-on; "" when it has none (a verdict that read the mark, or another scheme's)."""
+    return verdict.extra.get("guess", "")[: verdict.extra.get("payload_bits", 0)]
 
 
 def key_from_passphrase(passphrase: str) -> WatermarkKey:

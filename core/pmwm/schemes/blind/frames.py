@@ -177,7 +177,7 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
             if blurred:
                 got = with_denoised(got, V0, F0, bin_counts, operator, measuring)
     return dataclasses.replace(got, guess=functools.cache(
-        lambda: guess_statistics(V0, F0, bin_counts, operator) if on_grid(V0) else None))
+        lambda: guess_statistics(V0, F0, bin_counts, operator, area) if on_grid(V0) else None))
 
 
 def _blurred(got: Frames) -> bool:
@@ -244,13 +244,14 @@ def on_grid(V: np.ndarray) -> bool:
         all(len(unique_values(c)) <= limit for c in cols)
 
 
-def guess_statistics(V: np.ndarray, F: np.ndarray, bin_counts, operator=None
+def guess_statistics(V: np.ndarray, F: np.ndarray, bin_counts, operator=None, area: Optional[np.ndarray] = None
                      ) -> Optional[tuple[int, int, np.ndarray, np.ndarray]]:
     """(steps, index, stat (M,), share (M,)): the own frame's statistics (``statistics_in``) of the suspect
-    V (n, 3), F (m, 3) as it is or after each of GUESS_STEPS steps of smoothing (DENOISE_LAM each; ``operator``:
-    its ``mean_operator``, when the caller has it), at each bin count of ``bin_counts``: the copy and count
-    (``index`` into ``bin_counts``, M bins) whose bins show the most excess energy; None when no surface has
-    area and range. For the word a reader returns when it finds no mark (``blind.decide``).
+    V (n, 3), F (m, 3) as it is or after each of GUESS_STEPS steps of smoothing (DENOISE_LAM each; ``operator``
+    and ``area``: its ``mean_operator`` and ``vertex_areas``, when the caller has them), at each bin count of
+    ``bin_counts``: the copy and count (``index`` into ``bin_counts``, M bins) whose bins show the most excess
+    energy; None when no surface has area and range. For the word a reader returns when it finds no mark
+    (``blind.decide``).
 
     Why: quantization to 7 bits moves every vertex by up to half a grid step, several bins' worth of radius,
     independently of its neighbours; the mark is smooth over the surface, so smoothing takes out more of the
@@ -269,9 +270,9 @@ def guess_statistics(V: np.ndarray, F: np.ndarray, bin_counts, operator=None
     views = zip(range(1, max(GUESS_STEPS, default=0) + 1), unsmoothing_steps(X, operator, -DENOISE_LAM))
     best: Optional[tuple[float, int, int, np.ndarray, np.ndarray]] = None
     for steps, X in itertools.chain([(0, X)], ((k, Y) for k, Y in views if k in GUESS_STEPS)):
-        area = vertex_areas(X, F)
+        areas = area if steps == 0 and area is not None else vertex_areas(X, F)
         try:
-            fr, a = frame_of_areas(X, area, 1)
+            fr, a = frame_of_areas(X, areas, 1)
         except MeshError:
             continue
         for index, (stat, share) in enumerate(statistics_in(X, a, fr, counts)):
