@@ -184,6 +184,58 @@ def test_a_word_read_bins_off_in_a_neighbour_frame_counts_every_frame_in_its_p_v
     assert [word.chase_bits(k) for k in (1, 2, 3, 4, 5, 6)] == [10, 10, 9, 9, 8, 8]
 
 
+def test_a_reserve_frame_reads_with_what_the_budget_leaves_and_the_others_keep_their_chase_bits(marked):
+    """A copy on a coarse grid is also read in reserve frames (``Statistics.reserve``): the frames read in full
+    keep 2^10 candidates, each reserve reading gets what P_BEST leaves (49 beside 2 frames), and the p-value
+    counts them all. A word the full frames lose and a reserve frame holds with a weak bit wrong is read
+    there, p < 1e-6; a wrong pass phrase reads nothing."""
+    stats = blind.bin_statistics(marked.vertices, marked.faces).own_frame()
+    n = stats.n_word
+    right, share = stats.words[n][0], stats.shares[n][0]
+    _, score = blind.word_read(right, marked.key.secret, n, share)
+    bit_of_bin, _ = word.layout(marked.key.secret, n, len(right))
+    order = np.argsort(np.abs(score), kind="stable")
+    weak = right.copy()
+    weak[bit_of_bin == order[5]] *= -1  # its sixth least reliable bit read wrong
+    got, weak_score = blind.word_read(weak, marked.key.secret, n, share)
+    truth = blind.word_read(right, marked.key.secret, n, share)[0]
+    assert (got != truth).sum() == 1
+    assert ((got ^ word.likely_flips(np.abs(weak_score), 49)) == truth).all(axis=1).any()  # among the 49 tried
+    lost = right.copy()
+    lost[np.isin(bit_of_bin, order[::3])] *= -1  # a third of the bits wrong: beyond any search
+    words, shares = dict(stats.words), dict(stats.shares)
+    words[n], shares[n] = np.stack([lost, lost, weak, lost]), np.stack([share] * 4)
+    names = ("own", "refined", "denoised", "denoised-refined")
+    v = blind.decide(blind.Statistics(words, n, names, shares, reserve=2), marked.key.secret)
+    assert v.marked and v.payload == "Acme" and v.extra["frame"] == "denoised"
+    assert v.extra["chase_bits"] == 10 and v.extra["candidates"] == word.reserve_candidates(2, 2) == 49
+    assert v.p_value == pytest.approx(2 * (2 * 1024 + 2 * 49) * 2.0**-32) and v.p_value < 1e-6
+    wrong = blind.decide(blind.Statistics(words, n, names, shares, reserve=2),
+                         blind.key_from_passphrase(PHRASE + "!").secret)
+    assert not wrong.marked and wrong.p_value >= 2 * (2 * 1024 + 2 * 49) * 2.0**-32
+    # every split of the frames keeps a reading with all 32 check bits right below P_BEST
+    for full in range(1, 7):
+        for reserve in range(0, 3):
+            total = 2 * (full * 2 ** word.chase_bits(full) + reserve * word.reserve_candidates(full, reserve))
+            assert total * 2.0**-word.CHECK_BITS < word.P_BEST
+    assert word.reserve_candidates(1, 2) == 561
+
+
+def test_a_copy_on_a_coarse_grid_is_read_in_reserve_denoised_frames_too(marked):
+    """Only a suspect on a coarse grid gets the denoised frames as reserve frames (when its bins show no blur,
+    which gives them in full): the marked bunny as it is has none, its 8-bit copy both, and still reads."""
+    plain = blind.bin_statistics(marked.vertices, marked.faces)
+    assert plain.reserve == 0 and not any(name.startswith("denoised") for name in plain.frame_names)
+    V, F = A.quantize(marked.vertices, marked.faces, bits=8)
+    assert frames.on_grid(V)
+    stats = blind.bin_statistics(V, F)
+    assert stats.frame_names[-2:] == ("denoised", "denoised-refined")
+    assert stats.reserve in (0, 2)  # (0: its bins show the blur, and the denoised frames are read in full)
+    v = blind.decide(stats, marked.key.secret)
+    assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
+    assert v.p_value == pytest.approx(2 * sum(stats.candidates()) * 2.0**-32)
+
+
 def test_bin_margins_give_every_bin_the_same_signal_to_noise():
     # alpha * sqrt(median count / count): a bin with a quarter of the vertices gets twice the margin
     m = radial.bin_margins(np.array([100.0, 100.0, 25.0, 400.0, 1.0, 0.0]))

@@ -56,7 +56,10 @@ key-free, and reads that one when it shows twice the mark energy per vertex.
 Noise: when the bins read show their neighbours' interference (8-bit quantization, 0.5 % noise blur the
 radii across the bins' edges), the reader also reads the suspect after three steps of Laplacian
 smoothing, which take out more of the blur than of the mark (``frames.with_denoised``), its frames
-counted in the union bound.
+counted in the union bound. A copy on a coarse grid whose bins do not show the blur is read in the same
+denoised frames as reserve frames, with the candidates the p-value's budget leaves (49 per reading beside
+two frames: ``word.reserve_candidates``), so that its other frames keep their 10 Chase bits: the Venus
+head's 8-bit copy of the benchmark's key 1002 is read so (``frames``, item 6).
 
 No mark read: the verdict also returns the reader's best guess of the word, chosen without the check bits
 (``_guess``): the hard decisions of its reading's own frame, or for a copy quantized to a coarse grid, of the
@@ -181,7 +184,8 @@ class Statistics:
     ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
     subdivided suspect was made from: ``frames.Frames.mesh``; the "denoised" frames': ``frames.mesh_of``);
-    ``guess``, called only for a verdict that finds no mark (``frames.Frames.guess``: for a suspect on a coarse
+    ``reserve``, the number of trailing frames read with what the p-value's budget leaves
+    (``frames.Frames.reserve``, ``candidates``); ``guess``, called only for a verdict that finds no mark (``frames.Frames.guess``: for a suspect on a coarse
     grid, the statistics of the suspect as it is or smoothed, and the length (an index into ``words``) whose bins
     show the most energy, else None; ``_guess``)."""
 
@@ -191,12 +195,20 @@ class Statistics:
     shares: Optional[dict[int, np.ndarray]] = None
     mesh: str = "suspect"
     guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
+    reserve: int = 0
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
         shares = None if self.shares is None else {n: s[:1] for n, s in self.shares.items()}
         return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1], shares,
                           self.mesh, self.guess)
+
+    def candidates(self) -> list[int]:
+        """The Chase candidates read per kind in each frame: 2^``word.chase_bits`` in the frames read in full,
+        ``word.reserve_candidates`` in the last ``reserve`` ones (``frames.Frames.reserve``)."""
+        n_frames = len(self.frame_names)
+        full = n_frames - self.reserve
+        return [2 ** word.chase_bits(full)] * full + [word.reserve_candidates(full, self.reserve)] * self.reserve
 
 
 def bin_statistics(vertices, faces) -> Statistics:
@@ -210,7 +222,7 @@ def bin_statistics(vertices, faces) -> Statistics:
     return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
                       words[got.index], got.names,
                       {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)},
-                      got.mesh, got.guess)
+                      got.mesh, got.guess, got.reserve)
 
 
 def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None
@@ -238,19 +250,21 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
 def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict:
     """The verdict from the ``Statistics`` of ``bin_statistics`` and a secret (module docstring): the
     chosen length in every frame, both kinds, every Chase candidate; the p-value is the union bound over
-    all of these candidates (R frames * 2 kinds * 2^C, C = ``word.chase_bits(R)``), so it stays
-    exact when the reader keeps the best of them."""
+    all of these candidates (R frames * 2 kinds * 2^C, C = ``word.chase_bits(R)``, and the reserve frames'
+    candidates: ``Statistics.candidates``), so it stays exact when the reader keeps the best of them."""
     readings = []
     n_word = stats.n_word
     L = n_word - word.CHECK_BITS
     per_frame = np.atleast_2d(stats.words[n_word])
     shares = [None] * len(per_frame) if stats.shares is None else np.atleast_2d(stats.shares[n_word])
     n_frames = len(per_frame)
-    chase = word.chase_bits(n_frames)
-    n_candidates = 2**chase
+    per_reading = stats.candidates()
+    chase = word.chase_bits(n_frames - stats.reserve)
     for fi, stat in enumerate(per_frame):
+        if per_reading[fi] == 0:
+            continue
         got, score = word_read(stat, secret, n_word, shares[fi])
-        candidates = got[None] ^ word.likely_flips(np.abs(score), n_candidates)  # row 0: the word as read
+        candidates = got[None] ^ word.likely_flips(np.abs(score), per_reading[fi])  # row 0: the word as read
         # the flips of check bits leave the payload as it is: each distinct payload's check computed once
         _, first, which = np.unique(np.packbits(candidates[:, :L], axis=1), axis=0, return_index=True,
                                     return_inverse=True)
@@ -261,7 +275,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
             m, cand = int(matches[best]), candidates[best]
             readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, fi, L, kind, cand, score, got))
     p1, neg_m, fi, L, kind, cand, score, raw = min(readings, key=lambda r: (r[0], r[1], r[2]))
-    p = float(min(1.0, len(readings) * n_candidates * p1))
+    p = float(min(1.0, len(word.KINDS) * sum(per_reading) * p1))
     m = -neg_m
     payload = cand[:L]
     text = word.text_of(payload) if kind == "text" else None
@@ -280,6 +294,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
                # steps undone or taken ("smoothing:k", k < 0: a "denoised" frame; frames.mesh_of)
                "mesh": frames.mesh_of(stats.frame_names[fi], stats.mesh),
                "frame": stats.frame_names[fi], "frame_index": fi, "frames": n_frames, "chase_bits": chase,
+               "reserve_frames": stats.reserve, "candidates": per_reading[fi],
                "word": "".join(map(str, cand.tolist())),  # after the Chase search
                "word_read": "".join(map(str, raw.tolist())),  # the hard decisions, before it
                **guessed},  # no mark found: the word guessed without the check bits (``_guess``)

@@ -45,9 +45,18 @@ from, or when it is a smoothed copy, the suspect with its smoothing undone (``re
    their neighbours' interference (the blur of 8-bit quantization or 0.5 % noise: ``radial.interferes``):
    the own and refined frames of the suspect after DENOISE_STEPS steps of Laplacian smoothing, read
    beside the others ("denoised", "denoised-refined"; ``with_denoised``).
+6. Otherwise, when the suspect lies on a coarse grid (``on_grid``: quantized to 12 bits or fewer per axis) and
+   no crop frame was taken: the same denoised frames, read as reserve frames (``Frames.reserve``) with what
+   the p-value's budget leaves beside the others (``word.reserve_candidates``), so that those keep their
+   Chase bits. Quantization blurs the radii even where the bins do not show it: the Venus head's 8-bit copy
+   of the benchmark's key 1002 reads 5 wrong bits in its own frame, 8 in the refined one, 2 (ranks 0 and 7
+   of 64 by reliability) in the denoised one, found among its 49 candidates. With them as full frames (4
+   frames, 9 Chase bits) the bundled bunny simplified and quantized to 8 bits lost 3 of 120 marks read
+   with 10 and gained 1 (BENCHMARKS.md, ``session-29``).
 
 Every choice here is made on the mark's energy or the bins' shape, which involve no pass phrase, so it
-costs the p-value nothing; the union bound counts the frames read (1 to 4, or 6).
+costs the p-value nothing; the union bound counts the frames read (1 to 4, or 6) and the reserve frames'
+candidates.
 """
 
 from __future__ import annotations
@@ -117,6 +126,7 @@ class Frames:
     energy: float = 0.0
     mesh: str = "suspect"
     guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
+    reserve: int = 0  # the last ``reserve`` frames are read with what the p-value's budget leaves (item 6)
 
 
 def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
@@ -176,8 +186,13 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
                 blurred = _blurred(got)
             if blurred:
                 got = with_denoised(got, V0, F0, bin_counts, operator, measuring)
+    grid = on_grid(V0)
+    if grid and not any(n.startswith(("denoised", "crop")) for n in got.names):
+        operator = mean_operator(F0, len(V0), counts0) if operator is None else operator
+        more = with_denoised(got, V0, F0, bin_counts, operator)
+        got = dataclasses.replace(more, reserve=len(more.names) - len(got.names))
     return dataclasses.replace(got, guess=functools.cache(
-        lambda: guess_statistics(V0, F0, bin_counts, operator, area) if on_grid(V0) else None))
+        lambda: guess_statistics(V0, F0, bin_counts, operator, area) if grid else None))
 
 
 def _blurred(got: Frames) -> bool:

@@ -16,7 +16,9 @@ the bits read (a keyed hash of what was read), so P(m or more of the 32 match) =
 >= m) exactly per candidate, and the p-value reported is the union bound over the 2 * 1024 = 2048
 candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame (9.5e-7 with the
 refined frame) < 1e-6. A cropped copy is read in 6 frames (``frames``): then 2^8 candidates each
-(``chase_bits``), 7.2e-7 at best. The candidates depend on the bits and scores read only, never
+(``chase_bits``), 7.2e-7 at best. A copy on a coarse grid is also read in reserve frames, each with
+what the budget leaves (``reserve_candidates``: 49 candidates beside 2 frames), so that the others keep
+their 2^10 and a reading with all 32 right stays below 1e-6. The candidates depend on the bits and scores read only, never
 on the check bits expected, so the bound holds whichever they are.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
@@ -54,6 +56,14 @@ def chase_bits(n_frames: int) -> int:
     CHECK_BITS right below P_BEST (1 or 2 frames: 10; 3 or 4: 9)."""
     budget = P_BEST * 2.0**CHECK_BITS / (len(KINDS) * max(1, n_frames))  # candidates allowed per reading
     return int(min(CHASE_BITS, np.floor(np.log2(budget))))
+
+
+def reserve_candidates(n_frames: int, n_reserve: int) -> int:
+    """The candidates per reading of each of ``n_reserve`` reserve frames read beside ``n_frames`` frames of
+    2^``chase_bits(n_frames)`` candidates each: what the p-value's budget (P_BEST) leaves, shared equally
+    (0 when nothing is left). With 2 frames: 49; with 1: 561 (2 reserve frames)."""
+    main = len(KINDS) * max(1, n_frames) * 2 ** chase_bits(n_frames)
+    return max(0, int(np.floor((P_BEST * 2.0**CHECK_BITS - main) / (len(KINDS) * max(1, n_reserve)))))
 
 
 def likely_flips(reliability: np.ndarray, count: int) -> np.ndarray:
