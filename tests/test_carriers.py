@@ -323,7 +323,7 @@ def _smoothness_reference(vertices, adj, k=6):
     mnorm = np.linalg.norm(mean, axis=1)
     mean /= np.where(mnorm > 0, mnorm, 1.0)[:, None]
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", normals[face], mean[owner]), -1.0, 1.0))
-    angle = angle[np.argsort(owner * 4.0 + angle, kind="stable")]
+    angle = angle[np.lexsort((angle, owner))]  # each vertex's angles, ascending
     ptr = np.r_[0, np.cumsum(counts)]
     out = np.zeros((n, k))
     has = counts > 0
@@ -349,3 +349,18 @@ def test_mean_edge_length_is_bit_identical_to_the_plain_form(mesh):
     v, f, adj = with_adjacency(getattr(meshes, mesh)())
     e = adj.edges
     assert mean_edge_length(v, adj) == float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean()) > 0
+
+
+def test_the_map_assigns_every_sample_to_its_nearest_prototype():
+    """``SOM.assign`` (elementwise, no BLAS product) is the nearest prototype of each sample, the first on
+    a tie, as a plain distance table's argmin gives it; training moves the prototypes into the data."""
+    rng = np.random.default_rng(4)
+    x = np.concatenate([rng.normal(c, 0.05, size=(300, 6)) for c in (0.2, 0.6, 1.0)])
+    som = train_som(x, n_units=5, seed=1)
+    table = ((x[:, None, :] - som.prototypes[None]) ** 2).sum(axis=2)
+    assert np.array_equal(som.assign(x), np.argmin(table, axis=1))
+    p = som.prototypes
+    assert np.array_equal(som.assign(np.stack([p[2], p[2]])), [2, 2])  # a prototype is its own nearest
+    twins = type(som)(np.stack([p[0], p[0], p[1]]))
+    assert np.array_equal(twins.assign(p[:1]), [0])  # a tie: the first unit
+    assert x.min() - 0.1 < p.min() and p.max() < x.max() + 0.1

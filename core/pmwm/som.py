@@ -27,26 +27,39 @@ class SOM:
 
     def assign(self, data: np.ndarray) -> np.ndarray:
         """Index of the best-matching unit of every row of ``data``: (n,) int64."""
-        x = np.asarray(data, dtype=np.float64)
-        return _bmu(x, self.prototypes)
+        return _bmu(np.ascontiguousarray(np.asarray(data, dtype=np.float64).T), self.prototypes)
 
 
-def _bmu(x: np.ndarray, protos: np.ndarray) -> np.ndarray:
-    # |x - p|^2 = |x|^2 - 2 x.p + |p|^2; |x|^2 is the same for every unit
-    d2 = (protos * protos).sum(axis=1)[None, :] - 2.0 * (x @ protos.T)
-    return np.argmin(d2, axis=1).astype(np.int64)
+def _bmu(xt: np.ndarray, protos: np.ndarray) -> np.ndarray:
+    """The best-matching unit (n,) int64 of every sample, given as columns xt (d, n): the least
+    |x - p|^2 - |x|^2 = |p|^2 - 2 x.p, the first on a tie (as ``np.argmin``). Elementwise, one
+    coordinate row at a time, never a BLAS product: OpenBLAS's threads, beside a busy worker thread
+    (the embedders build the progressive mesh in one while they choose the carriers), made the
+    product ten times slower (BENCHMARKS.md, ``session-31``)."""
+    best = arg = None
+    for u, p in enumerate(protos):  # a few units
+        d = float(p @ p) - 2.0 * (xt[0] * p[0])
+        for j in range(1, len(xt)):  # a few features
+            d -= 2.0 * (xt[j] * p[j])
+        if best is None:
+            best, arg = d, np.zeros(len(d), np.int64)
+        else:
+            better = d < best
+            np.copyto(best, d, where=better)
+            arg[better] = u
+    return np.zeros(xt.shape[1], np.int64) if arg is None else arg
 
 
 def _initial_prototypes(x: np.ndarray, n_units: int) -> np.ndarray:
-    """Prototypes on the quantiles of x along its first principal axis."""
+    """Prototypes on the quantiles of x along its first principal axis (no BLAS product: ``_bmu``)."""
     mean = x.mean(axis=0)
     centred = x - mean
-    cov = centred.T @ centred / max(len(x) - 1, 1)
+    cov = np.einsum("ij,ik->jk", centred, centred) / max(len(x) - 1, 1)
     _, vecs = np.linalg.eigh(cov)
     axis = vecs[:, -1]
     if axis[np.argmax(np.abs(axis))] < 0:  # fix the eigenvector's sign: deterministic map order
         axis = -axis
-    proj = centred @ axis
+    proj = np.einsum("ij,j->i", centred, axis)
     q = np.quantile(proj, (np.arange(n_units) + 0.5) / n_units)
     return mean[None, :] + q[:, None] * axis[None, :]
 
@@ -67,14 +80,13 @@ def train_som(
     grid = np.arange(n_units, dtype=np.float64)
     dgrid2 = (grid[:, None] - grid[None, :]) ** 2
     s0, s1 = max(n_units / 2.0, 0.5), 0.5
+    xt = np.ascontiguousarray(x.T)  # (d, n): one feature per row
     for epoch in range(epochs):
         sigma = s0 * (s1 / s0) ** (epoch / max(epochs - 1, 1))
         h = np.exp(-dgrid2 / (2.0 * sigma * sigma))  # (u, u) neighbourhood weights
-        bmu = _bmu(x, protos)
+        bmu = _bmu(xt, protos)
         counts = np.bincount(bmu, minlength=n_units).astype(np.float64)
-        onehot = np.zeros((len(x), n_units))
-        onehot[np.arange(len(x)), bmu] = 1.0
-        sums = onehot.T @ x  # (u, d) per-unit sums
+        sums = np.stack([np.bincount(bmu, weights=row, minlength=n_units) for row in xt], axis=1)  # (u, d)
         weight = h @ counts
         ok = weight > 1e-12
         protos[ok] = (h @ sums)[ok] / weight[ok, None]
