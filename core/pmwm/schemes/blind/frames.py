@@ -174,25 +174,37 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
         rules.append(coarse.rule)
         V, F = coarse.vertices, coarse.faces
     operator = None
+    grid = on_grid(V0)
     if got.energy < FULL_VIEW:
         operator = mean_operator(F0, len(V0), counts0)
-        # a reading that shows the blur already has its denoised frames measured in a worker beside the
-        # unsmoothing scan (which seldom replaces the reading): on two cores the two overlap
+        # a reading that shows the blur, or a copy on a coarse grid, already has its denoised frames measured
+        # in a worker beside the unsmoothing scan (which seldom replaces the reading): on two cores the two
+        # overlap
         blurred = _blurred(got)
-        with beside(blurred, silent(denoised_frames), V0, F0, bin_counts, operator) as measuring:
+        with beside(blurred or grid, silent(denoised_frames), V0, F0, bin_counts, operator) as measuring:
             steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area, operator)
             if steps is not None:
                 got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
                 blurred = _blurred(got)
             if blurred:
                 got = with_denoised(got, V0, F0, bin_counts, operator, measuring)
-    grid = on_grid(V0)
-    if grid and not any(n.startswith(("denoised", "crop")) for n in got.names):
-        operator = mean_operator(F0, len(V0), counts0) if operator is None else operator
-        more = with_denoised(got, V0, F0, bin_counts, operator)
-        got = dataclasses.replace(more, reserve=len(more.names) - len(got.names))
+            elif grid:
+                got = _with_reserve(got, V0, F0, bin_counts, operator, measuring)
+    elif grid:
+        operator = mean_operator(F0, len(V0), counts0)
+        got = _with_reserve(got, V0, F0, bin_counts, operator)
     return dataclasses.replace(got, guess=functools.cache(
         lambda: guess_statistics(V0, F0, bin_counts, operator, area) if grid else None))
+
+
+def _with_reserve(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operator,
+                  measuring: Optional[Background] = None) -> Frames:
+    """``got`` with the denoised frames of ``with_denoised`` as reserve frames (``Frames.reserve``; module
+    docstring, item 6), for a suspect on a coarse grid; ``got`` itself when it was read in a crop frame."""
+    if any(n.startswith("crop") for n in got.names):
+        return got
+    more = with_denoised(got, V, F, bin_counts, operator, measuring)
+    return dataclasses.replace(more, reserve=len(more.names) - len(got.names))
 
 
 def _blurred(got: Frames) -> bool:
