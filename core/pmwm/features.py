@@ -116,7 +116,7 @@ def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6,
     mean /= np.where(mnorm > 0, mnorm, 1.0)[:, None]
     cosine = _row_dot(normals, face, mean, owner)
     angle = np.arccos(np.clip(cosine, -1.0, 1.0, out=cosine), out=cosine)
-    del face
+    del face, owner
 
     # each vertex's angles are consecutive (owner ascending, as the vertex-face lists): the vertices of
     # one valence m (a few distinct ones) sort theirs as the rows of one (r, m) block
