@@ -154,6 +154,17 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     the excess energy per vertex of the best so far; and the suspect smoothed a little, beside the reading
     kept, when that reading's bins show the blur of noise (``with_denoised``)."""
     area = vertex_areas(V, F)
+    grid = on_grid(V)
+    # a copy on a coarse grid is read in the denoised frames whatever else it shows (in full, or as reserve
+    # frames: module docstring, item 6): measured in a worker from the start (its own smoothing operator)
+    with beside(grid, silent(denoised_frames), V, F, bin_counts) as early:
+        return _read_statistics(V, F, bin_counts, area, grid, early)
+
+
+def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray, grid: bool,
+                     early: Optional[Background]) -> Frames:
+    """``read_statistics`` once the suspect's ``area`` and ``grid`` (``on_grid``) are known; ``early``, the
+    worker measuring a grid copy's denoised frames (None for another suspect)."""
     got = read_statistics_frames(V, F, bin_counts, area)
     V0, F0 = V, F
     # the suspect's edges, for the coarse mesh's first look and the smoothing operator: both are looked for
@@ -174,14 +185,14 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
         rules.append(coarse.rule)
         V, F = coarse.vertices, coarse.faces
     operator = None
-    grid = on_grid(V0)
     if got.energy < FULL_VIEW:
         operator = mean_operator(F0, len(V0), counts0)
-        # a reading that shows the blur, or a copy on a coarse grid, already has its denoised frames measured
-        # in a worker beside the unsmoothing scan (which seldom replaces the reading): on two cores the two
+        # a reading that shows the blur has its denoised frames measured in a worker beside the unsmoothing
+        # scan (which seldom replaces the reading), unless the early one measures them: on two cores the two
         # overlap
         blurred = _blurred(got)
-        with beside(blurred or grid, silent(denoised_frames), V0, F0, bin_counts, operator) as measuring:
+        with beside(blurred and early is None, silent(denoised_frames), V0, F0, bin_counts, operator) as late:
+            measuring = early or late
             steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area, operator)
             if steps is not None:
                 got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
@@ -191,8 +202,7 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
             elif grid:
                 got = _with_reserve(got, V0, F0, bin_counts, operator, measuring)
     elif grid:
-        operator = mean_operator(F0, len(V0), counts0)
-        got = _with_reserve(got, V0, F0, bin_counts, operator)
+        got = _with_reserve(got, V0, F0, bin_counts, None, early)
     return dataclasses.replace(got, guess=functools.cache(
         lambda: guess_statistics(V0, F0, bin_counts, operator, area) if grid else None))
 
@@ -250,10 +260,11 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
     return dataclasses.replace(got, names=got.names + names, statistics=got.statistics + more.statistics)
 
 
-def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator) -> Optional[Frames]:
+def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator=None) -> Optional[Frames]:
     """The own and refined frames (``read_statistics_frames``, no crop search) of the suspect V (n, 3), F (m, 3)
-    after DENOISE_STEPS steps of smoothing (``operator``: its ``mean_operator``), for ``with_denoised``;
-    None when smoothing flattened the surface to no area or no range."""
+    after DENOISE_STEPS steps of smoothing (``operator``: its ``mean_operator``, made here when None), for
+    ``with_denoised``; None when smoothing flattened the surface to no area or no range."""
+    operator = mean_operator(F, len(V)) if operator is None else operator
     X = smoothed(V, operator, DENOISE_LAM, DENOISE_STEPS)
     try:
         return read_statistics_frames(X, F, bin_counts, crop=False, refine_sample=DENOISE_REFINE_SAMPLE)
