@@ -152,7 +152,8 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     so the p-value's union bound is the chosen mesh's. Then, when still no mesh shows the mark in full
     view, the suspect with its smoothing undone (``unsmoothing``), read when it shows COARSE_GAIN times
     the excess energy per vertex of the best so far; and the suspect smoothed a little, beside the reading
-    kept, when that reading's bins show the blur of noise (``with_denoised``)."""
+    kept, when that reading's bins show the blur of noise (``with_denoised``), or as reserve frames on a copy
+    on a coarse grid (module docstring, item 6), whose denoised frames a worker measures from the start."""
     area = vertex_areas(V, F)
     grid = on_grid(V)
     # a copy on a coarse grid is read in the denoised frames whatever else it shows (in full, or as reserve
