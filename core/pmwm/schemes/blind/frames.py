@@ -157,20 +157,26 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     area = vertex_areas(V, F)
     grid = on_grid(V)
     # a copy on a coarse grid is read in the denoised frames whatever else it shows (in full, or as reserve
-    # frames: module docstring, item 6): measured in a worker from the start (its own smoothing operator)
-    with beside(grid, silent(denoised_frames), V, F, bin_counts) as early:
-        return _read_statistics(V, F, bin_counts, area, grid, early)
+    # frames: module docstring, item 6): measured in a worker from the start, with the smoothing operator
+    # the reading shares (the unsmoothing scan, the guess)
+    counts0 = edge_face_counts(F, len(V)) if grid else None
+    operator = mean_operator(F, len(V), counts0) if grid else None
+    with beside(grid, silent(denoised_frames), V, F, bin_counts, operator) as early:
+        return _read_statistics(V, F, bin_counts, area, early, counts0, operator)
 
 
-def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray, grid: bool,
-                     early: Optional[Background]) -> Frames:
-    """``read_statistics`` once the suspect's ``area`` and ``grid`` (``on_grid``) are known; ``early``, the
-    worker measuring a grid copy's denoised frames (None for another suspect)."""
+def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray, early: Optional[Background],
+                     counts0: Optional[tuple[np.ndarray, np.ndarray]], operator) -> Frames:
+    """``read_statistics`` once the suspect's ``area`` is known; ``early``, the worker measuring the denoised
+    frames of a copy on a coarse grid, ``counts0`` and ``operator`` its ``edge_face_counts`` and
+    ``mean_operator`` (all None for another suspect)."""
+    grid = early is not None
     got = read_statistics_frames(V, F, bin_counts, area)
     V0, F0 = V, F
     # the suspect's edges, for the coarse mesh's first look and the smoothing operator: both are looked for
     # when the mark is not in full view
-    counts0 = edge_face_counts(F0, len(V0)) if got.energy < FULL_VIEW else None
+    if counts0 is None and got.energy < FULL_VIEW:
+        counts0 = edge_face_counts(F0, len(V0))
     rules: list[str] = []
     while got.energy < FULL_VIEW and len(rules) < MAX_UNDO:
         coarse = coarse_mesh(V, F, None if rules else counts0)
@@ -185,9 +191,8 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
             got = dataclasses.replace(alt, mesh=" + ".join(reversed(steps)))
         rules.append(coarse.rule)
         V, F = coarse.vertices, coarse.faces
-    operator = None
     if got.energy < FULL_VIEW:
-        operator = mean_operator(F0, len(V0), counts0)
+        operator = mean_operator(F0, len(V0), counts0) if operator is None else operator
         # a reading that shows the blur has its denoised frames measured in a worker beside the unsmoothing
         # scan (which seldom replaces the reading), unless the early one measures them: on two cores the two
         # overlap
@@ -203,7 +208,7 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
             elif grid:
                 got = _with_reserve(got, V0, F0, bin_counts, operator, measuring)
     elif grid:
-        got = _with_reserve(got, V0, F0, bin_counts, None, early)
+        got = _with_reserve(got, V0, F0, bin_counts, operator, early)
     return dataclasses.replace(got, guess=functools.cache(
         lambda: guess_statistics(V0, F0, bin_counts, operator, area) if grid else None))
 
@@ -261,11 +266,10 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
     return dataclasses.replace(got, names=got.names + names, statistics=got.statistics + more.statistics)
 
 
-def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator=None) -> Optional[Frames]:
+def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator) -> Optional[Frames]:
     """The own and refined frames (``read_statistics_frames``, no crop search) of the suspect V (n, 3), F (m, 3)
-    after DENOISE_STEPS steps of smoothing (``operator``: its ``mean_operator``, made here when None), for
-    ``with_denoised``; None when smoothing flattened the surface to no area or no range."""
-    operator = mean_operator(F, len(V)) if operator is None else operator
+    after DENOISE_STEPS steps of smoothing (``operator``: its ``mean_operator``), for ``with_denoised``; None
+    when smoothing flattened the surface to no area or no range."""
     X = smoothed(V, operator, DENOISE_LAM, DENOISE_STEPS)
     try:
         return read_statistics_frames(X, F, bin_counts, crop=False, refine_sample=DENOISE_REFINE_SAMPLE)
