@@ -22,7 +22,7 @@ from pmwm.errors import KeyFileError, OutputExistsError, PmwmError, PMFormatErro
 from pmwm.api import load_key_data
 from pmwm.key import WatermarkKey
 from pmwm.pmfile import MAGIC, VERSION, from_bytes, read_pm, to_bytes, write_pm
-from pmwm.progressive import FLAG_SINGLE, ProgressiveMesh, build_progressive_mesh
+from pmwm.progressive import ENDS_SHIFT, FLAG_SINGLE, ProgressiveMesh, build_progressive_mesh
 
 COW = meshes.mesh_file("blob.off")  # a small closed organic mesh (2.9k vertices), generated
 # The header as documented in pmwm/pmfile.py: magic, version u16, flags u16, then
@@ -113,7 +113,7 @@ def _same_pm(a: ProgressiveMesh, b: ProgressiveMesh) -> None:
     for name in ("base_vertices", "base_faces", "pos", "v", "mask", "flags", "level_records"):
         x, y = getattr(a, name), getattr(b, name)
         assert x.shape == y.shape and np.array_equal(x, y), name
-    assert a.float32 == b.float32
+    assert a.float32 == b.float32 and a.end_ranks == b.end_ranks
 
 
 def _levels_to_check(pm: ProgressiveMesh) -> list[int]:
@@ -159,6 +159,21 @@ def test_round_trip_is_exact(any_pm, tmp_path):
     write_pm(path, any_pm)
     assert path.read_bytes() == data
     _same_pm(any_pm, read_pm(path))
+
+
+def test_the_file_version_follows_the_end_ranks(any_pm):
+    """pmwm writes version 2 (the masks name each arc's end faces); a progressive mesh without them,
+    as read from a version-1 file, is written as version 1 and reads back as it was."""
+    assert any_pm.end_ranks
+    assert HEADER.unpack_from(to_bytes(any_pm), 0)[1] == VERSION == 2
+    plain = dataclasses.replace(any_pm, end_ranks=False)
+    data = to_bytes(plain)
+    assert HEADER.unpack_from(data, 0)[1] == 1
+    back = from_bytes(data)
+    _same_pm(plain, back)
+    V0, F0 = any_pm.decode()
+    V1, F1 = back.decode()
+    assert np.array_equal(V0, V1) and np.array_equal(F0, F1)
 
 
 def test_full_decode_of_the_file_is_the_marked_mesh(cow):
@@ -412,6 +427,16 @@ def test_random_record_contents_with_a_valid_checksum_never_crash_decoding(recor
     else:
         mask[r] = np.uint64(value)
     _load_or_reject(_rebuild(pm, v=v, flags=flags, mask=mask))
+
+
+@pytest.mark.parametrize("ranks", [(13, 13), (0, 0), (12, 3)])
+def test_end_ranks_that_name_the_wrong_faces_never_crash_decoding(ranks):
+    """Every record's top bits changed (the checksum resealed): faces past v's degree or not at the
+    arc's ends give a wrong mesh, never an index out of range."""
+    pm = _open_pm()
+    top = np.uint64(0xFFF) << np.uint64(ENDS_SHIFT)
+    mask = (pm.mask & ~top) | (np.uint64(ranks[0] | ranks[1] << 6) << np.uint64(ENDS_SHIFT))
+    assert _load_or_reject(_rebuild(pm, mask=mask)) is not None
 
 
 # A version-1 file written by the encoder and decoder before issue 13 (main at 88eb246): the open

@@ -6,18 +6,21 @@ vertex -> faces map in Python dictionaries: record r adds vertex u = n_base + r,
 v whose rank (faces around v sorted by face index) is set in the mask to u, and appends [u, v, p]
 and/or [u, q, v], p and q the ends of the moved arc of faces. The two must give the same arrays,
 byte for byte, at the base, at every level boundary, one record either side of it, half way
-through a level, and at the end; the end must be the input mesh.
+through a level, and at the end; the end must be the input mesh. The reference also checks that
+the masks' top bits name the two faces that end each arc (``ENDS_SHIFT``), which the decoder reads
+p and q from; without them (a version-1 file) the decoder's sums must give the same arrays.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
 import pytest
 
 import meshes
-from pmwm.progressive import FLAG_SECOND, FLAG_SINGLE, ProgressiveMesh, build_progressive_mesh
+from pmwm.progressive import ENDS_SHIFT, FLAG_SECOND, FLAG_SINGLE, NO_END, ProgressiveMesh, build_progressive_mesh
 
 
 def reference_decode(pm: ProgressiveMesh, ks: list[int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
@@ -50,6 +53,12 @@ def reference_decode(pm: ProgressiveMesh, ks: list[int]) -> dict[int, tuple[np.n
         q = [x for x in prv if x not in nxt]
         assert len(p) == 1 and len(q) == 1, f"record {r}: the moved faces are not one open arc"
         p, q = p[0], q[0]
+        if pm.end_ranks and len(corners) <= ENDS_SHIFT:  # the mask names the arc's end faces
+            rp, rq = mask >> ENDS_SHIFT & NO_END, mask >> (ENDS_SHIFT + 6)
+            assert rp < len(corners) and rq < len(corners), f"record {r}: the mask names no end faces"
+            (fp, jp), (fq, jq) = corners[rp], corners[rq]
+            assert (mask >> rp) & 1 and (mask >> rq) & 1, f"record {r}: an end face that does not move"
+            assert F[fp][(jp + 1) % 3] == p and F[fq][(jq + 2) % 3] == q, f"record {r}: wrong end faces"
         new = []
         if not (flags & FLAG_SINGLE) or not (flags & FLAG_SECOND):
             new.append([u, v, p])
@@ -151,3 +160,31 @@ def test_decoding_again_and_in_another_order_gives_the_same_arrays():
     for k in reversed(ks):
         V, F = pm.decode(records=k)
         assert np.array_equal(V, first[k][0]) and np.array_equal(F, first[k][1])
+
+
+@pytest.mark.parametrize("name", list(MESHES))
+def test_without_end_ranks_the_sums_give_the_same_arrays(name):
+    """A progressive mesh read from a version-1 file has no end ranks: the decoder finds p and q by
+    its sums around each arc, and must give what the end ranks give."""
+    _, _, pm = _pm(name)
+    plain = dataclasses.replace(pm, end_ranks=False)
+    for k in _prefixes(pm, every_level=False):
+        V, F = pm.decode(records=k)
+        Vs, Fs = plain.decode(records=k)
+        assert np.array_equal(V, Vs) and np.array_equal(F, Fs), (name, k)
+
+
+def test_records_that_name_no_end_faces_are_read_by_the_sums():
+    """NO_END in a record's top bits (the build writes it where it finds no single end of each kind)
+    sends its level to the sums; the other levels keep the end ranks."""
+    _, _, pm = _pm("blob")
+    top = np.uint64(0xFFF) << np.uint64(ENDS_SHIFT)
+    mask = pm.mask.copy()
+    some = np.arange(0, pm.n_records, 3)
+    mask[some] = (mask[some] & ~top) | (np.uint64(NO_END | NO_END << 6) << np.uint64(ENDS_SHIFT))
+    marked = dataclasses.replace(pm, mask=mask)
+    ks = _prefixes(pm, every_level=False)
+    ref = reference_decode(dataclasses.replace(marked, end_ranks=False), ks)
+    for k in ks:
+        V, F = marked.decode(records=k)
+        assert np.array_equal(V, ref[k][0]) and np.array_equal(F, ref[k][1]), k

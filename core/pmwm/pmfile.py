@@ -11,6 +11,12 @@ Layout (little endian)::
                     split flags, face mask u64): 24 bytes each with float32 positions
     checksum        SHA-256 of everything before it
 
+Version 2 (issue 13) differs from version 1 only in the masks' top 12 bits, which name the two
+faces that end each record's arc (``progressive.ENDS_SHIFT``), so that the decoder reads p and q
+from two faces instead of summing over the arc. A version-1 file reads as before (without them),
+and a progressive mesh without them (``end_ranks`` False: one read from a version-1 file) is
+written as version 1.
+
 The size implied by the header is checked against the file size before anything is
 allocated, so a header that claims a billion records is rejected at once. Nothing of
 the watermark key is stored here.
@@ -29,7 +35,7 @@ from .atomic import atomic_write_bytes
 from .progressive import FLAG_SECOND, FLAG_SINGLE, ProgressiveMesh
 
 MAGIC = b"\x89PMWM\r\n\x1a"
-VERSION = 1
+VERSION = 2  # the newest this module reads and writes (it reads every version from 1)
 HEADER = struct.Struct("<8sHHIIIII")
 _DIGEST = 32
 _FLAG_F64 = 1
@@ -54,7 +60,7 @@ def to_bytes(pm: ProgressiveMesh) -> bytes:
     ftype = "<f8" if f64 else "<f4"
     header = HEADER.pack(
         MAGIC,
-        VERSION,
+        VERSION if pm.end_ranks else 1,
         _FLAG_F64 if f64 else 0,
         pm.n_base_vertices,
         len(pm.base_faces),
@@ -87,7 +93,7 @@ def from_bytes(data: bytes, name: str = "the file") -> ProgressiveMesh:
         raise PMFormatError(f"{name} is not a .pmwm progressive mesh (wrong magic bytes)")
     if version > VERSION:
         raise PMFormatError(
-            f"{name} is .pmwm version {version}; this pmwm reads version {VERSION}: upgrade pmwm"
+            f"{name} is .pmwm version {version}; this pmwm reads versions 1 to {VERSION}: upgrade pmwm"
         )
     if version < 1:
         raise PMFormatError(f"{name} has an invalid .pmwm version {version}")
@@ -124,6 +130,7 @@ def from_bytes(data: bytes, name: str = "the file") -> ProgressiveMesh:
         flags=rflags,
         level_records=levels,
         float32=not f64,
+        end_ranks=version >= 2,
     )
     _check(pm, name)
     return pm

@@ -37,14 +37,16 @@ vertex; the new faces are derived from the ends of that arc of faces, so a recor
 costs 24 bytes (float32 position, v, 64-bit mask). ``flags[r]`` bit 0 marks a split
 that adds one face (on a boundary); bit 1 says which of the two possible faces.
 Any prefix of the records is a valid mesh, and all records give back exactly the
-input mesh (vertex order: ``vertex_order``; face order: ``face_order``). The record
-format is unchanged from .pmwm version 1.
+input mesh (vertex order: ``vertex_order``; face order: ``face_order``). The mask's
+top 12 bits, unused by faces (v has at most 52 of them there), name the two faces that end the
+arc (``ENDS_SHIFT``): .pmwm version 2; version 1 had no such bits (``end_ranks``).
 
 Decoding (``decode``) applies a level's records together, touching only the faces around
 their vertices: each vertex keeps its corners in a row of 16 slots, and one gather through a
 permutation table indexed by the record's mask splits a row into the new vertex's and the old
-one's; the arc ends come from sums that telescope around the arc. Issue 13: 2.0-2.5 M records/s
-before, about twice that now (BENCHMARKS.md, pm-speed).
+one's; the arc ends p and q are read from the two faces the mask names, or, without them, from
+sums that telescope around the arc. Issue 13: 2.0-2.5 M records/s before, about twice that with
+the sums, and more with the named faces (BENCHMARKS.md, pm-speed and core).
 """
 
 from __future__ import annotations
@@ -65,6 +67,11 @@ Progress = Optional[Callable[[float, str], None]]
 MAX_FAN = 64  # faces around v at a split: the mask is 64 bits
 FLAG_SINGLE = 1  # the split adds one face (boundary collapse)
 FLAG_SECOND = 2  # ... and that face is the one holding the half-edge v -> u
+# The mask's top 12 bits, when the PM has ``end_ranks`` and v has at most ENDS_SHIFT faces: the ranks
+# among v's faces of the moved faces that end the arc, p's (next to u's corner) then q's, 6 bits each;
+# NO_END in both when the record has none. The decoder reads p and q from these two faces.
+ENDS_SHIFT = 52
+NO_END = 63
 _NEXT = np.array([1, 2, 0])  # the next corner of a face
 _PREV = np.array([2, 0, 1])
 _TO_NEXT = _NEXT - np.arange(3)  # flat corner id -> the next corner's, by corner
@@ -83,6 +90,7 @@ class ProgressiveMesh:
     flags: np.ndarray  # (R,) uint8: FLAG_SINGLE, FLAG_SECOND
     level_records: np.ndarray  # (L,) int64: records at the end of each level, ascending, last == R
     float32: bool = False  # positions are exactly float32 (stored as such in files)
+    end_ranks: bool = False  # masks name each arc's end faces (``ENDS_SHIFT``); not in .pmwm version 1 files
     vertex_order: Optional[np.ndarray] = field(default=None, repr=False)  # PM index -> input index
     face_order: Optional[np.ndarray] = field(default=None, repr=False)  # PM face -> input face
 
@@ -180,6 +188,8 @@ class _Records:
     # pair in the second face, or repeating the first face's u and landing on its p slot with one
     # face), then p's and q's slots (the other's when absent)
     n_faces: int
+    ends: Optional[np.ndarray]  # (2, k) int64: the slots of v's arc end corners (``ENDS_SHIFT``), or None
+    no_ends: np.ndarray  # (k + 1,) int64: records before each without end slots in v's fast row
 
     @staticmethod
     def of(pm: ProgressiveMesh, k: int, nb: int, nf: int) -> "_Records":
@@ -202,9 +212,15 @@ class _Records:
         at[5] = np.where(two, at[3] - 1, at[4])
         v = np.asarray(pm.v[:k], dtype=np.int64)
         u = np.arange(nb, nb + k)
+        ends, no_ends = None, np.zeros(k + 1, dtype=np.int64)
+        if pm.end_ranks:
+            h = (pm.mask[:k] >> np.uint64(ENDS_SHIFT)).view(np.int64)
+            ends = np.stack([h & NO_END, h >> 6])
+            np.cumsum((ends >= _FAST - 2).any(axis=0), out=no_ends[1:])  # (NO_END among them)
+            ends += v * _FAST
         return _Records(v=v, mask=pm.mask[:k], uuvv=np.stack([u, u, v, v]),
                         n_new=two.astype(np.int64) + 1, on=np.stack([has1, ~has1 | two]), at=at,
-                        n_faces=n_faces)
+                        n_faces=n_faces, ends=ends, no_ends=no_ends)
 
     def fill_faces(self, flat: np.ndarray) -> None:
         """Write u and v into the faces the records add (``flat``: F raveled; p and q come with the
@@ -258,9 +274,7 @@ class _Incidence:
         flat = F.reshape(-1)
         deg = np.bincount(flat, minlength=n)
         inc = _Incidence(np.zeros((n, _FAST), dtype=dtype), np.zeros((n, 0), dtype=dtype), deg)
-        inc.fit(int(deg.max(initial=0)))
-        order = np.argsort(flat, kind="stable")  # corners grouped by vertex, ascending in each group
-        vert = np.take(flat, order)
+        order, vert = stable_order(flat)  # corners grouped by vertex, ascending in each group
         start = np.cumsum(deg) - deg
         inc.put(vert, np.arange(len(flat)) - np.take(start, vert), order)
         return inc
@@ -289,9 +303,11 @@ class _Incidence:
             self.extra[x, : rows.shape[1] - _FAST] = rows[:, _FAST:]
 
     def put(self, x: np.ndarray, slot: np.ndarray, val: np.ndarray) -> None:
-        """Slot ``slot[i]`` of vertex ``x[i]`` = ``val[i]`` (slots below ``width``)."""
-        big = slot >= _FAST
-        if big.any():
+        """Slot ``slot[i]`` of vertex ``x[i]`` = ``val[i]``, the table widened as needed."""
+        top = int(slot.max(initial=0))
+        if top >= _FAST:
+            self.fit(top + 1)
+            big = slot >= _FAST
             s = np.flatnonzero(big)
             self.extra.reshape(-1)[np.take(x, s) * self.extra.shape[1] + np.take(slot, s) - _FAST] = np.take(val, s)
             s = np.flatnonzero(~big)
@@ -310,7 +326,7 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     """
     cnt = b - a
     v = rec.v[a:b]
-    u = np.arange(nv, nv + cnt, dtype=np.int64)
+    u = rec.uuvv[0, a:b]
     deg = inc.deg
     d = deg.take(v)
     mask = rec.mask[a:b]
@@ -320,9 +336,13 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     # the lists are read again (not after the last records): they get the new faces' corners at u, v
     new = rec.at[:4, a:b] if b < len(rec.v) else None
     if d.max(initial=0) <= _FAST - 2:
+        # the corners that end the arcs, read before the lists change (p after, q before them)
+        ends = None if rec.ends is None or rec.no_ends[b] > rec.no_ends[a] else inc.main.reshape(-1).take(rec.ends[:, a:b])
         hit, n_mv = _move_fast(inc, v, slice(nv, nv + cnt), mask, d, new)
         flat[hit] = u.repeat(n_mv)
-        pq = _arc_ends(flat, hit, n_mv, nv + cnt)
+        # (a rank past v's degree, only in corrupt data, reads a stale slot: a corner of an earlier
+        # face, whose vertices are written; p and q are then wrong but vertices of the mesh)
+        pq = _arc_ends(flat, hit, n_mv, nv + cnt) if ends is None else flat.take(ends + _ENDS_OFF.take(ends % 3 + _ENDS_ROW))
     else:
         n_mv = np.empty(cnt, dtype=np.int64)
         pq = np.empty((2, cnt), dtype=np.int64)
@@ -344,7 +364,6 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     on = on.reshape(-1)
     pq = pq.reshape(-1)[on]
     dpq = deg.take(pq)
-    inc.fit(int(dpq.max(initial=0)) + 1)
     inc.put(pq, dpq, pq_at[on])
     deg[pq] = dpq + 1
     n_new = rec.n_new[a:b]
@@ -375,11 +394,16 @@ def _move_fast(inc: _Incidence, v: np.ndarray, u, mask: np.ndarray, d: np.ndarra
     if new is not None:
         flat = row.reshape(-1)
         at = np.arange(0, _FAST * len(v), _FAST) + n_mv
-        flat[np.concatenate([at, at + 1])] = new[:2].reshape(-1)
+        flat[at] = new[0]
+        at += 1
+        flat[at] = new[1]
         rows[u] = row
-        at += _FAST - 1 - d  # slot n_kp of v's row, counted from the row's end
-        flat[np.concatenate([at, at - 1])] = new[2:].reshape(-1)
-        rows[v] = row[:, ::-1]
+        at += _FAST - 2 - d  # slot n_kp of v's row, counted from the row's end
+        flat[at] = new[2]
+        at -= 1
+        flat[at] = new[3]
+        whole = np.dtype((np.void, row.strides[0]))  # a row as one item: a scatter of rows, 2x faster
+        inc.main.view(whole).reshape(-1).put(v, np.ascontiguousarray(row[:, ::-1]).view(whole).reshape(-1))
     return hit, n_mv
 
 
@@ -418,6 +442,10 @@ def _move_wide(inc: _Incidence, v: np.ndarray, u: np.ndarray, mask: np.ndarray, 
     return take(buf.reshape(-1), _packed(n_mv, 2 * C)).astype(np.int64), n_mv
 
 
+_ENDS_OFF = np.concatenate([_TO_NEXT, _TO_PREV])  # p: the vertex after an end face's corner; q: before
+_ENDS_ROW = np.array([[0], [3]])
+
+
 def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np.ndarray:
     """Per record, the ends p, q of its moved arc of faces (the moved corners ``hit``, grouped by
     record) as (2, cnt) int64.
@@ -432,19 +460,9 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
     corner = hit % 3
     nxt = flat.take(hit + _TO_NEXT.take(corner))
     prv = flat.take(hit + _TO_PREV.take(corner))
-    if len(hit) and n < 2**31:  # (a record without moved corners gets s1 == 0 or garbage)
-        s = np.empty((2, len(hit)), dtype=np.int64)
-        np.subtract(nxt, prv, out=s[0])
-        np.multiply(s[0], nxt + prv, out=s[1])
-        s = s.cumsum(axis=1).take(n_mv.cumsum() - 1, axis=1)  # sums per record (wrapping is fine)
-        s[:, 1:] -= s[:, :-1].copy()
-        s1, s2 = s
-        if (s1 != 0).all():
-            both = s2 // s1  # p + q
-            pq = np.concatenate([both + s1, both - s1]).reshape(2, -1)
-            pq >>= 1
-            if (pq.view(np.uint64) < n).all():
-                return pq
+    pq = _ends_by_sums(nxt, prv, n_mv, n)
+    if pq is not None:
+        return pq
     cnt = len(n_mv)
     rec = np.repeat(np.arange(cnt), n_mv)
     tag = np.full(int(max(nxt.max(initial=0), prv.max(initial=0))) + 1, -1, dtype=np.int64)
@@ -457,6 +475,26 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
     pq[0, take(rec, pe)] = take(nxt, pe)
     pq[1, take(rec, qe)] = take(prv, qe)
     return pq
+
+
+def _ends_by_sums(nxt: np.ndarray, prv: np.ndarray, n_mv: np.ndarray, n: int) -> Optional[np.ndarray]:
+    """``_arc_ends``' sums: p and q (2, cnt) int64 from the vertices after and before the arc's centre
+    in each face (grouped by record, ``n_mv`` per record); None when a record's sums give no two
+    vertices below ``n``."""
+    if not len(nxt) or n >= 2**31:  # (a record without faces gets s1 == 0 or garbage)
+        return None
+    s = np.empty((2, len(nxt)), dtype=np.int64)
+    np.subtract(nxt, prv, out=s[0])
+    np.multiply(s[0], nxt + prv, out=s[1])
+    s = s.cumsum(axis=1).take(n_mv.cumsum() - 1, axis=1)  # sums per record (wrapping is fine)
+    s[:, 1:] -= s[:, :-1].copy()
+    s1, s2 = s
+    if not (s1 != 0).all():
+        return None
+    both = s2 // s1  # p + q
+    pq = np.concatenate([both + s1, both - s1]).reshape(2, -1)
+    pq >>= 1
+    return pq if (pq.view(np.uint64) < n).all() else None
 
 
 # --------------------------------------------------------------------------- encoding
@@ -552,6 +590,7 @@ class _Pass:
     fan_ptr: np.ndarray  # CSR over records: faces around v after the collapse (input face ids)
     fan: np.ndarray
     arc: np.ndarray  # bool per fan entry: goes back to u on the split
+    ends: np.ndarray  # (2, fan entries) bool: the arc face ending at p (next to u), at q (before u)
 
 
 @dataclass
@@ -1207,6 +1246,20 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, own, check_flips=T
     return ok & ~undecided, undecided
 
 
+def _arc_end_faces(Fl: np.ndarray, c: np.ndarray, r: np.ndarray, k: int, n: int) -> np.ndarray:
+    """Which faces end each collapse's arc, (2, len(c)) bool (p's end, q's), as the decoder will find
+    them: ``c`` the arc faces' corners at u (flat ids into ``Fl``), ``r`` their records (k of them),
+    ``n`` the vertex count. None of a pass's records is marked where the sums fail (no such arc is
+    known: ``_end_ranks`` then writes NO_END)."""
+    nxt = np.take(Fl, c + np.take(_TO_NEXT, c % 3))
+    prv = np.take(Fl, c + np.take(_TO_PREV, c % 3))
+    order, _ = stable_order(r)
+    pq = _ends_by_sums(np.take(nxt, order), np.take(prv, order), np.bincount(r, minlength=k), n)
+    if pq is None:
+        return np.zeros((2, len(c)), dtype=bool)
+    return np.stack([nxt == np.take(pq[0], r), prv == np.take(pq[1], r)])
+
+
 def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     """Apply independent collapses u -> v to the live mesh, and to ``cnt`` (nn + 1,) int64, its corners
     per vertex (as ``np.bincount(live.F.ravel())``: the sink's entry counts the retired faces' corners);
@@ -1235,6 +1288,7 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     vkeep = ~np.take(is_gone, fv)
     # the faces around v after the collapse: u's arc, then v's own; their corners at v
     cu_a, ru_a = _pick(arc, cu, ru)
+    ends_a = _arc_end_faces(Fl, cu_a, ru_a, k, n + 1)
     cv_k, rv_k = _pick(vkeep, cv, rv)
     at = np.concatenate([cu_a, cv_k])
     all_r = np.concatenate([ru_a, rv_k])
@@ -1244,7 +1298,8 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     fan_ptr = np.zeros(k + 1, np.int64)
     np.cumsum(np.bincount(all_r, minlength=k), out=fan_ptr[1:])
     p = _Pass(u=u.copy(), v=v.copy(), flags=flags, dead=dead, fan_ptr=fan_ptr,
-              fan=np.take(live.fid, np.take(all_f, order)), arc=np.take(all_arc, order))
+              fan=np.take(live.fid, np.take(all_f, order)), arc=np.take(all_arc, order),
+              ends=np.take(np.pad(ends_a, ((0, 0), (0, len(cv_k)))), order, axis=1))
     # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
     Fl[cu_a] = np.take(v, ru_a)
     g3 = (gone * 3)[:, None] + np.arange(3)
@@ -1293,6 +1348,23 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     return p
 
 
+def _end_ranks(ends: np.ndarray, rec: np.ndarray, rank: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """The top bits of a pass's masks (``ENDS_SHIFT``), (k,) uint64: the ranks of the fan entries that
+    end each record's arc (``ends`` (2, fan entries) bool, sorted as ``rank``; ``rec`` their records),
+    or NO_END for a record with more than ENDS_SHIFT faces (its top bits are rank bits) or without
+    exactly one end of each kind."""
+    k = len(sizes)
+    r = np.full((2, k), NO_END, np.uint64)
+    one = np.ones(k, bool)
+    for j in range(2):
+        at = np.flatnonzero(ends[j])
+        r[j, np.take(rec, at)] = np.take(rank, at)
+        one &= np.bincount(np.take(rec, at), minlength=k) == 1
+    r[:, ~one | (sizes > ENDS_SHIFT)] = NO_END
+    out = (r[0] | (r[1] << np.uint64(6))) << np.uint64(ENDS_SHIFT)
+    return np.where(sizes > ENDS_SHIFT, np.uint64(0), out)
+
+
 def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveMesh:
     """Number vertices and faces in refinement order and encode the records."""
     n = len(V)
@@ -1327,6 +1399,7 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
         bits = np.where(p.arc[order], np.left_shift(np.uint64(1), rank), np.uint64(0))
         nonempty = np.flatnonzero(sizes > 0)
         mask[r0 + nonempty] = np.bitwise_or.reduceat(bits, p.fan_ptr[nonempty])
+        mask[r0 : r0 + k] |= _end_ranks(p.ends[:, order], rec, rank, sizes)
         r0 += k
     level_records = np.cumsum([len(p.u) for p in rev]).astype(np.int64)
     base_faces = pm_of[F_end[np.argsort(fid_end)]]
@@ -1339,6 +1412,7 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
         flags=flags,
         level_records=level_records,
         float32=bool(np.all(V.astype(np.float32).astype(np.float64) == V)),
+        end_ranks=True,
         vertex_order=vertex_order,
         face_order=face_order,
     )
