@@ -460,9 +460,19 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
     corner = hit % 3
     nxt = flat.take(hit + _TO_NEXT.take(corner))
     prv = flat.take(hit + _TO_PREV.take(corner))
-    pq = _ends_by_sums(nxt, prv, n_mv, n)
-    if pq is not None:
-        return pq
+    if len(hit) and n < 2**31:  # (a record without moved corners gets s1 == 0 or garbage)
+        s = np.empty((2, len(hit)), dtype=np.int64)
+        np.subtract(nxt, prv, out=s[0])
+        np.multiply(s[0], nxt + prv, out=s[1])
+        s = s.cumsum(axis=1).take(n_mv.cumsum() - 1, axis=1)  # sums per record (wrapping is fine)
+        s[:, 1:] -= s[:, :-1].copy()
+        s1, s2 = s
+        if (s1 != 0).all():
+            both = s2 // s1  # p + q
+            pq = np.concatenate([both + s1, both - s1]).reshape(2, -1)
+            pq >>= 1
+            if (pq.view(np.uint64) < n).all():
+                return pq
     cnt = len(n_mv)
     rec = np.repeat(np.arange(cnt), n_mv)
     tag = np.full(int(max(nxt.max(initial=0), prv.max(initial=0))) + 1, -1, dtype=np.int64)
@@ -475,26 +485,6 @@ def _arc_ends(flat: np.ndarray, hit: np.ndarray, n_mv: np.ndarray, n: int) -> np
     pq[0, take(rec, pe)] = take(nxt, pe)
     pq[1, take(rec, qe)] = take(prv, qe)
     return pq
-
-
-def _ends_by_sums(nxt: np.ndarray, prv: np.ndarray, n_mv: np.ndarray, n: int) -> Optional[np.ndarray]:
-    """``_arc_ends``' sums: p and q (2, cnt) int64 from the vertices after and before the arc's centre
-    in each face (grouped by record, ``n_mv`` per record); None when a record's sums give no two
-    vertices below ``n``."""
-    if not len(nxt) or n >= 2**31:  # (a record without faces gets s1 == 0 or garbage)
-        return None
-    s = np.empty((2, len(nxt)), dtype=np.int64)
-    np.subtract(nxt, prv, out=s[0])
-    np.multiply(s[0], nxt + prv, out=s[1])
-    s = s.cumsum(axis=1).take(n_mv.cumsum() - 1, axis=1)  # sums per record (wrapping is fine)
-    s[:, 1:] -= s[:, :-1].copy()
-    s1, s2 = s
-    if not (s1 != 0).all():
-        return None
-    both = s2 // s1  # p + q
-    pq = np.concatenate([both + s1, both - s1]).reshape(2, -1)
-    pq >>= 1
-    return pq if (pq.view(np.uint64) < n).all() else None
 
 
 # --------------------------------------------------------------------------- encoding
@@ -1246,17 +1236,19 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, own, check_flips=T
     return ok & ~undecided, undecided
 
 
-def _arc_end_faces(Fl: np.ndarray, c: np.ndarray, r: np.ndarray, k: int, n: int) -> np.ndarray:
+def _arc_end_faces(Fl: np.ndarray, c: np.ndarray, r: np.ndarray, pq: np.ndarray) -> np.ndarray:
     """Which faces end each collapse's arc, (2, len(c)) bool (p's end, q's), as the decoder will find
-    them: ``c`` the arc faces' corners at u (flat ids into ``Fl``), ``r`` their records (k of them),
-    ``n`` the vertex count. None of a pass's records is marked where the sums fail (no such arc is
-    known: ``_end_ranks`` then writes NO_END)."""
-    nxt = np.take(Fl, c + np.take(_TO_NEXT, c % 3))
-    prv = np.take(Fl, c + np.take(_TO_PREV, c % 3))
-    order, _ = stable_order(r)
-    pq = _ends_by_sums(np.take(nxt, order), np.take(prv, order), np.bincount(r, minlength=k), n)
-    if pq is None:
-        return np.zeros((2, len(c)), dtype=bool)
+    them: ``c`` the arc faces' corners at u (flat ids into ``Fl``), ``r`` their records; ``pq`` (2, k)
+    each record's p and q, the third vertices of its vanishing faces, -1 for a face it has not (on a
+    boundary): then that end follows from the other and the sum of (next - previous) around the arc,
+    p - q (the sum telescopes; exact in float64 below 2^53)."""
+    j = c % 3
+    nxt = np.take(Fl, c + np.take(_TO_NEXT, j))
+    prv = np.take(Fl, c + np.take(_TO_PREV, j))
+    miss = pq < 0
+    if miss.any():
+        s1 = np.bincount(r, weights=nxt - prv, minlength=pq.shape[1]).astype(np.int64)
+        pq = np.where(miss, pq[::-1] + np.stack([s1, -s1]), pq)
     return np.stack([nxt == np.take(pq[0], r), prv == np.take(pq[1], r)])
 
 
@@ -1275,9 +1267,11 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     d1 = np.take(Fl, fu * 3 + np.take(_NEXT, ju)) == vu  # f1 holds the half-edge u -> v
     d2 = np.take(Fl, fu * 3 + np.take(_PREV, ju)) == vu  # f2 holds v -> u
     dead = np.full((k, 2), -1, np.int64)
-    for col, d in enumerate((d1, d2)):
-        r_d, f_d = _pick(d, ru, fu)
+    pq = np.full((2, k), -1, np.int64)  # the split's p and q: the vanishing faces' third vertices
+    for col, (d, to) in enumerate(((d1, _TO_PREV), (d2, _TO_NEXT))):
+        r_d, f_d, c_d = _pick(d, ru, fu, cu)
         dead[r_d, col] = np.take(live.fid, f_d)
+        pq[col, r_d] = np.take(Fl, c_d + np.take(to, c_d % 3))
     single = (dead < 0).any(axis=1)
     flags = np.where(single, FLAG_SINGLE | np.where(dead[:, 0] < 0, FLAG_SECOND, 0), 0).astype(np.uint8)
     arc = ~(d1 | d2)
@@ -1288,7 +1282,7 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     vkeep = ~np.take(is_gone, fv)
     # the faces around v after the collapse: u's arc, then v's own; their corners at v
     cu_a, ru_a = _pick(arc, cu, ru)
-    ends_a = _arc_end_faces(Fl, cu_a, ru_a, k, n + 1)
+    ends_a = _arc_end_faces(Fl, cu_a, ru_a, pq)
     cv_k, rv_k = _pick(vkeep, cv, rv)
     at = np.concatenate([cu_a, cv_k])
     all_r = np.concatenate([ru_a, rv_k])
