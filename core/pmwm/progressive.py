@@ -166,7 +166,7 @@ def decode(pm: ProgressiveMesh, k: int) -> tuple[np.ndarray, np.ndarray]:
     V[nb:] = pm.pos[:k]
     F = np.empty((rec.n_faces, 3), dtype=np.int64)
     F[:nf] = pm.base_faces
-    rec.fill_faces(F.reshape(-1))
+    rec.fill_faces(F[nf:])
     inc = _Incidence.of(F[:nf], nb + k, np.int32 if 3 * rec.n_faces < 2**31 else np.int64)
     bounds = unique_values(np.r_[0, pm.level_records[pm.level_records < k], k]).tolist()
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -182,7 +182,7 @@ class _Records:
     v: np.ndarray  # int64
     mask: np.ndarray  # uint64
     n_new: np.ndarray  # int64: the number of faces it adds
-    uuvv: np.ndarray  # (4, k) int64: u, u, v, v (the vertices of the corners ``at[:4]``)
+    u: np.ndarray  # (k,) int64: the vertex it adds
     on: np.ndarray  # (2, k) bool: p is in a new face (then the first is [u, v, p], else [u, q, v]); q is
     at: np.ndarray  # (6, k) corner ids (flat ids in F): the new faces' corners at u, u, v, v (the second
     # pair in the second face, or repeating the first face's u and landing on its p slot with one
@@ -218,14 +218,16 @@ class _Records:
             ends = np.stack([h & NO_END, h >> 6])
             np.cumsum((ends >= _FAST - 2).any(axis=0), out=no_ends[1:])  # (NO_END among them)
             ends += v * _FAST
-        return _Records(v=v, mask=pm.mask[:k], uuvv=np.stack([u, u, v, v]),
+        return _Records(v=v, mask=pm.mask[:k], u=u,
                         n_new=two.astype(np.int64) + 1, on=np.stack([has1, ~has1 | two]), at=at,
                         n_faces=n_faces, ends=ends, no_ends=no_ends)
 
-    def fill_faces(self, flat: np.ndarray) -> None:
-        """Write u and v into the faces the records add (``flat``: F raveled; p and q come with the
-        decoding)."""
-        flat[self.at[:4].reshape(-1)] = self.uuvv.reshape(-1)
+    def fill_faces(self, new: np.ndarray) -> None:
+        """Write the faces the records add, ``new`` (m, 3) in record order, as [u, v, v]: each is
+        [u, v, p] or [u, q, v], and the decoding writes p or q over the one v out of place (three
+        column writes: faster than scattering u and v to their corners)."""
+        new[:, 0] = self.u.repeat(self.n_new)
+        new[:, 1] = new[:, 2] = self.v.repeat(self.n_new)
 
 
 _FAST = 16  # row width of the incidence table on the fast path (degrees up to _FAST - 2)
@@ -326,7 +328,7 @@ def _split_chunk(rec: _Records, F: np.ndarray, nv: int, a: int, b: int, inc: _In
     """
     cnt = b - a
     v = rec.v[a:b]
-    u = rec.uuvv[0, a:b]
+    u = rec.u[a:b]
     deg = inc.deg
     d = deg.take(v)
     mask = rec.mask[a:b]
