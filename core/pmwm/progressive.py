@@ -1395,7 +1395,7 @@ def _assemble(V, F0, F_end, fid_end, alive, passes: list[_Pass]) -> ProgressiveM
         bits = np.where(p.arc[order], np.left_shift(np.uint64(1), rank), np.uint64(0))
         nonempty = np.flatnonzero(sizes > 0)
         mask[r0 + nonempty] = np.bitwise_or.reduceat(bits, p.fan_ptr[nonempty])
-        mask[r0 : r0 + k] |= _end_ranks(p.ends[:, order], rec, rank, sizes)
+        mask[r0 : r0 + k] |= _end_ranks(np.take(p.ends, order, axis=1), rec, rank, sizes)
         r0 += k
     level_records = np.cumsum([len(p.u) for p in rev]).astype(np.int64)
     base_faces = pm_of[F_end[np.argsort(fid_end)]]
