@@ -188,8 +188,10 @@ class _Records:
     # pair in the second face, or repeating the first face's u and landing on its p slot with one
     # face), then p's and q's slots (the other's when absent)
     n_faces: int
-    ends: Optional[np.ndarray]  # (2, k) int64: the slots of v's arc end corners (``ENDS_SHIFT``), or None
-    no_ends: np.ndarray  # (k + 1,) int64: records before each without end slots in v's fast row
+    ends: Optional[np.ndarray]  # (2, k) int64: flat slots in the fast table of v's corners in the faces
+    # that end the arc, p's and q's (``ENDS_SHIFT``); None without end ranks
+    no_ends: np.ndarray  # (k + 1,) int64: records before each whose ranks are not both in the fast row
+    # (NO_END, or a rank past _FAST - 3): a chunk with any of them finds p and q by the sums
 
     @staticmethod
     def of(pm: ProgressiveMesh, k: int, nb: int, nf: int) -> "_Records":
@@ -1346,9 +1348,9 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
 
 def _end_ranks(ends: np.ndarray, rec: np.ndarray, rank: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     """The top bits of a pass's masks (``ENDS_SHIFT``), (k,) uint64: the ranks of the fan entries that
-    end each record's arc (``ends`` (2, fan entries) bool, sorted as ``rank``; ``rec`` their records),
-    or NO_END for a record with more than ENDS_SHIFT faces (its top bits are rank bits) or without
-    exactly one end of each kind."""
+    end each record's arc (``ends`` (2, fan entries) bool, sorted as ``rank``; ``rec`` their records);
+    NO_END for a record without exactly one end of each kind; nothing for a record with more than
+    ENDS_SHIFT faces (its top bits are rank bits)."""
     k = len(sizes)
     r = np.full((2, k), NO_END, np.uint64)
     one = np.ones(k, bool)
@@ -1356,7 +1358,7 @@ def _end_ranks(ends: np.ndarray, rec: np.ndarray, rank: np.ndarray, sizes: np.nd
         at = np.flatnonzero(ends[j])
         r[j, np.take(rec, at)] = np.take(rank, at)
         one &= np.bincount(np.take(rec, at), minlength=k) == 1
-    r[:, ~one | (sizes > ENDS_SHIFT)] = NO_END
+    r[:, ~one] = NO_END
     out = (r[0] | (r[1] << np.uint64(6))) << np.uint64(ENDS_SHIFT)
     return np.where(sizes > ENDS_SHIFT, np.uint64(0), out)
 
