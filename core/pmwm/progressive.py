@@ -1240,15 +1240,12 @@ def _valid(ctx: _Ctx, live: _Live, cnt, u, v, cu, ru, cv, rv, own, check_flips=T
     return ok & ~undecided, undecided
 
 
-def _arc_end_faces(Fl: np.ndarray, c: np.ndarray, r: np.ndarray, pq: np.ndarray) -> np.ndarray:
-    """Which faces end each collapse's arc, (2, len(c)) bool (p's end, q's), as the decoder will find
-    them: ``c`` the arc faces' corners at u (flat ids into ``Fl``), ``r`` their records; ``pq`` (2, k)
-    each record's p and q, the third vertices of its vanishing faces, -1 for a face it has not (on a
-    boundary): then that end follows from the other and the sum of (next - previous) around the arc,
-    p - q (the sum telescopes; exact in float64 below 2^53)."""
-    j = c % 3
-    nxt = np.take(Fl, c + np.take(_TO_NEXT, j))
-    prv = np.take(Fl, c + np.take(_TO_PREV, j))
+def _arc_end_faces(nxt: np.ndarray, prv: np.ndarray, r: np.ndarray, pq: np.ndarray) -> np.ndarray:
+    """Which faces end each collapse's arc, (2, len(r)) bool (p's end, q's), as the decoder will find
+    them: ``nxt``, ``prv`` the vertices after and before u in each arc face, ``r`` their records; ``pq``
+    (2, k) each record's p and q, the third vertices of its vanishing faces, -1 for a face it has not
+    (on a boundary): then that end follows from the other and the sum of (next - previous) around the
+    arc, p - q (the sum telescopes; exact in float64 below 2^53)."""
     miss = pq < 0
     if miss.any():
         s1 = np.bincount(r, weights=nxt - prv, minlength=pq.shape[1]).astype(np.int64)
@@ -1286,9 +1283,13 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     vkeep = ~np.take(is_gone, fv)
     # the faces around v after the collapse: u's arc, then v's own; their corners at v
     cu_a, ru_a = _pick(arc, cu, ru)
-    ends_a = _arc_end_faces(Fl, cu_a, ru_a, pq)
     cv_k, rv_k = _pick(vkeep, cv, rv)
     at = np.concatenate([cu_a, cv_k])
+    j_at = at % 3
+    into = at + np.take(_TO_PREV, j_at)  # the corners before them: the half-edges into v
+    n_arc = len(cu_a)
+    nxt_a = np.take(Fl, cu_a + np.take(_TO_NEXT, j_at[:n_arc]))
+    ends_a = _arc_end_faces(nxt_a, np.take(Fl, into[:n_arc]), ru_a, pq)
     all_r = np.concatenate([ru_a, rv_k])
     all_f = at // 3
     all_arc = np.concatenate([np.ones(len(cu_a), bool), np.zeros(len(cv_k), bool)])
@@ -1321,8 +1322,6 @@ def _collapse(ctx: _Ctx, live: _Live, ch: _Chosen, cnt: np.ndarray) -> _Pass:
     # from its own faces, Q_a(V_v) stays: the cost moves by v's own error's change (off the boundary,
     # where no reverse candidate needs Q_v; the full updates that follow overwrite any corner from
     # another record's v). Failed candidates get another chance nearby.
-    into = at + np.take(_TO_PREV, at % 3)
-    n_arc = len(cu_a)
     own = into[n_arc:]
     on_b = np.take(live.bnd.reshape(-1), own)
     shift = np.flatnonzero(~on_b)
