@@ -11,7 +11,7 @@ import math
 import os
 import platform
 from datetime import datetime, timezone
-from typing import TYPE_CHECKING, Callable, Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -19,10 +19,7 @@ from pmwm import metrics as M
 
 from .methods import DISPLAY, STRENGTH_MEANING
 from .published import CHO_PUBLISHED, PAPER_TABLE1, PAPER_TABLES, paper_value
-from .records import BenchResults, Cell, Distortion, cell, mean_std, select
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .sweep import SweepResults
+from .records import BenchResults, Cell, Distortion, SweepResults, cell, mean_std, select
 
 
 def fmt(mean: float, std: float, digits: int = 2) -> str:
@@ -262,7 +259,7 @@ def verdict_line(label: str, comparisons: Sequence) -> str:
     return f"- **{label}**: {lead}" + "; ".join(parts) + "."
 
 
-def render_sweep(res: "SweepResults") -> str:
+def render_sweep(res: SweepResults) -> str:
     """The equal-distortion section: header (command, commit, machine), how the winner is called, one
     verdict line per attack, and one table per attack (method, strength, MRMS and BER per model)."""
     st = res.settings

@@ -40,6 +40,7 @@ from pmwm.validate import parse_bits
 from .markdown import render_markdown
 from .methods import SchemeMethod, default_methods
 from .models import DEFAULT_MODELS, load, resolve
+from .plots import write_plots
 from .protocols import Setting, attack_seed, benchmark_settings, paper_settings
 from .records import BenchResults, Distortion, Trial
 from .report import commit, raw_folder, write_section
@@ -203,8 +204,6 @@ def run_bench(
                "trials": [asdict(t) for t in res.trials], "distortions": [asdict(d) for d in res.distortions]}
         (raw_dir / "trials.json").write_text(json.dumps(raw, indent=0, default=float) + "\n", encoding="utf-8")
         if plots:
-            from .plots import write_plots
-
             written = write_plots(res, p_set, b_set, raw_dir, "correlation")
             if written:
                 say(f"[bench] plots: {', '.join(p.name for p in written)}")
