@@ -1,7 +1,7 @@
 """Markdown of the reports: the robustness section (both protocols) and the equal-distortion section.
 
-The robustness section's layout (headings, tables, column names) is what BENCHMARKS.md holds and
-the lead re-generates; change it only on purpose. Sections are rendered one heading level below the
+The robustness section's layout (headings, tables, column names) is what the report's robustness
+fragments hold and the lead re-generates; change it only on purpose. Sections are rendered one heading level below the
 report file's title.
 """
 
@@ -91,7 +91,7 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         f"({platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
         f"numpy {np.__version__}); {st['keys']} keys per model{' (quick mode)' if st['quick'] else ''}, "
         f"seeds {st['seed']}..{st['seed'] + st['keys'] - 1}, {st.get('seconds', 0)} s. "
-        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder `<report name>-{st.get('section', 'robustness')}/` beside this file (`trials.json`, `correlation_*.png`).",
+        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder `{st.get('raw', '<report name>-' + st.get('section', 'robustness'))}/` beside this file (`trials.json`, `correlation_*.png`).",
         "",
         "Cells are mean ± std over the keys. **~** marks a cell not distinguishable from chance: pooling all keys' "
         "bits, the number of correct bits is not significant against Binomial(bits, 1/2) at p < 0.01. "
@@ -216,7 +216,7 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         lines += table(hdr, rows)
     lines += ["", "bound (noise rows) = lowest BER any detector can reach, Q(√(E/N)/σ), σ = A·d̄/√3, at the "
               "method's own embedding energy."]
-    # a section of BENCHMARKS.md: one heading level below the file's title
+    # a section of the report: one heading level below the file's title
     lines = ["#" + ln if ln.startswith("#") else ln for ln in lines]
     return "\n".join(lines) + "\n"
 
@@ -275,7 +275,7 @@ def render_sweep(res: SweepResults) -> str:
         f"{keys} key{'s' if keys != 1 else ''} per point{' (quick mode)' if st['quick'] else ''}, seeds "
         f"{st['seed']}..{st['seed'] + keys - 1}: per key one {st['n_bits']}-bit random payload and one realisation "
         "of each attack, the same for every method and strength; "
-        f"{st.get('seconds', 0)} s. Raw results and plots: the folder `<report name>-{st['section']}/` beside "
+        f"{st.get('seconds', 0)} s. Raw results and plots: the folder `{st.get('raw', '<report name>-' + st['section'])}/` beside "
         "this file (`sweep.json`, `ber_vs_mrms_<attack>.png`).",
         "",
         f"Strengths: {grids}. MRMS = embedding distortion, % of the bounding-box diagonal, from "

@@ -43,7 +43,7 @@ from .models import DEFAULT_MODELS, load, resolve
 from .plots import write_plots
 from .protocols import Setting, attack_seed, benchmark_settings, paper_settings
 from .records import BenchResults, Distortion, Trial
-from .report import commit, raw_folder, write_section
+from .report import commit, raw_folder, raw_folder_path, write_section
 
 Progress = Optional[Callable[[str], None]]
 
@@ -193,6 +193,8 @@ def run_bench(
             say(f"[bench] {label}: key {k + 1}/{keys} done ({time.perf_counter() - t_start:.0f} s)")
 
     res.settings["seconds"] = round(time.perf_counter() - t_start, 1)
+    if out:
+        res.settings["raw"] = raw_folder_path(out, section).name
     res.markdown = render_markdown(res, p_set, b_set)
     if out:
         # the report is the ``section`` of ``out`` (other benchmarks keep theirs);

@@ -33,7 +33,7 @@ from .plots import write_sweep_plots
 from .protocols import attack_seed
 from .runner import read_attacked
 from .records import EqualMrms, SweepEmbedding, SweepPoint, SweepResults, SweepTrial
-from .report import commit, machine, raw_folder, write_section
+from .report import commit, machine, raw_folder, raw_folder_path, write_section
 
 Progress = Optional[Callable[[str], None]]
 
@@ -281,6 +281,8 @@ def run_sweep(
     res.settings["seconds"] = round(time.perf_counter() - t_start, 1)
     res.points = aggregate(res)
     res.comparisons = compare(res)
+    if out:
+        res.settings["raw"] = raw_folder_path(out, section).name
     res.markdown = render_sweep(res)
     if out:
         out_path = Path(out)
