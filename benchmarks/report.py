@@ -188,7 +188,9 @@ def render_section(s: Section) -> list[str]:
         if (raw / png).exists():
             out += [f"![{png}](../benchmarks/results/{s.name}/{png})", ""]
     more = "Every table of this section" if omitted else "The section as written"
-    extra = f"; raw data and plots: [benchmarks/results/{s.name}/](../benchmarks/results/{s.name}/)" if raw.is_dir() else ""
+    extra = ""
+    if raw.is_dir():
+        extra = f"; raw data and plots: [benchmarks/results/{s.name}/](../benchmarks/results/{s.name}/)"
     out += [f"{more}: {link(s.name)}{extra}.", ""]
     return out
 

@@ -275,7 +275,8 @@ def render_sweep(res: SweepResults) -> str:
         f"{keys} key{'s' if keys != 1 else ''} per point{' (quick mode)' if st['quick'] else ''}, seeds "
         f"{st['seed']}..{st['seed'] + keys - 1}: per key one {st['n_bits']}-bit random payload and one realisation "
         "of each attack, the same for every method and strength; "
-        f"{st.get('seconds', 0)} s. Raw results and plots: the folder `{st.get('raw', '<report name>-' + st['section'])}/` beside "
+        f"{st.get('seconds', 0)} s. Raw results and plots: the folder "
+        f"`{st.get('raw', '<report name>-' + st['section'])}/` beside "
         "this file (`sweep.json`, `ber_vs_mrms_<attack>.png`).",
         "",
         f"Strengths: {grids}. MRMS = embedding distortion, % of the bounding-box diagonal, from "
