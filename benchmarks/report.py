@@ -84,9 +84,9 @@ HEADER = """# Benchmarks
 Figures from real runs, generated: each section below is a fragment of `benchmarks/results/` written by the
 script its first line names, with the commit of the code measured and the machine; long sections show their
 main tables here and link the fragment in full. Rebuild with `python benchmarks/report.py` after a benchmark
-ran (`tests/test_benchmark_report.py` checks that this file is up to date). Meshes: the Stanford bunny and dragon, a Venus
-head and Igea (`pmwm_bench.models`); MRMS and Hausdorff are surface distances in % of the bounding-box
-diagonal (`pmwm.metrics`). What was tried and measured on the way is in [decisions/](decisions/).
+ran (`tests/test_benchmark_report.py` checks that this file is up to date). Meshes: the Stanford bunny and
+dragon, a Venus head and Igea (`pmwm_bench.models`); MRMS and Hausdorff are surface distances in % of the
+bounding-box diagonal (`pmwm.metrics`). What was tried and measured on the way is in [decisions/](decisions/).
 """
 
 
