@@ -127,7 +127,8 @@ def run_bench(
     methods: ``SchemeMethod``s (or objects with ``name``, ``scheme``, ``strength``,
              ``embed(v, f, bits, seed) -> (marked, key)`` and ``extract(v, f, key) -> bits``);
              default pmwm, pmwm-paper, Cho I, Cho II.
-    out:     markdown path (its section ``section`` is rewritten), None to skip writing.
+    out:     markdown path (its section ``section`` is rewritten; a file named ``<section>.md`` is the section
+             alone, as in benchmarks/results/), None to skip writing.
     """
     say = progress or (lambda msg: None)
     t_start = time.perf_counter()
