@@ -1,7 +1,9 @@
-"""Shared helper of the benchmark scripts: the report file, the meshes, the command line that ran.
+"""Shared helper of the benchmark scripts: where their sections go, the meshes, the command line that ran.
 
-The provenance every section states (``commit``, ``machine``) and the section writer live in
-``pmwm_bench.report``; the model catalogue in ``pmwm_bench.models``. The scripts look meshes up in
+Each script writes its section as a fragment ``benchmarks/results/NAME.md`` (raw data in
+``benchmarks/results/NAME/``); ``python benchmarks/report.py`` assembles the report, docs/benchmarks.md,
+from the fragments. The provenance every section states (``commit``, ``machine``) and the section writer
+live in ``pmwm_bench.report``; the model catalogue in ``pmwm_bench.models``. The scripts look meshes up in
 $PMWM_TEST_DATA, $PMWM_BENCH_DATA, then ../shared/data beside the checkout.
 """
 
@@ -22,7 +24,7 @@ from pmwm_bench import models, report
 from pmwm_bench.report import commit, machine  # noqa: F401  (re-exported for the scripts)
 
 ROOT = Path(__file__).resolve().parents[1]
-REPORT = ROOT / "BENCHMARKS.md"
+RESULTS = ROOT / "benchmarks" / "results"  # the fragments NAME.md and the raw folders NAME/
 
 
 def data_dirs() -> list[Path]:
@@ -46,9 +48,15 @@ def load(name: str) -> tuple[np.ndarray, np.ndarray]:
     return models.load(mesh_path(name))
 
 
+def fragment(name: str) -> Path:
+    """The fragment file of section ``name``: ``benchmarks/results/NAME.md``."""
+    return RESULTS / f"{name}.md"
+
+
 def write_section(name: str, body: str) -> None:
-    """Replace (or append) the section ``name`` of BENCHMARKS.md with ``body``, and print it."""
-    report.write_section(REPORT, name, body)
+    """Write the fragment of section ``name`` (``benchmarks/results/NAME.md``) with ``body``, and print it;
+    ``python benchmarks/report.py`` then rebuilds the report."""
+    report.write_section(fragment(name), name, body)
     print(body)
 
 

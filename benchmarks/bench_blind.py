@@ -1,5 +1,5 @@
 """The blind scheme (issue 14): distortion, BER per benchmark attack, the whole payload after the
-target attacks, progressive-mesh levels, false positives and speed; section ``blind`` of BENCHMARKS.md.
+target attacks, progressive-mesh levels, false positives and speed; section ``blind`` of the report.
 
 Run: python benchmarks/bench_blind.py [--keys 10] [--models bunny,dragon,venus-head,igea] [--fp 10000]
      [--quick] [--no-write]
@@ -317,7 +317,7 @@ def main(argv=None) -> int:
 
     # ---- markdown
     groups = [(g, label) for g, items in settings.items() for (label, *_rest) in items]
-    out = ["## Blind scheme: read with a pass phrase alone (issue 14)", "",
+    out = ["## Blind scheme: read with a pass phrase alone", "",
            f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. "
            f"{a.keys} keys per model (one pass phrase and random 32-bit payload each; 64 bits embedded: "
            f"32 payload + 32 check); default strength: the bin-mean margin calibrated per mesh to MRMS "

@@ -2,7 +2,7 @@
 full decode, verify, bytes per record, and the size of each extension zip.
 
 Run: python benchmarks/bench_core.py [--print-only] [--no-zips]  (meshes from $PMWM_TEST_DATA or
-../shared/data beside the checkout). Writes the "core" section of BENCHMARKS.md (``--print-only``:
+../shared/data beside the checkout). Writes the "core" section of the report (its fragment in benchmarks/results/) (``--print-only``:
 prints it only; ``--no-zips``: leaves out the extension zips, e.g. to time another checkout's library
 with PYTHONPATH=that/core). The anchor is a whole process, like `pmwm embed`: Python
 start-up, trimesh loading the same file, fast_simplification.simplify to 1 % of the faces.
@@ -57,7 +57,7 @@ def best_of(fn, repeat: int = 3) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--print-only", action="store_true", help="print the section, do not write BENCHMARKS.md")
+    ap.add_argument("--print-only", action="store_true", help="print the section, do not write its fragment")
     ap.add_argument("--no-zips", action="store_true", help="do not build and size the extension zips")
     a = ap.parse_args()
     # the anchor's packages were byte-compiled at install: so is the library

@@ -4,7 +4,7 @@ benchmark protocol's attacks and after averaging collusion, spread-spectrum agai
 Run: OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/bench_fingerprint.py
      [--models bunny,igea] [--trials 1000] [--registry 10000] [--assets 4] [--recipients 25] [--skip-dask]
 (meshes from $PMWM_TEST_DATA or ../shared/data beside the checkout). Writes the "fingerprint" section
-of BENCHMARKS.md; raw numbers in BENCHMARKS-fingerprint/results.json.
+of the report (benchmarks/results/fingerprint.md); raw numbers in benchmarks/results/fingerprint/results.json.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import REPORT, command, commit, load, machine, mesh_path, write_section  # noqa: E402
+from _report import command, commit, fragment, load, machine, mesh_path, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
 from pmwm import attacks  # noqa: E402
@@ -242,7 +242,7 @@ def main() -> None:
     ap.add_argument("--per-copy-only", action="store_true",
                     help="re-measure the per-copy cost only, keeping the other results of the last run")
     a = ap.parse_args()
-    raw = raw_folder(REPORT, "fingerprint") / "results.json"
+    raw = raw_folder(fragment("fingerprint"), "fingerprint") / "results.json"
     if a.per_copy_only:
         results = json.loads(raw.read_text())
         results["per_copy"] = [per_copy(m) for m in a.models.split(",")]

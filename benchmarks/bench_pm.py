@@ -22,7 +22,7 @@ extension zip would have to carry.
 
 Run: OMP_NUM_THREADS=1 python benchmarks/bench_pm.py [--old PATH] [--repeat 3] [--decode-repeat 10]
 [--numba-python PY] [--numba-wheels DIR]
-Writes the "pm-speed" section of BENCHMARKS.md.
+Writes the "pm-speed" section of the report (its fragment in benchmarks/results/).
 """
 
 from __future__ import annotations
@@ -282,7 +282,7 @@ def main() -> None:
         return "–" if x is None else f"{x * 1000:,.0f} ms"
 
     lines = [
-        "## Progressive mesh speed (issue 13)",
+        "## Progressive mesh speed",
         "",
         f"Command: `OMP_NUM_THREADS=1 {command()}` at commit {commit()}. Machine: {machine()}.",
         f"Old code: {old if old else 'not found'} (its own commit). The machine was shared: each figure is the",

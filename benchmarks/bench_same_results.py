@@ -4,9 +4,9 @@ Run: python benchmarks/bench_same_results.py [--keys 5] [--models bunny,dragon,v
      [--methods robust,paper] [--trials PATH]
 (meshes from $PMWM_TEST_DATA or ../shared/data beside the checkout). Runs ``pmwm bench`` with the first
 ``--keys`` keys of the committed robustness run (seeds 0..keys-1; or reads a ``trials.json`` it wrote,
-``--trials``) and compares every trial with the committed ``BENCHMARKS-robustness/trials.json``: bits
+``--trials``) and compares every trial with the committed ``benchmarks/results/robustness/trials.json``: bits
 read, failures, and each cell's mean against the committed mean +- std. Writes the "same-results"
-section of BENCHMARKS.md.
+section of the report (its fragment in benchmarks/results/).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import ROOT, command, commit, data_dirs, machine, write_section  # noqa: E402
 
-COMMITTED = ROOT / "BENCHMARKS-robustness" / "trials.json"
+COMMITTED = ROOT / "benchmarks" / "results" / "robustness" / "trials.json"
 
 
 def _by_trial(doc: dict) -> dict:
@@ -65,13 +65,13 @@ def main() -> None:
         result = compare(json.loads(COMMITTED.read_text()), json.loads(trials.read_text()))
     committed_at = "the robustness section's commit (7bf4a85)"
     lines = [
-        "## Same results after the speed work (issue 13)",
+        "## Same results after the speed work",
         "",
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
         "",
         f"`pmwm bench` re-run on {', '.join(result['models'])}, methods {', '.join(result['methods'])}, both "
         f"protocols, the first {args.keys} keys (seeds 0..{args.keys - 1}), compared trial by trial with the "
-        f"committed `BENCHMARKS-robustness/trials.json` of {committed_at}, made before the KD-tree, the new "
+        f"committed `benchmarks/results/robustness/trials.json` of {committed_at}, made before the KD-tree, the new "
         "progressive-mesh encoder and the faster layout and carrier search:",
         "",
         f"- trials compared: {result['trials']} ({result['missing']} without a counterpart); "

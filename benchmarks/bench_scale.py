@@ -2,7 +2,7 @@
 
 The mesh is the catalogue's igea (igea_cyberware.ply) (268,686 faces) after one midpoint subdivision
 (1,074,744 faces, 537,374 vertices). Run: python benchmarks/bench_scale.py [--repeat N] [--old-core DIR]
-[--print-only]. Writes the "scale" section of BENCHMARKS.md (``--print-only``: prints it only).
+[--print-only]. Writes the "scale" section of the report (its fragment in benchmarks/results/) (``--print-only``: prints it only).
 
 ``--repeat N`` runs the command N times and keeps the fastest (the machine is shared); ``--old-core
 DIR`` also runs the command with another checkout's library (PYTHONPATH=DIR, e.g. main's ``core``),
@@ -42,7 +42,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=1, help="runs of the command; the fastest is kept")
     ap.add_argument("--old-core", default=None, help="also time this library folder (PYTHONPATH), alternating")
     ap.add_argument("--old-label", default=None, help="how the section names --old-core (e.g. its commit)")
-    ap.add_argument("--print-only", action="store_true", help="print the section, do not write BENCHMARKS.md")
+    ap.add_argument("--print-only", action="store_true", help="print the section, do not write its fragment")
     a = ap.parse_args()
     V, F = subdivide(*load("igea"), scheme="midpoint")
     with tempfile.TemporaryDirectory() as tmp:
@@ -72,8 +72,8 @@ def main() -> None:
         "|---|---|---|---|",
         f"| {elapsed:.1f} s | {peak_mb:,.0f} MB | {pm_size / 2**20:.1f} MiB | {verify.stdout.splitlines()[0] if verify.stdout else verify.stderr.strip()} |",
         "",
-        f"Targets: under 1 GB peak (issue 6): {'met' if peak_mb < 1024 else 'NOT met'}; embed under 10 s "
-        f"(issue 13): {'met' if elapsed < 10 else 'NOT met'} ({elapsed:.1f} s for the whole command"
+        f"Targets: under 1 GB peak: {'met' if peak_mb < 1024 else 'NOT met'}; embed under 10 s: "
+        f"{'met' if elapsed < 10 else 'NOT met'} ({elapsed:.1f} s for the whole command"
         + (f", fastest of {len(runs['this'])} runs" if len(runs["this"]) > 1 else "") + ").",
     ])
     if runs["old"]:

@@ -2,7 +2,7 @@
 Subdivision Surface modifier (Catmull-Clark, one level) in headless Blender, with its default limit
 surface and without; read as the add-on reads an object (Blender's triangulation of the quads) and as
 a PLY file Blender exported is read. Unmarked copies given the same modifier, read with every key's
-pass phrase, count the false positives. Section ``blind-subsurf`` of BENCHMARKS.md.
+pass phrase, count the false positives. Section ``blind-subsurf`` of the report.
 
 Run (needs the ``bpy`` module): python benchmarks/bench_subsurf.py [--keys 5]
      [--models bunny,dragon,venus-head,igea] [--no-write]

@@ -3,7 +3,7 @@ older commit run side by side.
 
 Run: python benchmarks/bench_verify.py [--repeat 3] [--rounds 2] [--baseline REV]
 (meshes from $PMWM_TEST_DATA or ../shared/data beside the checkout). Writes the "verify-speed"
-section of BENCHMARKS.md.
+section of the report (its fragment in benchmarks/results/).
 
 Cases, on the bunny and igea, marked by the robust scheme (payload "bench", seed 1): the marked
 mesh; a re-ordered copy; a copy cut in half by a plane, then rotated, scaled and moved; a copy
@@ -326,7 +326,7 @@ def cli(a) -> None:
             if cv - cr >= TARGET:
                 over_cpu.append(f"{m} / {case} ({cv - cr:.2f} s)")
     body = "\n".join([
-        ("## Verify speed (issues 13, 14): the blind scheme" if blind else "## Verify speed (issue 13)")
+        ("## Verify speed: the blind scheme" if blind else "## Verify speed")
         + ", `pmwm verify` as the user runs it" + (" (the thread variables as set)" if a.threads_as_set else ""),
         "",
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
@@ -366,8 +366,8 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
     n_calls = a.repeat * a.rounds
     blind = a.scheme == "blind"
     lines = [
-        ("## Verify speed (issues 13, 14): the blind scheme" if blind else
-         "## Verify speed (issue 13): spatial search by KD-tree")
+        ("## Verify speed: the blind scheme" if blind else
+         "## Verify speed: spatial search by KD-tree")
         + (", the first call in a fresh process" if a.fresh else ""),
         "",
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",

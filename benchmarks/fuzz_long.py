@@ -4,7 +4,7 @@ Mutates valid files at random: bit flips, byte overwrites, truncation, insertion
 rewritten with the checksum recomputed (so that the structural checks are reached), and for keys
 random edits of the JSON text and of its fields. A failure is any exception other than
 PMFormatError / KeyFileError, or a parsed progressive mesh whose decode raises.
-Run: python benchmarks/fuzz_long.py [--seconds 300]. Writes the "fuzz" section of BENCHMARKS.md.
+Run: python benchmarks/fuzz_long.py [--seconds 300]. Writes the "fuzz" section of the report (its fragment in benchmarks/results/).
 """
 
 from __future__ import annotations

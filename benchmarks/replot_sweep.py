@@ -1,6 +1,6 @@
 """Re-render the equal-distortion plots from a sweep's raw results, measuring nothing.
 
-Run: python benchmarks/replot_sweep.py BENCHMARKS-equal-distortion
+Run: python benchmarks/replot_sweep.py benchmarks/results/equal-distortion
 Reads ``sweep.json`` in that folder and writes its ``ber_vs_mrms_<attack>.png`` again with the current
 plotting code (``pmwm_bench.plots.write_sweep_plots``).
 """
@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from pmwm_bench.plots import write_sweep_plots
-from pmwm_bench.sweep import EqualMrms, SweepPoint, SweepResults
+from pmwm_bench.records import EqualMrms, SweepPoint, SweepResults
 
 
 def main(folder: Path) -> list[Path]:

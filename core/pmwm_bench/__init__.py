@@ -6,14 +6,14 @@ compared with, the markdown and the plots. It drives pmwm through its public API
 and the Blender extension does not carry it. ``pmwm bench`` reaches it through the ``pmwm.commands``
 entry point (it needs the bench extra: ``pip install "pmwm[bench]"``).
 
-Modules (imports go one way: cli -> runner, sweep -> markdown, plots -> records, methods, models,
-published, protocols, report -> pmwm):
+Modules (imports go one way, no circle: cli -> sweep -> runner -> markdown, plots -> records, methods,
+models, published, protocols, report -> pmwm; ``tests/test_layout.py`` checks it):
 
 - ``models``     the one catalogue of benchmark meshes, and where they are found
 - ``methods``    ``SchemeMethod``: the four methods (pmwm, pmwm-paper, Cho I, Cho II) behind one interface
 - ``published``  the paper's Tables 1-4 and Cho et al.'s published BER
 - ``protocols``  the attack settings of both protocols and the seed of each attack realisation
-- ``records``    trial and distortion records, table cells
+- ``records``    trial, distortion and sweep records, table cells
 - ``runner``     ``run_bench``: both protocols end to end
 - ``sweep``      ``run_sweep``: strengths x methods, BER against MRMS, the comparison at equal MRMS
 - ``markdown``   the report sections

@@ -37,8 +37,10 @@ sweep strengths (--grid SCHEME=a,b,... overrides one scheme):
              for s, g in DEFAULT_GRID.items())}
 
 examples:
-  pmwm bench bunny dragon venus-head --data ../shared/data --keys 10 --section robustness -o BENCHMARKS.md
-  pmwm bench --sweep --models bunny,dragon --data ../shared/data --keys 5 -o BENCHMARKS.md
+  pmwm bench bunny dragon venus-head --data ../shared/data --keys 10 --section robustness \\
+      -o benchmarks/results/robustness.md
+  pmwm bench --sweep --models bunny,dragon --data ../shared/data --keys 5 \\
+      -o benchmarks/results/equal-distortion.md
   pmwm bench --sweep --quick -o /tmp/B.md
 """
 
@@ -77,7 +79,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--section", default=None,
                    help=f"section of the report file to (re)write (default robustness, sweep: {SECTION})")
     p.add_argument("--no-plots", action="store_true", help="write no PNG")
-    p.add_argument("-o", "--output", default="BENCHMARKS.md", help="markdown report (default BENCHMARKS.md)")
+    p.add_argument("-o", "--output", default="BENCHMARKS.md", help="markdown report (default BENCHMARKS.md): its section is rewritten, raw data go to the folder "
+                        "REPORT-SECTION/ beside it; a file named SECTION.md is the section alone, its raw folder "
+                        "SECTION/")
     return p
 
 

@@ -1,7 +1,7 @@
 """Markdown of the reports: the robustness section (both protocols) and the equal-distortion section.
 
-The robustness section's layout (headings, tables, column names) is what BENCHMARKS.md holds and
-the lead re-generates; change it only on purpose. Sections are rendered one heading level below the
+The robustness section's layout (headings, tables, column names) is what the report's robustness
+fragments hold and the lead re-generates; change it only on purpose. Sections are rendered one heading level below the
 report file's title.
 """
 
@@ -11,7 +11,7 @@ import math
 import os
 import platform
 from datetime import datetime, timezone
-from typing import TYPE_CHECKING, Callable, Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
@@ -19,10 +19,7 @@ from pmwm import metrics as M
 
 from .methods import DISPLAY, STRENGTH_MEANING
 from .published import CHO_PUBLISHED, PAPER_TABLE1, PAPER_TABLES, paper_value
-from .records import BenchResults, Cell, Distortion, cell, mean_std, select
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .sweep import SweepResults
+from .records import BenchResults, Cell, Distortion, SweepResults, cell, mean_std, select
 
 
 def fmt(mean: float, std: float, digits: int = 2) -> str:
@@ -94,7 +91,7 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         f"({platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
         f"numpy {np.__version__}); {st['keys']} keys per model{' (quick mode)' if st['quick'] else ''}, "
         f"seeds {st['seed']}..{st['seed'] + st['keys'] - 1}, {st.get('seconds', 0)} s. "
-        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder `<report name>-{st.get('section', 'robustness')}/` beside this file (`trials.json`, `correlation_*.png`).",
+        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder `{st.get('raw', '<report name>-' + st.get('section', 'robustness'))}/` beside this file (`trials.json`, `correlation_*.png`).",
         "",
         "Cells are mean ± std over the keys. **~** marks a cell not distinguishable from chance: pooling all keys' "
         "bits, the number of correct bits is not significant against Binomial(bits, 1/2) at p < 0.01. "
@@ -219,7 +216,7 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         lines += table(hdr, rows)
     lines += ["", "bound (noise rows) = lowest BER any detector can reach, Q(√(E/N)/σ), σ = A·d̄/√3, at the "
               "method's own embedding energy."]
-    # a section of BENCHMARKS.md: one heading level below the file's title
+    # a section of the report: one heading level below the file's title
     lines = ["#" + ln if ln.startswith("#") else ln for ln in lines]
     return "\n".join(lines) + "\n"
 
@@ -262,7 +259,7 @@ def verdict_line(label: str, comparisons: Sequence) -> str:
     return f"- **{label}**: {lead}" + "; ".join(parts) + "."
 
 
-def render_sweep(res: "SweepResults") -> str:
+def render_sweep(res: SweepResults) -> str:
     """The equal-distortion section: header (command, commit, machine), how the winner is called, one
     verdict line per attack, and one table per attack (method, strength, MRMS and BER per model)."""
     st = res.settings
@@ -278,7 +275,8 @@ def render_sweep(res: "SweepResults") -> str:
         f"{keys} key{'s' if keys != 1 else ''} per point{' (quick mode)' if st['quick'] else ''}, seeds "
         f"{st['seed']}..{st['seed'] + keys - 1}: per key one {st['n_bits']}-bit random payload and one realisation "
         "of each attack, the same for every method and strength; "
-        f"{st.get('seconds', 0)} s. Raw results and plots: the folder `<report name>-{st['section']}/` beside "
+        f"{st.get('seconds', 0)} s. Raw results and plots: the folder "
+        f"`{st.get('raw', '<report name>-' + st['section'])}/` beside "
         "this file (`sweep.json`, `ber_vs_mrms_<attack>.png`).",
         "",
         f"Strengths: {grids}. MRMS = embedding distortion, % of the bounding-box diagonal, from "

@@ -1,7 +1,7 @@
 """The methods compared, all behind pmwm's public interface: ``pmwm.embed`` / ``pmwm.verify``.
 
 One class serves the four schemes; the scheme name selects the method and the display name is the
-one the tables of BENCHMARKS.md use:
+one the tables of the benchmark report use:
 
 =========  ============  ==================================================
 scheme     display name  what ``strength`` means

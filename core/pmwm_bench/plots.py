@@ -7,15 +7,12 @@ reports and their tests run without it (no plots are written then).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional
+from typing import Any, Optional
 
 import numpy as np
 
 from .published import PAPER_MODELS, PAPER_TABLES, paper_value
-from .records import BenchResults, cell, select
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .sweep import SweepResults
+from .records import BenchResults, SweepResults, cell, select
 
 
 def pyplot() -> Optional[Any]:
@@ -84,7 +81,7 @@ def write_plots(res: BenchResults, p_set: dict, b_set: dict, folder: Path, stem:
     return written
 
 
-def write_sweep_plots(res: "SweepResults", folder: Path) -> list[Path]:
+def write_sweep_plots(res: SweepResults, folder: Path) -> list[Path]:
     """One PNG per attack, ``ber_vs_mrms_<attack>.png``: BER against MRMS (log axis), one panel per
     model, one line per method through its strengths, error bars = std over the keys (both axes), the
     MRMS overlap of all methods shaded. [] when matplotlib is not importable."""

@@ -1,7 +1,9 @@
-"""What the robustness runner records (one row per trial and per embedding) and how cells aggregate.
+"""What the runners record (one row per trial and per embedding) and how cells aggregate: the robustness
+runner's ``Trial`` and ``Distortion``, the sweep's ``SweepEmbedding``, ``SweepTrial``, ``SweepPoint``,
+``EqualMrms`` and ``SweepResults``.
 
 ``Trial`` and ``Distortion`` are written as they are to ``trials.json``; their field names are the
-raw-results format of the robustness sections of BENCHMARKS.md, so they do not change.
+raw-results format of the robustness results (``benchmarks/results/robustness/``), so they do not change.
 """
 
 from __future__ import annotations
@@ -108,4 +110,98 @@ def select(items: Iterable[T], **kw) -> list[T]:
     return [x for x in items if all(getattr(x, k) == v for k, v in kw.items())]
 
 
-__all__ = ["BenchResults", "Cell", "Distortion", "Trial", "cell", "mean_std", "select"]
+# ----------------------------------------------------------------------------------------------
+# the equal-distortion sweep (``sweep.run_sweep``), below the sweep, the markdown and the plots
+
+
+@dataclass
+class SweepEmbedding:
+    """One marked mesh: its distortion against the original."""
+
+    model: str
+    method: str
+    scheme: str
+    strength: float
+    key: int
+    n_bits: int
+    mrms_percent: float
+    hausdorff_percent: float
+    rmse_percent: float
+    embed_seconds: float
+
+
+@dataclass
+class SweepTrial:
+    """One attacked copy read back; ``failed`` holds the reader's error when it could not read it
+    (counted as chance, BER 0.5)."""
+
+    model: str
+    method: str
+    strength: float
+    key: int
+    attack: str
+    n_bits: int
+    matches: int
+    ber: float
+    failed: str = ""
+
+
+@dataclass
+class SweepPoint:
+    """One point of a curve: a method at one strength under one attack, over the keys."""
+
+    model: str
+    method: str
+    strength: float
+    attack: str
+    mrms_mean: float
+    mrms_std: float
+    ber_mean: float
+    ber_std: float
+    n: int
+    failed: int
+    chance: bool  # the pooled correct bits are not significant against Binomial(bits, 1/2) at p < 0.01
+
+
+@dataclass
+class EqualMrms:
+    """The methods compared at equal MRMS for one attack on one model.
+
+    overlap:    (low, high) MRMS % covered by every method's curve, None when they do not overlap.
+    mean_ber:   method -> its BER interpolated (linear in log MRMS) on the overlap, averaged over a
+                log-spaced grid of it; empty without an overlap.
+    ranking:    methods by ``mean_ber``, lowest first. winner: ranking[0] (None without an overlap).
+    tied:       the methods within ``tolerance`` (one bit over all keys) of the winner, winner first.
+    lowest_share: share of the overlap's grid where the winner's BER is the lowest (within tolerance).
+    at_chance:  the methods that read at chance (``SweepPoint.chance``) at every one of their strengths.
+    """
+
+    attack: str
+    model: str
+    overlap: Optional[tuple[float, float]]
+    ranges: dict[str, tuple[float, float]]
+    mean_ber: dict[str, float] = field(default_factory=dict)
+    ranking: list[str] = field(default_factory=list)
+    winner: Optional[str] = None
+    tied: list[str] = field(default_factory=list)
+    lowest_share: float = 0.0
+    tolerance: float = 0.0
+    at_chance: list[str] = field(default_factory=list)
+
+
+@dataclass
+class SweepResults:
+    """Everything one ``run_sweep`` measured, its comparisons, and the markdown it rendered."""
+
+    settings: dict = field(default_factory=dict)
+    models: dict[str, dict] = field(default_factory=dict)
+    embeddings: list[SweepEmbedding] = field(default_factory=list)
+    trials: list[SweepTrial] = field(default_factory=list)
+    points: list[SweepPoint] = field(default_factory=list)
+    comparisons: list[EqualMrms] = field(default_factory=list)
+    markdown: str = ""
+
+
+
+__all__ = ["BenchResults", "Cell", "Distortion", "EqualMrms", "SweepEmbedding", "SweepPoint", "SweepResults",
+           "SweepTrial", "Trial", "cell", "mean_std", "select"]

@@ -1,9 +1,12 @@
 """Markdown reports made of named sections, and the provenance every section states.
 
-Several benchmarks share one BENCHMARKS.md: each owns the block between ``<!-- bench:NAME -->`` and
-``<!-- /bench:NAME -->`` and rewrites only that block. Raw results and plots of a section go to the
-folder ``<report stem>-<section>/`` beside the report. Every section names its command, the commit
-of the code measured and the machine (``commit()``, ``machine()``).
+A section is written either as a fragment of its own, ``NAME.md`` (the file's stem is the section's
+name: the whole file is the section; this checkout's benchmarks write ``benchmarks/results/NAME.md`` and
+``benchmarks/report.py`` assembles the report from them), or as the block between ``<!-- bench:NAME -->``
+and ``<!-- /bench:NAME -->`` of a markdown file that several sections share (``pmwm bench -o
+REPORT.md``), rewriting only that block. Raw results and plots of a section go to the folder ``NAME/``
+beside a fragment, ``<report stem>-<section>/`` beside a shared file. Every section names its command,
+the commit of the code measured and the machine (``commit()``, ``machine()``).
 """
 
 from __future__ import annotations
@@ -22,9 +25,18 @@ HEADER = "# Benchmarks\n\nFigures from real runs; each section names its command
 PathLike = Union[str, os.PathLike]
 
 
+def is_fragment(path: PathLike, name: str) -> bool:
+    """Whether ``path`` is the fragment of section ``name`` (its stem is the name): the whole file is it."""
+    return Path(path).stem == name
+
+
 def write_section(path: PathLike, name: str, body: str) -> None:
-    """Replace (or append) the section ``name`` of the markdown file ``path``, atomically."""
+    """Replace (or append) the section ``name`` of the markdown file ``path``, atomically; when ``path``
+    is the section's fragment (``is_fragment``), the file becomes ``body``."""
     path = Path(path)
+    if is_fragment(path, name):
+        atomic_write_bytes(path, (body.rstrip() + "\n").encode("utf-8"), force=True)
+        return
     start, end = f"<!-- bench:{name} -->", f"<!-- /bench:{name} -->"
     text = path.read_text(encoding="utf-8") if path.exists() else HEADER
     block = f"{start}\n{body.rstrip()}\n{end}"
@@ -35,10 +47,16 @@ def write_section(path: PathLike, name: str, body: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"), force=True)
 
 
-def raw_folder(report: PathLike, section: str) -> Path:
-    """``<report stem>-<section>/`` beside the report (created): where raw JSON and plots go."""
+def raw_folder_path(report: PathLike, section: str) -> Path:
+    """Where raw JSON and plots of a section go: ``<section>/`` beside the section's fragment
+    ``<section>.md``, else ``<report stem>-<section>/`` beside the shared report."""
     report = Path(report)
-    folder = report.with_name(f"{report.stem}-{section}")
+    return report.with_suffix("") if is_fragment(report, section) else report.with_name(f"{report.stem}-{section}")
+
+
+def raw_folder(report: PathLike, section: str) -> Path:
+    """``raw_folder_path(report, section)``, created."""
+    folder = raw_folder_path(report, section)
     folder.mkdir(exist_ok=True)
     return folder
 
@@ -85,4 +103,4 @@ def commit() -> str:
     return head + (" + uncommitted changes" if dirty else "")
 
 
-__all__ = ["HEADER", "commit", "machine", "raw_folder", "write_section"]
+__all__ = ["HEADER", "commit", "is_fragment", "machine", "raw_folder", "raw_folder_path", "write_section"]

@@ -40,9 +40,10 @@ from pmwm.validate import parse_bits
 from .markdown import render_markdown
 from .methods import SchemeMethod, default_methods
 from .models import DEFAULT_MODELS, load, resolve
+from .plots import write_plots
 from .protocols import Setting, attack_seed, benchmark_settings, paper_settings
 from .records import BenchResults, Distortion, Trial
-from .report import commit, raw_folder, write_section
+from .report import commit, raw_folder, raw_folder_path, write_section
 
 Progress = Optional[Callable[[str], None]]
 
@@ -126,7 +127,8 @@ def run_bench(
     methods: ``SchemeMethod``s (or objects with ``name``, ``scheme``, ``strength``,
              ``embed(v, f, bits, seed) -> (marked, key)`` and ``extract(v, f, key) -> bits``);
              default pmwm, pmwm-paper, Cho I, Cho II.
-    out:     markdown path (its section ``section`` is rewritten), None to skip writing.
+    out:     markdown path (its section ``section`` is rewritten; a file named ``<section>.md`` is the section
+             alone, as in benchmarks/results/), None to skip writing.
     """
     say = progress or (lambda msg: None)
     t_start = time.perf_counter()
@@ -192,6 +194,8 @@ def run_bench(
             say(f"[bench] {label}: key {k + 1}/{keys} done ({time.perf_counter() - t_start:.0f} s)")
 
     res.settings["seconds"] = round(time.perf_counter() - t_start, 1)
+    if out:
+        res.settings["raw"] = raw_folder_path(out, section).name
     res.markdown = render_markdown(res, p_set, b_set)
     if out:
         # the report is the ``section`` of ``out`` (other benchmarks keep theirs);
@@ -203,8 +207,6 @@ def run_bench(
                "trials": [asdict(t) for t in res.trials], "distortions": [asdict(d) for d in res.distortions]}
         (raw_dir / "trials.json").write_text(json.dumps(raw, indent=0, default=float) + "\n", encoding="utf-8")
         if plots:
-            from .plots import write_plots
-
             written = write_plots(res, p_set, b_set, raw_dir, "correlation")
             if written:
                 say(f"[bench] plots: {', '.join(p.name for p in written)}")

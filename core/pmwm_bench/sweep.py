@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence
 
@@ -29,9 +29,11 @@ from pmwm import metrics as M
 from .markdown import render_sweep
 from .methods import DISPLAY, SWEEP_SCHEMES, SchemeMethod, scheme_of
 from .models import load, resolve
+from .plots import write_sweep_plots
 from .protocols import attack_seed
 from .runner import read_attacked
-from .report import commit, machine, raw_folder, write_section
+from .records import EqualMrms, SweepEmbedding, SweepPoint, SweepResults, SweepTrial
+from .report import commit, machine, raw_folder, raw_folder_path, write_section
 
 Progress = Optional[Callable[[str], None]]
 
@@ -91,98 +93,6 @@ DEFAULT_GRID: dict[str, tuple[float, ...]] = {
 QUICK_GRID: dict[str, tuple[float, ...]] = {
     "robust": (1.0, 3.5), "paper": (0.8, 2.0), "cho1": (0.025, 0.09), "cho2": (0.05, 0.18), "blind": (0.04, 0.12),
 }
-
-
-# ----------------------------------------------------------------------------------------------
-# records
-
-
-@dataclass
-class SweepEmbedding:
-    """One marked mesh: its distortion against the original."""
-
-    model: str
-    method: str
-    scheme: str
-    strength: float
-    key: int
-    n_bits: int
-    mrms_percent: float
-    hausdorff_percent: float
-    rmse_percent: float
-    embed_seconds: float
-
-
-@dataclass
-class SweepTrial:
-    """One attacked copy read back; ``failed`` holds the reader's error when it could not read it
-    (counted as chance, BER 0.5)."""
-
-    model: str
-    method: str
-    strength: float
-    key: int
-    attack: str
-    n_bits: int
-    matches: int
-    ber: float
-    failed: str = ""
-
-
-@dataclass
-class SweepPoint:
-    """One point of a curve: a method at one strength under one attack, over the keys."""
-
-    model: str
-    method: str
-    strength: float
-    attack: str
-    mrms_mean: float
-    mrms_std: float
-    ber_mean: float
-    ber_std: float
-    n: int
-    failed: int
-    chance: bool  # the pooled correct bits are not significant against Binomial(bits, 1/2) at p < 0.01
-
-
-@dataclass
-class EqualMrms:
-    """The methods compared at equal MRMS for one attack on one model.
-
-    overlap:    (low, high) MRMS % covered by every method's curve, None when they do not overlap.
-    mean_ber:   method -> its BER interpolated (linear in log MRMS) on the overlap, averaged over a
-                log-spaced grid of it; empty without an overlap.
-    ranking:    methods by ``mean_ber``, lowest first. winner: ranking[0] (None without an overlap).
-    tied:       the methods within ``tolerance`` (one bit over all keys) of the winner, winner first.
-    lowest_share: share of the overlap's grid where the winner's BER is the lowest (within tolerance).
-    at_chance:  the methods that read at chance (``SweepPoint.chance``) at every one of their strengths.
-    """
-
-    attack: str
-    model: str
-    overlap: Optional[tuple[float, float]]
-    ranges: dict[str, tuple[float, float]]
-    mean_ber: dict[str, float] = field(default_factory=dict)
-    ranking: list[str] = field(default_factory=list)
-    winner: Optional[str] = None
-    tied: list[str] = field(default_factory=list)
-    lowest_share: float = 0.0
-    tolerance: float = 0.0
-    at_chance: list[str] = field(default_factory=list)
-
-
-@dataclass
-class SweepResults:
-    """Everything one ``run_sweep`` measured, its comparisons, and the markdown it rendered."""
-
-    settings: dict = field(default_factory=dict)
-    models: dict[str, dict] = field(default_factory=dict)
-    embeddings: list[SweepEmbedding] = field(default_factory=list)
-    trials: list[SweepTrial] = field(default_factory=list)
-    points: list[SweepPoint] = field(default_factory=list)
-    comparisons: list[EqualMrms] = field(default_factory=list)
-    markdown: str = ""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -371,6 +281,8 @@ def run_sweep(
     res.settings["seconds"] = round(time.perf_counter() - t_start, 1)
     res.points = aggregate(res)
     res.comparisons = compare(res)
+    if out:
+        res.settings["raw"] = raw_folder_path(out, section).name
     res.markdown = render_sweep(res)
     if out:
         out_path = Path(out)
@@ -381,8 +293,6 @@ def run_sweep(
                "points": [asdict(p) for p in res.points], "comparisons": [asdict(c) for c in res.comparisons]}
         (folder / "sweep.json").write_text(json.dumps(raw, indent=0, default=float) + "\n", encoding="utf-8")
         if plots:
-            from .plots import write_sweep_plots
-
             written = write_sweep_plots(res, folder)
             if written:
                 say(f"[sweep] plots: {', '.join(p.name for p in written)}")
