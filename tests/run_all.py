@@ -84,5 +84,6 @@ def main(argv: list[str]) -> int:
 
 if __name__ == "__main__":
     if sys.version_info[:2] != (3, 11):
-        sys.exit(f"tests/run_all.py: run it with Python 3.11 (python3.11 tests/run_all.py); this is {sys.version.split()[0]}")
+        sys.exit("tests/run_all.py: run it with Python 3.11 (python3.11 tests/run_all.py); "
+                 f"this is {sys.version.split()[0]}")
     sys.exit(main(sys.argv[1:]))

@@ -493,7 +493,8 @@ def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(s
     V, F = A.subdivide(M, MF, "midpoint")
     n0, c = len(M), M.mean(0)
     out = V[n0:] - c
-    V[n0:] += 0.2 * np.mean(np.linalg.norm(M[MF[:, 1]] - M[MF[:, 0]], axis=1)) * out / np.linalg.norm(out, axis=1)[:, None]
+    edge = np.mean(np.linalg.norm(M[MF[:, 1]] - M[MF[:, 0]], axis=1))
+    V[n0:] += 0.2 * edge * out / np.linalg.norm(out, axis=1)[:, None]
     assert frames.coarse_mesh(V, F).rule == "loop"
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "1-to-4"

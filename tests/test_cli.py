@@ -105,7 +105,8 @@ def sample(tmp_path_factory) -> SimpleNamespace:
 def other_key(tmp_path_factory) -> Path:
     """The key of the same mesh marked with another seed."""
     d = tmp_path_factory.mktemp("other")
-    proc = run("embed", COW, "-o", d / "cow2.ply", "--key", d / "cow2.key.json", "--seed", 2, "--payload", PAYLOAD, "-q")
+    proc = run("embed", COW, "-o", d / "cow2.ply", "--key", d / "cow2.key.json", "--seed", 2, "--payload", PAYLOAD,
+               "-q")
     assert proc.returncode == 0, proc.stderr
     return d / "cow2.key.json"
 

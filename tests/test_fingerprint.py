@@ -118,21 +118,24 @@ def test_fingerprint_command_resumes_and_trace_command_exit_codes(tmp_path, caps
 def test_a_key_and_registry_that_do_not_belong_together_are_a_clear_error(tmp_path, capsys):
     (tmp_path / "r.csv").write_text("ann\nben\n")
     for name in ("blob", "open_cap"):
-        assert pmwm.cli.main(["fingerprint", str(meshes.mesh_file(f"{name}.off")), "--key", str(tmp_path / f"{name}.key"),
-                              "--recipients", str(tmp_path / "r.csv"), "--out", str(tmp_path / name), "-q"]) == 0
+        assert pmwm.cli.main(["fingerprint", str(meshes.mesh_file(f"{name}.off")),
+                              "--key", str(tmp_path / f"{name}.key"), "--recipients", str(tmp_path / "r.csv"),
+                              "--out", str(tmp_path / name), "-q"]) == 0
     capsys.readouterr()
     code = pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"), "--key", str(tmp_path / "open_cap.key"),
                           "--registry", str(tmp_path / "blob" / "registry.json")])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "belongs to another fingerprinting key" in err
     with pytest.raises(RegistryError, match="another fingerprinting key"):
-        trace(*meshes.blob(), read_fingerprint_key(tmp_path / "open_cap.key"), read_registry(tmp_path / "blob" / "registry.json"))
+        trace(*meshes.blob(), read_fingerprint_key(tmp_path / "open_cap.key"),
+              read_registry(tmp_path / "blob" / "registry.json"))
     # the key of one asset given with another asset
     code = pmwm.cli.main(["fingerprint", str(meshes.mesh_file("blob.off")), "--key", str(tmp_path / "open_cap.key"),
                           "--recipients", str(tmp_path / "r.csv"), "--out", str(tmp_path / "x"), "-q"])
     assert code == 2 and "fingerprinting key of another asset" in capsys.readouterr().err
     # a payload key is not a fingerprinting key
-    assert pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"), "--key", str(tmp_path / "blob" / "registry.json"),
+    assert pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"),
+                          "--key", str(tmp_path / "blob" / "registry.json"),
                           "--registry", str(tmp_path / "blob" / "registry.json")]) == 2
     assert "not a fingerprinting key" in capsys.readouterr().err
 

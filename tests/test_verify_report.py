@@ -159,7 +159,8 @@ def test_cli_verify_writes_the_report_and_keeps_existing_files(marked, tmp_path)
     assert report.read_text() == "keep me"
     proc = run(marked / "original.ply", "--key", marked / "owner.key.json", "--report", report, "--force")
     assert proc.returncode == 1 and "NOT MARKED" in report.read_text()
-    for bad, says in ((marked / "owner.key.json", "give an .html file name"), (tmp_path / "no" / "r.html", "does not exist")):
+    for bad, says in ((marked / "owner.key.json", "give an .html file name"),
+                      (tmp_path / "no" / "r.html", "does not exist")):
         proc = run(marked / "marked.ply", "--key", marked / "owner.key.json", "--report", bad)
         assert proc.returncode == 2 and says in proc.stderr
 

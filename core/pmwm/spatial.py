@@ -35,11 +35,15 @@ import contextlib
 import itertools
 import sys
 import threading
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .adjacency import unique_values
 from .features import row_norms, squared_norms
+
+if TYPE_CHECKING:  # annotations only: scipy is imported at the first query that needs it
+    from scipy.spatial import cKDTree
 
 __all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
            "closest_point_on_triangles"]

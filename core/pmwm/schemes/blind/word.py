@@ -18,8 +18,8 @@ candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame
 refined frame) < 1e-6. A cropped copy is read in 6 frames (``frames``): then 2^8 candidates each
 (``chase_bits``), 7.2e-7 at best. A copy on a coarse grid is also read in reserve frames, each with
 what the budget leaves (``reserve_candidates``: 49 candidates beside 2 frames), so that the others keep
-their 2^10 and a reading with all 32 right stays below 1e-6. The candidates depend on the bits and scores read only, never
-on the check bits expected, so the bound holds whichever they are.
+their 2^10 and a reading with all 32 right stays below 1e-6. The candidates depend on the bits and scores read
+only, never on the check bits expected, so the bound holds whichever they are.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
 search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
