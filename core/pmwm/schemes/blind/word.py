@@ -22,8 +22,8 @@ their 2^10 and a reading with all 32 right stays below 1e-6. The candidates depe
 only, never on the check bits expected, so the bound holds whichever they are.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
-search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
-the bunny after 8-bit quantisation); 32 check bits pay for the 2^10 Chase candidates. A reading is
+search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload; 32 check bits pay
+for the 2^10 Chase candidates (docs/decisions/082-blind-carrier-and-word.md). A reading is
 "marked" only with all its check bits right, so a payload reported as marked is the embedded one up
 to a hash collision (2^-32 per candidate).
 """
@@ -75,7 +75,7 @@ def likely_flips(reliability: np.ndarray, count: int) -> np.ndarray:
 
     Chase's search flips every subset of the C least reliable bits; these are as many candidates, so
     the p-value's union bound is the same, but a lone error on the 11th or 12th least reliable bit is
-    more likely than one on 6 of the 10 together, and is tried (BENCHMARKS.md, ``blind-soft-list``)."""
+    more likely than one on 6 of the 10 together, and is tried."""
     r = np.clip(np.nan_to_num(np.asarray(reliability, dtype=np.float64), nan=0.0), 0.0, 1e300)  # (sums stay finite)
     order = np.argsort(r, kind="stable")
     w = r[order].tolist()
