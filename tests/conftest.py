@@ -114,4 +114,5 @@ def pytest_collection_modifyitems(config, items):
 def pytest_terminal_summary(terminalreporter, exitstatus, config):
     n = config.stash.get(_SLOW_KEY, 0)
     if n:
-        terminalreporter.write_line(f"{n} slow tests deselected (the quick run); {SLOW_HINT}", yellow=True)
+        tests = "test" if n == 1 else "tests"
+        terminalreporter.write_line(f"{n} slow {tests} deselected (the quick run); {SLOW_HINT}", yellow=True)

@@ -90,6 +90,7 @@ def test_an_unmarked_asset_names_no_recipient(cap):
     assert r.accused == [] and r.p_values.min() > 1e-3
 
 
+@pytest.mark.slow
 def test_fingerprint_command_resumes_and_trace_command_exit_codes(tmp_path, capsys):
     asset = str(meshes.mesh_file("open_cap.off"))
     (tmp_path / "people.csv").write_text("id,name\nalice,Alice A.\nbob,Bob B.\ncarol,Carol C.\n")
@@ -115,6 +116,7 @@ def test_fingerprint_command_resumes_and_trace_command_exit_codes(tmp_path, caps
     assert json.loads(capsys.readouterr().out)["accused"] == []
 
 
+@pytest.mark.slow
 def test_a_key_and_registry_that_do_not_belong_together_are_a_clear_error(tmp_path, capsys):
     (tmp_path / "r.csv").write_text("ann\nben\n")
     for name in ("blob", "open_cap"):
@@ -156,6 +158,7 @@ def _tree(root: Path) -> dict:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
+@pytest.mark.slow
 def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identically(tmp_path):
     from pmwm.fingerprint.catalogue import run_catalogue
 
@@ -199,6 +202,7 @@ def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identi
     assert _tree(tmp_path / "b") == {k: v for k, v in full.items() if not k.startswith("broken")}
 
 
+@pytest.mark.slow
 def test_without_a_progressive_mesh_the_copies_are_the_same_and_trace(cap, tmp_path, monkeypatch):
     """An asset analysed with ``progressive=False`` (copies without .pmwm, the default of ``pmwm
     fingerprint`` and ``pmwm catalogue``) builds no progressive mesh and gives the same copies; asking

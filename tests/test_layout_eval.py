@@ -53,6 +53,7 @@ def _imported_modules(tree: ast.AST) -> list[str]:
     return names
 
 
+@pytest.mark.slow
 def test_bundled_pmwm_wheel_holds_the_library_only(bundled_wheel):
     names = bundled_wheel.namelist()
     assert "pmwm/__init__.py" in names and "pmwm/data/bunny.off" in names  # the library is whole
