@@ -403,8 +403,8 @@ def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, mon
     """The centre a crop took away can lie a bin width or more off the plane of the family the search
     follows (the cap's centroid off the hole's axis), too far for the mark to show on the plane: the search
     also follows copies of the family ``crop.LAYERS`` bin widths off its plane. Two bunny crops whose
-    lost centre lies more than a bin width off it are read; with the plane alone, neither is (of the 20
-    such crops among seeds 0-119, 17 are read, 10 with the plane alone: BENCHMARKS.md, ``session-27``)."""
+    lost centre lies more than a bin width off it are read; with the plane alone, neither is
+    (docs/decisions/081-blind-crop-frame-search.md)."""
     fr0, _ = radial.frame_of(marked.vertices, marked.faces, 64)
     width = (fr0.hi - fr0.lo) / 64
     crops = [A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=seed) for seed in (71, 78)]
@@ -1044,7 +1044,7 @@ def test_the_equalizer_finds_the_most_likely_signs():
 
 
 def test_a_blind_key_holds_nothing_of_the_mesh(tmp_path):
-    """Issue 14: a key file, if written at all, holds no coordinate and nothing else derived from the mesh,
+    """A key file, if written at all, holds no coordinate and nothing else derived from the mesh,
     under 1 KB. Two different meshes marked with the same pass phrase, payload and margin (one with its
     progressive mesh) give the same key file byte for byte, and it reads both marks."""
     written = []

@@ -1,4 +1,4 @@
-"""The library apart from its evaluation (issue 12, item 4).
+"""The library apart from its evaluation.
 
 The Blender extension carries the pmwm wheel: it must hold the library only, with no module of
 pmwm_bench, no file of the evaluation (runner, markdown, plots, published tables, the sweep) and no
