@@ -33,18 +33,19 @@ def _by_trial(doc: dict) -> dict:
 
 def compare(old: dict, new: dict) -> dict:
     """Counts of identical and different trials, and of cells whose new mean leaves the old mean +- std."""
-    O, N = _by_trial(old), _by_trial(new)
-    missing = [k for k in N if k not in O]
-    differ = [k for k in N if k in O and (O[k]["matches"], O[k]["failed"]) != (N[k]["matches"], N[k]["failed"])]
+    old_t, new_t = _by_trial(old), _by_trial(new)
+    missing = [k for k in new_t if k not in old_t]
+    differ = [k for k in new_t if k in old_t
+              and (old_t[k]["matches"], old_t[k]["failed"]) != (new_t[k]["matches"], new_t[k]["failed"])]
     cells: dict = defaultdict(lambda: ([], []))
-    for k, t in O.items():
+    for k, t in old_t.items():
         cells[k[:5]][0].append(t["ber"])
-    for k, t in N.items():
+    for k, t in new_t.items():
         cells[k[:5]][1].append(t["ber"])
     compared = [(c, o, n) for c, (o, n) in cells.items() if n and o]
     outside = [c for c, o, n in compared if abs(np.mean(n) - np.mean(o)) > np.std(o) + 1e-12]
-    return {"trials": len(N), "missing": len(missing), "differ": differ, "cells": len(compared),
-            "outside": outside, "methods": sorted({k[2] for k in N}), "models": sorted({k[1] for k in N})}
+    return {"trials": len(new_t), "missing": len(missing), "differ": differ, "cells": len(compared),
+            "outside": outside, "methods": sorted({k[2] for k in new_t}), "models": sorted({k[1] for k in new_t})}
 
 
 def main() -> None:

@@ -73,3 +73,46 @@ def extension_zip(build_addon, tmp_path_factory) -> Path:
     (built,) = build_addon.build(out, importlib.metadata.version("trimesh"), check=False,
                                  which=build_addon.targets(["this"], ["this"]))
     return built
+
+
+# --------------------------------------------------------------------------- the quick run and the whole suite
+# A plain ``pytest`` runs the quick subset: the tests marked ``slow`` (registered in pyproject.toml) are
+# deselected, and the run says how many and how to run them. ``pytest --all`` (what tests/run_all.py, the
+# README's test command and CI, runs) runs every test; so does a marker expression of one's own (``-m slow``)
+# or a test named by its node id (``tests/test_x.py::test_y``).
+
+_SLOW_KEY = pytest.StashKey[int]()  # how many slow tests the quick run deselected
+SLOW_HINT = "run them with `pytest --all` (tests/run_all.py, which CI runs, does) or `pytest -m slow`"
+
+
+def pytest_addoption(parser):
+    parser.addoption("--all", action="store_true", dest="run_all",
+                     help="run the slow tests too (deselected by default); tests/run_all.py and CI pass it")
+
+
+def _runs_everything(config) -> bool:
+    return bool(config.getoption("run_all") or config.getoption("markexpr")
+                or any("::" in str(arg) for arg in config.args))
+
+
+def pytest_report_header(config):
+    if not _runs_everything(config):
+        return f"quick run: tests marked slow are deselected; {SLOW_HINT}"
+    return None
+
+
+def pytest_collection_modifyitems(config, items):
+    if _runs_everything(config):
+        return
+    slow = [item for item in items if item.get_closest_marker("slow") is not None]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if item.get_closest_marker("slow") is None]
+    config.stash[_SLOW_KEY] = len(slow)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    n = config.stash.get(_SLOW_KEY, 0)
+    if n:
+        tests = "test" if n == 1 else "tests"
+        terminalreporter.write_line(f"{n} slow {tests} deselected (the quick run); {SLOW_HINT}", yellow=True)

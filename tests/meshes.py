@@ -146,8 +146,7 @@ def _cube_surface(n: int, seed: int, jitter: float = 0.3, drop=None):
     each triangle as 2 * axis + side). ``drop`` = (axis, side) leaves that cube face out."""
     rng = np.random.default_rng(seed)
     g = np.arange(n + 1)
-    I, J, K = np.meshgrid(g, g, g, indexing="ij")
-    lattice = np.stack([I, J, K], -1)
+    lattice = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1)
     on = np.any((lattice == 0) | (lattice == n), axis=-1)
     index = np.full((n + 1,) * 3, -1, np.int64)
     index[on] = np.arange(on.sum())

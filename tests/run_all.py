@@ -8,8 +8,9 @@ the README's test command, ``python3.11 tests/run_all.py``):
 3. .venv313 (Python 3.13, bpy 5.2.3 = Blender 5.2 LTS): the add-on tests (tests/blender) again.
 
 Python 3.13 is found under pyenv (``$(pyenv root)/versions/3.13*/bin/python3.13``, where it is often
-installed without being on PATH), else as ``python3.13`` on PATH. Exit code: non-zero when either run
-failed. Extra arguments are handed to the first pytest run (e.g. ``-x``).
+installed without being on PATH), else as ``python3.13`` on PATH. Both runs pass ``--all``: every test,
+the slow ones included (a plain ``pytest`` runs the quick subset: tests/conftest.py). Exit code: non-zero when
+either run failed. Extra arguments are handed to the first pytest run (e.g. ``-x``).
 """
 
 from __future__ import annotations
@@ -74,15 +75,16 @@ def main(argv: list[str]) -> int:
     print("+ Python 3.11, Blender 4.2 LTS: the whole suite", flush=True)
     run(sys.executable, "-m", "venv", ".venv")
     run(".venv/bin/pip", "install", "-q", "-e", ".[test,bench,blender]")
-    status = run(".venv/bin/python", "-m", "pytest", "-q", *argv, check=False)
+    status = run(".venv/bin/python", "-m", "pytest", "-q", "--all", *argv, check=False)
     print(f"+ Python 3.13 ({py313}), Blender 5.2 LTS: the add-on tests", flush=True)
     run(py313, "-m", "venv", ".venv313")
     run(".venv313/bin/pip", "install", "-q", "-e", ".[test,blender]")
-    status = run(".venv313/bin/python", "-m", "pytest", "-q", "tests/blender", check=False) or status
+    status = run(".venv313/bin/python", "-m", "pytest", "-q", "--all", "tests/blender", check=False) or status
     return status
 
 
 if __name__ == "__main__":
     if sys.version_info[:2] != (3, 11):
-        sys.exit(f"tests/run_all.py: run it with Python 3.11 (python3.11 tests/run_all.py); this is {sys.version.split()[0]}")
+        sys.exit("tests/run_all.py: run it with Python 3.11 (python3.11 tests/run_all.py); "
+                 f"this is {sys.version.split()[0]}")
     sys.exit(main(sys.argv[1:]))

@@ -347,7 +347,9 @@ def test_retriangulate_flips_diagonals_and_keeps_the_surface(bunny):
     adj = build_adjacency(F2, len(V))
     assert not adj.nonmanifold_vertex.any()  # no duplicated edge
     # orientation and enclosed volume are kept (a flip inside a planar-ish quad)
-    vol = lambda F_: np.einsum("ij,ij->", np.cross(V[F_[:, 1]], V[F_[:, 2]]), V[F_[:, 0]])
+    def vol(F_):
+        return np.einsum("ij,ij->", np.cross(V[F_[:, 1]], V[F_[:, 2]]), V[F_[:, 0]])
+
     assert vol(F2) == pytest.approx(vol(F), rel=1e-3)
     assert np.array_equal(A.retriangulate(V, F, seed=3)[1], F2)  # seeded
     assert np.array_equal(A.retriangulate(V, F, fraction=0.0, seed=3)[1], F)

@@ -199,6 +199,7 @@ def _fresh_process(code: str):
     return out
 
 
+@pytest.mark.slow
 def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma(tmp_path):
     """`pmwm verify` of a robust copy cut in half and moved (registration from the cut starts, heights by
     position), in a fresh process as the command line runs it, imports neither scipy (pykdtree answers the
@@ -227,6 +228,7 @@ def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma
 
 
 @pytest.mark.parametrize("engine", ["pykdtree", "scipy"])
+@pytest.mark.slow
 def test_a_fresh_process_embeds_with_its_kdtree_and_no_thread_left_behind(engine):
     """In a fresh process the robust embedder imports no scipy when pykdtree answers its spatial
     queries; where pykdtree is out of reach (inside Blender) it loads scipy's KD-tree in a thread while

@@ -34,6 +34,7 @@ def test_bench_is_the_pmwm_commands_plugin(capsys):
     assert "--sweep" in out and "pmwm bench --sweep --models bunny,dragon" in out
 
 
+@pytest.mark.slow
 def test_quick_bench_writes_both_protocols(tmp_path):
     out = tmp_path / "B.md"
     rc = pmwm_bench.cli.main(["--quick", "--keys", "1", "--no-plots", "-o", str(out)])
@@ -64,6 +65,7 @@ def test_quick_bench_writes_both_protocols(tmp_path):
     assert "vertex RMSE (% diag)" in text and text.count("MRMS (% diag)") >= 2
 
 
+@pytest.mark.slow
 def test_quick_sweep_writes_tables_verdicts_and_one_plot_per_attack(tmp_path):
     out = tmp_path / "B.md"
     out.write_text("# Benchmarks\n\n<!-- bench:other -->\nkept\n<!-- /bench:other -->\n")

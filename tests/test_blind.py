@@ -247,6 +247,7 @@ def test_bin_margins_give_every_bin_the_same_signal_to_noise():
     lambda v, f: A.subdivide(v, f, "sqrt3"),
     lambda v, f: A.simplify(v, f, ratio=0.7, seed=1),
 ], ids=["sqrt3", "simplify70%"])
+@pytest.mark.slow
 def test_margins_by_bin_count_read_what_equal_margins_lost(marked, attack):
     """The bunny's bins hold 70 to 950 vertices; with the margin spread by count (at the same
     distortion budget) its payload survives sqrt3 subdivision and 70 % simplification, which left
@@ -285,6 +286,7 @@ def test_a_vertex_reaches_its_new_radius_moving_partly_along_the_surface():
     assert across.sum() < 0.6 * across_radius.sum()
 
 
+@pytest.mark.slow
 def test_the_push_marks_the_same_bins_with_less_distortion_moving_partly_along_the_surface(bunny):
     """At the same margin the bins read the same signs, and the surface is less distorted (the MRMS the
     calibration spends), when vertices move partly along it (radial.NORMAL_SHARE) than along their radius."""
@@ -310,6 +312,7 @@ def test_frame_refinement_does_not_use_the_pass_phrase(marked):
     assert right.marked and not wrong.marked and wrong.p_value > 1e-3
 
 
+@pytest.mark.slow
 def test_default_strength_spends_the_distortion_budget(bunny, marked):
     """Without a strength the margin is calibrated to MRMS ~TARGET_MRMS % of the bbox diagonal (rescaled
     twice: once left the blob 15 % short of it, twice 4 %); an explicit strength is used as given."""
@@ -324,6 +327,7 @@ def test_default_strength_spends_the_distortion_budget(bunny, marked):
     assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "x"
 
 
+@pytest.mark.slow
 def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     """A 10 % plane crop moves the centroid by 5-20 bin widths: the own and refined frames lose the mark
     (no crop was read before the crop search). The crop search finds the frame from the cut (measured
@@ -345,6 +349,7 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     assert not pmwm.verify(V, F, passphrase=PHRASE).marked
 
 
+@pytest.mark.slow
 def test_a_stray_part_far_from_a_cropped_copy_leaves_its_reading_alone(marked):
     """A crop with a tiny triangle a million model sizes away (a stray part in a scan) is read in the same
     crop frame as without it: the crop search leaves out what no frame it tries reaches. Its histograms
@@ -360,6 +365,7 @@ def test_a_stray_part_far_from_a_cropped_copy_leaves_its_reading_alone(marked):
     assert got.p_value == pytest.approx(want.p_value, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_a_cropped_copy_is_not_read_after_its_border_blew_up(marked):
     """Steps of smoothing undone amplify what smoothing never damped, a crop's zigzag border first (1.2
     times per step): past the count a smoothed copy needs, the mesh grows without bound and its own frame
@@ -392,12 +398,13 @@ def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny,
         assert v.marked and v.payload == "Flat" and v.extra["chase_bits"] == 10 and v.p_value < 1e-6
 
 
+@pytest.mark.slow
 def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, monkeypatch):
     """The centre a crop took away can lie a bin width or more off the plane of the family the search
     follows (the cap's centroid off the hole's axis), too far for the mark to show on the plane: the search
     also follows copies of the family ``crop.LAYERS`` bin widths off its plane. Two bunny crops whose
-    lost centre lies more than a bin width off it are read; with the plane alone, neither is (of the 20
-    such crops among seeds 0-119, 17 are read, 10 with the plane alone: BENCHMARKS.md, ``session-27``)."""
+    lost centre lies more than a bin width off it are read; with the plane alone, neither is
+    (docs/decisions/081-blind-crop-frame-search.md)."""
     fr0, _ = radial.frame_of(marked.vertices, marked.faces, 64)
     width = (fr0.hi - fr0.lo) / 64
     crops = [A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=seed) for seed in (71, 78)]
@@ -412,6 +419,7 @@ def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, mon
     assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
 
 
+@pytest.mark.slow
 def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_read(marked, monkeypatch):
     """A 30 % crop can leave the lost centre several bin widths off the family's plane (up to 5 on the
     benchmark models): the search follows copies of the family up to 3.6 bin widths either side. Two
@@ -434,6 +442,7 @@ def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_r
     assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
 
 
+@pytest.mark.slow
 def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marked, monkeypatch):
     """The search for the longer word can find the shorter mark's own bins (lo and bin width): read with
     the longer word's count, those bins hold the mark and the bins beyond it, so the frame is read at
@@ -466,6 +475,7 @@ def small_marked(bunny):
 
 
 @pytest.mark.parametrize("scheme", ["loop", "sqrt3", "catmull-clark"])
+@pytest.mark.slow
 def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, scheme, monkeypatch):
     """One step of Loop, sqrt(3) or Catmull-Clark subdivision (and a new order) smooths a mesh this small
     so much that its own reading loses the payload; the coarse mesh solved from the new vertices reads
@@ -479,12 +489,14 @@ def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, sch
     assert not (v.marked and v.payload == "Acme") and v.extra["mesh"] == "suspect"
 
 
+@pytest.mark.slow
 def test_two_steps_of_subdivision_are_undone_one_at_a_time(small_marked):
     V, F = A.subdivide(*A.subdivide(small_marked.vertices, small_marked.faces, "sqrt3"), "loop")
     v = pmwm.verify(*A.reorder(V, F, seed=1), passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "sqrt3 + loop"
 
 
+@pytest.mark.slow
 def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(small_marked, monkeypatch):
     """A 1-to-4 step that keeps the original vertices where they are and puts the new ones off the
     edges' midpoints (as butterfly does): solved as Loop's (the better fit of the two rules), the coarse
@@ -493,7 +505,8 @@ def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(s
     V, F = A.subdivide(M, MF, "midpoint")
     n0, c = len(M), M.mean(0)
     out = V[n0:] - c
-    V[n0:] += 0.2 * np.mean(np.linalg.norm(M[MF[:, 1]] - M[MF[:, 0]], axis=1)) * out / np.linalg.norm(out, axis=1)[:, None]
+    edge = np.mean(np.linalg.norm(M[MF[:, 1]] - M[MF[:, 0]], axis=1))
+    V[n0:] += 0.2 * edge * out / np.linalg.norm(out, axis=1)[:, None]
     assert frames.coarse_mesh(V, F).rule == "loop"
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "1-to-4"
@@ -501,6 +514,7 @@ def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(s
 
 @pytest.mark.parametrize("scheme", ["loop", "catmull-clark"])
 @pytest.mark.parametrize("attack", [None, lambda v, f: A.quantize(v, f, bits=7)], ids=["intact", "quantize7"])
+@pytest.mark.slow
 def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, scheme):
     """A mesh that is itself a subdivision (a modeller's output), marked: the mark is on every vertex,
     so the suspect, not the coarse mesh under it, shows it (intact: in full view, no coarse mesh looked
@@ -547,6 +561,7 @@ def test_weighted_quantiles_of_many_rows():
 
 @pytest.mark.parametrize("end, quantiles, seed", [("low", (0.0, 0.01, 0.02, 0.05, 0.3), 2),
                                                     ("high", (1.0, 0.99, 0.98, 0.95, 0.7), 3)])
+@pytest.mark.slow
 def test_a_quantile_from_the_values_at_one_end_equals_the_one_from_all(end, quantiles, seed):
     """``low_quantile`` sorts only the smallest values, ``high_quantile`` only the largest (a frame's ends,
     on every frame the reader measures): the same value as ``weighted_quantiles``, with ties (also across
@@ -677,6 +692,7 @@ def test_one_pass_phrase_many_meshes_each_its_own_payload(bunny):
 
 
 @pytest.mark.parametrize("n", word.PAYLOAD_BITS[:3])
+@pytest.mark.slow
 def test_explicit_bits_of_every_length(bunny, n):
     bits = bitstring(n, n)
     res = pmwm.embed(*bunny, pmwm.EmbedOptions(scheme="blind", bits=bits, passphrase=PHRASE, base_ratio=0.5))
@@ -684,6 +700,7 @@ def test_explicit_bits_of_every_length(bunny, n):
     assert got.marked and got.bits == bits and got.payload is None
 
 
+@pytest.mark.slow
 def test_false_positive_rate_is_at_most_alpha():
     """Unmarked meshes and wrong pass phrases: the p-value is a valid one (P(p <= a) <= a)."""
     shapes = [meshes.blob(), meshes.cad_part(), meshes.pinched_torus()]
@@ -730,6 +747,7 @@ def run(*args, env=None, cwd=None):
                           env=full, cwd=cwd, timeout=300)
 
 
+@pytest.mark.slow
 def test_cli_embed_and_verify_with_a_pass_phrase_file_write_no_key(tmp_path):
     src = tmp_path / "cap.off"
     meshes.write_off(src, *meshes.open_cap())
@@ -750,6 +768,7 @@ def test_cli_embed_and_verify_with_a_pass_phrase_file_write_no_key(tmp_path):
     assert wrong.returncode == 1 and "not marked" in wrong.stdout
 
 
+@pytest.mark.slow
 def test_cli_errors(tmp_path):
     src = tmp_path / "blob.off"
     meshes.write_off(src, *meshes.blob())
@@ -811,6 +830,7 @@ def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marke
 
 
 @pytest.mark.parametrize("case", [3, 29, 34])
+@pytest.mark.slow
 def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny, case, monkeypatch):
     """The bundled bunny marked at the fixed margin DEFAULT_ALPHA (weaker than the calibrated default), then
     0.5 % noise: read in its "denoised" frames refined on all of its 34,835 vertices
@@ -833,6 +853,7 @@ def _errors(bits: str, want: np.ndarray) -> int:
     return int(np.sum(np.array([int(c) for c in bits], np.uint8) != want))
 
 
+@pytest.mark.slow
 def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny, monkeypatch):
     """The bundled bunny marked at the fixed margin DEFAULT_ALPHA, then quantized to 7 bits: no whole payload
     is read, and the verdict's guess (chosen without the pass phrase) comes from the copy smoothed by the count
@@ -859,6 +880,7 @@ def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny,
     assert smoothed_errors < plain_errors
 
 
+@pytest.mark.slow
 def test_cli_prints_the_guess_when_it_reads_no_mark(bunny, tmp_path):
     """``pmwm verify`` of a copy on a coarse grid that it cannot read: not marked (exit 1), and the payload bits
     it guessed without the check, with the smoothing they were read after, in place of a candidate the check
@@ -1022,7 +1044,7 @@ def test_the_equalizer_finds_the_most_likely_signs():
 
 
 def test_a_blind_key_holds_nothing_of_the_mesh(tmp_path):
-    """Issue 14: a key file, if written at all, holds no coordinate and nothing else derived from the mesh,
+    """A key file, if written at all, holds no coordinate and nothing else derived from the mesh,
     under 1 KB. Two different meshes marked with the same pass phrase, payload and margin (one with its
     progressive mesh) give the same key file byte for byte, and it reads both marks."""
     written = []
@@ -1141,6 +1163,7 @@ def test_crop_candidates_keep_the_first_point_of_each_lattice_cell():
     assert crop._spread(np.zeros((0, 3)), spacing).tolist() == []
 
 
+@pytest.mark.slow
 def test_cli_says_when_it_read_the_mesh_under_a_subdivided_copy(small_marked, tmp_path):
     path = meshes.write_off(tmp_path / "loop.off", *A.subdivide(small_marked.vertices, small_marked.faces, "loop"))
     v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
@@ -1153,6 +1176,7 @@ def test_cli_says_when_it_read_the_mesh_under_a_subdivided_copy(small_marked, tm
 
 @pytest.mark.parametrize("lam,iterations", [(0.1, 30), (0.1, 50), (0.25, 6)],
                          ids=["30x0.1", "50x0.1", "Blender-Smooth-0.5x6"])
+@pytest.mark.slow
 def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, monkeypatch, lam, iterations):
     """Uniform Laplacian smoothing (the benchmark's, lambda 0.1, and Blender's Smooth modifier, lambda =
     factor / 2) blurs the radii beyond reading, but leaves the mark in the copy; the reader takes the
@@ -1173,6 +1197,7 @@ def test_an_unmarked_smoothed_mesh_stays_unmarked(bunny):
     assert not v.marked and v.extra["mesh"] == "suspect"
 
 
+@pytest.mark.slow
 def test_cli_says_when_it_read_a_smoothed_copy_with_its_smoothing_undone(marked, tmp_path):
     path = meshes.write_off(tmp_path / "smooth.off", *A.smooth_laplacian(marked.vertices, marked.faces, lam=0.1,
                                                                          iterations=30))
@@ -1181,6 +1206,7 @@ def test_cli_says_when_it_read_a_smoothed_copy_with_its_smoothing_undone(marked,
     assert "steps of Laplacian smoothing (0.1 each) undone" in v.stdout
 
 
+@pytest.mark.slow
 def test_a_fresh_process_reads_a_cropped_copy_without_scipys_graph_module(marked, tmp_path):
     """The cut planes' boundary loops are labelled in numpy (``adjacency.component_labels``):
     ``scipy.sparse.csgraph`` is 0.09 s of a fresh process's imports, and `pmwm verify` of a cropped copy
@@ -1197,6 +1223,7 @@ def test_a_fresh_process_reads_a_cropped_copy_without_scipys_graph_module(marked
     _fresh_process(code)
 
 
+@pytest.mark.slow
 def test_a_small_cut_suspect_is_read_without_importing_scipy_sparse(tmp_path):
     """``pmwm verify`` of a small suspect cut by a plane and not read (the bundled bunny's half, unmarked:
     the crop search, then the subdivision and smoothing looks) needs no scipy.sparse, whose first import
@@ -1214,6 +1241,7 @@ def test_a_small_cut_suspect_is_read_without_importing_scipy_sparse(tmp_path):
     _fresh_process(code)
 
 
+@pytest.mark.slow
 def test_an_unmarked_small_mesh_is_cleared_without_importing_scipy_sparse(tmp_path):
     """``pmwm verify`` of the bundled bunny, unmarked, with a pass phrase: not marked, after the subdivision
     look (its components in numpy, ``subdivision._components``) and the smoothing scan, in a fresh process

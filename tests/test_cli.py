@@ -105,7 +105,8 @@ def sample(tmp_path_factory) -> SimpleNamespace:
 def other_key(tmp_path_factory) -> Path:
     """The key of the same mesh marked with another seed."""
     d = tmp_path_factory.mktemp("other")
-    proc = run("embed", COW, "-o", d / "cow2.ply", "--key", d / "cow2.key.json", "--seed", 2, "--payload", PAYLOAD, "-q")
+    proc = run("embed", COW, "-o", d / "cow2.ply", "--key", d / "cow2.key.json", "--seed", 2, "--payload", PAYLOAD,
+               "-q")
     assert proc.returncode == 0, proc.stderr
     return d / "cow2.key.json"
 
@@ -527,6 +528,7 @@ def test_decode_output_rules(sample, out):
     "case",
     ["garbage mesh", "bad bits", "existing output", "missing key", "future key", "corrupt pmwm", "truncated pmwm"],
 )
+@pytest.mark.slow
 def test_errors_from_a_real_process_are_one_line(sample, bad, out, case):
     """The same checks through ``python -m pmwm``: exit 2, one stderr line, no traceback, nothing left."""
     if case == "existing output":
@@ -566,6 +568,7 @@ def test_attack_bad_parameter_is_a_one_line_error(sample, out):
 
 
 @pytest.mark.parametrize("scheme", ["cho1", "cho2"])
+@pytest.mark.slow
 def test_cho_schemes_behind_the_same_commands(tmp_path, scheme):
     """`pmwm embed --scheme cho1|cho2`, then `pmwm verify` (which reads the scheme from the key) of a
     copy moved by a similarity transform and re-ordered: every bit."""
@@ -590,6 +593,7 @@ def test_unknown_scheme_is_refused_with_the_list(tmp_path):
 
 
 @pytest.mark.parametrize("scheme", ["robust", "blind"])
+@pytest.mark.slow
 def test_embed_builds_the_progressive_mesh_only_for_pm(tmp_path, monkeypatch, scheme):
     """Without --pm no progressive mesh is built (most of an embed's time) and the mark reads; with --pm
     it is built and decodes to the marked mesh."""

@@ -90,6 +90,7 @@ def test_an_unmarked_asset_names_no_recipient(cap):
     assert r.accused == [] and r.p_values.min() > 1e-3
 
 
+@pytest.mark.slow
 def test_fingerprint_command_resumes_and_trace_command_exit_codes(tmp_path, capsys):
     asset = str(meshes.mesh_file("open_cap.off"))
     (tmp_path / "people.csv").write_text("id,name\nalice,Alice A.\nbob,Bob B.\ncarol,Carol C.\n")
@@ -115,24 +116,28 @@ def test_fingerprint_command_resumes_and_trace_command_exit_codes(tmp_path, caps
     assert json.loads(capsys.readouterr().out)["accused"] == []
 
 
+@pytest.mark.slow
 def test_a_key_and_registry_that_do_not_belong_together_are_a_clear_error(tmp_path, capsys):
     (tmp_path / "r.csv").write_text("ann\nben\n")
     for name in ("blob", "open_cap"):
-        assert pmwm.cli.main(["fingerprint", str(meshes.mesh_file(f"{name}.off")), "--key", str(tmp_path / f"{name}.key"),
-                              "--recipients", str(tmp_path / "r.csv"), "--out", str(tmp_path / name), "-q"]) == 0
+        assert pmwm.cli.main(["fingerprint", str(meshes.mesh_file(f"{name}.off")),
+                              "--key", str(tmp_path / f"{name}.key"), "--recipients", str(tmp_path / "r.csv"),
+                              "--out", str(tmp_path / name), "-q"]) == 0
     capsys.readouterr()
     code = pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"), "--key", str(tmp_path / "open_cap.key"),
                           "--registry", str(tmp_path / "blob" / "registry.json")])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "belongs to another fingerprinting key" in err
     with pytest.raises(RegistryError, match="another fingerprinting key"):
-        trace(*meshes.blob(), read_fingerprint_key(tmp_path / "open_cap.key"), read_registry(tmp_path / "blob" / "registry.json"))
+        trace(*meshes.blob(), read_fingerprint_key(tmp_path / "open_cap.key"),
+              read_registry(tmp_path / "blob" / "registry.json"))
     # the key of one asset given with another asset
     code = pmwm.cli.main(["fingerprint", str(meshes.mesh_file("blob.off")), "--key", str(tmp_path / "open_cap.key"),
                           "--recipients", str(tmp_path / "r.csv"), "--out", str(tmp_path / "x"), "-q"])
     assert code == 2 and "fingerprinting key of another asset" in capsys.readouterr().err
     # a payload key is not a fingerprinting key
-    assert pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"), "--key", str(tmp_path / "blob" / "registry.json"),
+    assert pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"),
+                          "--key", str(tmp_path / "blob" / "registry.json"),
                           "--registry", str(tmp_path / "blob" / "registry.json")]) == 2
     assert "not a fingerprinting key" in capsys.readouterr().err
 
@@ -153,6 +158,7 @@ def _tree(root: Path) -> dict:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
+@pytest.mark.slow
 def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identically(tmp_path):
     from pmwm.fingerprint.catalogue import run_catalogue
 
@@ -196,6 +202,7 @@ def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identi
     assert _tree(tmp_path / "b") == {k: v for k, v in full.items() if not k.startswith("broken")}
 
 
+@pytest.mark.slow
 def test_without_a_progressive_mesh_the_copies_are_the_same_and_trace(cap, tmp_path, monkeypatch):
     """An asset analysed with ``progressive=False`` (copies without .pmwm, the default of ``pmwm
     fingerprint`` and ``pmwm catalogue``) builds no progressive mesh and gives the same copies; asking

@@ -37,6 +37,7 @@ def test_single_triangle_is_refused_with_the_way_out():
         embed(np.eye(3), np.array([[0, 1, 2]]), EmbedOptions(seed=1))
 
 
+@pytest.mark.slow
 def test_nonmanifold_edge_falls_back_to_locking_it(fandisk):
     V, F = fandisk
     e = F[0, :2]
@@ -49,6 +50,7 @@ def test_nonmanifold_edge_falls_back_to_locking_it(fandisk):
     assert set(e.tolist()) <= set(res.pm.vertex_order[: res.pm.n_base_vertices].tolist())
 
 
+@pytest.mark.slow
 def test_duplicate_and_loose_vertices_survive_unchanged(fandisk):
     V, F = fandisk
     rng = np.random.default_rng(0)
@@ -58,6 +60,7 @@ def test_duplicate_and_loose_vertices_survive_unchanged(fandisk):
     assert np.array_equal(res.vertices[len(V):], extra.astype(np.float32).astype(np.float64))
 
 
+@pytest.mark.slow
 def test_zero_area_faces(fandisk):
     V, F = fandisk
     V2 = V.copy()
@@ -66,6 +69,7 @@ def test_zero_area_faces(fandisk):
 
 
 @pytest.mark.parametrize("scale", [1e-20, 1e20])
+@pytest.mark.slow
 def test_tiny_and_huge_but_representable_coordinates(fandisk, scale):
     V, F = fandisk
     _embed_ok(V * scale, F)
@@ -93,6 +97,7 @@ def _sha(path) -> str:
     return hashlib.sha256(open(path, "rb").read()).hexdigest()
 
 
+@pytest.mark.slow
 def test_verify_never_modifies_its_inputs_and_outputs_hold_no_key(tmp_path):
     mesh = tmp_path / "cow.off"
     mesh.write_bytes(meshes.mesh_file("blob.off").read_bytes())

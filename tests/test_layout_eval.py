@@ -1,4 +1,4 @@
-"""The library apart from its evaluation (issue 12, item 4).
+"""The library apart from its evaluation.
 
 The Blender extension carries the pmwm wheel: it must hold the library only, with no module of
 pmwm_bench, no file of the evaluation (runner, markdown, plots, published tables, the sweep) and no
@@ -53,6 +53,7 @@ def _imported_modules(tree: ast.AST) -> list[str]:
     return names
 
 
+@pytest.mark.slow
 def test_bundled_pmwm_wheel_holds_the_library_only(bundled_wheel):
     names = bundled_wheel.namelist()
     assert "pmwm/__init__.py" in names and "pmwm/data/bunny.off" in names  # the library is whole

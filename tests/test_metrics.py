@@ -195,6 +195,7 @@ def test_displaced_copy_distance_is_an_upper_bound_after_a_large_move():
     assert bound[0] > 1.5 * exact[0] and bound[1] >= exact[1]
 
 
+@pytest.mark.slow
 def test_a_face_of_no_area_leaves_the_distances_finite(recwarn):
     """One face of the bunny squashed flat (two corners made equal), then the mesh displaced: its samples
     fall on the other faces and their nearest points may lie on the flat one. Its closest points were

@@ -416,6 +416,7 @@ def test_random_mutations_of_a_valid_file_never_raise_anything_else(edits, resea
     field=st.sampled_from(["v", "flags", "mask"]),
     value=st.integers(0, 2**64 - 1),
 )
+@pytest.mark.slow
 def test_random_record_contents_with_a_valid_checksum_never_crash_decoding(record, field, value):
     pm = _open_pm()
     r = record % pm.n_records
@@ -599,6 +600,7 @@ _json_values = st.recursive(
 
 @HYPO
 @given(data=st.data())
+@pytest.mark.slow
 def test_mutated_key_documents_give_keyfileerror_or_a_key_that_verifies_cleanly(data):
     cow = _cow()
     key_doc = json.loads(_key_text())
@@ -631,6 +633,7 @@ _text_edit = st.tuples(
 
 @HYPO
 @given(edits=st.lists(_text_edit, min_size=1, max_size=6))
+@pytest.mark.slow
 def test_mutated_key_text_gives_keyfileerror_or_a_key(edits):
     buf = list(_key_text())
     for op, pos, ch in edits:

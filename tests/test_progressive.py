@@ -68,6 +68,7 @@ def _check_every_level(V, F, base_ratio=0.03, protected=None, forced=None, **kw)
     return pm
 
 
+@pytest.mark.slow
 def test_bunny_every_level_exact(bunny):
     V, F = bunny
     V = V.astype(np.float32).astype(np.float64)
@@ -81,6 +82,7 @@ def test_bunny_every_level_exact(bunny):
 
 @pytest.mark.parametrize("rounds", [1, 4])
 @pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.slow
 def test_rough_shapes_every_level_exact_and_manifold(seed, rounds, monkeypatch):
     # noisy, unevenly sampled closed shapes: many collapses with overlapping 1-rings in one pass; with
     # more than one selection round, later rounds must respect the collapses accepted before
@@ -93,6 +95,7 @@ def test_rough_shapes_every_level_exact_and_manifold(seed, rounds, monkeypatch):
 
 
 @pytest.mark.parametrize("seed", [1, 14, 25])
+@pytest.mark.slow
 def test_a_sphere_full_of_holes_keeps_its_topology_at_every_level(seed):
     # a quarter of the faces dropped: many triangles with two boundary edges (ears). Collapsing an
     # ear's edge would close a hole; the check counted an ear's two boundary edges as one (seed 14 then
@@ -126,6 +129,7 @@ def _thin_tube(per_ring: int, rings: int, seed: int) -> tuple[np.ndarray, np.nda
     return V, np.concatenate([quads, caps])
 
 
+@pytest.mark.slow
 def test_the_passes_count_the_faces_per_vertex_exactly(bunny, monkeypatch):
     # the link and valence checks read each vertex's face count, which the collapses keep up to date
     # instead of recounting: after every pass it must be the count itself (holes, protected vertices,
@@ -159,6 +163,7 @@ def test_thin_tubes_keep_every_level_manifold(per_ring, rings, seed):
     _check_every_level(V, F, base_ratio=0.05)
 
 
+@pytest.mark.slow
 def test_levels_of_detail_stay_close_to_the_input(bunny):
     # a pass collapses the cheap vertices first: halfway and three quarters of the way up, no point of
     # the bunny's level is more than 0.1 % / 0.06 % of the bounding-box diagonal from the full mesh
@@ -173,6 +178,7 @@ def test_levels_of_detail_stay_close_to_the_input(bunny):
         assert hausdorff < bound, (share, mrms, hausdorff)
 
 
+@pytest.mark.slow
 def test_open_boundary_every_level_exact():
     V, F = meshes.open_cap()
     pm = _check_every_level(V, F)
@@ -201,6 +207,7 @@ def test_protected_vertices_survive_to_the_base(bunny):
     assert set(np.flatnonzero(keep)) <= set(base_input_ids.tolist())
 
 
+@pytest.mark.slow
 def test_vertices_to_protect_given_after_the_set_up_give_the_same_progressive_mesh(bunny):
     """The robust embedder starts the build before it knows which vertices to protect: the build
     asks for them after its set-up, and must build what it builds when given them at the start."""
@@ -235,6 +242,7 @@ def test_decode_by_vertex_count(bunny):
     assert len(pm.decode(vertices=10**9)[0]) == len(V)
 
 
+@pytest.mark.slow
 def test_nonmanifold_vertex_is_kept_and_reconstructed():
     V, F = meshes.pinched_torus()  # one pinched vertex
     adj = pmwm.adjacency.build_adjacency(F, len(V))
@@ -244,6 +252,7 @@ def test_nonmanifold_vertex_is_kept_and_reconstructed():
     assert pinched[0] in pm.vertex_order[: pm.n_base_vertices]
 
 
+@pytest.mark.slow
 def test_forced_collapses_go_first_and_every_level_stays_exact():
     V, F = meshes.blob()
     adj = pmwm.adjacency.build_adjacency(F, len(V))
@@ -263,6 +272,7 @@ def test_bad_faces_are_refused():
         build_progressive_mesh(V, np.array([[0, 1, 5]]), base_vertices=3)
 
 
+@pytest.mark.slow
 def test_a_moved_mesh_takes_the_progressive_mesh_of_the_unmoved_one_with_its_own_positions(bunny):
     """``with_positions``: the embedders build the progressive mesh of the unmarked mesh and put the
     marked positions in; every level keeps its faces and takes the new positions, and the file

@@ -121,6 +121,7 @@ def _prefixes(pm: ProgressiveMesh, every_level: bool) -> list[int]:
 
 
 @pytest.mark.parametrize("name", list(MESHES))
+@pytest.mark.slow
 def test_every_prefix_matches_the_reference(name):
     V, F, pm = _pm(name)
     ks = _prefixes(pm, every_level=len(pm.level_records) <= 50)  # (cad_part has about 150 levels)
@@ -133,6 +134,7 @@ def test_every_prefix_matches_the_reference(name):
         assert np.array_equal(Fk, Fr), (name, k)  # same faces, same order, same starting corner
 
 
+@pytest.mark.slow
 def test_bunny_prefixes_match_the_reference(bunny):
     V, F, pm = _pm("bunny")
     ks = _prefixes(pm, every_level=False)
@@ -153,6 +155,7 @@ def test_all_records_give_back_the_input_mesh(name):
     assert np.array_equal(_rotated_to_min(order[Fd]), _rotated_to_min(F[pm.face_order]))
 
 
+@pytest.mark.slow
 def test_decoding_again_and_in_another_order_gives_the_same_arrays():
     _, _, pm = _pm("cad_part")
     ks = _prefixes(pm, every_level=False)
@@ -163,6 +166,7 @@ def test_decoding_again_and_in_another_order_gives_the_same_arrays():
 
 
 @pytest.mark.parametrize("name", list(MESHES))
+@pytest.mark.slow
 def test_without_end_ranks_the_sums_give_the_same_arrays(name):
     """A progressive mesh read from a version-1 file has no end ranks: the decoder finds p and q by
     its sums around each arc, and must give what the end ranks give."""

@@ -1,6 +1,7 @@
 """The registration's batched least-squares step: the solutions numpy's solver gives, one system at a time."""
 
 import numpy as np
+import pytest
 
 from pmwm.register import _lstsq
 
@@ -30,6 +31,7 @@ def test_lstsq_gives_no_step_along_unconstrained_directions():
     assert np.allclose(got, want, rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_abandoning_hopeless_finalists_keeps_the_registration(monkeypatch):
     """Half the bunny cut off and the rest moved: the cut starts win, the plain start (a wrong pose,
     sliding slowly) is abandoned early; the pose found is the one found without abandoning any."""

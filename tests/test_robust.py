@@ -64,11 +64,13 @@ def test_unattacked_and_key_round_trip(marked):
         ("paper crop 20 %", lambda V, F: attacks.crop_paper(V, F, fraction=0.2, seed=5)),
     ],
 )
+@pytest.mark.slow
 def test_payload_survives(marked, name, attack):
     _reads(marked, *attack(marked.vertices, marked.faces))
 
 
 @pytest.mark.parametrize("ext", [".obj", ".ply", ".stl", ".off", ".glb"])
+@pytest.mark.slow
 def test_reexported_copies_read_the_payload(tmp_path, marked, ext):
     """Re-exported to every supported format (STL and GLB lose the vertex order): the payload exact."""
     path = tmp_path / f"copy{ext}"
@@ -78,6 +80,7 @@ def test_reexported_copies_read_the_payload(tmp_path, marked, ext):
     assert v.bit_errors == 0
 
 
+@pytest.mark.slow
 def test_cropped_and_moved_copies_are_registered(marked):
     """Half the mesh cut off by a random plane, then rotated, scaled and moved: PCA of the half is not
     the mesh's, so registration tries plane cuts of the key's reference samples."""
@@ -89,6 +92,7 @@ def test_cropped_and_moved_copies_are_registered(marked):
     assert exact == 6, exact
 
 
+@pytest.mark.slow
 def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
     """Over 500 random planes each cutting off half the vertices, every bit keeps at least one site
     (the bit assignment is spread over cuts); a cropped copy is read in the key's frame, at the
@@ -174,6 +178,7 @@ def test_sites_no_reading_uses_are_not_marked_and_every_clean_site_is_read():
     assert v.extra["heights"] == "by vertex index" and v.extra["sites_read"] == s.index_ok.sum()
 
 
+@pytest.mark.slow
 def test_bits_get_even_energies():
     """Sites carry uneven energies (vertex density varies over a scan): the bit assignment evens the
     bits out, still under the plane-cut rule."""
@@ -189,6 +194,7 @@ def test_bits_get_even_energies():
     assert np.mean(cv["even"]) < 0.93 * np.mean(cv["blind"]), cv
 
 
+@pytest.mark.slow
 def test_every_level_of_detail_reads_the_payload(marked):
     pm = marked.pm
     for k in [0, *pm.level_records.tolist()]:
@@ -211,6 +217,7 @@ def test_unmarked_mesh_and_wrong_keys_are_not_marked(bunny, marked):
     assert np.median(p_values) > 0.05
 
 
+@pytest.mark.slow
 def test_other_shapes_read_with_the_key_are_not_marked(marked):
     """Other shapes, whole or cut in half, in any pose: no start of the registration fits the key's
     surface (every start is tried), and nothing reads as the mark."""
@@ -222,6 +229,7 @@ def test_other_shapes_read_with_the_key_are_not_marked(marked):
             assert not v.marked and v.mode == "registered", (i, cut, v.p_value)
 
 
+@pytest.mark.slow
 def test_distortion_not_above_the_paper_scheme(bunny, marked):
     V, F = bunny
     paper = pmwm.embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, strength=2.0))
@@ -232,6 +240,7 @@ def test_distortion_not_above_the_paper_scheme(bunny, marked):
     assert haus_r <= haus_p
 
 
+@pytest.mark.slow
 def test_fifty_bits_at_less_surface_distance_than_the_paper_scheme_and_read_through_noise(bunny):
     """The paper protocol's 50-bit payload: the robust scheme moves the surface less than the paper
     scheme (MRMS, Hausdorff; the paper scheme's over 4 keys, it varies by key) and moves the
@@ -252,6 +261,7 @@ def test_fifty_bits_at_less_surface_distance_than_the_paper_scheme_and_read_thro
     assert np.mean(cor) >= 0.95, cor
 
 
+@pytest.mark.slow
 def test_swirl_alone_carries_the_payload_by_vertex_index(bunny, marked):
     """Undo every bump along its site normal: the surface is back to the original, only the in-surface
     swirl is left, and a copy that keeps the vertex order still reads the payload from it."""
@@ -279,6 +289,7 @@ def test_paper_key_is_refused(bunny):
         robust_verify(V, F, res.key)
 
 
+@pytest.mark.slow
 def test_small_mesh_uses_fewer_sites_and_still_reads():
     V, F = meshes.blob()
     res = robust_embed(V, F, pmwm.EmbedOptions(n_bits=64, seed=3))
@@ -292,6 +303,7 @@ def test_small_mesh_uses_fewer_sites_and_still_reads():
         assert robust_verify(*res.pm.decode(records=k), res.key).bit_errors == 0, k
 
 
+@pytest.mark.slow
 def test_scheme_dispatch_library_and_command_line(tmp_path, marked):
     """`pmwm.verify` reads a robust key with the robust reader; `pmwm embed` makes robust keys by default
     and paper keys with `--scheme paper`, and both verify end to end."""
@@ -320,6 +332,7 @@ def test_robust_is_the_default_scheme(bunny):
     assert pmwm.embed(V, F, pmwm.EmbedOptions(n_bits=16, seed=2)).key.scheme == "robust"
 
 
+@pytest.mark.slow
 def test_noise_is_read_by_vertex_index_and_by_position(marked):
     """Noise keeps the vertex order: heights are read at the vertices themselves (the matched filter);
     the same noisy copy reordered is read by position, and both carry the payload."""
@@ -333,6 +346,7 @@ def test_noise_is_read_by_vertex_index_and_by_position(marked):
     assert v2.marked and v2.bit_errors <= 0.1 * v2.carriers_total, v2.bit_errors
 
 
+@pytest.mark.slow
 def test_noise_on_a_reordered_copy_is_still_read(marked):
     """Paper-protocol noise at 0.01 Rmax on a re-ordered copy: no vertex order to read by, so the
     copy is registered by its surface, and still read marked with most bits right."""
@@ -424,6 +438,7 @@ def test_heights_by_position_are_the_crossings_of_every_face(runs, monkeypatch):
     assert np.isnan(fields.heights(V, F, origin, normal, t1, t2, uv, reach, expect)).all()
 
 
+@pytest.mark.slow
 def test_both_kdtree_engines_mark_and_read_alike(bunny, marked):
     """pykdtree (pip installs) and scipy (inside Blender) give the same marked mesh and the same
     readings: a re-ordered copy, a cut and posed one (registration, heights by position) and the mesh

@@ -94,6 +94,7 @@ def test_nearest_within_a_bound_returns_nothing_beyond_it():
 
 
 @pytest.mark.parametrize("offset", [0.0, 1e6])
+@pytest.mark.slow
 def test_moving_nearest_answers_as_a_search_of_every_point(offset):
     """Rows of points moved a little (and sometimes far) between calls, searched within bounds of
     every size: the tracker's answers are the tree's, index for index and bit for bit, ties too."""
@@ -151,6 +152,7 @@ def test_pairs_within_are_the_brute_force_pairs_in_order(n_p, n_q, kind):
 
 
 @pytest.mark.parametrize("n_p, n_q", [(80, 400), (400, 80)])
+@pytest.mark.slow
 def test_pairs_within_by_j_are_the_same_pairs_ordered_by_j_then_i(n_p, n_q):
     P, Q = _points(n_p, 4), _points(n_q, 5)
     radius = np.random.default_rng(6).uniform(0.2, 0.9, n_p)

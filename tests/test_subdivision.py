@@ -27,6 +27,7 @@ def triangles(F):
 # that coarse_mesh checks before the structure must let every real step through)
 @pytest.mark.parametrize("mesh", ["bunny", "open_cap", "cad_part", "pinched_torus"])
 @pytest.mark.parametrize("scheme", ["midpoint", "loop", "sqrt3", "catmull-clark"])
+@pytest.mark.slow
 def test_the_coarse_mesh_of_a_shuffled_subdivided_copy_is_the_original(mesh, scheme):
     V, F = getattr(meshes, mesh)()
     S, SF = A.subdivide(V, F, scheme)
@@ -51,6 +52,7 @@ def test_a_mesh_that_is_no_subdivision_has_no_coarse_mesh(mesh):
     assert coarse_mesh(*getattr(meshes, mesh)()) is None
 
 
+@pytest.mark.slow
 def test_noise_after_the_subdivision_is_seen_in_the_residual_not_in_the_structure():
     V, F = meshes.bunny()
     S, SF = A.noise_benchmark(*A.subdivide(V, F, "loop"), 0.001, seed=2)
@@ -60,6 +62,7 @@ def test_noise_after_the_subdivision_is_seen_in_the_residual_not_in_the_structur
     assert np.sqrt(np.mean(np.sum((c.vertices - V[c.original]) ** 2, 1))) / diag < 1e-3
 
 
+@pytest.mark.slow
 def test_a_vertex_of_no_face_is_left_out_of_the_coarse_mesh():
     V, F = meshes.open_cap()
     S, SF = A.subdivide(V, F, "loop")
@@ -86,6 +89,7 @@ def test_a_grid_of_squares_split_at_their_centres_is_no_catmull_clark_step():
     assert coarse_mesh(V, F) is None
 
 
+@pytest.mark.slow
 def test_a_catmull_clark_copy_with_some_quads_split_the_other_way_is_still_undone():
     """Blender's triangulation splits a few quads along (e, e') instead of from their corner (concave
     ones: 1-2 of 209,000 on the bunny, 47-81 of 300,000 on the dragon). One in a thousand here (187):
@@ -142,6 +146,7 @@ def test_a_one_to_four_copy_with_quads_turned_is_still_undone():
 
 
 @pytest.mark.parametrize("mesh", ["bunny", "open_cap", "cad_part", "pinched_torus", "blob"])
+@pytest.mark.slow
 def test_the_components_in_numpy_and_in_scipy_undo_the_same_steps(mesh, monkeypatch):
     """A small mesh's components come from numpy (``adjacency.component_labels``: no scipy.sparse import),
     a large one's from scipy's ``connected_components``: the same coarse mesh either way, for every kind

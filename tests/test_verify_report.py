@@ -69,6 +69,7 @@ def _decode_rgb_png(data: bytes) -> np.ndarray:
     return raw[:, 1:].reshape(h, w, 3)
 
 
+@pytest.mark.slow
 def test_report_of_a_marked_copy_holds_what_a_reader_needs(marked):
     out, v = _report(marked, "marked.ply", "marked.html")
     html = out.read_text(encoding="utf-8")
@@ -125,6 +126,7 @@ def test_places_follow_the_suspect_when_it_is_moved(marked, tmp_path):
         assert np.all(d < 0.01 * size)
 
 
+@pytest.mark.slow
 def test_report_of_an_unmarked_mesh_says_so(marked):
     out, v = _report(marked, "original.ply", "original.html")
     html = out.read_text(encoding="utf-8")
@@ -133,6 +135,7 @@ def test_report_of_an_unmarked_mesh_says_so(marked):
     assert "consistent with chance" in html and "does not show the watermark" in html
 
 
+@pytest.mark.slow
 def test_paper_and_cho_keys_give_a_report(tmp_path):
     V, F = meshes.blob()
     for scheme, has_places in (("paper", True), ("cho1", False)):
@@ -144,6 +147,7 @@ def test_paper_and_cho_keys_give_a_report(tmp_path):
         assert ("not at places" in html) != has_places
 
 
+@pytest.mark.slow
 def test_cli_verify_writes_the_report_and_keeps_existing_files(marked, tmp_path):
     def run(*args):
         return subprocess.run([sys.executable, "-m", "pmwm", "verify", *map(str, args)], capture_output=True,
@@ -159,7 +163,8 @@ def test_cli_verify_writes_the_report_and_keeps_existing_files(marked, tmp_path)
     assert report.read_text() == "keep me"
     proc = run(marked / "original.ply", "--key", marked / "owner.key.json", "--report", report, "--force")
     assert proc.returncode == 1 and "NOT MARKED" in report.read_text()
-    for bad, says in ((marked / "owner.key.json", "give an .html file name"), (tmp_path / "no" / "r.html", "does not exist")):
+    for bad, says in ((marked / "owner.key.json", "give an .html file name"),
+                      (tmp_path / "no" / "r.html", "does not exist")):
         proc = run(marked / "marked.ply", "--key", marked / "owner.key.json", "--report", bad)
         assert proc.returncode == 2 and says in proc.stderr
 
@@ -215,6 +220,7 @@ def _colour_mask(img: np.ndarray, hex_colour: str, tol: int = 6) -> np.ndarray:
     return np.all(np.abs(img - rgb) <= tol, axis=2)
 
 
+@pytest.mark.slow
 def test_the_console_check_catches_an_error(tmp_path):
     page = tmp_path / "control.html"
     page.write_text("<!DOCTYPE html><html><body><p>x</p><script>console.error('control-error-42')</script>"
@@ -227,6 +233,7 @@ def test_the_console_check_catches_an_error(tmp_path):
     ("marked.ply", "MARKED", "#e3f4e8", "#12602f", "#fbe9e7"),
     ("original.ply", "NOT MARKED", "#fbe9e7", "#8c1d12", "#e3f4e8"),
 ])
+@pytest.mark.slow
 def test_chromium_renders_the_report_with_its_verdict(marked, tmp_path, suspect, verdict, box, text, other):
     page, _ = _report(marked, suspect, f"browser-{suspect}.html")
     proc = _browse(page, tmp_path, "--dump-dom")

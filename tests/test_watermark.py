@@ -79,6 +79,7 @@ def test_wrong_key_is_not_marked(marked):
     assert not v.marked
 
 
+@pytest.mark.slow
 def test_same_seed_reproduces_and_bits_roundtrip():
     V, F = meshes.cad_part()
     a = embed(V, F, EmbedOptions(bits="1011001110001111", seed=4))
@@ -90,6 +91,7 @@ def test_same_seed_reproduces_and_bits_roundtrip():
     assert not np.array_equal(np.sort(a.carriers), np.sort(c.carriers))
 
 
+@pytest.mark.slow
 def test_random_payload_default_64_bits():
     V, F = meshes.cad_part()
     res = embed(V, F, EmbedOptions(seed=1))
@@ -196,6 +198,7 @@ def test_the_faces_fingerprint_is_its_documented_hash():
 
 
 @pytest.mark.parametrize("scheme", ["robust", "blind", "cho1"])
+@pytest.mark.slow
 def test_without_a_progressive_mesh_the_same_mesh_is_marked_and_read(scheme, tmp_path):
     """``EmbedOptions(progressive=False)`` skips the build: no ``pm``, the very same marked mesh as with
     it, and the key (its progressive numbering the mesh's own) reads the mark, through a key file too."""

@@ -100,7 +100,7 @@ def unique_values(values: np.ndarray) -> np.ndarray:
     """The distinct values of a numeric array (any shape, no NaN), ascending, (k,): ``np.unique``'s
     answer, from a sorted copy. Why not ``np.unique``: asked for the values alone, numpy 2.x finds them
     with a hash set (``_unique_hash``), which on this project's integer keys is many times slower than
-    numpy's SIMD sort (1.9 M int64 keys: 0.96-1.0 s against 57 ms, numpy 2.4.6; numpy issue #31969)."""
+    numpy's SIMD sort (docs/decisions/083-numpy-fast-paths.md)."""
     x = np.sort(np.asarray(values).ravel())
     if len(x) < 2:
         return x
@@ -201,8 +201,7 @@ def numpy_sparse(n_vertices: int) -> bool:
     loaded, for meshes up to NUMPY_SPARSE vertices. Both give the same answer, bit for bit. Why:
     scipy.sparse's first import takes a fresh process 0.11-0.17 s (most of it scipy's array-API layer,
     which imports numpy's lazily loaded submodules), more than numpy's sorts and products lose on such a
-    mesh (the bundled bunny cut in half, 17,000 vertices, read as a cut suspect: about 10 ms); on Igea
-    (134,000) they would lose more than the import (BENCHMARKS.md, ``session-28``)."""
+    mesh; on a mesh of 10^5 vertices they would lose more than the import (docs/decisions/083-numpy-fast-paths.md)."""
     return n_vertices <= NUMPY_SPARSE and "scipy.sparse" not in sys.modules
 
 
@@ -246,9 +245,9 @@ def boundary_edges(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     it. A vertex on a boundary edge breaks that but where the unmatched integers cancel (about 2^-32), and
     an edge is missed only when both its ends are. The edges at the vertices that break it are then
     counted exactly, by sorting the keys of the faces around them. Why: a cut suspect's boundary is a
-    small part of it (Igea cut by 10 %: 12 ms, against 20 ms for ``edge_face_counts`` by scipy.sparse and
-    13 ms for ``is_closed`` before it), and a fresh process reading a large cut suspect does not import
-    scipy.sparse for its cut planes (``numpy_sparse``; BENCHMARKS.md, ``session-28``)."""
+    small part of it, so this is faster than counting every edge, and a fresh process reading a large cut
+    suspect does not import scipy.sparse for its cut planes (``numpy_sparse``;
+    docs/decisions/083-numpy-fast-paths.md)."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     n = int(n_vertices)
     a, b = f.ravel(), f[:, [1, 2, 0]].ravel()

@@ -4,7 +4,7 @@ independent ones side by side (``parallel_map``).
 The embedders build the progressive mesh of the *unmarked* mesh (its connectivity and records do not
 depend on the mark; ``progressive.with_positions`` puts the marked positions in afterwards) while the
 calling thread computes the mark. numpy releases the GIL inside its loops, so on two cores the two
-overlap (BENCHMARKS.md, sections core and embed-beside).
+overlap (docs/decisions/083-numpy-fast-paths.md).
 
 The worker never calls the caller's progress callback: Blender's progress API, like most UI toolkits,
 must be called from the main thread. It records its latest progress; ``Background.result`` relays it

@@ -52,7 +52,7 @@ def squared_norms(x: np.ndarray) -> np.ndarray:
 
 def row_norms(x: np.ndarray) -> np.ndarray:
     """The Euclidean lengths of the vectors x (..., 3), (...,) float64: the bits of
-    np.linalg.norm(x, axis=-1), faster (``squared_norms``; BENCHMARKS.md, ``blind-s18``)."""
+    np.linalg.norm(x, axis=-1), faster (``squared_norms``; docs/decisions/083-numpy-fast-paths.md)."""
     return np.sqrt(squared_norms(x))
 
 
@@ -81,8 +81,8 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray, cross: np.ndarray | 
 def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """A third of the area of the faces around each vertex, (n,) float64 (0 for a vertex of no face):
     the surface's share per vertex, which the blind scheme weighs its frame with and the paper's crop
-    draws its seed by. From ``face_cross``, without ``np.cross``'s temporaries (BENCHMARKS.md,
-    ``verify-first-call``)."""
+    draws its seed by. From ``face_cross``, without ``np.cross``'s temporaries (faster:
+    docs/decisions/083-numpy-fast-paths.md)."""
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     area = 0.5 * row_norms(face_cross(vertices, f))
     out = np.bincount(f.ravel(), weights=np.repeat(area / 3.0, 3), minlength=len(vertices))

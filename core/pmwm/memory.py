@@ -5,8 +5,8 @@ unmaps it when it is freed, so the next block of that size starts on untouched p
 page fault when first written. Once a block above the threshold is freed, glibc raises the threshold
 to that block's size (blocks of at most 32 MiB) and keeps up to twice that of freed memory before
 trimming it (mallopt(3): the dynamic mmap threshold). The blind reader's crop search allocates and
-frees arrays of a few MiB thousands of times per suspect and, until something raised the threshold,
-spent about a third of its time in page faults (BENCHMARKS.md, ``blind-crop``).
+frees arrays of a few MiB thousands of times per suspect; at the initial threshold it spends about a third
+of its time in page faults (docs/decisions/083-numpy-fast-paths.md).
 
 ``reuse_freed_memory`` frees one block of ``BLOCK`` bytes (never written: it costs no page) so that
 glibc raises its thresholds as it would after any large array; the process then keeps up to twice

@@ -22,6 +22,7 @@ import io
 import os
 import re
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +30,9 @@ from .atomic import atomic_write_bytes
 from .errors import MeshError, PmwmError
 from .features import vertex_normals
 from .validate import check_mesh, check_vertices
+
+if TYPE_CHECKING:  # annotations only: trimesh is imported when a file needs it
+    import trimesh
 
 SUPPORTED_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
@@ -273,7 +277,8 @@ def read_mesh(path) -> SourceMesh:
 
     vertices, faces, inverse = weld(v_src, f_src)
     if len(vertices) < len(v_src):
-        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices (UV seams, split normals or a triangle soup)")
+        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices "
+                        "(UV seams, split normals or a triangle soup)")
     degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
     n_bad = int(degenerate.sum())
     if n_bad:

@@ -122,7 +122,7 @@ def vsnr(orig, marked, centred: bool = True) -> float:
 def bbox_diagonal(vertices) -> float:
     """The length of the diagonal of the bounding box of the points (n, 3) (0 for none). The extremes a
     column at a time: numpy's axis-0 reduction of an (n, 3) array (``v.max(0)``) is many times slower
-    (BENCHMARKS.md, ``blind-s18``), with the same values (a maximum does not round)."""
+    (docs/decisions/083-numpy-fast-paths.md), with the same values (a maximum does not round)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     if not len(v):
         return 0.0

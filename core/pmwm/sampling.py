@@ -42,7 +42,8 @@ def sample_faces(vertices, faces, n_samples: int, seed: Optional[int] = None) ->
     return face, w
 
 
-def _draw(V: np.ndarray, F: np.ndarray, n_samples: int, seed: Optional[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _draw(V: np.ndarray, F: np.ndarray, n_samples: int,
+          seed: Optional[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The area-weighted face (n_samples,), barycentric weights (n_samples, 3) and the faces' cross
     products (m, 3) (reused for the normals)."""
     if len(F) == 0:

@@ -16,7 +16,7 @@ step's inverse to first order (it leaves (lam mu)^2 per step), so about as many 
 taken forward, or a few more, restore most of it; what smoothing damped to nothing they amplify from
 nothing (noise stays noise). A reader that does not know how many steps were taken tries several and
 keeps the one that shows what it looks for (the blind scheme: ``pmwm.schemes.blind.frames``;
-BENCHMARKS.md, ``blind-unsmoothing``).
+docs/decisions/080-blind-reader-frames.md).
 """
 
 from __future__ import annotations

@@ -35,9 +35,8 @@ def _bmu(xt: np.ndarray, protos: np.ndarray) -> np.ndarray:
     |x - p|^2 - |x|^2 = |p|^2 - 2 x.p, the first on a tie (as ``np.argmin``). Elementwise, one
     coordinate row at a time, never a BLAS product: OpenBLAS runs a product of this size on every core,
     its threads spinning while they wait, and the embedders choose the carriers while a worker thread
-    builds the progressive mesh; with the cores busy the product slows down many times (20,000 samples:
-    0.4 ms on an idle 2-core machine, 5.1 ms with a busy thread and another process beside; elementwise
-    0.75 ms either way; BENCHMARKS.md, ``session-31``)."""
+    builds the progressive mesh; with the cores busy the product slows down many times, the elementwise
+    form does not (docs/decisions/083-numpy-fast-paths.md)."""
     best = arg = None
     for u, p in enumerate(protos):  # a few units
         d = float(p @ p) - 2.0 * (xt[0] * p[0])

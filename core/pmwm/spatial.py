@@ -8,8 +8,8 @@ them, each where it is the better one:
   else scipy's. Both answer exactly (the same neighbours, distances and pairs; where two points lie at
   exactly the same distance, either may be named). Why pykdtree: it imports in about a millisecond where
   ``scipy.spatial`` takes 0.25-0.4 s with numpy 2 (scipy's array-API layer imports most of numpy's
-  submodules), which was most of what ``pmwm verify`` spent beyond reading its files (BENCHMARKS.md,
-  ``verify-cli-notes`` and ``kdtree-engine``). The radius queries ask it for the neighbours within the
+  submodules), most of what ``pmwm verify`` would spend beyond reading its files
+  (docs/decisions/083-numpy-fast-paths.md). The radius queries ask it for the neighbours within the
   radius, more of them until a point has fewer than it asked for. Its queries run on OpenMP threads
   (``OMP_NUM_THREADS``). The Blender extension does not bundle it: its macOS wheels carry their own
   OpenMP runtime, and Blender loads one already (two LLVM OpenMP runtimes in one process abort it), so
@@ -35,11 +35,15 @@ import contextlib
 import itertools
 import sys
 import threading
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .adjacency import unique_values
 from .features import row_norms, squared_norms
+
+if TYPE_CHECKING:  # annotations only: scipy is imported at the first query that needs it
+    from scipy.spatial import cKDTree
 
 __all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
            "closest_point_on_triangles"]

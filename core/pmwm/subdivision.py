@@ -134,7 +134,7 @@ def _fewest_sixes(F: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray,
                   ) -> dict[str, float]:
     """The fewest vertices in exactly six faces that a 1-to-4 or a sqrt(3) step leaves in a mesh of the
     faces F (m, 3) over n vertices: a necessary count, checked before the structure: many meshes that are no
-    subdivision (scanned or remeshed ones) fall short of it (BENCHMARKS.md, ``verify-first-call``).
+    subdivision (scanned or remeshed ones) fall short of it (docs/decisions/083-numpy-fast-paths.md).
     Every new vertex of a 1-to-4 step on an edge of two faces is in six (3 m / 8 of them, less a quarter
     of the boundary's edges); every face vertex of a sqrt(3) step in a triangle whose edges all flipped is
     (m / 3, less one per boundary edge); an edge of more than two faces takes one per face, counted
@@ -349,8 +349,8 @@ def _components(p: np.ndarray, q: np.ndarray, n: int) -> tuple[np.ndarray, int]:
     label (n,) and the labels' bound. A small mesh (``adjacency.numpy_sparse``) takes them from
     ``adjacency.component_labels`` (each labelled by its smallest vertex id; a vertex on no edge by its
     own), without importing scipy.sparse: the unmarked bundled bunny's subdivision look (157,272 pairs,
-    labelled here in 37 ms) would pay the import (0.11-0.17 s of a fresh process); its ``pmwm.verify``
-    with a pass phrase, as a fresh process, took 0.19-0.21 s instead of 0.28-0.35 s. Larger graphs go to
+    labelled here in 37 ms) would otherwise pay the import (0.11-0.17 s of a fresh process; measured:
+    docs/decisions/083-numpy-fast-paths.md). Larger graphs go to
     scipy's ``connected_components`` (``component_labels``' docstring says why). Both give the same
     partition, which is all ``_old_vertices`` uses."""
     if numpy_sparse(n):

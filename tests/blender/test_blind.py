@@ -62,6 +62,7 @@ def test_the_pass_phrase_is_never_saved_in_the_blend(scene, addon, bl, tmp_path)
     assert bpy.context.scene.pmwm.scheme == "blind"
 
 
+@pytest.mark.slow
 def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
     """Margin is the Blind scheme's own strength: 0 (the default) leaves it to the library, which chooses
     it per mesh (the same marked mesh as ``pmwm.embed`` without a strength); a larger margin moves the
@@ -129,6 +130,7 @@ def test_verify_reads_a_subdivided_copy_and_says_so(scene, addon, bl):
 
 
 @pytest.mark.parametrize("limit", [True, False], ids=["limit-surface", "plain"])
+@pytest.mark.slow
 def test_verify_reads_a_copy_given_blenders_subdivision_surface(scene, addon, bl, limit):
     """Blender's own subdivision: the Subdivision Surface modifier (Catmull-Clark, one level; its default
     places the vertices on the limit surface) applied to the marked bundled bunny turns every triangle
@@ -152,6 +154,7 @@ def test_verify_reads_a_copy_given_blenders_subdivision_surface(scene, addon, bl
 
 
 @pytest.mark.parametrize("kind,levels", [("SIMPLE", 1), ("CATMULL_CLARK", 2)], ids=["simple", "two-levels"])
+@pytest.mark.slow
 def test_verify_reads_a_copy_given_simple_or_two_levels_of_subdivision_surface(scene, addon, bl, kind, levels):
     """The Subdivision Surface modifier's other uses: Simple (the Catmull-Clark quads, the new vertices
     left on the flat faces) and two levels (Ctrl+2: the second level splits every quad in four). Two
@@ -195,6 +198,7 @@ def test_verify_reads_a_copy_given_blenders_smooth_modifier(scene, addon, bl):
     assert not (plain.marked and plain.payload == "Acme")
 
 
+@pytest.mark.slow
 def test_the_catmull_clark_attack_is_blenders_subdivision_surface(scene, bl):
     """``attacks.subdivide(..., "catmull-clark")``, which the benchmarks and the library's tests use, makes
     what the modifier makes (one level, no limit surface), boundary included: the same positions (to

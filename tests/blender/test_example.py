@@ -27,6 +27,7 @@ def test_arguments_after_the_double_dash(example):
         example.parse_args(["blender", "--python", "w.py"])  # no "--": the required options are missing
 
 
+@pytest.mark.slow
 def test_watermarks_every_mesh_object_once(scene, bl, example, tmp_path, capfd):
     a = bl.suzanne(levels=2)
     b = bl.suzanne(levels=2)

@@ -24,6 +24,7 @@ def built_zip(extension_zip):
     return extension_zip
 
 
+@pytest.mark.slow
 def test_zip_holds_manifest_addon_and_the_wheels_for_this_platform(built_zip, build_addon):
     manifest_src = tomllib.loads((ROOT / "blender_pmwm" / "blender_manifest.toml").read_text())
     with zipfile.ZipFile(built_zip) as zf:
@@ -62,6 +63,7 @@ def test_every_platform_and_python_is_a_build_target(build_addon):
         build_addon.targets(["linux-arm"], [])
 
 
+@pytest.mark.slow
 def test_blenders_validator_accepts_the_zip(built_zip, build_addon):
     tool = build_addon.find_blender_ext()
     assert tool is not None and tool.is_file()
@@ -90,6 +92,7 @@ def _run(mode: str, arg: Path, resources: Path) -> dict:
     return json.loads(lines[-1][len("RESULT:"):])
 
 
+@pytest.mark.slow
 def test_install_into_isolated_user_resources(built_zip, tmp_path):
     resources = tmp_path / "blender_user"
     resources.mkdir()

@@ -119,6 +119,7 @@ def test_an_object_edited_while_the_worker_runs_is_not_overwritten(scene, bl, tm
     assert np.array_equal(bl.positions(ob), edited) and not key.exists()
 
 
+@pytest.mark.slow
 def test_modal_verify_fills_the_verdict_and_a_report_can_be_saved(scene, bl, tmp_path, ops):
     ob = bl.suzanne(levels=2)
     key = tmp_path / "v.key.json"

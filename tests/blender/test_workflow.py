@@ -17,6 +17,7 @@ def _verdict(scene):
 
 
 @pytest.mark.parametrize("model", ["suzanne", "bunny"])
+@pytest.mark.slow
 def test_watermark_pm_lods_and_blender_exporters(scene, bl, tmp_path, capfd, model):
     """Suzanne: subdivided twice (7,958 vertices, quads); bunny: 34,835 vertices, triangles."""
     import pmwm

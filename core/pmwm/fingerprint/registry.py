@@ -80,7 +80,8 @@ class FingerprintKey:
             raise KeyFileError(f"{name} is not a fingerprinting key (no \"format\": \"{KEY_FORMAT}\"); "
                                "give the --key written by pmwm fingerprint")
         if doc.get("version") != VERSION:
-            raise KeyFileError(f"{name} is fingerprinting key version {doc.get('version')!r}; this pmwm reads {VERSION}")
+            raise KeyFileError(f"{name} is fingerprinting key version {doc.get('version')!r}; "
+                               f"this pmwm reads {VERSION}")
         try:
             key = WatermarkKey.from_json(json.dumps(doc["key"]), name)
             key.data = RobustKeyData.from_extra(key.extra, key.n_bits, key.n_vertices)
@@ -142,7 +143,8 @@ class Registry:
     def to_json(self) -> str:
         doc = {"format": REGISTRY_FORMAT, "version": VERSION, "key_id": self.key_id,
                "asset_sha256": self.asset_sha256, "n_sites": self.n_sites,
-               "recipients": [{"id": r, "codeword": self.entries[r].codeword, "files": dict(sorted(self.entries[r].files.items()))}
+               "recipients": [{"id": r, "codeword": self.entries[r].codeword,
+                               "files": dict(sorted(self.entries[r].files.items()))}
                               for r in sorted(self.entries)]}  # sorted: the same file whatever order copies came in
         return json.dumps(doc, indent=0) + "\n"
 

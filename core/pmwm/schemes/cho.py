@@ -21,9 +21,9 @@ The decoder is blind: it recomputes c, rho_min and rho_max from the suspect mesh
 invariant to similarity transforms and vertex/face reordering. The key records rho_min/rho_max at
 embedding only as a diagnostic (e.g. the scale of a suspect copy). ``strength`` is alpha (0.05 by
 default). As in pmwm's other schemes, the bits embedded are the payload XOR a keyed sequence (so an
-unmarked mesh reads as chance and the binomial p-value is exact) and the marked mesh is float32. Moving vertices shifts the vertex
-mean slightly; the embedder checks its own output with the decoder and, for any bin that the shift
-pushed across the threshold, re-embeds with a larger margin (up to a few rounds).
+unmarked mesh reads as chance and the binomial p-value is exact) and the marked mesh is float32. Moving
+vertices shifts the vertex mean slightly; the embedder checks its own output with the decoder and, for any
+bin that the shift pushed across the threshold, re-embeds with a larger margin (up to a few rounds).
 """
 
 from __future__ import annotations

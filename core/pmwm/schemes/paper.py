@@ -140,7 +140,8 @@ def locate_carriers(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> tuple[np
     tol = key.mean_edge
     if key.faces_fingerprint and n == key.n_vertices:
         fp = face_fingerprint(F)
-        for idx, known in ((key.carrier_index, key.faces_fingerprint), (key.carrier_pm_index, key.pm_faces_fingerprint)):
+        for idx, known in ((key.carrier_index, key.faces_fingerprint),
+                           (key.carrier_pm_index, key.pm_faces_fingerprint)):
             if fp == known:
                 return idx.copy(), "index", "faces fingerprint"
     best = None

@@ -1,82 +1,12 @@
 """The frame of a cropped copy: the plane that cut the surface, and the centre the cut took away.
 
-A plane crop removes a cap of the surface beyond a plane. The area centroid of what is left moves away
-from the cut by 5-21 bin widths and the range [lo, hi] by up to 9 (10 % crops of the four benchmark
-models), far beyond ``radial.refine_frame``'s reach. But the original centroid c0 is the area-weighted
-mean of what is left (centroid c) and of the cap: c0 = c + lam (c_cap - c), lam the cap's share of the
-area; and the cap lies beyond the cut, around the hole it left: c_cap ~ h + t n, h the centroid of the
-cut's boundary edges, n the cut plane's normal pointing away from c. Measured on the bunny, dragon, Venus
-head and Igea, 6 crops of 10 % each: c0 lies within 0.7 bin widths of this two-parameter family in 20
-of 24 crops and within 1 in 23 (1.8 at most), the rest of the way mostly off the family's plane (the
-plane through c spanned by h - c and n). On 80 scratch crops of 10 % (the same models), the lattice below
-always came within 0.5 bin widths of c0 in that plane, but c0 lay more than 0.5 bin widths off the plane
-in 30 (14 of the 17 crops the plane alone did not read) and 1 or more in 10. The reader searches the
-family and copies of it off its plane (``crop_frames``, for each word length):
-
-1. the cut planes (``cut_planes``): boundary loops that lie in a plane, coplanar loops together (a
-   plane that cuts two ears leaves two loops);
-2. candidate centres on the family (lam <= LAMBDA_MAX, t in T_RANGE, within REACH bin widths of c) and
-   on its copies LAYERS bin widths off its plane, on a lattice of LATTICE bin widths;
-3. the screening (SCREEN_*): each candidate scored by how strongly the distances of COARSE_SAMPLE
-   vertices add up in phase at one bin width within -40 % .. +60 % of the suspect's own (a crop moves
-   hi by several bins; ``radial.in_phase``: one FFT per candidate gives every width, and no lo is
-   needed), first the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them;
-   then the best of these (SCREEN_KEEP of one layer's count) scored by the mark's energy (COARSE_*):
-   lo from the area quantile of what is left that is the original's 2 % quantile if the cap held none
-   of the innermost vertices (2 % / (1 - lam)), over the widths within 6 % of the one where its radii
-   add up in phase (COARSE_AROUND) and over phases;
-4. the TOP best candidates: the best of OFF_PLANE offsets off the family's plane, then the width and lo
-   again, finely, on every vertex of positive weight (the widths near the one where all their radii add
-   up in phase); the REFINED best of those through ``radial.refine_frame_on`` (on REFINE_FIRST
-   vertices), and the FINAL best of these once more from their refined centre (on REFINE_SAMPLE); the
-   frame whose reading shows the most energy wins.
-
-The word lengths are searched independently, in parallel threads (``background.parallel_map``; numpy
-releases the GIL in its loops): the frames are the same as one after the other.
-
-The integer part of lo comes from the quantile alone: a frame one bin off shows nearly the same energy
-(the same bins, one end swapped) but reads the word shifted. Nothing here involves the pass phrase,
-so the search costs the p-value nothing.
-
-Why these constants (scratch sets of 160 crops of 10 % and 64 of 30 % in a random pose; the runs are in
-BENCHMARKS.md, ``blind-crop``): with coarse samples of 2000 vertices instead of 6000 the candidates that
-win at 6000 rank in the hundreds; with t >= 0 only, or without the offsets, fewer copies read; a fine
-width step of 1 % or 0.25 % instead of 0.125 % loses copies (the energy's peak in the width is a few
-tenths of a percent wide at 64 bins); a 30 % crop moves the width further, and the widths -40 % .. +60 %
-read about twice as many of those as -20 % .. +25 %; with the family's plane alone, a cap share up to 0.5
-instead of 0.4 read fewer (more candidates, more false peaks). Screening first the candidates 0.9 bin
-widths apart, rather than every candidate, reads a few fewer crops (about 4 % of 10 % crops) in a
-quarter of the time (BENCHMARKS.md, ``blind-crop`` and ``verify-speed-blind``). More finalists read more 30 % crops:
-with TOP 6, 10 and 16 (REFINED 3) 23, 25 and 28 of the 64, with TOP 10 and REFINED 4 27 (131 of the 160
-10 % crops with each, 130 with TOP 6); each finalist costs about 15 ms per word length. The copies of the
-family 0.9 bin widths either side of its plane, with the fine width fit on every vertex instead of
-20,000, read 145 of the 160 and 28 of the 64 (the fit alone 133 and 28; the copies alone, with three
-times as many candidates on the coarse grid, 137 and 26), for about a fifth more time. A 30 % crop moves
-the centre 14-36 bin widths (REACH was 30), the family's point nearest c0 has lam up to 0.55 (the
-model's, not the cap's share of the area: 0.22-0.39) and c0 lies up to 6 bin widths off the plane (more
-than 1.35 in 14 of 24 scratch crops of 30 %, 21 of them readable in the true frame, 9 read): lam up to
-0.55 and REACH 40 read 149 and 30, and with copies 0.9 and 1.8 either side 151 and 34, for about half as
-much time again as the three layers. On the benchmark's 160 cropped copies (10 marks per model; a
-10 % plane crop, a 30 % crop in a random pose, the protocol's 10 % and 30 % crops), every 30 % crop
-reads with all 32 check bits right in the original's frame, so what it misses is the frame: its lost
-centre lies up to 5 bin widths off the family's plane, and with copies 2.7 and 3.6 bin widths either
-side as well (9 layers) 147 of the 160 are read against 134 with 5 (none lost; the 30 % crops in a
-random pose 33 of 40 against 25; of another 16 posed 30 % crops, one lost to a false peak and none
-gained), for 12-34 % more CPU time per cut suspect; 11 layers, or t up to
-0.35 diagonals, read fewer (BENCHMARKS.md, ``blind-crop-layers``). On 20,000 vertices the width fit can
-peak about 10 % off the mark's width, with nearly the energy of the right one, where every vertex
-shows the right one (dragon crops).
-The reader also reads the frame found one and two bins off either way (``frames``; the counts above include
-one bin, from an earlier run).
-
-The screening scores a candidate by its radii's phase (``radial.in_phase``, one histogram and one FFT)
-rather than by the bin energy over 21 widths x 3 lo offsets, and the fine fit tries the widths within 3 %
-of the one where all the radii add up in phase rather than all 801 of -40 % .. +60 %: on the same 160
-copies 150 are read against 147 (5 gained, 2 lost), the search for one word length taking 0.30-0.48
-times as long (BENCHMARKS.md, ``session-26``). The coarse stage then tried a candidate's energy over 51
-widths (-40 % .. +60 %, 2 % apart) and the first refinements looked at REFINE_SAMPLE vertices; the 13
-widths around its in-phase width and 8,000 vertices read the same 150 of the 160 copies (2 gained, 2
-lost), the two word lengths' searches one after the other taking 0.73 times as long (``session-27``)."""
+A plane crop moves the surface's area centroid and range far beyond ``radial.refine_frame``'s reach. The
+original centroid c0 = c + lam (c_cap - c) (c the centroid of what is left, lam the cap's share of the area)
+lies near a two-parameter family given by the cut: c_cap ~ h + t n, h the centroid of the cut's boundary edges,
+n the cut plane's normal. ``cut_planes`` finds the cuts; ``crop_frames`` searches the family and copies of it
+off its plane for the frame of each word length that shows the most mark energy. Key-free: the search costs
+the p-value nothing. The algorithm: docs/schemes/blind.md; the measurements behind the constants:
+docs/decisions/081-blind-crop-frame-search.md."""
 
 from __future__ import annotations
 
@@ -207,7 +137,7 @@ def _spread(D: np.ndarray, spacing: float) -> np.ndarray:
     cell = np.round(D / spacing).astype(np.int64)
     cell -= cell.min(0)
     size = cell.max(0) + 1
-    # one integer per cell (a few hundred cells per axis): np.unique of the rows took 7 times as long
+    # one integer per cell (a few hundred cells per axis): np.unique of the rows takes 7 times as long
     key = (cell[:, 0] * size[1] + cell[:, 1]) * size[2] + cell[:, 2]
     first = np.unique(key, return_index=True)[1]
     first.sort()
@@ -268,6 +198,12 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     mark energy (``excess_energy``) near the families of the cut ``planes`` (``cut_planes``, not empty).
     V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``; ``own`` the suspect's own
     frame (its centre and range).
+
+    Stages, per count: the candidate centres (``_candidates``) screened by how their radii add up in phase
+    (SCREEN_*), the kept ones scored by the mark's energy over widths and phases (COARSE_*), the TOP best moved
+    off their family's plane (OFF_PLANE) and fitted finely (``_fit_scale``), the REFINED best of those refined
+    (``radial.refine_frame_on``) and the FINAL best fitted again at their refined centre; the frame of most
+    energy wins. The counts are searched in parallel threads (``background.parallel_map``).
 
     The vertices farther from the centroid than own.hi + 2 REACH bin widths (of the fewest bins) + BEYOND
     ranges (hi - lo) are left out. No frame the search tries reaches them: its centre lies within REACH

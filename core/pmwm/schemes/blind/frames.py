@@ -1,62 +1,13 @@
-"""The frames the blind reader reads in: the suspect's own, then the best of a refined one and a cropped
-copy's; and the mesh it reads, the suspect or, when it is a subdivided copy, the mesh it was subdivided
-from, or when it is a smoothed copy, the suspect with its smoothing undone (``read_statistics``).
+"""The frames the blind reader reads in, and the mesh it reads them on (``read_statistics``).
 
-1. The own frame (``radial.frame_of_areas``): centre and range recomputed on the suspect. The word length read
-   is the one whose bins show the most mark energy there.
-2. The refined frame (``radial.refine_frame``): within 1.5 bin widths of the own, where the mark's energy
-   is largest. Attacks that move the frame by a fraction of a bin (noise, smoothing, simplification)
-   leave the bins' bias in place; this finds the frame that shows it again.
-3. When the suspect has a planar cut (``crop.cut_planes``: a boundary loop in a plane): the frame of a
-   cropped copy (``crop.crop_frames``), for every word length up to CROP_MAX_BINS bins (payloads up to
-   64 bits: 8 bytes of text). Every frame found serves every length (its lo and bin width, with that
-   many bins), and the length and frame whose bins show the most excess energy are read, when they
-   show more than the refined frame. A search for 96 bins can find a 64-bin mark's own bins (its widths
-   span -40 % .. +60 %): read as 96 bins they show the mark diluted by the 32 bins beyond it (or the
-   same, when nothing lies beyond: the shorter length is read on a tie), read as 64 the mark alone
-   (scratch: 63 of 80 10 % crops and 23 of 64 posed 30 % crops read, against 62 and 22 with each length
-   read in its own frame). Every length is searched: a frame searched for another length than the
-   mark's can show much of its energy too (up to four fifths of the right length's, measured on the
-   bunny and dragon), so the first strong one may be the wrong length. The search runs whenever there
-   is a cut, unless the own or refined frame already shows the mark in full: an excess energy of
-   ``FULL_VIEW`` per vertex or more (an asset cut flat before it was marked, read intact, re-exported
-   or lightly noised: 2.9e-3 to 9.5e-3 per vertex on the bunny, dragon, Venus head and Igea cut 10 %
-   and marked; 3.3e-3 to 9.8e-3 intact without the cut), where a cropped copy's frames show at most
-   1.2e-3 (3 keys of each model, 10 % and posed 30 % crops, marked or not: the search still runs on
-   every one of them). Below that, no level of the refined frame's energy tells a crop from an
-   intact copy on every shape (excess energy on unmarked shapes reaches 26 on the dragon and 60 on a
-   cropped Igea, against 16-30 for marked Venus heads after 8-bit quantization, Loop subdivision or 30
-   smoothing iterations). The choice involves no pass phrase: the frames read and the union bound are
-   those of a suspect without a cut.
-4. With the crop frame, the same frame moved by one and two bins either way (``CROP_SHIFTS``): the crop
-   search takes the integer part of lo from an area quantile, and a frame a whole bin off shows about
-   the same energy but reads the word shifted. Reading the neighbours one bin off too (4 frames, so 9
-   Chase bits instead of 10 at the same best p-value, ``word.chase_bits``) read the whole payload in 129
-   of 160 scratch 10 % plane crops against 126, and in 11 of 64 crops of 30 % in a random pose against
-   9; two bins off as well (6 frames, 8 Chase bits) read the same then. With the present search the
-   second neighbours read one more of 160 scratch crops (149 against 148: the Venus head crop of the
-   benchmark row "plane crop 10 %" that the others miss, lo two bins off) and lose none of those 160
-   nor of another 112 (64 of 10 % and 48 posed of 30 %: 59 and 24 read either way): BENCHMARKS.md,
-   ``blind-crop``.
-   Picking the shift by the energy instead, key-free, read 87 of the 160: it picks the wrong one on
-   every bunny crop.
-
-5. When no mesh shows the mark in full view and no crop frame was taken, but the bins of the reading show
-   their neighbours' interference (the blur of 8-bit quantization or 0.5 % noise: ``radial.interferes``):
-   the own and refined frames of the suspect after DENOISE_STEPS steps of Laplacian smoothing, read
-   beside the others ("denoised", "denoised-refined"; ``with_denoised``).
-6. Otherwise, when the suspect lies on a coarse grid (``on_grid``: quantized to 12 bits or fewer per axis) and
-   no crop frame was taken: the same denoised frames, read as reserve frames (``Frames.reserve``) with what
-   the p-value's budget leaves beside the others (``word.reserve_candidates``), so that those keep their
-   Chase bits. Quantization blurs the radii even where the bins do not show it: the Venus head's 8-bit copy
-   of the benchmark's key 1002 reads 5 wrong bits in its own frame, 8 in the refined one, 2 (ranks 0 and 7
-   of 64 by reliability) in the denoised one, found among its 49 candidates. With them as full frames (4
-   frames, 9 Chase bits) the bundled bunny simplified and quantized to 8 bits lost 3 of 120 marks read
-   with 10 and gained 1 (BENCHMARKS.md, ``session-29``).
-
-Every choice here is made on the mark's energy or the bins' shape, which involve no pass phrase, so it
-costs the p-value nothing; the union bound counts the frames read (1 to 4, or 6) and the reserve frames'
-candidates.
+The frames: the suspect's own (``radial.frame_of_areas``); a refined one near it (``radial.refine_frame``);
+when the suspect has a planar cut and does not show the mark in full view, a cropped copy's (``crop``) and that
+frame moved by one and two bins; when the bins show the blur of noise or quantization, the own and refined
+frames of the suspect smoothed a little (``with_denoised``; on a coarse grid as reserve frames). The mesh: the
+suspect, or the mesh a subdivided copy was made from, or the suspect with its smoothing undone. Every choice is
+made on the mark's energy or the bins' shape, which involve no pass phrase; the union bound counts the frames
+read. The algorithm: docs/schemes/blind.md; the measurements behind the constants:
+docs/decisions/080-blind-reader-frames.md.
 """
 
 from __future__ import annotations
@@ -92,8 +43,7 @@ UNSMOOTH_STRIDE = 3  # the scan takes steps of UNSMOOTH_STRIDE * UNSMOOTH_LAM, a
 UNSMOOTH_SCAN = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 14, 16, 18, 20, 22, 25, 27)  # its steps it measures at
 UNSMOOTH_SAMPLE = 10000  # vertices the scan's energies are measured on
 UNSMOOTH_FLOOR = 4e-4  # the scan's best excess energy per vertex must reach this to be looked at closely
-# (a cost gate, key-free: unmarked organic meshes show 1.8e-4 to 5.1e-4, some CAD and low-poly ones more; 6e-4
-# skipped weak marks smoothed 10 times: BENCHMARKS.md, blind-denoised)
+# (a cost gate, key-free: above what most unmarked meshes show, below weak marks smoothed 10 times)
 UNSMOOTH_NEAR = (0.4, 1.1)  # then the counts between these shares of the scan's best count,
 UNSMOOTH_FINE = 0.07  # this share of it apart (at least 1), then every count around the best of them
 UNSMOOTH_GROWTH = 1.1  # no count at which the steps back have grown the mesh's bounding box by this factor
@@ -126,7 +76,7 @@ class Frames:
     energy: float = 0.0
     mesh: str = "suspect"
     guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
-    reserve: int = 0  # the last ``reserve`` frames are read with what the p-value's budget leaves (item 6)
+    reserve: int = 0  # the last ``reserve`` frames are read with what the p-value's budget leaves (``_with_reserve``)
 
 
 def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
@@ -138,26 +88,20 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     counting (``Frames.mesh`` "1-to-4"): an interpolating scheme (butterfly) keeps them where they were.
 
     Why: one step of Loop, sqrt(3) or Catmull-Clark subdivision smooths the original vertices and adds new
-    ones, averages of their neighbours: the Venus head read no whole payload after Loop and 3 of 10
-    after sqrt(3) (BENCHMARKS.md, ``blind-subdivision``). The coarse mesh solved from the new vertices is
-    the marked mesh itself when the copy is exact. Per vertex, because the subdivided suspect's vertices
-    are linear combinations of the coarse mesh's: its total energy counts the same information about
-    four times, so a subdivided copy's coarse mesh shows about four times its energy per vertex (three
-    for sqrt(3)), a subdivided mesh marked as it is about as much (its original vertices, a quarter of
-    the marked ones) or less (the solved positions mix them); hence the factor 2 between. Scratch, bunny
-    and Venus head, 2 keys: exact midpoint, Loop and sqrt(3) copies 2.9-19 times; Loop then 0.3 % noise
-    3.7-6.8; Loop then 8-bit quantization 2.1-2.5 (bunny) and 3.1-3.4 (Venus head); a Loop-subdivided
-    mesh marked as it is, then 8-bit quantized or 0.3 % noised, 0.96-1.08 for its original vertices as
-    they are and 0.19-0.98 solved (read intact it is in full view). The choice involves no pass phrase,
-    so the p-value's union bound is the chosen mesh's. Then, when still no mesh shows the mark in full
-    view, the suspect with its smoothing undone (``unsmoothing``), read when it shows COARSE_GAIN times
-    the excess energy per vertex of the best so far; and the suspect smoothed a little, beside the reading
-    kept, when that reading's bins show the blur of noise (``with_denoised``), or as reserve frames on a copy
-    on a coarse grid (module docstring, item 6), whose denoised frames a worker measures from the start."""
+    ones, averages of their neighbours, which blurs the mark; the coarse mesh solved from the new vertices is
+    the marked mesh itself when the copy is exact. Per vertex, because the subdivided suspect's vertices are
+    linear combinations of the coarse mesh's: a subdivided copy's coarse mesh shows about four times its
+    energy per vertex (three for sqrt(3)), a mesh subdivided and then marked about as much or less; hence the
+    factor 2 between (measured: docs/decisions/080-blind-reader-frames.md). The choice involves no pass
+    phrase, so the p-value's union bound is the chosen mesh's. Then, when still no mesh shows the mark in full
+    view, the suspect with its smoothing undone (``unsmoothing``), read when it shows COARSE_GAIN times the
+    excess energy per vertex of the best so far; and the suspect smoothed a little, beside the reading kept,
+    when that reading's bins show the blur of noise (``with_denoised``), or as reserve frames on a copy on a
+    coarse grid (``_with_reserve``), whose denoised frames a worker measures from the start."""
     area = vertex_areas(V, F)
     grid = on_grid(V)
     # a copy on a coarse grid is read in the denoised frames whatever else it shows (in full, or as reserve
-    # frames: module docstring, item 6): measured in a worker from the start, with the smoothing operator
+    # frames: ``_with_reserve``): measured in a worker from the start, with the smoothing operator
     # the reading shares (the unsmoothing scan, the guess)
     counts0 = edge_face_counts(F, len(V)) if grid else None
     operator = mean_operator(F, len(V), counts0) if grid else None
@@ -215,8 +159,10 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
 
 def _with_reserve(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operator,
                   measuring: Optional[Background] = None) -> Frames:
-    """``got`` with the denoised frames of ``with_denoised`` as reserve frames (``Frames.reserve``; module
-    docstring, item 6), for a suspect on a coarse grid; ``got`` itself when it was read in a crop frame."""
+    """``got`` with the denoised frames of ``with_denoised`` as reserve frames (``Frames.reserve``), for a
+    suspect on a coarse grid; ``got`` itself when it was read in a crop frame. Why: quantization blurs the radii
+    even where the bins do not show it, and reserve frames are read with what the p-value's budget leaves
+    (``word.reserve_candidates``), so that the other frames keep their Chase bits."""
     if any(n.startswith("crop") for n in got.names):
         return got
     more = with_denoised(got, V, F, bin_counts, operator, measuring)
@@ -239,26 +185,14 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
 
     Why: 8-bit quantization and 0.5 % noise move every vertex by a good part of a bin, independently of
     its neighbours, and blur the radii across the bins' edges; the mark is smooth over the surface, so a
-    few steps of smoothing take out more of the blur than of the mark. Which copies read better so is
-    not told by the energy (on the Venus head's copies it rose by 0.8-1.6 times, read or not), so both
-    readings are read and the union bound counts their frames (up to 4: 9 Chase bits instead of 10). The
-    caller (``read_statistics``) adds them only to a reading whose bins show the blur (``radial.interferes``,
-    the equalizer's own judgement): the fewer Chase bits lose weak marks read intact (a 2,906-vertex blob
-    marked at margin 0.05). Scratch (BENCHMARKS.md, ``blind-denoised``): 288 copies (bunny 6 keys, dragon
-    5, Venus head 10, Igea 3; 8- and 7-bit quantization, 0.3 and 0.5 % noise, 5 and 30 smoothing
-    iterations, 50 and 70 % simplification, Loop, Loop then 8-bit, a 10 % plane crop, none): 231 read
-    against 219, none lost, the same with the extra frames on every copy not in full view or on the 49
-    whose bins show the blur; 2 or 4 steps instead of 3 read 226 and 223. Not after a crop frame: its 6
-    frames already spend the p-value's budget down to 8 Chase bits.
-
-    The denoised refined frame is searched on up to DENOISE_REFINE_SAMPLE vertices, where the other frames'
-    search takes REFINE_SAMPLE: with the mark blurred, the sample's own noise moves the frame the search
-    finds. Measured on the bundled bunny (34,835 vertices: every vertex against every second one) marked
-    at margins 0.05, 0.06 and 0.07 with 80 pass phrases, the 395 copies of 8-bit quantization and 0.5 %
-    noise read in these frames: 215 whole payloads against 195 (24 gained, 4 lost); Igea's 8-bit copy of the
-    benchmark's key 1008 is read (searched on every third vertex; not on every fourth). It costs a suspect that
-    takes this path about 0.03 s on Igea (134,345 vertices), an unmarked Igea among them; every vertex would
-    cost 0.13-0.2 s (BENCHMARKS.md, ``session-29``)."""
+    few steps of smoothing take out more of the blur than of the mark. The energy does not tell which copies
+    read better so, so both readings are read and the union bound counts their frames (up to 4: 9 Chase bits
+    instead of 10). The caller (``read_statistics``) adds them only to a reading whose bins show the blur
+    (``radial.interferes``): the fewer Chase bits lose weak marks read intact. Not after a crop frame: its 6
+    frames already spend the p-value's budget down to 8 Chase bits. The denoised refined frame is searched on
+    up to DENOISE_REFINE_SAMPLE vertices, where the other frames' search takes REFINE_SAMPLE: with the mark
+    blurred, the sample's own noise moves the frame the search finds (measured:
+    docs/decisions/080-blind-reader-frames.md)."""
     more = measuring.result() if measuring is not None else denoised_frames(V, F, bin_counts, operator)
     if more is None:
         return got
@@ -300,11 +234,8 @@ def guess_statistics(V: np.ndarray, F: np.ndarray, bin_counts, operator=None, ar
     independently of its neighbours; the mark is smooth over the surface, so smoothing takes out more of the
     blur than of the mark, and how much depends on the mesh (its density against the grid step). The energy,
     which involves no pass phrase, picks the count of steps, and the word length with it, as the reader picks
-    its length (the blurred copy as it is can name another). On the benchmark's four models at 7 bits (20 keys
-    each; 3 steps on the bunny, 3 or 6 on the dragon and the Venus head, 6 or 10 on Igea), the own frame's hard
-    decisions of the 64-bit word err on 0.02-0.21 of the bits (mean per model) against 0.06-0.39 as the copy
-    is; at 8 bits 0.005-0.064 against 0.005-0.073; at 9 bits it keeps the copy as it is, and at 6 bits
-    nothing helps (BENCHMARKS.md, ``session-30``). The reader's verdict does not use it: only the word it
+    its length. It errs on fewer bits than the copy as it is at 7 and 8 bits (measured:
+    docs/decisions/080-blind-reader-frames.md). The reader's verdict does not use it: only the word it
     returns when it reads no mark."""
     counts = list(bin_counts)
     operator = mean_operator(F, len(V)) if operator is None else operator
@@ -340,25 +271,19 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
 
     Why: smoothing leaves the mark in the copy but blurs the radii (each vertex moves inward by its own
     curvature) and the bins lose it across their edges. Smoothing damps the mesh's frequencies without
-    mixing them, so steps taken back restore the radii and the mark, even after 50 iterations
-    (BENCHMARKS.md, ``blind-unsmoothing``). The count is unknown: a scan measures the energy at
-    UNSMOOTH_SCAN of its steps on UNSMOOTH_SAMPLE vertices (the surface's areas kept from the suspect: cheaper,
-    but it peaks beyond the right count, up to twice), taking UNSMOOTH_STRIDE steps at once (a step of
-    UNSMOOTH_STRIDE times the share is their product to first order in the share: a third of the sparse
-    products for a scan that only places the count roughly), and when its best reaches UNSMOOTH_FLOOR
-    per vertex (above what most unmarked meshes show), the own frame is measured in full over UNSMOOTH_NEAR of
-    that count, every UNSMOOTH_FINE of it, then at every count around the best of those (stepping on
-    from the count measured before it). Nothing involves the pass phrase: the union bound is that of the
-    frames read. The scan takes 27 sparse products with the neighbour-mean operator, the full
-    measurement up to 100 more (the scan runs on every suspect not read in full view, unmarked ones
-    included: BENCHMARKS.md, ``verify-speed-blind``).
+    mixing them, so steps taken back restore the radii and the mark. The count is unknown: a scan measures the
+    energy at UNSMOOTH_SCAN of its steps on UNSMOOTH_SAMPLE vertices (the surface's areas kept from the suspect:
+    cheaper, but it peaks beyond the right count, up to twice), taking UNSMOOTH_STRIDE steps at once (a step of
+    UNSMOOTH_STRIDE times the share is their product to first order in the share), and when its best reaches
+    UNSMOOTH_FLOOR per vertex (above what most unmarked meshes show), the own frame is measured in full over
+    UNSMOOTH_NEAR of that count, every UNSMOOTH_FINE of it, then at every count around the best of those
+    (stepping on from the count measured before it). Nothing involves the pass phrase: the union bound is that
+    of the frames read.
 
     Neither looks at a count where the steps back have grown the bounding box by UNSMOOTH_GROWTH: smoothing
-    shrinks a mesh by a few percent at most (the benchmark's 50 iterations: 1 % of the bunny's diagonal, and
-    as many steps back give it back), so more growth is the steps back amplifying what no smoothing damped
-    (a crop's zigzag border, the finest detail: 1.2 times per step at the highest frequency), whose own
-    frame shows a large energy that is not the mark's (a 10 % plane crop of the bunny was read after 83
-    steps back, its bounding box 13,000 times as large, in place of its crop frame)."""
+    shrinks a mesh by a few percent at most, so more growth is the steps back amplifying what no smoothing
+    damped (a crop's zigzag border, the finest detail), whose own frame shows a large energy that is not the
+    mark's (measured: docs/decisions/080-blind-reader-frames.md)."""
     area = vertex_areas(V, F) if area is None else area
     if not area.sum() > 0:
         return None

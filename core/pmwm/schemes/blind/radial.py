@@ -23,9 +23,8 @@ mean by at most about 0.155; a bin asked for more gets Cho's r**k. Reading: the 
 raises the margin of any bin that came out wrong or weak (below alpha_j / 2), keeping the round with
 the fewest wrong, then weak, bins.
 
-Why this push: at the same MRMS it reads more whole payloads than r**k after simplification,
-smoothing, quantization and subdivision, and as many after noise, similarity and re-ordering
-(BENCHMARKS.md, section ``blind-push``: the same protocol run before and after).
+Why this push: at the same MRMS it reads more whole payloads than r**k after simplification, smoothing,
+quantization and subdivision, and as many after the other attacks.
 
 Reading: the statistics (after ``equalized``: an attack that blurs the radii by a good part of a bin
 makes each bin's neighbours interfere, and their interference is removed, key-free) in the suspect's
@@ -34,16 +33,10 @@ where the mark's energy is largest (``refine_frame``, a compass search; the ener
 phrase, so the choice costs the p-value nothing but the second frame's readings, which the union bound
 counts). Which frames the reader reads in, a cropped copy's included: ``frames``.
 
-Weights, measured (3 keys, 64 bins, alpha 0.07, BER summed over noise 0.3/0.5 %, smoothing 5/10
-it., quantization 8/7 bits, simplification 50 %, loop and midpoint subdivision; bunny, Venus head,
-dragon): area-weighted centre and quantiles with unit-weight statistics (this module) 0.56, 2.31,
-0.84; everything area-weighted 0.67, 2.70, -; everything unit-weighted 0.86, 1.51, 0.81, but
-simplification 50 % then gives BER 0.43 / 0.39 / 0.21 against 0.05 / 0.32 / 0.07 here (the vertex
-mean moves when simplification removes vertices unevenly; in the full benchmark run with unit weights
-even 10 % simplification gave BER 0.39 on the bunny). Area weights in the statistics follow the
-mark itself and any noise; areas smoothed over the 1-ring, sqrt(area) or the areas of a smoothed copy
-were no better. Face quadrature (6 points per face) instead of vertices: the embedder no longer
-reaches its margins on the Venus head (bins are narrower than its triangles).
+Why these weights (area-weighted centre and range, unit-weight statistics): a vertex mean moves when
+simplification removes vertices unevenly, and area weights in the statistics follow the mark and the noise.
+The measurements behind these choices: docs/decisions/082-blind-carrier-and-word.md; the algorithm:
+docs/schemes/blind.md.
 """
 
 from __future__ import annotations
@@ -295,10 +288,7 @@ def bin_margins(counts: np.ndarray) -> np.ndarray:
     ``MARGIN_SPREAD``, from the bins' vertex counts (M,). A bin mean read through an attack errs by
     about sigma / sqrt(n_j), so this gives every bin the same signal-to-noise ratio, at the same
     distortion as equal margins (the squared displacement grows as n_j margin_j^2, summed: the same
-    total). Measured (4 keys, the same MRMS 0.019 %, errors of the 64 bins summed over Loop, sqrt3
-    and midpoint subdivision, 8-bit quantization, 10 smoothing iterations, 50 and 70 %
-    simplification, 0.3 and 0.5 % noise): bunny 11.5 -> 6.5, dragon 6.3 -> 4.8, Venus head 41.0 ->
-    38.0 against equal margins; the exponents 0.25, 0.75 and 1 were between or worse overall."""
+    total); fewer bin errors than equal margins or other exponents (docs/decisions/082-blind-carrier-and-word.md)."""
     c = np.asarray(counts, dtype=np.float64)
     filled = c[c > 0]
     med = float(np.median(filled)) if len(filled) else 1.0
@@ -316,13 +306,9 @@ def moved_to_radius(V: np.ndarray, centre: np.ndarray, bv: Binned, rho_new: np.n
     Why: the distortion a mark is judged by (MRMS, the distance between the two surfaces) sees a vertex's move
     across the surface and, to first order, not its move along it; the reader sees its change of radius. Where
     the surface is oblique to the radius, moving partly along it reaches the same radius with less distortion,
-    so at the same MRMS the margins grow: by 1.21-1.39 times on the benchmark's four models at share 0.4 (the
-    dragon, whose surface is most oblique to its radii, the most). The price: a vertex slides farther along
-    the surface (vertex RMSE 1.27-1.42 times as large at the same MRMS on the dragon, Venus head and Igea,
-    the Hausdorff distance 1.06-1.24 times), and what resamples the surface (simplification, Laplacian
-    smoothing) keeps less of that part:
-    with share 0.1 a 50 % simplification of the Venus head read 8 of 10 whole payloads instead of 10, with
-    0.25 one of the dragon's was lost; at 0.4 none (BENCHMARKS.md, ``blind-along-surface``)."""
+    so at the same MRMS the margins grow. The price: a vertex slides farther along the surface, and what
+    resamples the surface (simplification, Laplacian smoothing) keeps less of that part; at ``share`` 0.4 the
+    simplified copies that smaller shares lose still read (docs/decisions/082-blind-carrier-and-word.md)."""
     u = bv.unit
     c = np.einsum("ij,ij->i", u, normals)
     e = u - (1.0 - share) * c[:, None] * normals
@@ -617,9 +603,8 @@ def excess_energy(stat: np.ndarray, share: np.ndarray, n_vertices: float) -> flo
 
 
 ISI_MIN = 0.25  # equalize when a neighbour's sign moves a bin by at least this share of its own sign's move
-# (measured on 6 keys x 4 models x 8 attacks: at 0.1 and 0.2 Igea read more after noise, but the bundled
-# bunny lost sqrt3 subdivision, whose c/g is -0.18 to -0.25; 8-bit quantization and 0.5-0.7 % noise show
-# -0.3 to -0.4; section blind-equalizer of BENCHMARKS.md)
+# (8-bit quantization and 0.5 % noise show 0.3-0.4; sqrt3 subdivision up to 0.25, which is better left as read:
+# docs/decisions/082-blind-carrier-and-word.md)
 ISI_ROUNDS = 4  # fits of g and c, each on the signs the Viterbi search found with the one before
 
 
@@ -627,26 +612,23 @@ def equalized(stat: np.ndarray) -> np.ndarray:
     """The bins' statistics (M,) float64, in radial order (NaN: an empty bin), each in units of its
     standard error (``word_read``), with the interference of each bin's two radial neighbours removed.
 
-    An attack that blurs the radii by a good part of a bin (8-bit quantization: the bin means fall to
-    about a third of the mark's and each neighbour's sign pulls a bin the other way by about 0.4 of
-    that) spills each bin's pushed vertices into its neighbours. Model: stat_j = g s_j + c (s_{j-1} +
-    s_{j+1}) + noise, s = +-1 the bins' signs. g and c come from a regression on the signs read, the
-    signs from the most likely sequence under the model (a Viterbi search, 4 states: two consecutive
-    signs), alternately, from the hard decisions on, until the signs settle (ISI_ROUNDS fits at most);
-    the interference is judged on the last fit. The result is each bin's own reading with its
-    neighbours' signs summed out, not guessed: the log posterior odds of its sign under the model (a
-    forward-backward pass over the same chain, the noise's variance from the fit's residuals), times
-    sigma^2 / (2 g) to stay in the statistic's units (without interference that is stat_j itself). A
-    bin whose neighbours are uncertain keeps a small value, so the reader's search
-    (``word.likely_flips``) tries it early; subtracting the most likely neighbours' interference instead,
-    stat_j - c (s_{j-1} + s_{j+1}), doubles it when a neighbour's sign is wrong (BENCHMARKS.md,
-    ``blind-soft-list``). Nothing here involves the pass phrase: the p-value stays exact. When c is above
-    -ISI_MIN g (no interference to speak of: an intact copy, smoothing, most subdivisions and
-    simplifications) the statistics are returned as they are.
+    An attack that blurs the radii by a good part of a bin (8-bit quantization: the bin means fall to about a
+    third of the mark's and each neighbour's sign pulls a bin the other way by about 0.4 of that) spills each
+    bin's pushed vertices into its neighbours. Model: stat_j = g s_j + c (s_{j-1} + s_{j+1}) + noise, s = +-1 the
+    bins' signs. g and c come from a regression on the signs read, the signs from the most likely sequence under
+    the model (a Viterbi search, 4 states: two consecutive signs), alternately, from the hard decisions on, until
+    the signs settle (ISI_ROUNDS fits at most); the interference is judged on the last fit. The result is each
+    bin's own reading with its neighbours' signs summed out, not guessed: the log posterior odds of its sign under
+    the model (a forward-backward pass over the same chain, the noise's variance from the fit's residuals), times
+    sigma^2 / (2 g) to stay in the statistic's units (without interference that is stat_j itself). A bin whose
+    neighbours are uncertain keeps a small value, so the reader's search (``word.likely_flips``) tries it early;
+    subtracting the most likely neighbours' interference instead, stat_j - c (s_{j-1} + s_{j+1}), doubles it when
+    a neighbour's sign is wrong. Nothing here involves the pass phrase: the p-value stays exact. When c is above
+    -ISI_MIN g (no interference to speak of: an intact copy, smoothing, most subdivisions and simplifications) the
+    statistics are returned as they are.
 
-    Why the rounds: a fit on the hard decisions alone, a sixth of them wrong after 8-bit quantization of
-    the Venus head, sees much less interference than there is and judged most such readings free of it
-    (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
+    Why the rounds: a fit on the hard decisions alone, many of them wrong after 8-bit quantization, sees much
+    less interference than there is (docs/decisions/082-blind-carrier-and-word.md)."""
     empty, x, s, g, c = _settled_fit(stat)
     if not (g > 0 and c < -ISI_MIN * g):
         return stat

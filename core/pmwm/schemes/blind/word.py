@@ -18,12 +18,12 @@ candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame
 refined frame) < 1e-6. A cropped copy is read in 6 frames (``frames``): then 2^8 candidates each
 (``chase_bits``), 7.2e-7 at best. A copy on a coarse grid is also read in reserve frames, each with
 what the budget leaves (``reserve_candidates``: 49 candidates beside 2 frames), so that the others keep
-their 2^10 and a reading with all 32 right stays below 1e-6. The candidates depend on the bits and scores read only, never
-on the check bits expected, so the bound holds whichever they are.
+their 2^10 and a reading with all 32 right stays below 1e-6. The candidates depend on the bits and scores read
+only, never on the check bits expected, so the bound holds whichever they are.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
-search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload (measured on
-the bunny after 8-bit quantisation); 32 check bits pay for the 2^10 Chase candidates. A reading is
+search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload; 32 check bits pay
+for the 2^10 Chase candidates (docs/decisions/082-blind-carrier-and-word.md). A reading is
 "marked" only with all its check bits right, so a payload reported as marked is the embedded one up
 to a hash collision (2^-32 per candidate).
 """
@@ -75,7 +75,7 @@ def likely_flips(reliability: np.ndarray, count: int) -> np.ndarray:
 
     Chase's search flips every subset of the C least reliable bits; these are as many candidates, so
     the p-value's union bound is the same, but a lone error on the 11th or 12th least reliable bit is
-    more likely than one on 6 of the 10 together, and is tried (BENCHMARKS.md, ``blind-soft-list``)."""
+    more likely than one on 6 of the 10 together, and is tried."""
     r = np.clip(np.nan_to_num(np.asarray(reliability, dtype=np.float64), nan=0.0), 0.0, 1e300)  # (sums stay finite)
     order = np.argsort(r, kind="stable")
     w = r[order].tolist()
