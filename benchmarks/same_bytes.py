@@ -65,11 +65,11 @@ def main() -> int:
     a = ap.parse_args()
     if a.compare:
         old, new = (json.loads(Path(p).read_text()) for p in a.compare)
-        diff = [(k, f, old[k][f], new.get(k, {}).get(f)) for k in old for f in old[k]
-                if new.get(k, {}).get(f) != old[k][f]]
+        both = [k for k in old if k in new]
+        diff = [(k, f, old[k][f], new[k].get(f)) for k in both for f in old[k] if new[k].get(f) != old[k][f]]
         for row in diff:
             print("differs:", *row)
-        print(f"{len(old) - len({d[0] for d in diff})} of {len(old)} runs identical")
+        print(f"{len(both) - len({d[0] for d in diff})} of {len(both)} runs in both identical")
         return 1 if diff else 0
     os.environ.setdefault("PYTHONHASHSEED", "0")
     Path(a.out).write_text(json.dumps(run(a.meshes.split(","), a.schemes.split(",")), indent=1))

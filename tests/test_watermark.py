@@ -141,7 +141,7 @@ def test_noisy_copy_in_the_marked_order_is_read_by_index(marked):
     _, F, res = marked
     for seed in range(3):
         v = verify(*attacks.noise_paper(res.vertices, F, amplitude=0.01, seed=seed), res.key)
-        assert (v.mode, v.extra["carriers"]) == ("index", "faces fingerprint") and v.bit_errors == 0
+        assert (v.mode, v.detail.carriers) == ("index", "faces fingerprint") and v.bit_errors == 0
     noisy = attacks.noise_paper(res.vertices, F, amplitude=0.01, seed=1)
     v = verify(*attacks.reorder(*noisy, seed=2), res.key)
     assert v.mode == "position" and v.matches > 0.7 * v.carriers_total
@@ -153,10 +153,10 @@ def test_noisy_levels_of_detail_are_read_by_index(marked):
     _, _, res = marked
     full = res.pm.decode()
     v = verify(*attacks.noise_paper(*full, amplitude=0.005, seed=4), res.key)
-    assert (v.mode, v.extra["carriers"]) == ("index", "faces fingerprint") and v.bit_errors == 0
+    assert (v.mode, v.detail.carriers) == ("index", "faces fingerprint") and v.bit_errors == 0
     coarse = res.pm.decode(records=res.pm.n_records // 2)
     v = verify(*attacks.noise_paper(*coarse, amplitude=0.005, seed=4), res.key)
-    assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.marked
+    assert (v.mode, v.detail.carriers) == ("index", "near their places") and v.marked
 
 
 def test_keys_without_a_fingerprint_still_read_by_index_when_carriers_are_in_place(marked):
@@ -166,7 +166,7 @@ def test_keys_without_a_fingerprint_still_read_by_index_when_carriers_are_in_pla
     _, F, res = marked
     old = dataclasses.replace(res.key, faces_fingerprint="", pm_faces_fingerprint="")
     v = verify(*attacks.noise_paper(res.vertices, F, amplitude=0.002, seed=0), old)
-    assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.bit_errors == 0
+    assert (v.mode, v.detail.carriers) == ("index", "near their places") and v.bit_errors == 0
 
 
 def test_the_faces_fingerprint_is_its_documented_hash():
@@ -206,13 +206,13 @@ def test_without_a_progressive_mesh_the_same_mesh_is_marked_and_read(scheme, tmp
     assert runs[True].pm is not None and runs[False].pm is None
     assert np.array_equal(runs[True].vertices, runs[False].vertices)
     key = runs[False].key
-    assert np.array_equal(key.carrier_pm_index, key.carrier_index) and key.pm_faces_fingerprint == ""
-    if scheme == "blind":
-        key = pmwm.schemes.blind.key_from_passphrase(phrase)
+    if scheme == "blind":  # (no key: the pass phrase reads it)
+        assert key is None
+        v = verify(runs[False].vertices, F, passphrase=phrase)
     else:
+        assert np.array_equal(key.carrier_pm_index, key.carrier_index) and key.pm_faces_fingerprint == ""
         pmwm.write_key(tmp_path / "k.json", key)
-        key = pmwm.read_key(tmp_path / "k.json")
-    v = verify(runs[False].vertices, F, key)
+        v = verify(runs[False].vertices, F, pmwm.read_key(tmp_path / "k.json"))
     assert v.marked and v.payload == "Acme"
 
 
