@@ -5,72 +5,33 @@
   equal bins (Cho et al.'s method I, over an area-quantile range instead of the extreme vertices, with
   an edge-preserving push in each bin), and the frame refinement.
 - ``crop``: the frame of a plane-cropped copy; ``frames``: the frames the reader reads in.
-- ``keydata``: the record in the in-memory key (no key file is written; nothing from the mesh).
+- ``detail``: ``BlindDetail``, how a verdict was read. No key exists: ``pmwm.embed`` returns none.
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed
-bins. Reading computes the bins' statistics for every possible word length in up to two frames: the
-suspect's own (centre and range recomputed) and a refined one, the frame within 1.5 bin widths of it
-where the mark's energy (sum of n_j (bin mean - 1/2)^2, no pass phrase involved) is largest
-(``radial.refine_frame``). It reads one length, the one whose bins show the most energy in the own
-frame (no pass phrase involved either), and keeps the reading whose check bits match best; its
-p-value is exact per reading and a union bound over all (2 frames x 2 kinds x 1024 Chase candidates =
-4096 candidates: all 32 check bits right still gives p <= 9.5e-7 < 1e-6; see ``word``; a cropped
-copy's 6 frames x 2 kinds x 256 candidates: 7.2e-7; a blurred copy's own and refined frames read as
-they are and after a few smoothing steps, 4 x 2 x 512: 9.5e-7). The candidates are the words with the
-most likely sets of bits flipped (``word.likely_flips``), each bit's reliability its score in units of its
-bins' standard error (``word_read``).
+bins, with a margin calibrated per mesh to a distortion budget (``TARGET_MRMS``; ``_calibrated``)
+unless ``strength`` sets it.
 
-Why one length, chosen by energy: choices made without the pass phrase cost the p-value nothing, so
-reading one length instead of four pays for 2 more Chase bits (10 instead of 8) at the same p-value.
-The energy named the right length in 119 of 120 attacked copies (bunny, Venus head, dragon; 5 keys;
-midpoint, Loop and sqrt3 subdivision, 8-bit quantization, 10 smoothing iterations, 50 and 70 %
-simplification, 0.5 % noise), the miss on a copy no search read; the 10-bit search would read 6 of
-those 120 copies more than the 8-bit one (the errors all among the 10 least reliable bits, not
-among the 8).
+Reading computes the bins' statistics for every possible word length, without the pass phrase, in the
+frames ``frames.read_statistics`` chooses: the suspect's own (centre and range recomputed) and a
+refined one (the frame within 1.5 bin widths of it where the mark's energy, sum of n_j (bin mean -
+1/2)^2, is largest: ``radial.refine_frame``); for a suspect with a planar cut, the frame the cut took
+away (``crop``); for a subdivided or smoothed copy, the mesh it was made from or its smoothing undone
+(``pmwm.subdivision``, ``frames.unsmoothing``), read when it shows twice the mark energy per vertex;
+when the bins show their neighbours' interference (noise, quantization), the suspect after a few
+smoothing steps (``frames.with_denoised``), or for a copy on a coarse grid the same as reserve frames
+read with the candidates the p-value's budget leaves (``word.reserve_candidates``). It reads one length,
+the one whose bins show the most energy in the own frame, and keeps, over every frame, both payload
+kinds and the Chase candidates (the words with the most likely sets of bits flipped,
+``word.likely_flips``, each bit's reliability its score in units of its bins' standard error:
+``word_read``), the reading whose check bits match best. Choices made without the pass phrase cost the
+p-value nothing; the p-value is exact per reading and a union bound over all candidates read, so all
+32 check bits right stays below 1e-6. A marked reading's payload is confirmed by its check bits; a
+reading that finds no mark returns no payload (``guess_word`` gives the best guess of the word without
+the check, for an owner to compare with the payloads they marked). The mark is global (no places); it
+is rotation-, scale-, translation- and order-invariant by construction.
 
-Why the refined frame (BENCHMARKS.md section ``blind``, 4 models x 3 keys, whole payload read, the
-same copies read in the own frame alone -> in both frames): smoothing 5 it. 5/12 -> 11/12, 10 it.
-0/12 -> 4/12, simplification 50 % 5/12 -> 9/12, 70 % 1/12 -> 6/12, noise 0.5 % 2/12 -> 5/12; no copy
-read in the own frame is lost (its reading is still among the candidates). After these attacks the
-frame drifts by 0.1-0.4 bin widths while the bins' bias stays: read in the original's frame, 50 %
-simplification of the dragon gives BER 0 against 0.14 in its own frame.
-
-Strength: without an explicit ``strength`` the margin is calibrated per mesh to the distortion budget
-(``TARGET_MRMS``; ``_calibrated``): 0.07 everywhere gave MRMS 0.012 % on the Venus head and Igea
-against 0.019 % on the bunny and dragon (vertices moved along their radius); calibrated, the margin (of a
-bin of median count, ``radial.bin_margins``) is about 0.09 on the bunny and dragon, 0.11-0.13 on the heads
-(moved partly along the surface, ``radial.moved_to_radius``; 0.07 and 0.09-0.10 along the radius).
-
-Cropping: a 10 % plane crop moves the area centroid by 5-21 bin widths and lo/hi by up to 9, far
-outside the refinement's reach (no cropped copy read before). When the suspect has a planar cut, the
-reader also searches the frame the cut took away (``crop``: the original centroid lies near a
-two-parameter family given by the cut plane; ``frames``), key-free as well, and reads there the length
-whose frame shows the most energy. The mark is global (no places); it is rotation-, scale-,
-translation- and order-invariant by construction.
-
-Subdivision: a subdivided copy (midpoint, Loop, sqrt(3), Catmull-Clark) carries the marked mesh in its
-connectivity; when the suspect does not show the mark in full view, the reader also measures the mesh
-it was subdivided from (``pmwm.subdivision``, up to three steps back; ``frames.read_statistics``),
-key-free, and reads that one when it shows twice the mark energy per vertex.
-
-Noise: when the bins read show their neighbours' interference (8-bit quantization, 0.5 % noise blur the
-radii across the bins' edges), the reader also reads the suspect after three steps of Laplacian
-smoothing, which take out more of the blur than of the mark (``frames.with_denoised``), its frames
-counted in the union bound. A copy on a coarse grid whose bins do not show the blur is read in the same
-denoised frames as reserve frames, with the candidates the p-value's budget leaves (49 per reading beside
-two frames: ``word.reserve_candidates``), so that its other frames keep their 10 Chase bits: the Venus
-head's 8-bit copy of the benchmark's key 1002 is read so (``frames``, item 6).
-
-No mark read: the verdict also returns the reader's best guess of the word, chosen without the check bits
-(``_guess``): the hard decisions of its reading's own frame, or for a copy quantized to a coarse grid, of the
-copy smoothed by the count of steps, at the length, that shows the most mark energy
-(``frames.guess_statistics``): at 7 bits it errs on 0.02-0.21 of the bits against 0.06-0.39 (an owner can
-compare it with the payloads they marked).
-
-Smoothing: a copy smoothed by uniform Laplacian steps still holds the mark, damped with the rest of its
-detail, but its radii are blurred; when the suspect does not show the mark in full view, the reader
-also takes the smoothing back step by step (``pmwm.smoothing``, ``frames.unsmoothing``), key-free, and
-reads the count of steps that shows twice the mark energy per vertex.
+Why these choices, with the measurements behind them: the blind records in docs/decisions/ (013-024);
+why a verdict carries no unconfirmed payload and no key is returned: 070-verdict-interface.md.
 """
 
 from __future__ import annotations
@@ -153,15 +114,12 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
 
 def _calibrated(V, F, signs, alpha, marked, host: radial.Host) -> tuple[float, np.ndarray]:
     """(margin, marked vertices) with the margin rescaled up to CALIBRATION_ROUNDS times so that the
-    embedding's MRMS (the benchmark's surface distance on ``CALIBRATION_SAMPLES`` points;
-    ``metrics.displaced_surface_distance`` measures it without a spatial index: the same figure as
-    ``metrics.surface_distance`` on the bunny, Venus head and Igea, 1.4e-5 relative above it on the dragon,
-    in a third of the time) is TARGET_MRMS % of the bounding-box diagonal, clipped to ALPHA_RANGE. The
-    same margin gives different distortions on different shapes (0.07: MRMS 0.012 % on the Venus head,
-    0.019 % on the bunny); spending the same budget on each buys robustness where the margin was cheap.
-    The MRMS grows about linearly with the margin, not exactly: one rescale left the Venus head at
-    0.0177-0.0181 %, a second brings it to 0.0188 %. The margin used is recorded in the key; the reader
-    does not need it."""
+    embedding's MRMS (the benchmark's surface distance on ``CALIBRATION_SAMPLES`` points, measured
+    without a spatial index by ``metrics.displaced_surface_distance``) is TARGET_MRMS % of the
+    bounding-box diagonal, clipped to ALPHA_RANGE: the same margin gives different distortions on
+    different shapes, and spending the same budget on each buys robustness where the margin is cheap.
+    The MRMS grows about linearly with the margin, not exactly, hence a second rescale. The reader does
+    not need the margin (``EmbedResult.strength`` reports it)."""
     for _ in range(CALIBRATION_ROUNDS):
         mrms = metrics.displaced_surface_distance(V, marked, F, CALIBRATION_SAMPLES, seed=0)[0]
         if not mrms > 0:
@@ -234,7 +192,7 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
     rank the bits by how likely they are right (the Chase search's order, ``word.likely_flips``). The
     neighbours' interference is removed in those units: the margins make every bin's mark the same
     number of standard errors (``radial.bin_margins``), as the equalizer's model has it (one g for all
-    bins), where in bin means they differ from bin to bin (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
+    bins), where in bin means they differ from bin to bin."""
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
     if share is not None:
         stat = radial.in_standard_errors(stat, share)
