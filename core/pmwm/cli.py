@@ -457,8 +457,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--key",
                    help=f"key file to write (JSON; keep it secret); not with {_schemes_keyed_by(PASS_PHRASE)}")
     e.add_argument("--passphrase-file", metavar="F",
-                   help=f"{_schemes_keyed_by(PASS_PHRASE)}: the pass phrase is F's first line (else ${PASSPHRASE_ENV}); "
-                        "never printed")
+                   help=f"{_schemes_keyed_by(PASS_PHRASE)}: the pass phrase is F's first line "
+                        f"(else ${PASSPHRASE_ENV}); never printed")
     e.add_argument("--pm", help="also write the progressive mesh (.pmwm)")
     g = e.add_mutually_exclusive_group()
     g.add_argument("--payload", help="text payload (UTF-8)")
