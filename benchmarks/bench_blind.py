@@ -196,8 +196,9 @@ def equal_mrms(models: list[str], keys: int) -> str:
                     seed = 2000 + k
                     if scheme == "blind":
                         payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
-                        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed, strength=strength,
-                                                                 passphrase=f"pmwm-bench:{seed}", base_ratio=1.0))
+                        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
+                                                                 strength=strength, passphrase=phrase_of(seed),
+                                                                 base_ratio=1.0))
                         marked = res.vertices
                     else:
                         bits = np.random.default_rng(seed).integers(0, 2, 64)
@@ -207,7 +208,7 @@ def equal_mrms(models: list[str], keys: int) -> str:
                     for i, (lbl, name, params) in enumerate(EQUAL_ATTACKS):
                         Va, Fa = attacks.ATTACKS[name](marked, F, seed=attack_seed(seed, "equal", i), **params)
                         if scheme == "blind":
-                            bers[lbl].append(read_one(Va, Fa, res.key.secret, payload).ber)
+                            bers[lbl].append(read_one(Va, Fa, secret_of(seed), payload).ber)
                         else:
                             got = np.array(list(method.extract(Va, Fa, key)), dtype=int)
                             bers[lbl].append(float(np.mean(got != bits)))

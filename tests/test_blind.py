@@ -99,7 +99,7 @@ def test_a_pass_phrase_scheme_returns_no_key_and_takes_none(marked):
 
 
 def test_a_bad_suspect_read_with_the_pass_phrase_raises_and_leaves_no_thread(marked):
-    """The secret is derived in a worker beside the reading (``read_with_passphrase``): a suspect the
+    """The secret is derived in a worker beside the reading (``blind.verify``): a suspect the
     reading refuses raises its MeshError, and the worker is gone when it does."""
     V = marked.vertices.copy()
     V[3] = np.nan
