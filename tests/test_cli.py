@@ -21,7 +21,7 @@ import trimesh
 
 import meshes
 import pmwm
-from pmwm import cli, wording
+from pmwm import cli
 
 COW = meshes.mesh_file("blob.off")  # a small closed organic mesh (2.9k vertices), generated
 PAYLOAD = "test"
@@ -235,6 +235,8 @@ def test_verify_human_output(sample):
 
 def test_verify_prints_the_verdict_in_the_shared_words(sample):
     """What ``pmwm verify`` prints is ``pmwm.wording.lines`` of the verdict: its headline, then the payload."""
+    from pmwm import wording
+
     proc = call("verify", sample.mesh, "--key", sample.key)
     src = pmwm.read_mesh(sample.mesh)
     v = pmwm.verify(src.vertices, src.faces, pmwm.read_key(sample.key))
