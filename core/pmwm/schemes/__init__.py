@@ -5,8 +5,10 @@
 - ``cho1``, ``cho2``: Cho et al. 2007, methods I and II (the distribution of vertex norms; blind).
 - ``blind``: read with a pass phrase alone, no key file (vertex norms over a quantile range, keyed check).
 
-Each scheme module imports the shared layers below it (``base``, ``key``, geometry), never another
-scheme and never ``pmwm.api``.
+Each scheme says what its reader needs (``Scheme.keying``: a key file, or a pass phrase alone); front
+ends look schemes up here (``SCHEMES``, ``get_scheme``, ``keyed_by``, ``passphrase_scheme``) and never
+import a scheme's own modules. Each scheme module imports the shared layers below it (``base``, ``key``,
+geometry), never another scheme and never ``pmwm.api``.
 """
 
 from __future__ import annotations
