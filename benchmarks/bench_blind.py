@@ -97,14 +97,15 @@ def read_one(V, F, secret: str, payload: np.ndarray, own_too: bool = False) -> R
     # the BER of the reading the verdict kept when it is marked; otherwise of the reader's guess, chosen
     # without the check bits (an unmarked verdict's own word is whichever frame's candidate happened to match
     # them best: no measure), or of the suspect's own frame when the guess has another length
-    fi = v.extra["frame_index"] if v.marked else 0
+    fi = v.detail.frame_index if v.marked else 0
     got, _ = blind.word_read(stats.words[N_WORD][fi], secret, N_WORD)
-    if not v.marked and len(v.extra["guess"]) == N_WORD:
-        got = parse_bits(v.extra["guess"])
+    if not v.marked:
+        guess, _ = blind.guess_word(stats, secret)
+        got = guess if len(guess) == N_WORD else got
     want = true_word(secret, payload)
     ber = float(np.mean(got != want))
     # the word the verdict returns: its decoded word (after the Chase search) when marked at this length
-    decoded = parse_bits(v.extra["word"]) if v.marked else got
+    decoded = parse_bits(v.detail.word) if v.marked else got
     returned = decoded if len(decoded) == N_WORD else got
     bits = "".join(map(str, payload.tolist()))
     own = None
@@ -119,8 +120,18 @@ def marked(V: np.ndarray, F: np.ndarray, seed: int):
     (EmbedResult, payload (PAYLOAD_BITS,) uint8)."""
     payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
-                                             passphrase=f"pmwm-bench:{seed}"))
+                                             passphrase=phrase_of(seed)))
     return res, payload
+
+
+def phrase_of(seed: int) -> str:
+    """The pass phrase of key ``seed``."""
+    return f"pmwm-bench:{seed}"
+
+
+def secret_of(seed: int) -> str:
+    """The secret the pass phrase of key ``seed`` derives (``word.derive_secret``)."""
+    return blind.word.derive_secret(phrase_of(seed))
 
 
 def pm_first_level(pm, secret: str, payload: np.ndarray) -> tuple[int, int]:
@@ -185,8 +196,9 @@ def equal_mrms(models: list[str], keys: int) -> str:
                     seed = 2000 + k
                     if scheme == "blind":
                         payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
-                        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed, strength=strength,
-                                                                 passphrase=f"pmwm-bench:{seed}", base_ratio=1.0))
+                        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
+                                                                 strength=strength, passphrase=phrase_of(seed),
+                                                                 base_ratio=1.0))
                         marked = res.vertices
                     else:
                         bits = np.random.default_rng(seed).integers(0, 2, 64)
@@ -196,7 +208,7 @@ def equal_mrms(models: list[str], keys: int) -> str:
                     for i, (lbl, name, params) in enumerate(EQUAL_ATTACKS):
                         Va, Fa = attacks.ATTACKS[name](marked, F, seed=attack_seed(seed, "equal", i), **params)
                         if scheme == "blind":
-                            bers[lbl].append(read_one(Va, Fa, res.key.secret, payload).ber)
+                            bers[lbl].append(read_one(Va, Fa, secret_of(seed), payload).ber)
                         else:
                             got = np.array(list(method.extract(Va, Fa, key)), dtype=int)
                             bers[lbl].append(float(np.mean(got != bits)))
@@ -224,7 +236,7 @@ def main(argv=None) -> int:
             cells = []
             for k in range(min(3, a.keys)):
                 res, payload = marked(V, F, 1000 + k)
-                f, n = pm_first_level(res.pm, res.key.secret, payload)
+                f, n = pm_first_level(res.pm, secret_of(1000 + k), payload)
                 cells.append(f"{f:,} of {n:,}" if f > 0 else f"none of {n:,}")
             print(f"| {model} | {'; '.join(cells)} ({len(res.pm.level_records)} levels) |", flush=True)
         return 0
@@ -247,8 +259,8 @@ def main(argv=None) -> int:
         for k in range(a.keys):
             seed = 1000 + k
             res, payload = marked(V, F, seed)
-            secret = res.key.secret
-            margins.append(res.key.strength)
+            secret = secret_of(seed)
+            margins.append(res.strength)
             m, h = metrics.surface_distance(V, F, res.vertices, F, 100000, seed=seed)
             mrms.append(m)
             haus.append(h)

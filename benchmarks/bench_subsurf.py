@@ -98,7 +98,7 @@ def main(argv=None) -> int:
                         ok = bool(v.marked and v.bits == want)
                         v0 = as_it_is(Vs, Fs, phrase)
                         got.setdefault((limit, route), []).append(
-                            (ok, v.extra.get("mesh"), c.residual if c is not None else np.nan, dt, len(Vs),
+                            (ok, v.detail.mesh, c.residual if c is not None else np.nan, dt, len(Vs),
                              bool(v0.marked and v0.bits == want)))
                 print(f"{model} key {k}: " + ", ".join(f"{'limit' if lim else 'plain'} {r} {sum(x[0] for x in g)}"
                                                        for (lim, r), g in got.items()), file=sys.stderr, flush=True)
@@ -113,7 +113,7 @@ def main(argv=None) -> int:
                 verdicts = [pmwm.verify(Vs, Fs, passphrase=p) for p in phrases]
                 fp_rows.append(f"| {model} | {'on (default)' if limit else 'off'} | "
                                f"{sum(v.marked for v in verdicts)} of {len(verdicts)} | "
-                               f"{min(v.p_value for v in verdicts):.2e} | {verdicts[0].extra.get('mesh')} |")
+                               f"{min(v.p_value for v in verdicts):.2e} | {verdicts[0].detail.mesh} |")
     body = "\n".join([
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. Blender {bpy.app.version_string} "
         "(the `bpy` module), headless.", "",

@@ -180,7 +180,7 @@ class WatermarkTask(_Task):
         import pmwm
 
         ob = _active_mesh(context)
-        self.blind = scheme == "blind"
+        self.blind = pmwm.SCHEMES[scheme].keying == pmwm.PASS_PHRASE
         if self.blind:
             phrase = props.passphrase(context)
             if not phrase:
@@ -217,7 +217,7 @@ class WatermarkTask(_Task):
         import pmwm
 
         ob = self.current_object()
-        if not self.blind:
+        if res.key is not None:
             if self.make_folder:
                 os.makedirs(os.path.dirname(self.key_path), exist_ok=True)
             pmwm.write_key(self.key_path, res.key, overwrite=self.overwrite)
@@ -249,7 +249,7 @@ class VerifyTask(_Task):
         import pmwm
 
         ob = _active_mesh(context)
-        self.blind = context.scene.pmwm.scheme == "blind"
+        self.blind = pmwm.SCHEMES[context.scene.pmwm.scheme].keying == pmwm.PASS_PHRASE
         self.passphrase = None
         if self.blind:
             phrase = props.passphrase(context)
@@ -276,32 +276,21 @@ class VerifyTask(_Task):
         return pmwm.verify(self.V, self.F, self.key, passphrase=self.passphrase)
 
     def finish(self, context, verdict, report):
-        from pmwm.schemes.blind import guessed_payload, mesh_read
+        from pmwm import wording
 
         ob = self.current_object()
         s = context.scene.pmwm
         s.verdict_object = ob.name
         s.verdict_marked = bool(verdict.marked)
         s.verdict_p_value = f"{verdict.p_value:.3g}"
-        guess = guessed_payload(verdict)  # (a blind verdict that read no mark)
-        s.verdict_payload = verdict.payload if verdict.payload is not None else (guess or verdict.bits)
-        s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total if self.blind else len(verdict.bits)}"
+        s.verdict_payload = wording.payload_value(verdict)
+        s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total}"
+        report({"INFO"}, f"'{ob.name}' is " + "; ".join(wording.lines(verdict)))
         if self.blind:  # no key file: nothing for the HTML report to cite
-            found = (f"payload '{verdict.payload}'" if verdict.payload is not None else
-                     f"bits guessed without the check {guess}" if guess else f"bits {verdict.bits}")
-            read_on = mesh_read(verdict.extra.get("mesh", "suspect"))
-            under = f" ({read_on})" if read_on else ""
-            report({"INFO"}, f"'{ob.name}' is {'MARKED' if verdict.marked else 'not marked'} (blind): p-value "
-                             f"{verdict.p_value:.3g}, {verdict.matches}/{verdict.carriers_total} check bits match, "
-                             f"{found}{under}")
             return
         session.remember_verified(ob, session.Verified(
             name=ob.name, verdict=verdict, key=self.key, key_path=self.key_path, key_sha256=self.key_sha256,
             positions=self.positions32, faces=self.F))
-        state = "MARKED" if verdict.marked else "not marked"
-        found = f"payload '{verdict.payload}'" if verdict.payload is not None else f"bits {verdict.bits}"
-        report({"INFO"}, f"'{ob.name}' is {state}: p-value {verdict.p_value:.3g}, "
-                         f"{verdict.matches}/{len(verdict.bits)} bits match, {found}")
 
 
 class ModalRun:

@@ -220,7 +220,7 @@ def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma
         "from pmwm.meshio import read_mesh\n"
         f"m = read_mesh({str(tmp_path / 'cut.ply')!r})\n"
         f"v = pmwm.verify(m.vertices, m.faces, pmwm.read_key({str(tmp_path / 'key.json')!r}))\n"
-        "assert v.marked and v.payload == 'fresh' and v.extra['heights'].startswith('by position'), v.extra\n"
+        "assert v.marked and v.payload == 'fresh' and v.detail.heights.startswith('by position'), v.detail\n"
         "loaded = sorted(m for m in sys.modules if m.split('.')[0] == 'scipy' or m.startswith(('numpy.ma.',))\n"
         "                or m == 'numpy.ma')\n"
         "assert not loaded, loaded\n")

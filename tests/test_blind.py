@@ -4,6 +4,8 @@ no key file; the same pass phrase over many meshes; the command line and its err
 from __future__ import annotations
 
 import contextlib
+import json
+import dataclasses
 import os
 import subprocess
 import sys
@@ -24,6 +26,7 @@ from pmwm.schemes.blind import crop, frames, radial, word
 
 BUNNY = Path(pmwm.__file__).parent / "data" / "bunny.off"
 PHRASE = "correct horse battery staple"
+SECRET = word.derive_secret(PHRASE)
 
 
 @pytest.fixture(scope="module")
@@ -47,10 +50,10 @@ def test_text_payload_read_with_the_pass_phrase_alone(marked):
     assert v.marked and v.payload == "Acme" and v.mode == "blind"
     # all 32 check bits; the union bound over 2 kinds x 1024 Chase candidates per frame read (own, and
     # refined if it moved), of the one length the mark's energy names
-    assert v.extra["frames"] in (1, 2) and v.extra["chase_bits"] == 10
-    assert v.p_value == pytest.approx(v.extra["frames"] * 2 * 1024 * 2.0**-32)
+    assert v.detail.frames in (1, 2) and v.detail.chase_bits == 10
+    assert v.p_value == pytest.approx(v.detail.frames * 2 * 1024 * 2.0**-32)
     assert v.p_value < 1e-6
-    assert v.extra["payload_kind"] == "text" and v.extra["payload_bits"] == 32
+    assert v.detail.payload_kind == "text" and v.detail.payload_bits == 32
 
 
 def test_wrong_pass_phrase_and_unmarked_mesh_are_not_marked(bunny, marked):
@@ -59,12 +62,36 @@ def test_wrong_pass_phrase_and_unmarked_mesh_are_not_marked(bunny, marked):
     assert not v.marked and v.payload is None
 
 
-def test_the_key_and_the_pass_phrase_read_alike(marked):
-    by_key = pmwm.verify(marked.vertices, marked.faces, marked.key)
-    by_phrase = pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE)
-    assert by_key.to_dict() == by_phrase.to_dict()
+def test_a_verdict_that_reads_no_mark_carries_neither_the_payload_nor_its_bits(bunny, marked):
+    """Not marked: no payload text, no bits, no word in the detail, nothing in the JSON, whatever candidate
+    the check bits chose; marked: the payload is confirmed by its check bits, bits and text."""
+    stats = blind.bin_statistics(marked.vertices, marked.faces)
+    high = blind.decide(stats, SECRET, p_threshold=1e-30)  # the marked copy, read against a threshold it misses
+    assert not high.marked and high.p_value < 1e-6
+    for v in (high, pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE + "!"),
+              pmwm.verify(*bunny, passphrase=PHRASE)):
+        assert (v.payload, v.bits, v.payload_confirmed) == (None, "", False)
+        assert v.detail.word is v.detail.word_read is v.detail.payload_kind is None
+        d = v.to_dict()
+        assert (d["payload"], d["bits"], d["payload_confirmed"]) == (None, None, False)
+        assert "01000001011000110110110101100101" not in repr(v) + str(d)  # "Acme"'s bits
+    v = pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE)
+    assert v.marked and v.payload_confirmed and v.payload == "Acme" and v.bits == "01000001011000110110110101100101"
+    assert v.to_dict()["bits"] == v.bits and v.to_dict()["payload_confirmed"] is True
+
+
+def test_a_pass_phrase_scheme_returns_no_key_and_takes_none(marked):
+    """The blind embed returns no key (nothing to keep but the pass phrase); a key naming the blind scheme is
+    refused; a key and a pass phrase together, or neither, are refused."""
+    assert marked.key is None and 0.03 <= marked.strength <= 0.2
+    assert pmwm.SCHEMES["blind"].keying == pmwm.PASS_PHRASE
+    assert {s.keying for n, s in pmwm.SCHEMES.items() if n != "blind"} == {pmwm.KEY_FILE}
+    other = pmwm.embed(*meshes.blob(), pmwm.EmbedOptions(payload="Acme", seed=1, progressive=False)).key
+    blind_key = dataclasses.replace(other, scheme="blind")
+    with pytest.raises(pmwm.KeyFileError, match="pass phrase"):
+        pmwm.verify(marked.vertices, marked.faces, blind_key)
     with pytest.raises(PayloadError, match="not both"):
-        pmwm.verify(marked.vertices, marked.faces, marked.key, passphrase=PHRASE)
+        pmwm.verify(marked.vertices, marked.faces, other, passphrase=PHRASE)
     with pytest.raises(PayloadError, match="pass phrase"):
         pmwm.verify(marked.vertices, marked.faces)
     with pytest.raises(PayloadError, match="non-empty pass phrase"):
@@ -72,7 +99,7 @@ def test_the_key_and_the_pass_phrase_read_alike(marked):
 
 
 def test_a_bad_suspect_read_with_the_pass_phrase_raises_and_leaves_no_thread(marked):
-    """The secret is derived in a worker beside the reading (``read_with_passphrase``): a suspect the
+    """The secret is derived in a worker beside the reading (``blind.verify``): a suspect the
     reading refuses raises its MeshError, and the worker is gone when it does."""
     V = marked.vertices.copy()
     V[3] = np.nan
@@ -103,10 +130,10 @@ def test_refined_frame_reads_what_the_own_frame_loses(marked, attack, monkeypatc
     monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)
     V, F = attack(marked.vertices, marked.faces)
     stats = blind.bin_statistics(V, F)
-    own_only = blind.decide(stats.own_frame(), marked.key.secret)
+    own_only = blind.decide(stats.own_frame(), SECRET)
     assert not (own_only.marked and own_only.payload == "Acme")
     v = pmwm.verify(V, F, passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.extra["frame"] == "refined" and v.p_value < 1e-6
+    assert v.marked and v.payload == "Acme" and v.detail.frame == "refined" and v.p_value < 1e-6
 
 
 def test_the_edge_preserving_push_reads_what_r_to_the_k_lost(marked):
@@ -117,7 +144,7 @@ def test_the_edge_preserving_push_reads_what_r_to_the_k_lost(marked):
     assert v.marked and v.payload == "Acme"
     V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.005, seed=1)
     stats = blind.bin_statistics(V, F)
-    own_only = blind.decide(stats.own_frame(), marked.key.secret)
+    own_only = blind.decide(stats.own_frame(), SECRET)
     assert own_only.marked and own_only.payload == "Acme"
 
 
@@ -130,8 +157,8 @@ def test_the_search_corrects_the_most_likely_errors_even_beyond_the_ten_least_re
     n = stats.n_word
     assert n == 32 + word.CHECK_BITS  # "Acme": 32 payload bits, the length the energy names
     stat, share = stats.words[n][0].copy(), stats.shares[n][0]
-    _, score = blind.word_read(stat, marked.key.secret, n, share)
-    bit_of_bin, _ = word.layout(marked.key.secret, n, len(stat))
+    _, score = blind.word_read(stat, SECRET, n, share)
+    bit_of_bin, _ = word.layout(SECRET, n, len(stat))
     wrong = np.argsort(np.abs(score), kind="stable")[list(ranks)]
     flip = np.zeros(n, np.uint8)
     flip[wrong] = 1
@@ -139,8 +166,8 @@ def test_the_search_corrects_the_most_likely_errors_even_beyond_the_ten_least_re
     stat[np.isin(bit_of_bin, wrong)] *= -1  # the same reliabilities, those bits read wrong
     words, shares = dict(stats.words), dict(stats.shares)
     words[n], shares[n] = stat[None], share[None]
-    v = blind.decide(blind.Statistics(words, n, ("own",), shares), marked.key.secret)
-    assert v.extra["word_read"] != v.extra["word"]
+    v = blind.decide(blind.Statistics(words, n, ("own",), shares), SECRET)
+    assert v.detail.word_read != v.detail.word
     assert v.marked and v.payload == "Acme" and v.p_value == pytest.approx(2 * 1024 * 2.0**-32)
 
 
@@ -176,10 +203,10 @@ def test_a_word_read_bins_off_in_a_neighbour_frame_counts_every_frame_in_its_p_v
     words = dict(stats.words)
     words[n] = np.stack([shifted, shifted, right, np.roll(right, 1), np.roll(right, 3), np.roll(right, 4)])
     names = ("own", "crop", "crop-2", "crop-1", "crop+1", "crop+2")
-    v = blind.decide(blind.Statistics(words, n, names), marked.key.secret)
-    assert v.marked and v.payload == "Acme" and v.extra["frame"] == "crop-2" and v.extra["frame_index"] == 2
-    assert v.extra["chase_bits"] == 8 and v.p_value == pytest.approx(6 * 2 * 256 * 2.0**-32) and v.p_value < 1e-6
-    wrong = blind.decide(blind.Statistics(words, n, names), blind.key_from_passphrase(PHRASE + "!").secret)
+    v = blind.decide(blind.Statistics(words, n, names), SECRET)
+    assert v.marked and v.payload == "Acme" and v.detail.frame == "crop-2" and v.detail.frame_index == 2
+    assert v.detail.chase_bits == 8 and v.p_value == pytest.approx(6 * 2 * 256 * 2.0**-32) and v.p_value < 1e-6
+    wrong = blind.decide(blind.Statistics(words, n, names), word.derive_secret(PHRASE + "!"))
     assert not wrong.marked
     assert [word.chase_bits(k) for k in (1, 2, 3, 4, 5, 6)] == [10, 10, 9, 9, 8, 8]
 
@@ -192,13 +219,13 @@ def test_a_reserve_frame_reads_with_what_the_budget_leaves_and_the_others_keep_t
     stats = blind.bin_statistics(marked.vertices, marked.faces).own_frame()
     n = stats.n_word
     right, share = stats.words[n][0], stats.shares[n][0]
-    _, score = blind.word_read(right, marked.key.secret, n, share)
-    bit_of_bin, _ = word.layout(marked.key.secret, n, len(right))
+    _, score = blind.word_read(right, SECRET, n, share)
+    bit_of_bin, _ = word.layout(SECRET, n, len(right))
     order = np.argsort(np.abs(score), kind="stable")
     weak = right.copy()
     weak[bit_of_bin == order[5]] *= -1  # its sixth least reliable bit read wrong
-    got, weak_score = blind.word_read(weak, marked.key.secret, n, share)
-    truth = blind.word_read(right, marked.key.secret, n, share)[0]
+    got, weak_score = blind.word_read(weak, SECRET, n, share)
+    truth = blind.word_read(right, SECRET, n, share)[0]
     assert (got != truth).sum() == 1
     assert ((got ^ word.likely_flips(np.abs(weak_score), 49)) == truth).all(axis=1).any()  # among the 49 tried
     lost = right.copy()
@@ -206,12 +233,12 @@ def test_a_reserve_frame_reads_with_what_the_budget_leaves_and_the_others_keep_t
     words, shares = dict(stats.words), dict(stats.shares)
     words[n], shares[n] = np.stack([lost, lost, weak, lost]), np.stack([share] * 4)
     names = ("own", "refined", "denoised", "denoised-refined")
-    v = blind.decide(blind.Statistics(words, n, names, shares, reserve=2), marked.key.secret)
-    assert v.marked and v.payload == "Acme" and v.extra["frame"] == "denoised"
-    assert v.extra["chase_bits"] == 10 and v.extra["candidates"] == word.reserve_candidates(2, 2) == 49
+    v = blind.decide(blind.Statistics(words, n, names, shares, reserve=2), SECRET)
+    assert v.marked and v.payload == "Acme" and v.detail.frame == "denoised"
+    assert v.detail.chase_bits == 10 and v.detail.candidates == word.reserve_candidates(2, 2) == 49
     assert v.p_value == pytest.approx(2 * (2 * 1024 + 2 * 49) * 2.0**-32) and v.p_value < 1e-6
     wrong = blind.decide(blind.Statistics(words, n, names, shares, reserve=2),
-                         blind.key_from_passphrase(PHRASE + "!").secret)
+                         word.derive_secret(PHRASE + "!"))
     assert not wrong.marked and wrong.p_value >= 2 * (2 * 1024 + 2 * 49) * 2.0**-32
     # every split of the frames keeps a reading with all 32 check bits right below P_BEST
     for full in range(1, 7):
@@ -232,7 +259,7 @@ def test_a_copy_on_a_coarse_grid_is_read_in_reserve_denoised_frames_too(marked):
     stats = blind.bin_statistics(V, F)
     # its bins show no blur (that would give the denoised frames in full): they come as reserve frames
     assert stats.frame_names[-2:] == ("denoised", "denoised-refined") and stats.reserve == 2
-    v = blind.decide(stats, marked.key.secret)
+    v = blind.decide(stats, SECRET)
     assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
     assert v.p_value == pytest.approx(2 * sum(stats.candidates()) * 2.0**-32)
 
@@ -307,7 +334,7 @@ def test_frame_refinement_does_not_use_the_pass_phrase(marked):
     V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.005, seed=1)
     stats = blind.bin_statistics(V, F)
     assert all(s.shape == (2, n) for n, s in stats.words.items())
-    right = blind.decide(stats, marked.key.secret)
+    right = blind.decide(stats, SECRET)
     wrong = blind.decide(stats, word.derive_secret(PHRASE + "!"))
     assert right.marked and not wrong.marked and wrong.p_value > 1e-3
 
@@ -323,7 +350,7 @@ def test_default_strength_spends_the_distortion_budget(bunny, marked):
     mrms = pmwm.metrics.surface_distance(V, F, cal.vertices, cal.faces, 20000, seed=1)[0]
     assert mrms == pytest.approx(blind.TARGET_MRMS, rel=0.1)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, strength=0.05))
-    assert res.key.strength == 0.05
+    assert res.strength == 0.05
     assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "x"
 
 
@@ -337,13 +364,13 @@ def test_a_plane_crop_reads_in_the_frame_of_the_cropped_copy(bunny, marked):
     for seed in range(6):
         V, F = A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=seed)
         stats = blind.bin_statistics(V, F)
-        assert not blind.decide(stats.own_frame(), marked.key.secret).marked
-        v = blind.decide(stats, marked.key.secret)
-        assert not v.marked or (v.payload == "Acme" and v.extra["frame"].startswith("crop") and v.p_value < 1e-6)
+        assert not blind.decide(stats.own_frame(), SECRET).marked
+        v = blind.decide(stats, SECRET)
+        assert not v.marked or (v.payload == "Acme" and v.detail.frame.startswith("crop") and v.p_value < 1e-6)
         assert stats.frame_names == ("own", "crop", "crop-2", "crop-1", "crop+1", "crop+2")
-        assert v.extra["chase_bits"] == 8
+        assert v.detail.chase_bits == 8
         read += v.marked
-        assert not blind.decide(stats, blind.key_from_passphrase(PHRASE + "!").secret).marked
+        assert not blind.decide(stats, word.derive_secret(PHRASE + "!")).marked
     assert read >= 4
     V, F = A.crop_plane(*bunny, fraction=0.1, seed=0)
     assert not pmwm.verify(V, F, passphrase=PHRASE).marked
@@ -360,8 +387,8 @@ def test_a_stray_part_far_from_a_cropped_copy_leaves_its_reading_alone(marked):
     tri = far + 1e-7 * size * np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     Vs, Fs = np.vstack([V, tri]), np.vstack([F, len(V) + np.array([[0, 1, 2]])])
     want, got = pmwm.verify(V, F, passphrase=PHRASE), pmwm.verify(Vs, Fs, passphrase=PHRASE)
-    assert want.marked and want.payload == "Acme" and want.extra["frame"].startswith("crop")
-    assert got.marked and got.payload == "Acme" and got.extra["frame"] == want.extra["frame"]
+    assert want.marked and want.payload == "Acme" and want.detail.frame.startswith("crop")
+    assert got.marked and got.payload == "Acme" and got.detail.frame == want.detail.frame
     assert got.p_value == pytest.approx(want.p_value, rel=1e-6)
 
 
@@ -395,7 +422,7 @@ def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny,
     for X, G in [(res.vertices, F), A.reorder(res.vertices, F, seed=1),
                  A.noise_benchmark(res.vertices, F, amplitude=0.003, seed=2)]:
         v = pmwm.verify(X, G, passphrase=PHRASE)
-        assert v.marked and v.payload == "Flat" and v.extra["chase_bits"] == 10 and v.p_value < 1e-6
+        assert v.marked and v.payload == "Flat" and v.detail.chase_bits == 10 and v.p_value < 1e-6
 
 
 @pytest.mark.slow
@@ -414,7 +441,7 @@ def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, mon
         normal = np.cross(h - fr.centre, n)  # of the family's plane (through the centroid, h and n)
         assert abs((fr0.centre - fr.centre) @ normal) / np.linalg.norm(normal) > width
         v = pmwm.verify(V, F, passphrase=PHRASE)
-        assert v.marked and v.payload == "Acme" and v.extra["frame"].startswith("crop")
+        assert v.marked and v.payload == "Acme" and v.detail.frame.startswith("crop")
     monkeypatch.setattr(crop, "LAYERS", (0.0,))
     assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
 
@@ -436,7 +463,7 @@ def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_r
         off = abs((fr0.centre - fr.centre) @ normal) / np.linalg.norm(normal)
         assert off > 1.8 * (fr.hi - fr.lo) / 64
         v = pmwm.verify(V, F, passphrase=PHRASE)
-        assert v.marked and v.payload == "Acme" and v.extra["frame"].startswith("crop") and v.p_value < 1e-6
+        assert v.marked and v.payload == "Acme" and v.detail.frame.startswith("crop") and v.p_value < 1e-6
         crops.append((V, F))
     monkeypatch.setattr(crop, "LAYERS", (-1.8, -0.9, 0.0, 0.9, 1.8))
     assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
@@ -462,8 +489,8 @@ def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marke
 
     monkeypatch.setattr(frames, "crop_frames", swapped)
     stats = blind.bin_statistics(V, F)
-    v = blind.decide(stats, marked.key.secret)
-    assert stats.n_word == 64 and v.marked and v.payload == "Acme" and v.extra["frame"].startswith("crop")
+    v = blind.decide(stats, SECRET)
+    assert stats.n_word == 64 and v.marked and v.payload == "Acme" and v.detail.frame.startswith("crop")
 
 
 @pytest.fixture(scope="module")
@@ -482,18 +509,18 @@ def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, sch
     it."""
     V, F = A.reorder(*A.subdivide(small_marked.vertices, small_marked.faces, scheme), seed=2)
     v = pmwm.verify(V, F, passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == scheme and v.p_value < 1e-6
+    assert v.marked and v.payload == "Acme" and v.detail.mesh == scheme and v.p_value < 1e-6
     monkeypatch.setattr(frames, "coarse_mesh", lambda V, F, *counts: None)
     monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)  # (a Loop copy reads with smoothing undone too)
     v = pmwm.verify(V, F, passphrase=PHRASE)
-    assert not (v.marked and v.payload == "Acme") and v.extra["mesh"] == "suspect"
+    assert not (v.marked and v.payload == "Acme") and v.detail.mesh == "suspect"
 
 
 @pytest.mark.slow
 def test_two_steps_of_subdivision_are_undone_one_at_a_time(small_marked):
     V, F = A.subdivide(*A.subdivide(small_marked.vertices, small_marked.faces, "sqrt3"), "loop")
     v = pmwm.verify(*A.reorder(V, F, seed=1), passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "sqrt3 + loop"
+    assert v.marked and v.payload == "Acme" and v.detail.mesh == "sqrt3 + loop"
 
 
 @pytest.mark.slow
@@ -509,7 +536,7 @@ def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(s
     V[n0:] += 0.2 * edge * out / np.linalg.norm(out, axis=1)[:, None]
     assert frames.coarse_mesh(V, F).rule == "loop"
     v = pmwm.verify(V, F, passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.extra["mesh"] == "1-to-4"
+    assert v.marked and v.payload == "Acme" and v.detail.mesh == "1-to-4"
 
 
 @pytest.mark.parametrize("scheme", ["loop", "catmull-clark"])
@@ -529,7 +556,7 @@ def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, schem
     assert (own.energy >= frames.FULL_VIEW) == (attack is None)
     assert frames.coarse_mesh(*S).rule == scheme  # the structure is there either way
     v = pmwm.verify(*S, passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.extra["mesh"] in ("suspect", f"smoothing:-{frames.DENOISE_STEPS}")
+    assert v.marked and v.payload == "Acme" and v.detail.mesh in ("suspect", f"smoothing:-{frames.DENOISE_STEPS}")
 
 
 def test_cut_planes_find_the_plane_of_a_crop():
@@ -688,7 +715,7 @@ def test_one_pass_phrase_many_meshes_each_its_own_payload(bunny):
     assert payloads["bunny"] != payloads["cap"]  # a fresh random payload per mesh
     for name, res in copies.items():
         got = pmwm.verify(res.vertices, res.faces, passphrase=PHRASE)
-        assert got.marked and got.bits == payloads[name] and got.extra["payload_kind"] == "bits"
+        assert got.marked and got.bits == payloads[name] and got.detail.payload_kind == "bits"
 
 
 @pytest.mark.parametrize("n", word.PAYLOAD_BITS[:3])
@@ -818,11 +845,11 @@ def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marke
     else:
         V, F = A.noise_benchmark(small_marked.vertices, small_marked.faces, 0.0095, seed=3)
     v = pmwm.verify(V, F, passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.extra["frame"].startswith("denoised")
-    assert v.extra["mesh"] == f"smoothing:-{frames.DENOISE_STEPS}"
-    assert blind.mesh_read(v.extra["mesh"]) == "read after 3 steps of Laplacian smoothing (0.1 each) against noise"
-    assert v.extra["frames"] in (2, 3, 4) and v.extra["chase_bits"] == word.chase_bits(v.extra["frames"])
-    assert v.p_value == pytest.approx(v.extra["frames"] * 2 * 2.0 ** v.extra["chase_bits"] * 2.0**-32)
+    assert v.marked and v.payload == "Acme" and v.detail.frame.startswith("denoised")
+    assert v.detail.mesh == f"smoothing:-{frames.DENOISE_STEPS}"
+    assert blind.mesh_read(v.detail.mesh) == "read after 3 steps of Laplacian smoothing (0.1 each) against noise"
+    assert v.detail.frames in (2, 3, 4) and v.detail.chase_bits == word.chase_bits(v.detail.frames)
+    assert v.p_value == pytest.approx(v.detail.frames * 2 * 2.0 ** v.detail.chase_bits * 2.0**-32)
     assert v.p_value < 1e-6
     monkeypatch.setattr(frames, "with_denoised", lambda got, *a: got)
     plain = pmwm.verify(V, F, passphrase=PHRASE)
@@ -843,14 +870,14 @@ def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny
                                              strength=blind.DEFAULT_ALPHA, progressive=False))
     V, F = A.noise_benchmark(res.vertices, f, amplitude=0.005, seed=case)
     got = pmwm.verify(V, F, passphrase=phrase)
-    assert got.marked and got.payload == "studio" and got.extra["frame"] == "denoised-refined"
+    assert got.marked and got.payload == "studio" and got.detail.frame == "denoised-refined"
     monkeypatch.setattr(frames, "DENOISE_REFINE_SAMPLE", radial.REFINE_SAMPLE)
     sampled = pmwm.verify(V, F, passphrase=phrase)
     assert not (sampled.marked and sampled.payload == "studio")
 
 
-def _errors(bits: str, want: np.ndarray) -> int:
-    return int(np.sum(np.array([int(c) for c in bits], np.uint8) != want))
+def _errors(bits: np.ndarray, want: np.ndarray) -> int:
+    return int(np.sum(bits != want))
 
 
 @pytest.mark.slow
@@ -866,48 +893,50 @@ def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny,
         phrase = f"guess test {case}"
         res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=phrase, seed=case,
                                                  strength=blind.DEFAULT_ALPHA, progressive=False))
-        want = word.word_of(res.key.secret, "text", word.payload_of("Acme", None, 0, None)[0])
+        secret = word.derive_secret(phrase)
+        want = word.word_of(secret, "text", word.payload_of("Acme", None, 0, None)[0])
         V, F = A.quantize(res.vertices, f, bits=7)
         assert frames.on_grid(V) and not frames.on_grid(res.vertices)
-        got = pmwm.verify(V, F, passphrase=phrase)
-        assert not got.marked and got.extra["guess_mesh"].startswith("smoothing:-")
-        smoothed_errors += _errors(got.extra["guess"], want)
+        assert not pmwm.verify(V, F, passphrase=phrase).marked
+        guess, mesh = blind.guess_word(blind.bin_statistics(V, F), secret)
+        assert mesh.startswith("smoothing:-")
+        smoothed_errors += _errors(guess, want)
         with monkeypatch.context() as m:
             m.setattr(frames, "GUESS_STEPS", ())
-            plain = pmwm.verify(V, F, passphrase=phrase)
-        assert plain.extra["guess_mesh"] == "suspect" and plain.bits == got.bits
-        plain_errors += _errors(plain.extra["guess"], want)
+            plain, plain_mesh = blind.guess_word(blind.bin_statistics(V, F), secret)
+        assert plain_mesh == "suspect"
+        plain_errors += _errors(plain, want)
     assert smoothed_errors < plain_errors
 
 
 @pytest.mark.slow
-def test_cli_prints_the_guess_when_it_reads_no_mark(bunny, tmp_path):
-    """``pmwm verify`` of a copy on a coarse grid that it cannot read: not marked (exit 1), and the payload bits
-    it guessed without the check, with the smoothing they were read after, in place of a candidate the check
-    bits chose."""
+def test_cli_prints_no_payload_bits_when_it_reads_no_mark(bunny, tmp_path):
+    """``pmwm verify`` of a copy on a coarse grid that it cannot read: not marked (exit 1), "no payload read",
+    and no payload bits at all (neither a candidate the check bits chose nor a guess), in words or in JSON."""
     v, f = bunny
     res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase="guess test 3", seed=3,
                                              strength=blind.DEFAULT_ALPHA, progressive=False))
     path = meshes.write_off(tmp_path / "q7.off", *A.quantize(res.vertices, f, bits=7))
     got = run("verify", path, env={"PMWM_PASSPHRASE": "guess test 3"})
-    assert got.returncode == 1 and "not marked" in got.stdout
-    line = next(x for x in got.stdout.splitlines() if x.startswith("payload bits guessed without the check"))
-    assert len(line.rsplit(" ", 1)[1]) == 32 and set(line.rsplit(" ", 1)[1]) <= {"0", "1"}
-    assert "guess read after" in got.stdout and "steps of Laplacian smoothing" in got.stdout
+    assert got.returncode == 1 and got.stdout.splitlines()[0].startswith("not marked: ")
+    assert got.stdout.splitlines()[-1] == "no payload read" and "payload bits" not in got.stdout
+    assert not any(len(w) >= 32 and set(w) <= {"0", "1"} for w in got.stdout.split())
+    js = json.loads(run("verify", path, "--json", env={"PMWM_PASSPHRASE": "guess test 3"}).stdout)
+    assert (js["marked"], js["payload_confirmed"], js["bits"], js["payload"]) == (False, False, None, None)
 
 
-def test_a_verdict_guesses_the_word_only_when_it_reads_no_mark(bunny, marked):
-    """A copy read has no guess; a suspect off any grid that shows no mark is guessed in its reading's own
-    frame: the hard decisions of that frame (``word_read``), whatever the check bits matched."""
-    assert "guess" not in pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE).extra
+def test_the_guess_is_the_own_frames_hard_decisions_and_never_in_a_verdict(bunny, marked):
+    """A suspect off any grid that shows no mark is guessed in its own frame: the hard decisions of that
+    frame (``word_read``), whatever the check bits matched; the verdict itself holds no word."""
     V, F = A.noise_benchmark(marked.vertices, marked.faces, amplitude=0.02, seed=1)
     assert not frames.on_grid(V)
     stats = blind.bin_statistics(V, F)
-    v = blind.decide(stats, marked.key.secret)
-    assert not v.marked and v.extra["guess_mesh"] == stats.mesh
-    own, _ = blind.word_read(stats.words[stats.n_word][0], marked.key.secret, stats.n_word,
+    v = blind.decide(stats, SECRET)
+    assert not v.marked and v.bits == "" and v.detail.word is None
+    guess, mesh = blind.guess_word(stats, SECRET)
+    own, _ = blind.word_read(stats.words[stats.n_word][0], SECRET, stats.n_word,
                              stats.shares[stats.n_word][0])
-    assert v.extra["guess"] == "".join(map(str, own.tolist()))
+    assert mesh == stats.mesh and np.array_equal(guess, own)
 
 
 def test_a_grid_is_coarse_at_12_bits_or_fewer_and_only_on_the_copys_own_axes(marked):
@@ -945,8 +974,8 @@ def test_a_blurred_readings_denoised_frames_are_measured_in_a_worker_with_the_sa
     for n in alone.words:
         np.testing.assert_array_equal(alone.words[n], beside.words[n])
         np.testing.assert_array_equal(alone.shares[n], beside.shares[n])
-    a, b = blind.decide(alone, marked.key.secret), blind.decide(beside, marked.key.secret)
-    assert (a.marked, a.bits, a.p_value, a.extra["frame"]) == (b.marked, b.bits, b.p_value, b.extra["frame"])
+    a, b = blind.decide(alone, SECRET), blind.decide(beside, SECRET)
+    assert (a.marked, a.bits, a.p_value, a.detail.frame) == (b.marked, b.bits, b.p_value, b.detail.frame)
     assert a.marked and a.payload == "Acme"
 
 
@@ -1043,22 +1072,14 @@ def test_the_equalizer_finds_the_most_likely_signs():
             assert np.array_equal(radial._most_likely_signs(x, g, c), np.array(best))
 
 
-def test_a_blind_key_holds_nothing_of_the_mesh(tmp_path):
-    """A key file, if written at all, holds no coordinate and nothing else derived from the mesh,
-    under 1 KB. Two different meshes marked with the same pass phrase, payload and margin (one with its
-    progressive mesh) give the same key file byte for byte, and it reads both marks."""
-    written = []
+def test_a_blind_embedding_keeps_nothing_of_the_mesh_but_the_pass_phrase_reads_it():
+    """No key at all: two different meshes marked with the same pass phrase and payload (one with its
+    progressive mesh) return no key, and the pass phrase alone reads both marks."""
     for (V, F), pm in ((meshes.blob(), True), (meshes.cad_part(), False)):
         res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", passphrase=PHRASE, payload="Acme", strength=0.1,
                                                  progressive=pm))
-        assert (res.pm is not None) == pm
-        path = tmp_path / f"{len(written)}.json"
-        pmwm.write_key(path, res.key)
-        written.append((path.read_bytes(), res))
-    assert written[0][0] == written[1][0] and len(written[0][0]) < 1024
-    key = pmwm.read_key(tmp_path / "0.json")
-    for _, res in written:
-        assert pmwm.verify(res.vertices, res.faces, key).payload == "Acme"
+        assert (res.pm is not None) == pm and res.key is None and res.strength == 0.1
+        assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "Acme"
 
 
 def test_the_marking_search_finds_the_same_steps_whatever_its_guess():
@@ -1184,7 +1205,7 @@ def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, monkeypatch, 
     V, F = A.smooth_laplacian(marked.vertices, marked.faces, lam=lam, iterations=iterations)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
-    steps = int(v.extra["mesh"].split("smoothing:")[1])
+    steps = int(v.detail.mesh.split("smoothing:")[1])
     assert lam * iterations <= 0.1 * steps <= 1.5 * lam * iterations
     monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)
     plain = pmwm.verify(V, F, passphrase=PHRASE)
@@ -1194,7 +1215,7 @@ def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, monkeypatch, 
 def test_an_unmarked_smoothed_mesh_stays_unmarked(bunny):
     V, F = A.smooth_laplacian(*bunny, lam=0.1, iterations=30)
     v = pmwm.verify(V, F, passphrase=PHRASE)
-    assert not v.marked and v.extra["mesh"] == "suspect"
+    assert not v.marked and v.detail.mesh == "suspect"
 
 
 @pytest.mark.slow
@@ -1218,7 +1239,7 @@ def test_a_fresh_process_reads_a_cropped_copy_without_scipys_graph_module(marked
             "from pmwm.meshio import read_mesh\n"
             f"m = read_mesh({str(tmp_path / 'cut.ply')!r})\n"
             f"v = pmwm.verify(m.vertices, m.faces, passphrase={PHRASE!r})\n"
-            "assert v.marked and v.payload == 'Acme' and v.extra['frame'].startswith('crop'), v.extra\n"
+            "assert v.marked and v.payload == 'Acme' and v.detail.frame.startswith('crop'), v.detail\n"
             "assert 'scipy.sparse.csgraph' not in sys.modules\n")
     _fresh_process(code)
 
@@ -1236,7 +1257,7 @@ def test_a_small_cut_suspect_is_read_without_importing_scipy_sparse(tmp_path):
             "from pmwm.meshio import read_mesh\n"
             f"m = read_mesh({str(tmp_path / 'half.ply')!r})\n"
             "v = pmwm.verify(m.vertices, m.faces, passphrase='a phrase')\n"
-            "assert not v.marked and v.extra['frame'].startswith('crop'), v.extra\n"
+            "assert not v.marked and v.detail.frame.startswith('crop'), v.detail\n"
             "assert 'scipy.sparse' not in sys.modules\n")
     _fresh_process(code)
 
@@ -1252,6 +1273,6 @@ def test_an_unmarked_small_mesh_is_cleared_without_importing_scipy_sparse(tmp_pa
             "from pmwm.meshio import read_mesh\n"
             f"m = read_mesh({str(BUNNY)!r})\n"
             "v = pmwm.verify(m.vertices, m.faces, passphrase='a phrase')\n"
-            "assert not v.marked and v.extra['frame'] in ('own', 'refined'), v.extra\n"
+            "assert not v.marked and v.detail.frame in ('own', 'refined'), v.detail\n"
             "assert 'scipy.sparse' not in sys.modules\n")
     _fresh_process(code)

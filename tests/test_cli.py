@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import json
 import os
@@ -26,6 +27,7 @@ COW = meshes.mesh_file("blob.off")  # a small closed organic mesh (2.9k vertices
 PAYLOAD = "test"
 VERDICT_FIELDS = {
     "marked", "p_value", "bits", "payload", "matches", "bit_errors", "correlation", "carriers_found", "carriers_total",
+    "payload_confirmed",
 }
 
 
@@ -230,6 +232,62 @@ def test_verify_human_output(sample):
     proc = run("verify", sample.mesh, "--key", sample.key)
     assert proc.returncode == 0 and proc.stderr == ""
     assert "MARKED" in proc.stdout and repr(PAYLOAD) in proc.stdout
+
+
+def test_verify_prints_the_verdict_in_the_shared_words(sample):
+    """What ``pmwm verify`` prints is ``pmwm.wording.lines`` of the verdict: its headline, then the payload."""
+    from pmwm import wording
+
+    proc = call("verify", sample.mesh, "--key", sample.key)
+    src = pmwm.read_mesh(sample.mesh)
+    v = pmwm.verify(src.vertices, src.faces, pmwm.read_key(sample.key))
+    assert proc.stdout.splitlines() == wording.lines(v)
+    assert proc.stdout.splitlines()[0].startswith("MARKED: 64/64 bits match, p = ")
+    assert proc.stdout.splitlines()[-1] == f"payload: {PAYLOAD!r}"
+
+
+def test_a_marked_copy_whose_bits_differ_from_the_key_never_shows_them_as_the_payload(sample, out):
+    """A key whose payload differs from the mark in 3 of 64 bits still finds the mark (61/64 bits match), but
+    the payload read is not the key's: the verdict says "payload unconfirmed (3 of 64 bits differ)" and shows
+    neither the text nor the bits it read, in words or in JSON."""
+    doc = json.loads(sample.key.read_text())
+    flipped = list(doc["bits"])
+    for i in (3, 17, 40):  # (bits of the text's first bytes: the text read is still the mark's)
+        flipped[i] = "1" if flipped[i] == "0" else "0"
+    doc["bits"] = "".join(flipped)
+    key = out / "off-by-three.key.json"
+    key.write_text(json.dumps(doc))
+    code, v = verdict(sample.mesh, "--key", key)
+    assert code == 0 and v["marked"] is True and v["bit_errors"] == 3
+    assert (v["payload_confirmed"], v["payload"], v["bits"]) == (False, None, None)
+    proc = call("verify", sample.mesh, "--key", key)
+    assert proc.returncode == 0 and proc.stdout.splitlines()[-1] == "payload unconfirmed (3 of 64 bits differ)"
+    assert repr(PAYLOAD) not in proc.stdout and "payload:" not in proc.stdout
+    assert not any(len(w) >= 64 and set(w) <= {"0", "1"} for w in proc.stdout.split())
+
+
+def test_a_scheme_keyed_by_a_pass_phrase_is_told_by_its_keying_not_its_name(out, monkeypatch):
+    """The embed's argument checks follow ``Scheme.keying``: a pass-phrase scheme of another name takes a
+    pass phrase, refuses --key and writes no key file, as the blind scheme does."""
+    from pmwm.schemes import SCHEMES
+
+    seen = {}
+
+    def embed(vertices, faces, options, progress=None):
+        seen["passphrase"] = options.passphrase
+        return pmwm.EmbedResult(vertices, faces, None, None, np.zeros(0, np.int64), np.zeros(32, np.uint8), 99.0, 0.0)
+
+    phrase_scheme = dataclasses.replace(SCHEMES["blind"], name="phrase", embed=embed)
+    monkeypatch.setitem(SCHEMES, "phrase", phrase_scheme)
+    monkeypatch.delenv("PMWM_PASSPHRASE", raising=False)
+    assert_error(call("embed", COW, "-o", out / "m.ply", "--scheme", "phrase"), "needs a pass phrase")
+    monkeypatch.setenv("PMWM_PASSPHRASE", "a phrase")
+    assert_error(call("embed", COW, "-o", out / "m.ply", "--scheme", "phrase", "--key", out / "k.json"), "omit --key")
+    assert call("embed", COW, "-o", out / "m.ply", "--scheme", "phrase", "-q").returncode == 0
+    assert seen["passphrase"] == "a phrase" and listing(out) == ["m.ply"]
+    key_file = dataclasses.replace(SCHEMES["robust"], name="keyed")
+    monkeypatch.setitem(SCHEMES, "keyed", key_file)
+    assert_error(call("embed", COW, "-o", out / "n.ply", "--scheme", "keyed"), "--key")
 
 
 def test_explicit_bits_come_back_exactly(out):

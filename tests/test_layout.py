@@ -130,3 +130,19 @@ def test_dask_is_imported_by_the_catalogue_only():
             "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True, env={**os.environ, "PYTHONPATH": str(PKG.parent)})
+
+
+def test_front_ends_reach_the_schemes_through_the_registry_only():
+    """``pmwm.api``, the command line, the wording, the report and the add-on use ``pmwm.schemes`` (the
+    registry: ``SCHEMES``, ``get_scheme``, each scheme's ``keying``) and never a scheme's own module."""
+    g = graph()
+    for m in ("pmwm.api", "pmwm.cli", "pmwm.wording", "pmwm.verify_report"):
+        inside = {n for n in g[m] if n.startswith("pmwm.schemes.")}
+        assert not inside, f"{m} imports {inside}"
+    addon = PKG.parent.parent / "blender_pmwm"
+    assert addon.is_dir(), addon
+    for path in sorted(addon.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            assert not any(n.startswith("pmwm.schemes.") for n in names), f"{path.name} imports {names}"

@@ -109,7 +109,7 @@ def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
     assert per_bit.min() >= 1, int((per_bit.min(axis=0) == 0).sum())
     X, FF = attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=1)
     v = _reads(marked, X, FF)
-    assert v.mode == "aligned" and v.extra["heights"] == "by position, site vertices first"
+    assert v.mode == "aligned" and v.detail.heights == "by position, site vertices first"
 
 
 def test_similarity_fit_recovers_a_similarity_exactly():
@@ -127,7 +127,7 @@ def test_similarity_fit_recovers_a_similarity_exactly():
 def test_noisy_copy_in_any_pose_is_registered_by_vertex_index(marked):
     V, F = attacks.noise_benchmark(*attacks.similarity(marked.vertices, marked.faces, seed=3), 0.003, seed=3)
     v = robust_verify(V, F, marked.key)
-    assert v.extra["registration"] == "by vertex index" and v.extra["heights"] == "by vertex index"
+    assert v.detail.registration == "by vertex index" and v.detail.heights == "by vertex index"
     _reads(marked, V, F)
 
 
@@ -175,7 +175,7 @@ def test_sites_no_reading_uses_are_not_marked_and_every_clean_site_is_read():
     moved = np.linalg.norm(res.vertices - V, axis=1)
     assert moved[res.carriers[dead]].max() < 1e-6 * res.key.bbox_diagonal
     v = robust_verify(*attacks.noise_paper(res.vertices, F, amplitude=0.003, seed=1), res.key)
-    assert v.extra["heights"] == "by vertex index" and v.extra["sites_read"] == s.index_ok.sum()
+    assert v.detail.heights == "by vertex index" and v.detail.sites_read == s.index_ok.sum()
 
 
 @pytest.mark.slow
@@ -278,7 +278,7 @@ def test_swirl_alone_carries_the_payload_by_vertex_index(bunny, marked):
     mrms_marked, _ = metrics.surface_distance(V, F, marked.vertices, F, n_samples=20000, seed=1)
     assert mrms < 0.25 * mrms_marked  # the swirl barely moves the surface
     v = robust_verify(X, F, marked.key)
-    assert v.extra["heights"] == "by vertex index"
+    assert v.detail.heights == "by vertex index"
     _reads(marked, X, F)
 
 
@@ -338,11 +338,11 @@ def test_noise_is_read_by_vertex_index_and_by_position(marked):
     the same noisy copy reordered is read by position, and both carry the payload."""
     V, F = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=4)
     v = robust_verify(V, F, marked.key)
-    assert v.extra["heights"] == "by vertex index"
+    assert v.detail.heights == "by vertex index"
     assert v.marked and v.bit_errors <= 0.05 * v.carriers_total, v.bit_errors
     V2, F2 = attacks.reorder(V, F, seed=4)
     v2 = robust_verify(V2, F2, marked.key)
-    assert v2.extra["heights"] == "by position"
+    assert v2.detail.heights == "by position"
     assert v2.marked and v2.bit_errors <= 0.1 * v2.carriers_total, v2.bit_errors
 
 
@@ -353,7 +353,7 @@ def test_noise_on_a_reordered_copy_is_still_read(marked):
     for seed in range(3):
         noisy = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=seed)
         v = pmwm.verify(*attacks.reorder(*noisy, seed=seed), marked.key)
-        assert v.mode == "registered" and v.extra["heights"] == "by position"
+        assert v.mode == "registered" and v.detail.heights == "by position"
         assert v.marked and v.matches >= 0.85 * v.carriers_total, v.matches
 
 
@@ -460,5 +460,5 @@ def test_both_kdtree_engines_mark_and_read_alike(bunny, marked):
         a, b = read.values()
         assert (a.marked, a.bits, a.p_value, a.mode) == (b.marked, b.bits, b.p_value, b.mode)
         np.testing.assert_array_equal(a.scores, b.scores)
-        assert a.extra == b.extra
+        assert a.detail == b.detail
     assert read["scipy"].marked is False

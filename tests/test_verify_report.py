@@ -135,6 +135,23 @@ def test_report_of_an_unmarked_mesh_says_so(marked):
     assert "consistent with chance" in html and "does not show the watermark" in html
 
 
+def test_the_reports_table_speaks_plainly_and_keeps_the_numbers_in_a_collapsible_section(marked):
+    """The verdict's table holds pmwm.wording's plain rows (no reader's jargon such as "registration: none"
+    or "sites_read"); the reader's numbers sit in a <details> section after it; an unmarked copy's report
+    shows no payload and no bits read."""
+    html = _report(marked, "marked.ply", "plain.html")[0].read_text(encoding="utf-8")
+    table, rest = html.split('<details id="numbers">', 1)
+    table = table.split("<h2>Details</h2>", 1)[1]
+    numbers = rest.split("</details>", 1)[0]
+    assert "<summary>" in numbers and "registration" in numbers and "sites read" in numbers
+    for jargon in ("registration", "sites_read", "sites read", "heights", "by vertex index"):
+        assert jargon not in table, jargon
+    assert "Places read" in table and "Payload read" in table and "ACME &lt;2026&gt;" in table
+    html = _report(marked, "original.ply", "plain-unmarked.html")[0].read_text(encoding="utf-8")
+    table = html.split("<h2>Details</h2>", 1)[1].split('<details id="numbers">', 1)[0]
+    assert "<th>Payload read</th><td>none read</td>" in table and "Payload bits" not in table
+
+
 @pytest.mark.slow
 def test_paper_and_cho_keys_give_a_report(tmp_path):
     V, F = meshes.blob()

@@ -143,7 +143,7 @@ def test_noisy_copy_in_the_marked_order_is_read_by_index(marked):
     _, F, res = marked
     for seed in range(3):
         v = verify(*attacks.noise_paper(res.vertices, F, amplitude=0.01, seed=seed), res.key)
-        assert (v.mode, v.extra["carriers"]) == ("index", "faces fingerprint") and v.bit_errors == 0
+        assert (v.mode, v.detail.carriers) == ("index", "faces fingerprint") and v.bit_errors == 0
     noisy = attacks.noise_paper(res.vertices, F, amplitude=0.01, seed=1)
     v = verify(*attacks.reorder(*noisy, seed=2), res.key)
     assert v.mode == "position" and v.matches > 0.7 * v.carriers_total
@@ -155,10 +155,10 @@ def test_noisy_levels_of_detail_are_read_by_index(marked):
     _, _, res = marked
     full = res.pm.decode()
     v = verify(*attacks.noise_paper(*full, amplitude=0.005, seed=4), res.key)
-    assert (v.mode, v.extra["carriers"]) == ("index", "faces fingerprint") and v.bit_errors == 0
+    assert (v.mode, v.detail.carriers) == ("index", "faces fingerprint") and v.bit_errors == 0
     coarse = res.pm.decode(records=res.pm.n_records // 2)
     v = verify(*attacks.noise_paper(*coarse, amplitude=0.005, seed=4), res.key)
-    assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.marked
+    assert (v.mode, v.detail.carriers) == ("index", "near their places") and v.marked
 
 
 def test_keys_without_a_fingerprint_still_read_by_index_when_carriers_are_in_place(marked):
@@ -168,7 +168,7 @@ def test_keys_without_a_fingerprint_still_read_by_index_when_carriers_are_in_pla
     _, F, res = marked
     old = dataclasses.replace(res.key, faces_fingerprint="", pm_faces_fingerprint="")
     v = verify(*attacks.noise_paper(res.vertices, F, amplitude=0.002, seed=0), old)
-    assert (v.mode, v.extra["carriers"]) == ("index", "near their places") and v.bit_errors == 0
+    assert (v.mode, v.detail.carriers) == ("index", "near their places") and v.bit_errors == 0
 
 
 def test_the_faces_fingerprint_is_its_documented_hash():
@@ -209,13 +209,13 @@ def test_without_a_progressive_mesh_the_same_mesh_is_marked_and_read(scheme, tmp
     assert runs[True].pm is not None and runs[False].pm is None
     assert np.array_equal(runs[True].vertices, runs[False].vertices)
     key = runs[False].key
-    assert np.array_equal(key.carrier_pm_index, key.carrier_index) and key.pm_faces_fingerprint == ""
-    if scheme == "blind":
-        key = pmwm.schemes.blind.key_from_passphrase(phrase)
+    if scheme == "blind":  # (no key: the pass phrase reads it)
+        assert key is None
+        v = verify(runs[False].vertices, F, passphrase=phrase)
     else:
+        assert np.array_equal(key.carrier_pm_index, key.carrier_index) and key.pm_faces_fingerprint == ""
         pmwm.write_key(tmp_path / "k.json", key)
-        key = pmwm.read_key(tmp_path / "k.json")
-    v = verify(runs[False].vertices, F, key)
+        v = verify(runs[False].vertices, F, pmwm.read_key(tmp_path / "k.json"))
     assert v.marked and v.payload == "Acme"
 
 
@@ -226,3 +226,65 @@ def test_the_paper_scheme_builds_its_progressive_mesh_anyway():
     off = embed(V, F, EmbedOptions(payload="Acme", seed=4, scheme="paper", progressive=False))
     assert off.pm is not None and np.array_equal(on.vertices, off.vertices)
     assert off.pm.n_records == on.pm.n_records
+
+
+def test_a_keyed_payload_is_confirmed_only_when_every_bit_is_the_keys(marked):
+    """The verdict from per-bit scores: all bits right, the payload is confirmed and shown; 3 of 72 wrong,
+    the mesh is still marked but the payload is unconfirmed: no text, no bits in the JSON, and its words
+    say how many bits differ; the rule is one function a scheme may replace (one that corrects errors)."""
+    from pmwm import wording
+    from pmwm.base import confirm_payload, verdict_from_scores
+
+    key = marked[2].key
+    right = np.where((key.bits ^ key.stream("scramble", key.n_bits)) == 1, 1.0, -1.0)
+    v = verdict_from_scores(right, key, "index", 1e-6)
+    assert v.marked and v.payload_confirmed and v.payload == "ACME 2026"
+    assert v.to_dict()["payload"] == "ACME 2026" and wording.payload_line(v) == "payload: 'ACME 2026'"
+    wrong = right.copy()
+    wrong[[0, 9, 30]] *= -1  # (in the text's first bytes)
+    v = verdict_from_scores(wrong, key, "index", 1e-6)
+    assert v.marked and v.bit_errors == 3 and not v.payload_confirmed and v.payload is None
+    d = v.to_dict()
+    assert (d["payload_confirmed"], d["payload"], d["bits"]) == (False, None, None)
+    assert wording.payload_line(v) == f"payload unconfirmed (3 of {key.n_bits} bits differ)"
+    assert all("ACME" not in line for line in wording.lines(v))
+    assert all("ACME" not in value for _, value in wording.rows(v) + wording.technical_rows(v))
+    corrected = verdict_from_scores(wrong, key, "index", 1e-6, confirm=lambda marked, bits, key: marked)
+    assert corrected.payload_confirmed and corrected.to_dict()["bits"] == corrected.bits
+    assert not confirm_payload(False, key.bits, key) and confirm_payload(True, key.bits, key)
+    unmarked = verdict_from_scores(-right, key, "index", 1e-6)
+    assert not unmarked.marked and unmarked.payload is None and wording.payload_line(unmarked) == "no payload read"
+
+
+def test_verify_dispatches_a_pass_phrase_through_the_registry(monkeypatch):
+    """``pmwm.verify(..., passphrase=...)`` hands the suspect to the registry's scheme keyed by a pass phrase,
+    as it hands a key to its scheme: nothing in ``pmwm.api`` names the blind scheme."""
+    import dataclasses
+
+    from pmwm.schemes import SCHEMES
+
+    calls = []
+
+    def read(vertices, faces, secret, p_threshold):
+        calls.append((secret, p_threshold))
+        return "a verdict"
+
+    monkeypatch.setitem(SCHEMES, "blind", dataclasses.replace(SCHEMES["blind"], verify=read))
+    V, F = meshes.blob()
+    assert pmwm.verify(V, F, passphrase="a phrase", p_threshold=1e-9) == "a verdict"
+    assert calls == [("a phrase", 1e-9)]
+
+
+@pytest.mark.parametrize("scheme", ["robust", "paper", "cho1"])
+def test_every_keyed_schemes_verdict_says_how_it_read_in_words_and_numbers(scheme):
+    """Each scheme's verdict carries its own typed detail (no untyped dict): plain-words rows without the
+    reader's jargon, and its numbers for a technical section."""
+    V, F = meshes.cad_part()
+    res = embed(V, F, EmbedOptions(bits="01" * 12, seed=2, scheme=scheme, progressive=False))
+    v = verify(res.vertices, F, res.key)
+    assert v.marked and v.payload_confirmed and not hasattr(v, "extra")
+    assert type(v.detail) is not pmwm.VerdictDetail and isinstance(v.detail, pmwm.VerdictDetail)
+    words, numbers = v.detail.in_words(), v.detail.numbers()
+    assert words and numbers
+    for _, value in words:
+        assert "_" not in value and ": none (" not in value and "fingerprint" not in value

@@ -7,7 +7,7 @@ imports bpy.
 __version__ = "0.1.0"
 
 from .api import ber_per_level, embed, read_key, verify, verify_pm
-from .base import EmbedOptions, EmbedResult, Verdict
+from .base import KEY_FILE, PASS_PHRASE, EmbedOptions, EmbedResult, Verdict, VerdictDetail
 from .errors import KeyFileError, MeshError, OutputExistsError, PayloadError, PmwmError, PMFormatError
 from .key import WatermarkKey, write_key
 from .meshio import SourceMesh, read_mesh, write_marked, write_mesh
@@ -20,5 +20,6 @@ __all__ = [
     "WatermarkKey", "read_key", "write_key",
     "SourceMesh", "read_mesh", "write_mesh", "write_marked",
     "ProgressiveMesh", "build_progressive_mesh", "read_pm", "write_pm",
-    "EmbedOptions", "EmbedResult", "Verdict", "embed", "verify", "verify_pm", "ber_per_level", "SCHEMES",
+    "EmbedOptions", "EmbedResult", "Verdict", "VerdictDetail", "embed", "verify", "verify_pm", "ber_per_level",
+    "SCHEMES", "KEY_FILE", "PASS_PHRASE",
 ]

@@ -1,21 +1,21 @@
 """The public entry points: mark, read, and read keys, whatever the scheme.
 
 ``embed`` hands the mesh to the scheme named in the options, ``verify`` to the scheme named in the
-key; ``read_key`` reads a key file and the scheme's own data in it, so that a damaged key is
-refused before any suspect mesh is loaded. See docs/api.md.
+key, or with a pass phrase to the scheme keyed by one; ``read_key`` reads a key file and the
+scheme's own data in it, so that a damaged key is refused before any suspect mesh is loaded. See
+docs/api.md.
 """
 
 from __future__ import annotations
 
 from typing import Optional
 
-from .base import EmbedOptions, EmbedResult, Progress, Verdict
+from .base import KEY_FILE, EmbedOptions, EmbedResult, Progress, Verdict
 from .errors import KeyFileError, PayloadError
 from .key import WatermarkKey, read_key_json
 from .memory import reuse_freed_memory
 from .progressive import ProgressiveMesh
-from .schemes import get_scheme
-from .schemes.blind import read_with_passphrase
+from .schemes import get_scheme, passphrase_scheme
 
 __all__ = ["embed", "verify", "verify_pm", "ber_per_level", "read_key", "load_key_data"]
 
@@ -43,13 +43,19 @@ def read_key(path) -> WatermarkKey:
 def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: float = 1e-6, *,
            passphrase: Optional[str] = None) -> Verdict:
     """Read the mark from a suspect mesh (any order, possibly attacked) with the key's scheme, or,
-    with ``passphrase`` instead of a key, with the blind scheme (the payload is read, not known)."""
+    with ``passphrase`` instead of a key, with the scheme keyed by a pass phrase (the blind scheme:
+    the payload is read, not known)."""
     if (key is None) == (passphrase is None):
-        raise PayloadError("give a key or a pass phrase (the blind scheme), not both or neither")
-    reuse_freed_memory()
+        raise PayloadError(f"give a key or a pass phrase (the {passphrase_scheme().name} scheme), not both or neither")
     if key is None:
-        return read_with_passphrase(vertices, faces, passphrase, p_threshold)
-    return get_scheme(key.scheme, KeyFileError).verify(vertices, faces, key, p_threshold)
+        scheme, secret = passphrase_scheme(), passphrase
+    else:
+        scheme, secret = get_scheme(key.scheme, KeyFileError), key
+        if scheme.keying != KEY_FILE:
+            raise KeyFileError(f"the {scheme.name} scheme reads with a pass phrase, not a key: "
+                               "give passphrase= instead")
+    reuse_freed_memory()
+    return scheme.verify(vertices, faces, secret, p_threshold)
 
 
 def verify_pm(pm: ProgressiveMesh, key: Optional[WatermarkKey] = None, records: Optional[int] = None,

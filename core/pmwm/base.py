@@ -1,19 +1,27 @@
-"""Types and steps every scheme shares: options, result, verdict, payload bits, the decision.
+"""Types and steps every scheme shares: options, result, verdict, payload bits, the decision, the
+scheme interface.
 
 Below the schemes (``pmwm.schemes.*`` import this module, never the reverse). The keyed
 pseudo-random streams every scheme draws from are ``WatermarkKey.stream`` and ``derive_seed``
 (``pmwm.key``).
 
+Keying. A scheme is read either with a key file (``KEY_FILE``: the embed returns a ``WatermarkKey``
+that the owner keeps) or with a pass phrase alone (``PASS_PHRASE``: the embed takes it in
+``EmbedOptions.passphrase`` and returns no key); ``Scheme.keying`` says which.
+
 Verdict. A scheme reads one score per payload bit (sign = the scrambled bit, 0 = an erasure). An
 erasure gets a keyed coin flip, so that with K of N bits matching, p = P(Binomial(N, 1/2) >= K) is
 the exact false-positive probability of an unmarked mesh or a wrong key; the mesh is ``marked``
-when p < p_threshold (1e-6 by default).
+when p < p_threshold (1e-6 by default). The payload is *confirmed* only when the scheme can vouch
+for every bit of it (``confirm_payload``); a verdict shows the payload (``Verdict.payload``, the
+JSON's "payload" and "bits") only then. How the scheme read the mark is its ``VerdictDetail``; the
+verdict in words is ``pmwm.wording``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Optional, Sequence, Union
+from typing import Callable, ClassVar, Optional, Sequence, Union
 
 import numpy as np
 
@@ -25,12 +33,14 @@ from .key import WatermarkKey, derive_seed, face_fingerprint, make_secret
 from .progressive import ProgressiveMesh
 from .validate import MAX_COORDINATE, check_mesh, parse_bits
 
-__all__ = ["Progress", "DEFAULT_BITS", "EmbedOptions", "EmbedResult", "Verdict", "payload_bits",
-           "decode_text", "check_options", "verdict_from_scores", "no_progress", "Scheme", "EmbedJob",
-           "start_embed", "finish_embed", "mesh_key"]
+__all__ = ["Progress", "DEFAULT_BITS", "KEY_FILE", "PASS_PHRASE", "EmbedOptions", "EmbedResult", "Verdict",
+           "VerdictDetail", "payload_bits", "decode_text", "check_options", "confirm_payload", "verdict_from_scores",
+           "no_progress", "Scheme", "EmbedJob", "start_embed", "finish_embed", "mesh_key"]
 
 Progress = Optional[Callable[[float, str], None]]
 DEFAULT_BITS = 64
+KEY_FILE = "key file"  # ``Scheme.keying``: the embed returns a WatermarkKey, the reader needs it
+PASS_PHRASE = "pass phrase"  # ``Scheme.keying``: marked and read with a pass phrase alone, no key
 
 
 def no_progress(fraction: float, message: str) -> None:
@@ -44,7 +54,8 @@ class EmbedOptions:
     scheme: "robust" (the default), "paper" (the paper's Algorithms 1-2), "cho1" or "cho2" (Cho et
     al. 2007, methods I and II), "blind" (read with ``passphrase`` alone). strength: None for the
     scheme's default; for robust and paper a factor (2), for cho1/cho2 Cho's margin alpha (0.05),
-    for blind the bin-mean margin (0.07). passphrase: the blind scheme's secret (never stored).
+    for blind the bin-mean margin (0.07). passphrase: the secret of a scheme keyed by a pass phrase
+    (``Scheme.keying == PASS_PHRASE``; never stored).
     progressive: build the progressive mesh (``EmbedResult.pm``); False when it will not be shipped
     (``pmwm embed`` without ``--pm``): robust, blind, cho1 and cho2 then skip the build, most of an
     embed's time, and give the same marked mesh with ``pm`` None (the key records the mesh's own
@@ -68,23 +79,63 @@ class EmbedResult:
     """The marked mesh, its progressive mesh (None when ``EmbedOptions.progressive`` was False) and the key.
 
     vertices : (n, 3) float64 marked positions (float32-exact), in the input's vertex order.
-    faces : (m, 3) int64, the input's. carriers : (k,) int64 vertices that carry the mark
-    (robust: sites; Cho: none, the mark is global). bits : (N,) uint8 payload bits.
+    faces : (m, 3) int64, the input's. key: what the reader needs, for a scheme keyed by a key file;
+    None for one keyed by a pass phrase (the pass phrase is all the reader needs). carriers : (k,)
+    int64 vertices that carry the mark (robust: sites; Cho, blind: none, the mark is global). bits :
+    (N,) uint8 payload bits. strength: the strength used (the option's, the scheme's default, or the
+    one the scheme calibrated for this mesh).
     """
 
     vertices: np.ndarray
     faces: np.ndarray
     pm: Optional[ProgressiveMesh]
-    key: WatermarkKey
+    key: Optional[WatermarkKey]
     carriers: np.ndarray
     bits: np.ndarray
     vsnr_db: float
     rmse: float
+    strength: float = float("nan")
+
+
+@dataclass(frozen=True)
+class VerdictDetail:
+    """How a scheme read a verdict, beyond the fields every verdict has: each scheme returns its own
+    dataclass (robust, paper, Cho, blind), able to say itself in plain words (``in_words``) and give
+    its numbers (``numbers``); ``pmwm.wording`` puts them into the verdict's text. This base class is
+    the detail of a verdict that says nothing more (built by hand)."""
+
+    counted: ClassVar[str] = "bits"  # what ``Verdict.matches`` counts, in words
+
+    def headline_note(self, verdict: "Verdict") -> str:
+        """The end of the verdict's first line (after the p-value): how much of the mark was read."""
+        v = verdict
+        return (f"correlation {v.correlation:.3f}, {v.carriers_found}/{v.carriers_total} carriers read "
+                f"({v.mode})")
+
+    def notes(self) -> list[str]:
+        """Sentences a reader of the verdict must see beside it (the command line prints them under its
+        first line): none unless the reading departs from the suspect as given."""
+        return []
+
+    def in_words(self) -> list[tuple[str, str]]:
+        """(label, plain sentence) rows on how the mark was read, for a table a non-specialist reads."""
+        return []
+
+    def numbers(self) -> list[tuple[str, str]]:
+        """(name, value) rows of the reading's figures, for a technical section."""
+        return []
 
 
 @dataclass
 class Verdict:
-    """The answer of ``pmwm.verify``."""
+    """The answer of ``pmwm.verify``.
+
+    bits: the payload bits read ("0110..."): a key-file scheme gives every bit as read, to compare
+    with the key's (``bit_errors``), confirmed or not; a pass-phrase scheme gives them only when the
+    payload is confirmed ("" otherwise). payload: the text payload, only when confirmed.
+    payload_confirmed: every payload bit is vouched for (``confirm_payload``, or the scheme's own
+    check). detail: how the scheme read it (``VerdictDetail``).
+    """
 
     marked: bool
     p_value: float
@@ -97,7 +148,8 @@ class Verdict:
     carriers_total: int
     mode: str
     p_threshold: float = 1e-6
-    extra: dict = field(default_factory=dict)
+    payload_confirmed: bool = False
+    detail: VerdictDetail = field(default_factory=VerdictDetail)
     # What the verdict was read from (for reports; not in to_dict): scores (N,) float64, one soft
     # score per bit as read (sign = the scrambled bit, magnitude = confidence, 0 = erasure);
     # places (k, 3) float64, where the mark was read, in the suspect's coordinates (robust: the
@@ -108,12 +160,15 @@ class Verdict:
     place_bits: Optional[np.ndarray] = None
 
     def to_dict(self) -> dict:
+        """The verdict as JSON-ready data (``pmwm verify --json``): "bits" and "payload" are null unless
+        the payload is confirmed."""
         return {
             "marked": self.marked,
             "p_value": self.p_value,
             "p_threshold": self.p_threshold,
-            "bits": self.bits,
-            "payload": self.payload,
+            "payload_confirmed": self.payload_confirmed,
+            "bits": self.bits if self.payload_confirmed else None,
+            "payload": self.payload if self.payload_confirmed else None,
             "matches": self.matches,
             "bit_errors": self.bit_errors,
             "correlation": self.correlation,
@@ -245,25 +300,36 @@ def mesh_key(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, key
 
 
 def finish_embed(job: EmbedJob, marked: np.ndarray, pm: Union[None, ProgressiveMesh, Callable[[], ProgressiveMesh]],
-                 carriers: np.ndarray, key: Union[WatermarkKey, KeyOf]) -> EmbedResult:
+                 carriers: np.ndarray, key: Union[None, WatermarkKey, KeyOf]) -> EmbedResult:
     """The result, the last step of every embedder. marked : (n, 3) float64 the marked mesh; carriers :
     the vertices reported as carrying the mark; ``pm``: the progressive mesh, None when none was built,
     or a callable giving it (a build still running in another thread: everything else is done before
-    it is called); ``key``: the key, or a function of the progressive mesh making it (``mesh_key``)."""
+    it is called); ``key``: the key, a function of the progressive mesh making it (``mesh_key``), or
+    None (a scheme keyed by a pass phrase)."""
     V = job.vertices
     vsnr_db, rmse = metrics.vsnr(V, marked), metrics.vertex_rmse(V, marked)
     pm = pm() if callable(pm) else pm
     key = key(pm) if callable(key) else key
     job.report(1.0, "done")
     return EmbedResult(vertices=marked, faces=job.faces, pm=pm, key=key, carriers=carriers, bits=job.bits,
-                       vsnr_db=vsnr_db, rmse=rmse)
+                       vsnr_db=vsnr_db, rmse=rmse, strength=float(job.strength))
 
 
 # --------------------------------------------------------------------------- the decision
 
 
-def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_threshold: float) -> Verdict:
-    """The verdict from one score per bit, score : (N,) float64 (sign = scrambled bit, 0 = erasure)."""
+def confirm_payload(marked: bool, bits: np.ndarray, key: WatermarkKey) -> bool:
+    """The rule of a key-file scheme: the payload is confirmed when the mesh is marked and every payload
+    bit read, bits : (N,) uint8, is the key's. A scheme that corrects errors passes its own rule to
+    ``verdict_from_scores`` (confirmed after the correction)."""
+    return bool(marked and len(bits) == key.n_bits and np.array_equal(bits, key.bits))
+
+
+def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_threshold: float,
+                        detail: Optional[VerdictDetail] = None,
+                        confirm: Callable[[bool, np.ndarray, WatermarkKey], bool] = confirm_payload) -> Verdict:
+    """The verdict from one score per bit, score : (N,) float64 (sign = scrambled bit, 0 = erasure); the
+    payload text only when ``confirm(marked, bits read, key)`` holds; ``detail``: how the scheme read it."""
     n = key.n_bits
     erased = score == 0
     w = (score > 0).astype(np.uint8)
@@ -272,9 +338,11 @@ def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_thres
     bits = w ^ key.stream("scramble", n)
     matches = int(np.sum(bits == key.bits))
     p = metrics.binomial_tail(matches, n)
-    payload = decode_text(bits) if key.payload_kind == "text" else None
+    marked = bool(p < p_threshold)
+    confirmed = bool(confirm(marked, bits, key))
+    payload = decode_text(bits) if key.payload_kind == "text" and confirmed else None
     return Verdict(
-        marked=bool(p < p_threshold),
+        marked=marked,
         p_value=float(p),
         bits="".join(map(str, bits.tolist())),
         payload=payload,
@@ -285,6 +353,8 @@ def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_thres
         carriers_total=n,
         mode=mode,
         p_threshold=p_threshold,
+        payload_confirmed=confirmed,
+        detail=VerdictDetail() if detail is None else detail,
         scores=np.asarray(score, np.float64).copy(),
         places=np.zeros((0, 3)),
         place_bits=np.zeros(0, np.int64),
@@ -298,9 +368,12 @@ def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_thres
 class Scheme:
     """One watermarking scheme behind ``pmwm.embed`` / ``pmwm.verify`` (``pmwm.schemes.SCHEMES``).
 
-    embed(vertices, faces, options, progress) -> EmbedResult; verify(vertices, faces, key,
-    p_threshold) -> Verdict; load_key_data(key) -> the scheme's typed key data (validated; a
-    KeyFileError when damaged), called when a key file is read, before any suspect is loaded.
+    keying: ``KEY_FILE`` or ``PASS_PHRASE``, what the reader needs. embed(vertices, faces, options,
+    progress) -> EmbedResult (a pass-phrase scheme takes it in ``options.passphrase`` and returns no
+    key); verify(vertices, faces, secret, p_threshold) -> Verdict, ``secret`` the WatermarkKey of a
+    key-file scheme or the pass phrase (str) of a pass-phrase one; load_key_data(key) -> the scheme's
+    typed key data (validated; a KeyFileError when damaged, or for a scheme that has no key file),
+    called when a key file is read, before any suspect is loaded.
     """
 
     name: str
@@ -309,3 +382,4 @@ class Scheme:
     verify: Callable[..., Verdict]
     load_key_data: Callable[[WatermarkKey], object]
     description: str = ""
+    keying: str = KEY_FILE

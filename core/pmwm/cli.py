@@ -19,16 +19,15 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from . import __version__
+from . import __version__, wording
 from .api import embed, read_key, verify
 from .atomic import atomic_write_bytes
-from .base import EmbedOptions, Verdict
+from .base import PASS_PHRASE, EmbedOptions, Verdict
 from .errors import OutputExistsError, PmwmError
 from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .pmfile import read_pm, record_size, write_pm
-from .schemes import SCHEMES
-from .schemes.blind import guessed_payload, mesh_read
+from .schemes import SCHEMES, keyed_by
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
 
@@ -93,8 +92,8 @@ PASSPHRASE_ENV = "PMWM_PASSPHRASE"
 
 
 def _passphrase(path: Optional[str]) -> Optional[str]:
-    """The pass phrase of the blind scheme: the first line of ``path`` (its line ending dropped), else
-    $PMWM_PASSPHRASE, else None. Never printed."""
+    """The pass phrase of a scheme keyed by one (blind): the first line of ``path`` (its line ending
+    dropped), else $PMWM_PASSPHRASE, else None. Never printed."""
     if path is None:
         return os.environ.get(PASSPHRASE_ENV) or None
     try:
@@ -111,18 +110,25 @@ def _passphrase(path: Optional[str]) -> Optional[str]:
     return text
 
 
+def _schemes_keyed_by(keying: str) -> str:
+    """The --scheme options of the schemes keyed by ``keying``, for messages: "--scheme blind"."""
+    return " or ".join(f"--scheme {name}" for name in keyed_by(keying))
+
+
 def cmd_embed(a) -> int:
     _mesh_ext(a.output, "output")
-    blind = a.scheme == "blind"
-    passphrase = _passphrase(a.passphrase_file) if blind else None
-    if blind and a.key is not None:
-        raise UsageError("the blind scheme writes no key file (the pass phrase is the key); omit --key")
-    if blind and passphrase is None:
-        raise UsageError(f"the blind scheme needs a pass phrase: --passphrase-file F or ${PASSPHRASE_ENV}")
-    if not blind and a.key is None:
-        raise UsageError("the key file to write is missing: --key KEY.json (only --scheme blind needs none)")
-    if not blind and a.passphrase_file is not None:
-        raise UsageError("--passphrase-file is for --scheme blind; the other schemes write a key file")
+    by_phrase = SCHEMES[a.scheme].keying == PASS_PHRASE
+    passphrase = _passphrase(a.passphrase_file) if by_phrase else None
+    if by_phrase and a.key is not None:
+        raise UsageError(f"the {a.scheme} scheme writes no key file (the pass phrase is the key); omit --key")
+    if by_phrase and passphrase is None:
+        raise UsageError(f"the {a.scheme} scheme needs a pass phrase: --passphrase-file F or ${PASSPHRASE_ENV}")
+    if not by_phrase and a.key is None:
+        raise UsageError(f"the key file to write is missing: --key KEY.json (only {_schemes_keyed_by(PASS_PHRASE)} "
+                         "needs none)")
+    if not by_phrase and a.passphrase_file is not None:
+        raise UsageError(f"--passphrase-file is for {_schemes_keyed_by(PASS_PHRASE)}; the other schemes write a "
+                         "key file")
     _check_outputs([a.output, a.key, a.pm], [a.input], a.force)
     src = read_mesh(a.input)
     # the progressive mesh only when it is written (--pm): without it the embed skips most of its work
@@ -132,7 +138,7 @@ def cmd_embed(a) -> int:
     res = embed(src.vertices, src.faces, opts, progress=_progress(a.quiet))
     written: list[str] = []
     try:
-        if not blind:
+        if res.key is not None:
             write_key(a.key, res.key, overwrite=a.force)
             written.append(a.key)
         if a.pm:
@@ -155,7 +161,7 @@ def cmd_embed(a) -> int:
             print(f"warning: {w}", file=sys.stderr)
         print(f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
               f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}")
-        if blind:
+        if res.key is None:
             print(f"payload bits: {''.join(map(str, res.bits.tolist()))} (no key file: the pass phrase reads it)")
         else:
             print(f"key -> {a.key} (keep it secret: it reveals where the mark is)")
@@ -169,27 +175,8 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
     if as_json:
         print(json.dumps(v.to_dict()))
         return
-    state = "MARKED" if v.marked else "not marked"
-    if v.mode == "blind":
-        print(f"{state}: {v.matches}/{v.carriers_total} check bits match, p = {v.p_value:.3g} "
-              f"(threshold {v.p_threshold:g}), {v.extra.get('payload_bits')}-bit payload read (blind)")
-        read_on = mesh_read(v.extra.get("mesh", "suspect"))
-        if read_on:
-            print(read_on)
-        guess = guessed_payload(v)
-        if guess:  # no mark read (the candidate the check bits chose says nothing here)
-            print(f"payload bits guessed without the check (no mark read): {guess}")
-            how = mesh_read(v.extra["guess_mesh"])
-            if how:
-                print(f"guess {how}")
-            return
-        print(f"payload: {v.payload!r}" if v.payload is not None else f"payload bits: {v.bits}")
-        return
-    print(f"{state}: {v.matches}/{v.carriers_total} bits match, p = {v.p_value:.3g} "
-          f"(threshold {v.p_threshold:g}), correlation {v.correlation:.3f}, "
-          f"{v.carriers_found}/{v.carriers_total} carriers read ({v.mode})")
-    if v.payload is not None:
-        print(f"payload: {v.payload!r}")
+    for line in wording.lines(v):
+        print(line)
 
 
 def cmd_verify(a) -> int:
@@ -198,12 +185,14 @@ def cmd_verify(a) -> int:
             raise UsageError(f"--report {a.report}: give an .html file name")
         _check_outputs([a.report], [p for p in (a.suspect, a.key) if p is not None], a.force)
     passphrase = _passphrase(a.passphrase_file) if a.key is None else None
+    phrase_schemes = " or ".join(keyed_by(PASS_PHRASE))
     if a.key is not None and a.passphrase_file is not None:
         raise UsageError("give --key or --passphrase-file, not both")
     if a.key is None and passphrase is None:
-        raise UsageError(f"give --key KEY.json, or a pass phrase for a blind mark (--passphrase-file F or ${PASSPHRASE_ENV})")
+        raise UsageError(f"give --key KEY.json, or a pass phrase for a {phrase_schemes} mark "
+                         f"(--passphrase-file F or ${PASSPHRASE_ENV})")
     if passphrase is not None and a.report is not None:
-        raise UsageError("--report needs a key file; a blind mark has none")
+        raise UsageError(f"--report needs a key file; a {phrase_schemes} mark has none")
     key = read_key(a.key) if a.key is not None else None
     if a.suspect.lower().endswith(".pmwm"):
         pm = read_pm(a.suspect)
@@ -465,9 +454,11 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("embed", help="watermark a mesh")
     e.add_argument("input")
     e.add_argument("-o", "--output", required=True, help="marked mesh (OBJ, PLY, STL, OFF, GLB)")
-    e.add_argument("--key", help="key file to write (JSON; keep it secret); not with --scheme blind")
+    e.add_argument("--key",
+                   help=f"key file to write (JSON; keep it secret); not with {_schemes_keyed_by(PASS_PHRASE)}")
     e.add_argument("--passphrase-file", metavar="F",
-                   help=f"--scheme blind: the pass phrase is F's first line (else ${PASSPHRASE_ENV}); never printed")
+                   help=f"{_schemes_keyed_by(PASS_PHRASE)}: the pass phrase is F's first line "
+                        f"(else ${PASSPHRASE_ENV}); never printed")
     e.add_argument("--pm", help="also write the progressive mesh (.pmwm)")
     g = e.add_mutually_exclusive_group()
     g.add_argument("--payload", help="text payload (UTF-8)")
@@ -486,9 +477,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("verify", help="check a suspect mesh or .pmwm for the mark")
     v.add_argument("suspect")
-    v.add_argument("--key", help="the key file of the mark (not for a blind mark)")
+    v.add_argument("--key", help=f"the key file of the mark (not for a {' or '.join(keyed_by(PASS_PHRASE))} mark)")
     v.add_argument("--passphrase-file", metavar="F",
-                   help=f"read a blind mark with the pass phrase in F's first line (else ${PASSPHRASE_ENV})")
+                   help=f"read a {' or '.join(keyed_by(PASS_PHRASE))} mark with the pass phrase in F's first line "
+                        f"(else ${PASSPHRASE_ENV})")
     v.add_argument("--json", action="store_true", help="one JSON object on stdout")
     v.add_argument("--level", type=int, help="(.pmwm) records to apply")
     v.add_argument("--vertices", type=int, help="(.pmwm) level of detail by vertex count")

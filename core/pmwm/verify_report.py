@@ -2,7 +2,8 @@
 
 ``write_report(path, verdict, key, vertices, faces, suspect_path=..., key_path=...)`` writes it
 atomically (``pmwm.atomic``); ``build_report(...)`` returns the HTML text. The file holds the verdict
-and, in words, what its p-value means; the payload; the SHA-256 of the suspect file (or of the mesh
+and, in words, what its p-value means (``pmwm.wording``'s rows: the payload only when the verdict confirms
+it; the reading's numbers in a collapsible section); the SHA-256 of the suspect file (or of the mesh
 data when there is no file, as in Blender) and of the key file; the date and the pmwm version; a
 chart of each bit's confidence (inline SVG, from ``Verdict.scores``); and pictures of the suspect
 from three views with the places the mark was read highlighted (``Verdict.places``), rendered here
@@ -24,7 +25,7 @@ from typing import Optional
 
 import numpy as np
 
-from . import __version__
+from . import __version__, wording
 from .adjacency import unique_values
 from .atomic import atomic_write_bytes, file_sha256
 from .base import Verdict
@@ -287,24 +288,22 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
 
     e = html.escape
     state_text = "MARKED" if v.marked else "NOT MARKED"
-    payload = v.payload if v.payload is not None else None
-    rows = [
-        ("Suspect", e(name) + f" ({len(np.asarray(vertices))} vertices, {len(np.asarray(faces))} triangles)"),
-        ("Verdict", f"<strong>{state_text}</strong>"),
-        ("p-value", f"{v.p_value:.3g} (threshold {v.p_threshold:g})"),
-        ("Matching bits", f"{v.matches} of {v.carriers_total} ({v.bit_errors} wrong)"),
-        ("Payload read", (f"“{e(payload)}”" if payload is not None else "(not text)")),
-        ("Bits read", f'<span class="hash">{e(v.bits)}</span>'),
-        ("Scheme", f"{e(key.scheme)} (read: {e(v.mode)}"
-                   + "".join(f"; {e(str(k))}: {e(str(val))}" for k, val in v.extra.items()
-                             if isinstance(val, (str, int))) + ")"),
-        (e(suspect_hash[0]), f'<span class="hash">{suspect_hash[1]}</span>'),
-    ]
+
+    def cell(label: str, value: str) -> str:
+        if label == "Verdict":
+            return f"<strong>{e(value)}</strong>"
+        return f'<span class="hash">{e(value)}</span>' if label == "Payload bits" else e(value)
+
+    rows = [("Suspect", e(name) + f" ({len(np.asarray(vertices))} vertices, {len(np.asarray(faces))} triangles)"),
+            ("Scheme", e(key.scheme)),
+            *((e(label), cell(label, value)) for label, value in wording.rows(v)),
+            (e(suspect_hash[0]), f'<span class="hash">{suspect_hash[1]}</span>')]
     if key_hash:
         rows.append((e(key_hash[0]), f'<span class="hash">{key_hash[1]}</span>'))
     rows += [("Date (UTC)", when.astimezone(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S")),
              ("Software", f"pmwm {e(__version__)}")]
     table = "".join(f"<tr><th>{k}</th><td>{val}</td></tr>" for k, val in rows)
+    numbers = "".join(f"<tr><th>{e(k)}</th><td>{e(val)}</td></tr>" for k, val in wording.technical_rows(v))
 
     n_read = int(np.sum(state != "erased"))
     figures = "".join(
@@ -333,6 +332,9 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
 <p id="meaning">{e(p_value_in_words(v))}</p>
 <h2>Details</h2>
 <table>{table}</table>
+<details id="numbers"><summary>How it was read, in numbers</summary>
+<table>{numbers}</table>
+</details>
 <h2>Confidence of each bit</h2>
 <p>Each bar is one of the {v.carriers_total} payload bits ({n_read} read): up and green when the bit read is the key's,
 down and red when it is not, a grey tick when it could not be read. Its height is the strength of the reading relative

@@ -94,19 +94,24 @@ class SchemeMethod:
     def options(self, bits: Any, seed: Optional[int]) -> pmwm.EmbedOptions:
         """The ``pmwm.EmbedOptions`` of one embedding."""
         strength = None if self.strength is None else float(self.strength)
-        phrase = f"{BLIND_PASSPHRASE}:{seed}" if self.scheme == "blind" else None
+        phrase = f"{BLIND_PASSPHRASE}:{seed}" if pmwm.SCHEMES[self.scheme].keying == pmwm.PASS_PHRASE else None
         return pmwm.EmbedOptions(bits=np.asarray(bits).ravel(), seed=seed, strength=strength, scheme=self.scheme,
                                  passphrase=phrase)
 
     def embed(self, vertices: np.ndarray, faces: np.ndarray, bits: Any, seed: Optional[int] = None
               ) -> tuple[np.ndarray, Any]:
         """Mark (vertices (n, 3), faces (m, 3)) with ``bits`` ((b,) 0/1 or a '0'/'1' string), every random
-        choice from ``seed``; returns (marked vertices (n, 3), the key ``pmwm.verify`` reads)."""
-        res = pmwm.embed(vertices, faces, self.options(bits, seed))
-        return res.vertices, res.key
+        choice from ``seed``; returns (marked vertices (n, 3), what ``pmwm.verify`` reads with: the key, or
+        the pass phrase (str) of a scheme keyed by one)."""
+        opts = self.options(bits, seed)
+        res = pmwm.embed(vertices, faces, opts)
+        return res.vertices, res.key if res.key is not None else opts.passphrase
 
     def extract(self, vertices: np.ndarray, faces: np.ndarray, key: Any) -> str:
-        """The bits read from a suspect copy (vertices (n', 3), faces (m', 3)), a '0'/'1' string."""
+        """The bits read from a suspect copy (vertices (n', 3), faces (m', 3)), a '0'/'1' string ("" when a
+        pass-phrase scheme reads no mark: it vouches for no bit)."""
+        if isinstance(key, str):
+            return pmwm.verify(vertices, faces, passphrase=key).bits
         return pmwm.verify(vertices, faces, key).bits
 
 

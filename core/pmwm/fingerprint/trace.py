@@ -5,10 +5,11 @@ recipients whose corrected p-value is below the threshold (``codes``)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 
-from ..schemes.robust.read import read_scores
+from ..schemes.robust.read import RobustDetail, read_scores
 from .codes import Accusation, accuse
 from .registry import FingerprintKey, Registry
 
@@ -30,7 +31,7 @@ class TraceResult:
     recipients: list = field(repr=False, default_factory=list)
     scores: np.ndarray = field(repr=False, default=None)
     p_values: np.ndarray = field(repr=False, default=None)
-    extra: dict = field(default_factory=dict)
+    detail: Optional[RobustDetail] = None  # how the robust reader read the copy
 
     @property
     def traced(self) -> bool:
@@ -42,7 +43,7 @@ class TraceResult:
                 "sites_read": self.sites_read, "sites_total": self.sites_total}
 
 
-def site_readings(vertices, faces, fk: FingerprintKey) -> tuple[np.ndarray, str, dict]:
+def site_readings(vertices, faces, fk: FingerprintKey) -> tuple[np.ndarray, str, RobustDetail]:
     """Each site's weighted soft value x (S,) float64 (soft / variance, 0 where unread) of a suspect
     (any pose, order, resolution), how it was aligned, and the reader's details."""
     return read_scores(vertices, faces, fk.key)
@@ -53,8 +54,8 @@ def trace(vertices, faces, fk: FingerprintKey, registry: Registry, p_threshold: 
     when the registry is not the key's)."""
     registry.check(fk)
     ids, C = registry.codewords()
-    x, mode, extra = site_readings(vertices, faces, fk)
+    x, mode, detail = site_readings(vertices, faces, fk)
     accused, T, p = accuse(x, ids, C, p_threshold)
-    return TraceResult(accused, p_threshold, len(ids), mode, int(extra.get("sites_read", 0)),
-                       int(extra.get("sites_total", len(x))), ids, T, p, extra)
+    return TraceResult(accused, p_threshold, len(ids), mode, detail.sites_read, detail.sites_total, ids, T, p,
+                       detail)
 

@@ -5,13 +5,15 @@
 - ``cho1``, ``cho2``: Cho et al. 2007, methods I and II (the distribution of vertex norms; blind).
 - ``blind``: read with a pass phrase alone, no key file (vertex norms over a quantile range, keyed check).
 
-Each scheme module imports the shared layers below it (``base``, ``key``, geometry), never another
-scheme and never ``pmwm.api``.
+Each scheme says what its reader needs (``Scheme.keying``: a key file, or a pass phrase alone); front
+ends look schemes up here (``SCHEMES``, ``get_scheme``, ``keyed_by``, ``passphrase_scheme``) and never
+import a scheme's own modules. Each scheme module imports the shared layers below it (``base``, ``key``,
+geometry), never another scheme and never ``pmwm.api``.
 """
 
 from __future__ import annotations
 
-from ..base import Scheme
+from ..base import PASS_PHRASE, Scheme
 from ..errors import PayloadError
 from .blind import SCHEME as BLIND
 from .cho import CHO1, CHO2
@@ -21,7 +23,7 @@ from .robust import SCHEME as ROBUST
 SCHEMES: dict[str, Scheme] = {s.name: s for s in (ROBUST, PAPER, CHO1, CHO2, BLIND)}
 DEFAULT_SCHEME = "robust"
 
-__all__ = ["SCHEMES", "DEFAULT_SCHEME", "get_scheme"]
+__all__ = ["SCHEMES", "DEFAULT_SCHEME", "get_scheme", "keyed_by", "passphrase_scheme"]
 
 
 def get_scheme(name: str, error=PayloadError) -> Scheme:
@@ -30,3 +32,16 @@ def get_scheme(name: str, error=PayloadError) -> Scheme:
         return SCHEMES[name]
     except (KeyError, TypeError):
         raise error(f"unknown scheme {name!r}; use one of {', '.join(SCHEMES)}") from None
+
+
+def keyed_by(keying: str) -> list[str]:
+    """The names of the schemes whose ``keying`` is ``keying`` ("key file" or "pass phrase")."""
+    return [s.name for s in SCHEMES.values() if s.keying == keying]
+
+
+def passphrase_scheme() -> Scheme:
+    """The scheme that reads a mark with a pass phrase alone (``pmwm.verify(..., passphrase=...)``)."""
+    names = keyed_by(PASS_PHRASE)
+    if len(names) != 1:  # (one today: a second one would need the caller to name it)
+        raise PayloadError(f"no single scheme reads with a pass phrase: {names}")
+    return SCHEMES[names[0]]

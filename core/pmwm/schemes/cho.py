@@ -34,8 +34,8 @@ from typing import Optional
 import numpy as np
 
 from ..adjacency import build_adjacency
-from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, mesh_key, start_embed,
-                   verdict_from_scores)
+from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, VerdictDetail, finish_embed, mesh_key,
+                   start_embed, verdict_from_scores)
 from ..errors import KeyFileError, MeshError, PayloadError
 from ..key import WatermarkKey, keyed_bits
 from ..progressive import base_vertex_count, build_progressive_mesh
@@ -71,6 +71,27 @@ class ChoKeyData:
 
 
 _THRESHOLD = {"I": 0.5, "II": 1.0 / 3.0}
+_STATISTIC = {"I": "mean", "II": "variance"}
+
+
+@dataclass(frozen=True)
+class ChoDetail(VerdictDetail):
+    """How Cho's reader read a suspect: the method ("I": each bin's mean, "II": its variance), the
+    bins (one per bit) and how many of them held no vertex (erasures)."""
+
+    method: str
+    bins: int
+    empty_bins: int
+
+    def in_words(self) -> list[tuple[str, str]]:
+        return [("How it was read", f"from the spread of the vertices' distances to their centre, over the whole "
+                                    f"surface (Cho et al. 2007, method {self.method})"),
+                ("Parts read", f"{self.bins - self.empty_bins} of the {self.bins} distance ranges that carry "
+                               "the mark")]
+
+    def numbers(self) -> list[tuple[str, str]]:
+        return [("method", f"{self.method} (bin {_STATISTIC[self.method]})"),
+                ("bins read", f"{self.bins - self.empty_bins}/{self.bins}")]
 
 
 @dataclass
@@ -206,8 +227,10 @@ def _verify(method: str):
         V, _ = check_mesh(vertices, faces)
         if len(V) < 2:
             raise MeshError("the suspect has fewer than two vertices; Cho's method reads a distribution")
-        score = np.nan_to_num(_statistics(V, key.n_bits, method) - _THRESHOLD[method], nan=0.0)
-        return verdict_from_scores(score, key, "blind", p_threshold)
+        stat = _statistics(V, key.n_bits, method)
+        score = np.nan_to_num(stat - _THRESHOLD[method], nan=0.0)
+        detail = ChoDetail(method, key.n_bits, int(np.isnan(stat).sum()))
+        return verdict_from_scores(score, key, "blind", p_threshold, detail)
 
     return verify
 

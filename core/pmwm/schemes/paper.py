@@ -34,13 +34,14 @@ The verdict is ``pmwm.base.verdict_from_scores``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
 from ..adjacency import Adjacency, build_adjacency, gather_rows, unique_values
-from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, mesh_key, start_embed,
-                    verdict_from_scores)
+from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, VerdictDetail, finish_embed, mesh_key,
+                    start_embed, verdict_from_scores)
 from ..carriers import eligible_carriers, select_carriers
 from ..errors import KeyFileError
 from ..key import WatermarkKey, derive_seed, face_fingerprint, keyed_bits
@@ -129,6 +130,27 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
 
 # --------------------------------------------------------------------------- extraction
 
+_FOUND_IN_WORDS = {
+    "faces fingerprint": "the copy has the marked mesh's faces: each carrier read at its own vertex",
+    "near their places": "the carriers sit near their marked places: each read at its own vertex",
+    "nearest vertex": "the copy was re-ordered or re-meshed: each carrier read at the vertex nearest its place",
+}
+
+
+@dataclass(frozen=True)
+class PaperDetail(VerdictDetail):
+    """How the paper's reader found the carriers (``locate_carriers``): "faces fingerprint", "near their
+    places" (both by index) or "nearest vertex" (by position)."""
+
+    carriers: str
+
+    def in_words(self) -> list[tuple[str, str]]:
+        return [("How the carriers were found", _FOUND_IN_WORDS.get(self.carriers, self.carriers))]
+
+    def numbers(self) -> list[tuple[str, str]]:
+        return [("carriers found by", self.carriers)]
+
+
 
 def locate_carriers(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> tuple[np.ndarray, str, str]:
     """Index of each carrier in V (-1 when not found), how it was found ("index" or "position") and
@@ -191,8 +213,7 @@ def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Ver
     vertices : (n, 3) float64, faces : (m, 3) int64, any order and resolution."""
     V, F = check_mesh(vertices, faces)
     idx, mode, how = locate_carriers(V, F, key)
-    verdict = verdict_from_scores(carrier_scores(V, F, idx), key, mode, p_threshold)
-    verdict.extra = {"carriers": how}
+    verdict = verdict_from_scores(carrier_scores(V, F, idx), key, mode, p_threshold, PaperDetail(how))
     found = np.flatnonzero(idx >= 0)
     verdict.places, verdict.place_bits = V[idx[found]].copy(), found
     return verdict

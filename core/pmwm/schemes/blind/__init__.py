@@ -4,11 +4,12 @@
 - ``radial``: the carrier, the distribution of the vertices' distances to the surface centroid in equal bins
   (Cho et al.'s method I over an area-quantile range, with an edge-preserving push), and the frame refinement.
 - ``crop``: the frame of a plane-cropped copy; ``frames``: the frames and meshes the reader reads in.
-- ``keydata``: the record in the in-memory key (no key file is written; nothing from the mesh).
+- ``detail``: ``BlindDetail``, how a verdict was read. No key exists: ``pmwm.embed`` returns none.
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed bins, and
 checks that it reads back. Reading chooses frames, meshes and the word length without the pass phrase, then
-keeps the candidate whose check bits match best; its p-value is a union bound over every candidate read. The
+keeps the candidate whose check bits match best; its p-value is a union bound over every candidate read. A
+marked reading's payload is confirmed by its check bits; a reading that finds no mark returns no payload. The
 algorithm: docs/schemes/blind.md; the measurements behind its choices: docs/decisions/080-blind-reader-frames.md.
 """
 
@@ -21,16 +22,16 @@ import numpy as np
 
 from ... import metrics
 from ...background import Background, beside, silent
-from ...base import EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
-from ...errors import MeshError, PayloadError
+from ...base import PASS_PHRASE, EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
+from ...errors import KeyFileError, MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...validate import check_mesh
 from . import frames, radial, word
-from .keydata import BlindKeyData
+from .detail import BlindDetail, mesh_read
 
-__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "read_with_passphrase",
-           "bin_statistics", "decide", "Statistics", "word_read", "mesh_read", "guessed_payload", "BlindKeyData"]
+__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "read", "verify", "bin_statistics", "decide", "Statistics",
+           "word_read", "guess_word", "mesh_read", "BlindDetail"]
 
 DEFAULT_ALPHA = 0.07
 TARGET_MRMS = 0.019  # without an explicit strength: the margin giving this MRMS (% of the bbox diagonal)
@@ -86,22 +87,18 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
             pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
             return with_positions(pm, marked)
 
-        job.bits = payload  # (the result's bits: the payload embedded; the key holds the secret and its kind)
-        return finish_embed(job, marked, marked_pm if build else None, np.zeros(0, np.int64),
-                            _key(secret, payload, kind, job.strength))
+        job.bits = payload  # (the result's bits: the payload embedded)
+        return finish_embed(job, marked, marked_pm if build else None, np.zeros(0, np.int64), None)
 
 
 def _calibrated(V, F, signs, alpha, marked, host: radial.Host) -> tuple[float, np.ndarray]:
     """(margin, marked vertices) with the margin rescaled up to CALIBRATION_ROUNDS times so that the
-    embedding's MRMS (the benchmark's surface distance on ``CALIBRATION_SAMPLES`` points;
-    ``metrics.displaced_surface_distance`` measures it without a spatial index: the same figure as
-    ``metrics.surface_distance`` on the bunny, Venus head and Igea, 1.4e-5 relative above it on the dragon,
-    in a third of the time) is TARGET_MRMS % of the bounding-box diagonal, clipped to ALPHA_RANGE. The
-    same margin gives different distortions on different shapes (0.07: MRMS 0.012 % on the Venus head,
-    0.019 % on the bunny); spending the same budget on each buys robustness where the margin was cheap.
-    The MRMS grows about linearly with the margin, not exactly: one rescale left the Venus head at
-    0.0177-0.0181 %, a second brings it to 0.0188 %. The margin used is recorded in the key; the reader
-    does not need it."""
+    embedding's MRMS (the benchmark's surface distance on ``CALIBRATION_SAMPLES`` points, measured
+    without a spatial index by ``metrics.displaced_surface_distance``) is TARGET_MRMS % of the
+    bounding-box diagonal, clipped to ALPHA_RANGE: the same margin gives different distortions on
+    different shapes, and spending the same budget on each buys robustness where the margin is cheap.
+    The MRMS grows about linearly with the margin, not exactly, hence a second rescale. The reader does
+    not need the margin (``EmbedResult.strength`` reports it)."""
     for _ in range(CALIBRATION_ROUNDS):
         mrms = metrics.displaced_surface_distance(V, marked, F, CALIBRATION_SAMPLES, seed=0)[0]
         if not mrms > 0:
@@ -124,9 +121,9 @@ class Statistics:
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
     subdivided suspect was made from: ``frames.Frames.mesh``; the "denoised" frames': ``frames.mesh_of``);
     ``reserve``, the number of trailing frames read with what the p-value's budget leaves
-    (``frames.Frames.reserve``, ``candidates``); ``guess``, called only for a verdict that finds no mark (``frames.Frames.guess``: for a suspect on a coarse
-    grid, the statistics of the suspect as it is or smoothed, and the length (an index into ``words``) whose bins
-    show the most energy, else None; ``_guess``)."""
+    (``frames.Frames.reserve``, ``candidates``); ``guess``, called by ``guess_word`` only
+    (``frames.Frames.guess``: for a suspect on a coarse grid, the statistics of the suspect as it is or
+    smoothed, and the length (an index into ``words``) whose bins show the most energy, else None)."""
 
     words: dict[int, np.ndarray]
     n_word: int
@@ -174,7 +171,7 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
     rank the bits by how likely they are right (the Chase search's order, ``word.likely_flips``). The
     neighbours' interference is removed in those units: the margins make every bin's mark the same
     number of standard errors (``radial.bin_margins``), as the equalizer's model has it (one g for all
-    bins), where in bin means they differ from bin to bin (BENCHMARKS.md, ``blind-equalizer-rounds``)."""
+    bins), where in bin means they differ from bin to bin."""
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
     if share is not None:
         stat = radial.in_standard_errors(stat, share)
@@ -217,48 +214,45 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
     p = float(min(1.0, len(word.KINDS) * sum(per_reading) * p1))
     m = -neg_m
     payload = cand[:L]
-    text = word.text_of(payload) if kind == "text" else None
     expected = word.check_bits(secret, kind, payload)
-    marked = bool(p < p_threshold)
-    guessed = {} if marked else _guess(stats, secret, per_frame[0], shares[0])
+    marked = bool(p < p_threshold)  # (its check bits confirm the payload: a marked reading's is confirmed)
+    detail = BlindDetail(
+        payload_bits=L, check_bits=word.CHECK_BITS,
+        mesh=frames.mesh_of(stats.frame_names[fi], stats.mesh), frame=stats.frame_names[fi], frame_index=fi,
+        frames=n_frames, chase_bits=chase, reserve_frames=stats.reserve, candidates=per_reading[fi],
+        payload_kind=kind if marked else None,
+        word="".join(map(str, cand.tolist())) if marked else None,  # after the Chase search
+        word_read="".join(map(str, raw.tolist())) if marked else None)  # the hard decisions, before it
     return Verdict(
-        marked=marked, p_value=p, bits="".join(map(str, payload.tolist())), payload=text,
+        marked=marked, p_value=p, bits="".join(map(str, payload.tolist())) if marked else "",
+        payload=word.text_of(payload) if kind == "text" and marked else None,
         # matches / bit_errors / carriers_*: over the check bits (what the p-value counts)
         matches=m, bit_errors=word.CHECK_BITS - m,
         correlation=float(metrics.correlation(expected, cand[L:])),
         carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
-        p_threshold=p_threshold,
-        extra={"payload_bits": L, "check_bits": word.CHECK_BITS, "payload_kind": kind,
-               # the mesh of the reading kept: "suspect", the subdivision steps undone, the smoothing
-               # steps undone or taken ("smoothing:k", k < 0: a "denoised" frame; frames.mesh_of)
-               "mesh": frames.mesh_of(stats.frame_names[fi], stats.mesh),
-               "frame": stats.frame_names[fi], "frame_index": fi, "frames": n_frames, "chase_bits": chase,
-               "reserve_frames": stats.reserve, "candidates": per_reading[fi],
-               "word": "".join(map(str, cand.tolist())),  # after the Chase search
-               "word_read": "".join(map(str, raw.tolist())),  # the hard decisions, before it
-               **guessed},  # no mark found: the word guessed without the check bits (``_guess``)
+        p_threshold=p_threshold, payload_confirmed=marked, detail=detail,
         scores=score,  # (N,) sign = the scrambled bit read, as every scheme's scores
         places=np.zeros((0, 3)), place_bits=np.zeros(0, np.int64),
     )
 
 
-def _guess(stats: Statistics, secret: str, own: np.ndarray, own_share: Optional[np.ndarray]) -> dict[str, str]:
-    """For a verdict that finds no mark, the reader's best guess of the word, chosen without the check bits:
-    {"guess": the hard decisions (``word_read``) of the reading's own frame (``own`` (M,), ``own_share``) at the
-    length read, or for a suspect on a coarse grid those of ``Statistics.guess`` (the suspect as it is or
-    smoothed, and the length, whichever shows the most mark energy: ``frames.guess_statistics``); "guess_mesh":
-    the mesh they were read on}. The verdict's ``bits`` and "word" are the candidate whose check bits matched
-    best, which, when nothing is read, the check bits chose; a guess is what an owner can compare with the
-    payloads they marked. At 7-bit quantization it errs on 0.02-0.21 of the bits where the own frame errs on
-    0.06-0.39 (mean per model; four models, 20 keys each; BENCHMARKS.md, ``session-30``)."""
+def guess_word(stats: Statistics, secret: str) -> tuple[np.ndarray, str]:
+    """The reader's best guess of the word (payload + check bits) (N,) uint8, chosen without the check
+    bits, and the mesh it was read on: the hard decisions (``word_read``) of the suspect's own frame at
+    the length read, or for a suspect on a coarse grid those of ``Statistics.guess`` (the suspect as it
+    is or smoothed, and the length, whichever shows the most mark energy: ``frames.guess_statistics``).
+    Nothing confirms it: it is never part of a verdict; an owner may compare it with the payloads
+    they marked when no mark is read."""
     found = None if stats.guess is None else stats.guess()
     if found is None:
-        n_word, stat, share, mesh = stats.n_word, own, own_share, stats.mesh
+        own = np.atleast_2d(stats.words[stats.n_word])[0]
+        share = None if stats.shares is None else np.atleast_2d(stats.shares[stats.n_word])[0]
+        n_word, stat, mesh = stats.n_word, own, stats.mesh
     else:
         steps, index, stat, share = found
         n_word, mesh = list(stats.words)[index], f"smoothing:-{steps}" if steps else "suspect"
     got, _ = word_read(stat, secret, n_word, share)
-    return {"guess": "".join(map(str, got.tolist())), "guess_mesh": mesh}
+    return got, mesh
 
 
 def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
@@ -267,61 +261,20 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
     return decide(bin_statistics(vertices, faces), secret, p_threshold)
 
 
-def read_with_passphrase(vertices, faces, passphrase: str, p_threshold: float = 1e-6) -> Verdict:
+def verify(vertices, faces, passphrase: str, p_threshold: float = 1e-6) -> Verdict:
     """``read`` with the secret of ``passphrase``, derived in a worker thread beside the bins' statistics,
-    which need none: hashlib's scrypt (``word.SCRYPT``, about 0.05 s) releases the GIL, so the derivation
-    costs a cut suspect's reading no time on two cores."""
+    which need none: hashlib's scrypt (``word.SCRYPT``) releases the GIL, so the derivation costs the
+    reading no time on two cores."""
     word.check_passphrase(passphrase)
     with Background(silent(word.derive_secret), passphrase) as deriving:
         stats = bin_statistics(vertices, faces)
         return decide(stats, deriving.result(), p_threshold)
 
 
-def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
-    """Read with the secret of ``key`` (from ``pmwm.embed`` or ``key_from_passphrase``); the payload in
-    the key is not used: the reading is blind."""
-    return read(vertices, faces, key.secret, p_threshold)
-
-
-def mesh_read(mesh: str) -> str:
-    """The mesh a verdict was read on (``Verdict.extra["mesh"]``, ``frames.Frames.mesh``) in words, for
-    the command line and the add-on: "" for the suspect itself."""
-    if mesh == "suspect":
-        return ""
-    if mesh.startswith("smoothing:"):
-        steps = int(mesh.split(":", 1)[1])
-        if steps < 0:
-            return f"read after {-steps} steps of Laplacian smoothing ({frames.DENOISE_LAM:g} each) against noise"
-        return f"read with {steps} steps of Laplacian smoothing ({frames.UNSMOOTH_LAM:g} each) undone"
-    return f"read on the mesh it was subdivided from: {mesh} undone"
-
-
-def guessed_payload(verdict: Verdict) -> str:
-    """The payload bits of a verdict's guess (``_guess``: a verdict that read no mark), for the command line
-    and the add-on; "" when it has none (a verdict that read the mark, or another scheme's)."""
-    return verdict.extra.get("guess", "")[: verdict.extra.get("payload_bits", 0)]
-
-
-def key_from_passphrase(passphrase: str) -> WatermarkKey:
-    """An in-memory key for ``pmwm.verify`` that holds only the secret derived from ``passphrase``."""
-    return _key(word.derive_secret(passphrase), np.zeros(word.PAYLOAD_BITS[0], np.uint8), "bits", DEFAULT_ALPHA)
-
-
-def _key(secret: str, payload: np.ndarray, kind: str, margin: float) -> WatermarkKey:
-    """The blind scheme's key: the secret, the payload (N,) uint8 and its kind, the margin; nothing of the
-    mesh (no size, no fingerprint, no coordinate: the reader needs none, and a key file written from it
-    tells nothing of the asset)."""
-    return WatermarkKey(
-        secret=secret, bits=payload, payload_kind=kind, strength=margin, carrier_index=np.zeros(0, np.int64),
-        carrier_pm_index=np.zeros(0, np.int64), carrier_position=np.zeros((0, 3)), n_vertices=1, n_faces=1,
-        mean_edge=1.0, bbox_diagonal=1.0, scheme=NAME, data=BlindKeyData(len(payload), word.CHECK_BITS, margin),
-    )
-
-
-def load_key_data(key: WatermarkKey) -> BlindKeyData:
-    """The blind data of a key."""
-    return BlindKeyData.from_extra(key.extra if isinstance(key.extra, dict) else {})
+def load_key_data(key: WatermarkKey) -> None:
+    """The blind scheme has no key file: a key that names it is refused."""
+    raise KeyFileError("the blind scheme has no key file: read the mark with its pass phrase")
 
 
 SCHEME = Scheme(NAME, DEFAULT_ALPHA, embed, verify, load_key_data,
-                "read with a pass phrase alone (no key file); the distribution of vertex norms")
+                "read with a pass phrase alone (no key file); the distribution of vertex norms", PASS_PHRASE)

@@ -73,9 +73,9 @@ from ...base import Scheme
 from ...key import WatermarkKey
 from .embed import DEFAULT_STRENGTH, embed
 from .keydata import RobustKeyData
-from .read import NAME, key_data, read_scores, verify
+from .read import NAME, RobustDetail, key_data, read_scores, verify
 
-__all__ = ["SCHEME", "embed", "verify", "read_scores", "key_data", "RobustKeyData"]
+__all__ = ["SCHEME", "embed", "verify", "read_scores", "key_data", "RobustKeyData", "RobustDetail"]
 
 
 def load_key_data(key: WatermarkKey) -> RobustKeyData:

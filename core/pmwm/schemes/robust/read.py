@@ -4,11 +4,12 @@ and the per-bit scores. Shapes: S sites, K samples per site."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
 
-from ...base import Verdict, verdict_from_scores
+from ...base import Verdict, VerdictDetail, verdict_from_scores
 from ...errors import KeyFileError
 from ...key import WatermarkKey
 from ...register import register, similarity_fit
@@ -23,6 +24,45 @@ VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
 INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
+
+
+ALIGNED = "none (already in the key's frame)"  # RobustDetail.registration of a copy read in place
+BY_INDEX = "by vertex index"  # ... of a copy registered by its sample vertices
+
+
+@dataclass(frozen=True)
+class RobustDetail(VerdictDetail):
+    """How the robust reader read a suspect. registration: ``ALIGNED``, ``BY_INDEX``, or the start of the
+    surface registration that won (``pmwm.register``: "identity", "pca..."), then ``residual`` (its trimmed
+    RMS distance, in the key's frame) and ``scale`` (suspect size / marked size); heights: "by vertex index"
+    or "by position" (", site vertices first" for a copy in the key's frame); sites_read of sites_total:
+    the sites whose bump could be read."""
+
+    registration: str
+    heights: str
+    sites_read: int
+    sites_total: int
+    residual: Optional[float] = None
+    scale: Optional[float] = None
+
+    def in_words(self) -> list[tuple[str, str]]:
+        if self.registration == ALIGNED:
+            found = "it sits where the marked mesh was: read in place"
+        elif self.registration == BY_INDEX:
+            found = "it keeps the marked mesh's vertex order: lined up with the key vertex by vertex"
+        else:
+            found = "it was moved, re-ordered or re-meshed: lined up with the key by its shape"
+        how = ("each place read on its own vertices" if self.heights.startswith("by vertex index") else
+               "each place read where the surface passes")
+        return [("How the copy was found", found), ("How it was read", how),
+                ("Places read", f"{self.sites_read} of the {self.sites_total} places that carry the mark")]
+
+    def numbers(self) -> list[tuple[str, str]]:
+        rows = [("registration", self.registration), ("heights", self.heights),
+                ("sites read", f"{self.sites_read}/{self.sites_total}")]
+        if self.residual is not None:
+            rows += [("registration residual", f"{self.residual:.3g}"), ("scale", f"{self.scale:.6g}")]
+        return rows
 
 
 def key_data(key: WatermarkKey) -> RobustKeyData:
@@ -152,21 +192,22 @@ def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int)
     return np.bincount(s.bit[ok], weights=(s.chip * soft / var)[ok], minlength=n_bits)
 
 
-def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict]:
+def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, RobustDetail]:
     """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details."""
-    scores, mode, extra, _ = _read(vertices, faces, key)
-    return scores, mode, extra
+    scores, mode, detail, _ = _read(vertices, faces, key)
+    return scores, mode, detail
 
 
-def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tuple[np.ndarray, np.ndarray]]:
+def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, RobustDetail, tuple[np.ndarray, np.ndarray]]:
     """read_scores, and where the mark was read: (places (k, 3) of the sites read, in the suspect's
     coordinates; the bit of each)."""
     s = key_data(key)
     V, F = check_mesh(vertices, faces)
     aligned = _in_key_frame(V, s, key)
     X, back = V, _identity  # X: the suspect in the key's frame; back: key's frame -> suspect
+    residual = scale = None
     if aligned:
-        extra = {"registration": "none (already in the key's frame)"}
+        registration = ALIGNED
         mode = "aligned"
         by_index = _same_vertices(X, s, key)
     else:
@@ -177,12 +218,12 @@ def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tu
             X, back = _refined(V, s, back)
         by_index = _same_vertices(X, s, key)
         if by_index:
-            extra = {"registration": "by vertex index"}
+            registration = BY_INDEX
         else:
             X, info = register(V, F, s.frame)
             R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
             back = lambda P: (P - t) @ R / k  # noqa: E731
-            extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
+            registration, residual, scale = info.init, float(info.residual), float(info.scale)
             by_index = _same_vertices(X, s, key)
             if by_index:
                 X, back = _refined(X, s, back)
@@ -199,11 +240,10 @@ def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tu
         if by_index and s.swirl > 0:  # keys from before the swirl have none
             soft_t, var_t = swirl_soft(X, s)
             soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
-    extra.update({"heights": ("by vertex index" if by_index else "by position")
-                  + (", site vertices first" if aligned else ""),
-                  "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
+    heights = ("by vertex index" if by_index else "by position") + (", site vertices first" if aligned else "")
+    detail = RobustDetail(registration, heights, int(np.isfinite(soft).sum()), int(len(soft)), residual, scale)
     read = np.flatnonzero(np.isfinite(soft))
-    return bit_scores(soft, var, s, key.n_bits), mode, extra, (back(s.origin[read]), s.bit[read].astype(np.int64))
+    return bit_scores(soft, var, s, key.n_bits), mode, detail, (back(s.origin[read]), s.bit[read].astype(np.int64))
 
 
 def _identity(P: np.ndarray) -> np.ndarray:
@@ -212,9 +252,8 @@ def _identity(P: np.ndarray) -> np.ndarray:
 
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
     """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
-    scores, mode, extra, (places, place_bits) = _read(vertices, faces, key)
-    verdict = verdict_from_scores(scores, key, mode, p_threshold)
-    verdict.extra = extra
+    scores, mode, detail, (places, place_bits) = _read(vertices, faces, key)
+    verdict = verdict_from_scores(scores, key, mode, p_threshold, detail)
     verdict.places, verdict.place_bits = places, place_bits
     return verdict
 
