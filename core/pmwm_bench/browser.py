@@ -1,0 +1,181 @@
+"""Headless chromium driven over the DevTools protocol, standard library only (for the web viewer's
+tests and benchmark).
+
+Chromium runs with ``--remote-debugging-pipe``: it reads protocol commands on its file descriptor 3
+and writes answers and events on 4, each message JSON ended by a NUL byte, so no websocket client and
+no driver package are needed. Software GL (SwiftShader) draws WebGL without a GPU. Only the local
+chromium runs; nothing is downloaded.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import queue
+import shutil
+import subprocess
+import tempfile
+import threading
+import time
+from typing import Any, Optional
+
+CHROMIUM = "/usr/bin/chromium"
+FLAGS = (
+    "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    "--disable-quic", "--no-first-run", "--no-default-browser-check", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--disable-extensions", "--mute-audio",
+    "--window-size=900,700",
+)
+
+
+class BrowserError(RuntimeError):
+    """Chromium failed to start, answered with an error, or a wait timed out."""
+
+
+def find_chromium() -> Optional[str]:
+    """The chromium executable: /usr/bin/chromium (Debian's package), else one on PATH; None if absent."""
+    if os.access(CHROMIUM, os.X_OK):
+        return CHROMIUM
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+class Browser:
+    """One headless chromium with a fresh profile; ``page()`` opens a tab. Use as a context manager."""
+
+    def __init__(self, executable: Optional[str] = None, download_dir: Optional[str] = None):
+        exe = executable or find_chromium()
+        if exe is None:
+            raise BrowserError("chromium is not installed (Debian: apt-get install chromium)")
+        self.profile = tempfile.mkdtemp(prefix="pmwm-chromium-")
+        cmd_r, cmd_w = os.pipe()  # we write commands, chromium reads them on fd 3
+        res_r, res_w = os.pipe()  # chromium writes on fd 4, we read
+        # moved above the low numbers, so that placing them on 3 and 4 in the child cannot clobber one
+        high = [fcntl.fcntl(fd, fcntl.F_DUPFD, 16) for fd in (cmd_r, res_w)]
+        for fd in (cmd_r, res_w):
+            os.close(fd)
+
+        def place() -> None:
+            os.dup2(high[0], 3)
+            os.dup2(high[1], 4)
+
+        self.proc = subprocess.Popen(
+            [exe, *FLAGS, f"--user-data-dir={self.profile}", "--remote-debugging-pipe", "about:blank"],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            preexec_fn=place, pass_fds=(3, 4),
+        )
+        for fd in high:
+            os.close(fd)
+        self._out = os.fdopen(cmd_w, "wb", buffering=0)
+        self._in = res_r
+        self._next = 0
+        self._answers: dict[int, "queue.Queue[dict]"] = {}
+        self._lock = threading.Lock()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        if download_dir is not None:
+            self.send("Browser.setDownloadBehavior", {"behavior": "allow", "downloadPath": download_dir})
+
+    def _read(self) -> None:
+        buf = b""
+        while True:
+            try:
+                chunk = os.read(self._in, 1 << 16)
+            except OSError:
+                chunk = b""
+            if not chunk:
+                with self._lock:
+                    for q in self._answers.values():
+                        q.put({"error": {"message": "chromium closed the connection"}})
+                return
+            buf += chunk
+            *messages, buf = buf.split(b"\0")
+            for raw in messages:
+                msg = json.loads(raw)
+                if "id" in msg:
+                    with self._lock:
+                        q = self._answers.get(msg["id"])
+                    if q is not None:
+                        q.put(msg)
+
+    def send(self, method: str, params: Optional[dict] = None, session: Optional[str] = None,
+             timeout: float = 60) -> dict:
+        """One protocol command; its result, or BrowserError."""
+        with self._lock:
+            self._next += 1
+            mid = self._next
+            q: "queue.Queue[dict]" = queue.Queue()
+            self._answers[mid] = q
+        msg: dict[str, Any] = {"id": mid, "method": method, "params": params or {}}
+        if session:
+            msg["sessionId"] = session
+        self._out.write(json.dumps(msg).encode() + b"\0")
+        try:
+            answer = q.get(timeout=timeout)
+        except queue.Empty:
+            raise BrowserError(f"{method}: no answer in {timeout} s") from None
+        finally:
+            with self._lock:
+                self._answers.pop(mid, None)
+        if "error" in answer:
+            raise BrowserError(f"{method}: {answer['error'].get('message')}")
+        return answer.get("result", {})
+
+    def page(self) -> "Page":
+        target = self.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+        session = self.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+        return Page(self, target, session)
+
+    def close(self) -> None:
+        try:
+            self.send("Browser.close", timeout=5)
+        except BrowserError:
+            pass
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        self._out.close()
+        shutil.rmtree(self.profile, ignore_errors=True)
+
+    def __enter__(self) -> "Browser":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class Page:
+    """A tab: navigate, evaluate JavaScript, wait for a condition."""
+
+    def __init__(self, browser: Browser, target: str, session: str):
+        self.browser, self.target, self.session = browser, target, session
+
+    def send(self, method: str, params: Optional[dict] = None, timeout: float = 60) -> dict:
+        return self.browser.send(method, params, self.session, timeout)
+
+    def goto(self, url: str) -> None:
+        self.send("Page.navigate", {"url": url})
+
+    def eval(self, expression: str) -> Any:
+        """The value of a JavaScript expression (awaited if it is a promise); BrowserError if it threw."""
+        res = self.send("Runtime.evaluate", {"expression": expression, "returnByValue": True, "awaitPromise": True})
+        if "exceptionDetails" in res:
+            raise BrowserError(f"{expression}: {res['exceptionDetails'].get('text')} "
+                               f"{res['exceptionDetails'].get('exception', {}).get('description', '')}")
+        return res.get("result", {}).get("value")
+
+    def wait(self, expression: str, timeout: float = 30, every: float = 0.02) -> Any:
+        """Evaluate ``expression`` until it is truthy; its value (BrowserError after ``timeout`` s)."""
+        end = time.monotonic() + timeout
+        while True:
+            value = self.eval(expression)
+            if value:
+                return value
+            if time.monotonic() > end:
+                raise BrowserError(f"waited {timeout} s for {expression}")
+            time.sleep(every)
+
+    def close(self) -> None:
+        self.browser.send("Target.closeTarget", {"targetId": self.target})
