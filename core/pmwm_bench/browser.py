@@ -155,8 +155,22 @@ class Page:
     def send(self, method: str, params: Optional[dict] = None, timeout: float = 60) -> dict:
         return self.browser.send(method, params, self.session, timeout)
 
-    def goto(self, url: str) -> None:
-        self.send("Page.navigate", {"url": url})
+    def goto(self, url: str, timeout: float = 30) -> None:
+        """Open ``url`` and wait until its document has loaded (scripts run, load event fired)."""
+        res = self.send("Page.navigate", {"url": url})
+        if res.get("errorText"):
+            raise BrowserError(f"{url}: {res['errorText']}")
+        loaded = f"location.href === {json.dumps(url)} && document.readyState === 'complete'"
+        end = time.monotonic() + timeout
+        while True:
+            try:
+                if self.eval(loaded):
+                    return
+            except BrowserError:  # the old document went away under the evaluation
+                pass
+            if time.monotonic() > end:
+                raise BrowserError(f"{url} did not load in {timeout} s")
+            time.sleep(0.01)
 
     def eval(self, expression: str) -> Any:
         """The value of a JavaScript expression (awaited if it is a promise); BrowserError if it threw."""
