@@ -1,0 +1,138 @@
+"""Speed of the web viewer's page: how long after the last byte of the .pmwm the full mesh is decoded.
+
+For each mesh (the bundled bunny, and Igea from the catalogue), the progressive mesh pmwm builds
+(base 3 % of the vertices) is written as a site (``pmwm.viewer.write_site``) and served on 127.0.0.1;
+headless chromium (software GL, ``pmwm_bench.browser``) opens the page ``--repeat`` times per delivery:
+
+- ``local``: the file as fast as the local server sends it (nearly all of it arrives at once, so
+  nearly all the decoding comes after the last byte: the worst case for this figure);
+- ``throttled``: 64 KB every 20 ms (about 3.2 MB/s), as over a fast network: the levels are decoded
+  while the rest arrives.
+
+Figures read from the page (``performance.now()``): last byte -> done (every record decoded, the
+checksum checked, the status set), the time spent applying records over the whole load, and first
+request -> done. The issue's targets: the bunny within 0.5 s of its last byte, Igea within 2 s.
+
+Run: python benchmarks/bench_viewer.py [--repeat 3] [--meshes bunny igea] [--out benchmarks/results/viewer.json]
+Prints a markdown section (command, commit, machine) and writes the raw figures as JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import http.server
+import json
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import _report  # noqa: E402
+
+import pmwm  # noqa: E402
+from pmwm.viewer import write_site  # noqa: E402
+from pmwm_bench.browser import Browser  # noqa: E402
+
+CHUNK, PAUSE = 65536, 0.02
+
+
+class _Handler(http.server.SimpleHTTPRequestHandler):
+    """The site; under /throttled/ a .pmwm arrives CHUNK bytes every PAUSE seconds."""
+
+    def do_GET(self):  # noqa: N802
+        if not (self.path.startswith("/throttled/") and self.path.endswith(".pmwm")):
+            return super().do_GET()
+        data = Path(self.translate_path(self.path)).read_bytes()
+        self.send_response(200)
+        self.send_header("Content-Length", str(len(data)))
+        self.end_headers()
+        for i in range(0, len(data), CHUNK):
+            self.wfile.write(data[i:i + CHUNK])
+            self.wfile.flush()
+            time.sleep(PAUSE)
+
+    def translate_path(self, path):
+        return super().translate_path(path.removeprefix("/throttled"))
+
+    def log_message(self, *args):
+        pass
+
+
+def _mesh(name: str):
+    if name == "bunny":
+        src = pmwm.read_mesh(Path(pmwm.__file__).parent / "data" / "bunny.off")
+        return src.vertices, src.faces
+    return _report.load(name)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--meshes", nargs="+", default=["bunny", "igea"])
+    ap.add_argument("--out", default=str(_report.ROOT / "benchmarks" / "results" / "viewer.json"))
+    a = ap.parse_args()
+    rows, raw = [], []
+    with tempfile.TemporaryDirectory(prefix="pmwm-bench-viewer-") as tmp:
+        root = Path(tmp)
+        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Handler, directory=tmp))
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+        url = f"http://127.0.0.1:{server.server_address[1]}"
+        sizes = {}
+        for name in a.meshes:
+            V, F = _mesh(name)
+            pm, _ = pmwm.build_progressive_mesh(V, F, base_vertices=max(4, int(0.03 * len(V))))
+            write_site(pm, root / name, title=name)
+            sizes[name] = (len(V), len(F), (root / name / "model.pmwm").stat().st_size, pm.n_records,
+                           len(pm.level_records))
+        script_kb = (root / a.meshes[0] / "viewer.js").stat().st_size / 1000
+        with Browser() as browser:
+            page = browser.page()
+            for name in a.meshes:
+                for delivery in ("local", "throttled"):
+                    runs = []
+                    for _ in range(a.repeat):
+                        prefix = "/throttled" if delivery == "throttled" else ""
+                        page.goto(f"{url}{prefix}/{name}/index.html")
+                        page.wait("document.getElementById('pmwm-status').dataset.state !== 'loading'", 300)
+                        st = page.eval("Object.assign({}, document.getElementById('pmwm-status').dataset)")
+                        t = page.eval("JSON.stringify(pmwmViewer.timing)")
+                        t = json.loads(t)
+                        assert st["state"] == "done", st
+                        runs.append({"after_last_byte_ms": float(st["decodeMs"]), "records_ms": float(st["recordsMs"]),
+                                     "total_ms": t["done"] - t["start"]})
+                    raw.append({"mesh": name, "delivery": delivery, "runs": runs})
+                    med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+                    worst = max(r["after_last_byte_ms"] for r in runs)
+                    n, m, size, nr, nl = sizes[name]
+                    rows.append(f"| {name} | {n:,} | {m:,} | {size / 1e6:.2f} MB | {nr:,} / {nl} | {delivery} | "
+                                f"{med['after_last_byte_ms']:.0f} (max {worst:.0f}) | {med['records_ms']:.0f} | "
+                                f"{med['total_ms']:.0f} |")
+        server.shutdown()
+    body = "\n".join([
+        "## viewer: decoding in the browser",
+        "",
+        f"Command: `{_report.command()}`; commit {_report.commit()}; machine: {_report.machine()}; "
+        f"Debian chromium, headless, SwiftShader GL. Page script (viewer.js): {script_kb:.1f} KB. "
+        f"Median of {a.repeat} page loads (ms).",
+        "",
+        "| mesh | vertices | faces | .pmwm | records / levels | delivery | last byte -> decoded | "
+        "records applied | request -> decoded |",
+        "|---|---:|---:|---:|---:|---|---:|---:|---:|",
+        *rows,
+        "",
+        "Targets: the bunny decoded within 500 ms of its last byte, Igea within 2000 ms.",
+    ])
+    print(body)
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"command": _report.command(), "commit": _report.commit(), "machine": _report.machine(),
+                               "script_kb": script_kb, "results": raw}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
