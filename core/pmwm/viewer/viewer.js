@@ -239,21 +239,24 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
       this.pool[this.start[x] + this.deg[x]++] = c;
     }
 
-    /** Apply record r, read from ``dv`` at byte ``o``; ``limit``: vertices its level may split. */
-    apply(r, dv, o, limit) {
+    /** Apply record r, read from the file's bytes at byte ``o`` (``dv`` a DataView of them, ``u32`` and
+     *  ``f32`` views of the same buffer: records start at multiples of 4); ``limit``: vertices its level
+     *  may split. */
+    apply(r, dv, u32, f32, o, limit) {
       const h = this.h;
       const F = this.F;
       const u = h.nb + r;
+      let w = o >> 2;
       for (let i = 0; i < 3; i++) {
-        const x = h.f64 ? dv.getFloat64(o + 8 * i, true) : dv.getFloat32(o + 4 * i, true);
+        const x = this.pos64 ? dv.getFloat64(o + 8 * i, true) : f32[w + i];
         if (!Number.isFinite(x)) throw corrupted(`record ${r} has a non-finite coordinate`);
         this.pos32[3 * u + i] = x;
         if (this.pos64) this.pos64[3 * u + i] = x;
       }
-      o += 3 * h.fsize;
-      const vf = dv.getUint32(o, true);
-      const lo = dv.getUint32(o + 4, true);
-      const hi = dv.getUint32(o + 8, true);
+      w += this.pos64 ? 6 : 3;
+      const vf = u32[w];
+      const lo = u32[w + 1];
+      const hi = u32[w + 2];
       const v = vf & 0x3fffffff;
       const flags = vf >>> 30;
       if (v >= limit) throw corrupted(`record ${r} splits a vertex its level has not got yet`);
@@ -427,6 +430,9 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         if (this.got < HEADER) return;
         this.h = parseHeader(this.head);
         this.bytes = new Uint8Array(this.h.total);
+        this.dv = new DataView(this.bytes.buffer);
+        this.u32 = new Uint32Array(this.bytes.buffer);  // (the size of a .pmwm is a multiple of 4)
+        this.f32 = new Float32Array(this.bytes.buffer);
         this.bytes.set(this.head, 0);
         this.target = this.target === null ? this.h.nr : Math.min(this.target, this.h.nr);
       }
@@ -453,18 +459,24 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
       }
       const dec = this.dec;
       const have = Math.floor(Math.max(0, this.got - h.recordsAt) / h.rsize);
+      const upto = Math.min(have, this.target);
+      // every record in is applied (a level's records as they arrive, not when the level is whole);
+      // the levels completed are reported, and shown from the records (``facesAt``)
       const reached = [];
-      const dv = new DataView(this.bytes.buffer, 0, this.bytes.length);
-      while (dec.done < this.target) {
-        const end = Math.min(dec.levels[this.level], this.target);
-        if (have < end) break;
+      const t0 = performance.now();
+      while (dec.done < upto) {
+        const last = dec.levels[this.level];
+        const end = Math.min(last, upto);
         const limit = h.nb + (this.level ? dec.levels[this.level - 1] : 0);
-        const t0 = performance.now();
-        for (let r = dec.done; r < end; r++) dec.apply(r, dv, h.recordsAt + r * h.rsize, limit);
-        this.decodeMs += performance.now() - t0;
-        if (end === dec.levels[this.level]) this.level++;
-        reached.push(end);
+        for (let r = dec.done; r < end; r++) dec.apply(r, this.dv, this.u32, this.f32, h.recordsAt + r * h.rsize, limit);
+        if (end === last) {
+          this.level++;
+          reached.push(end);
+        } else if (end === this.target) {
+          reached.push(end);
+        }
       }
+      this.decodeMs += performance.now() - t0;
       if (reached.length) this.onLevel(reached);
     }
 
@@ -545,6 +557,7 @@ void main() {
       this.center = [0, 0, 0];
       this.radius = 1;
       this.pending = false;
+      this.drawMs = 0; // spent uploading and drawing
       if (!gl) return;
       const sh = (type, src) => {
         const s = gl.createShader(type);
@@ -605,10 +618,12 @@ void main() {
       if (this.pending) return;
       this.pending = true;
       requestAnimationFrame(() => {
+        const t0 = performance.now();
         this.pending = false;
         if (this.source) this.upload(...this.source());
         this.source = null;
         this.draw();
+        this.drawMs += performance.now() - t0;
       });
     }
 
@@ -765,6 +780,8 @@ void main() {
       reader.finish();
       this.timing.done = performance.now();
       const dec = reader.dec;
+      this.timing.records = reader.decodeMs;
+      this.timing.draw = this.renderer.drawMs;
       this.mark({ state: "done", done: "true", "decode-ms": (this.timing.done - this.timing.lastByte).toFixed(1),
         "records-ms": reader.decodeMs.toFixed(1) });
       if (reader.target < reader.h.nr) {
