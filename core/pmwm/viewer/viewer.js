@@ -407,7 +407,8 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
    *  each chunk completed; throws PmError. */
   class StreamReader {
     constructor(target, onLevel) {
-      this.decodeMs = 0;
+      this.decodeMs = 0; // spent applying records
+      this.shaMs = 0; // spent on the checksum
       this.target = target; // records to decode (null: all)
       this.onLevel = onLevel;
       this.head = new Uint8Array(HEADER);
@@ -444,8 +445,10 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
       this.got += rest;
       const upto = Math.min(this.got, this.h.total - DIGEST);
       if (upto > this.hashed) {
+        const t0 = performance.now();
         this.sha.update(this.bytes.subarray(this.hashed, upto));
         this.hashed = upto;
+        this.shaMs += performance.now() - t0;
       }
       this.advance();
     }
@@ -716,6 +719,7 @@ void main() {
       this.stops = []; // the levels (records) the slider can show
       this.shown = -1;
       this.follow = true; // show each new level as it arrives (until the slider is moved back)
+      this.done = false; // the whole file is in and checked
       this.timing = {};
       this.slider.addEventListener("input", () => {
         const i = Number(this.slider.value);
@@ -767,21 +771,29 @@ void main() {
         try {
           part = await body.read();
         } catch (e) {
-          this.timing.lastByte = performance.now();
+          if (this.done) return; // the whole file was in and checked
           reader.finish(); // truncated: names what arrived (throws)
           throw new PmError("network", `The download broke off: ${e.message}.`);
         }
         if (part.done) break;
         const t = performance.now();
-        reader.push(part.value);
-        if (reader.h && reader.got === reader.h.total) this.timing.lastByte = t;
+        reader.push(part.value); // (throws on bytes past the file's end: it was padded)
+        if (!this.done && reader.h && reader.got === reader.h.total) {
+          // every byte the header promises is in: done now (the server may close the stream later)
+          this.timing.lastByte = t;
+          reader.finish();
+          this.complete();
+        }
       }
-      this.timing.lastByte = this.timing.lastByte || performance.now();
-      reader.finish();
+      if (!this.done) reader.finish(); // throws: the file ended early
+    }
+
+    /** The whole file is in and checked. */
+    complete() {
+      const reader = this.reader;
+      this.done = true;
       this.timing.done = performance.now();
-      const dec = reader.dec;
-      this.timing.records = reader.decodeMs;
-      this.timing.draw = this.renderer.drawMs;
+      Object.assign(this.timing, { records: reader.decodeMs, checksum: reader.shaMs, draw: this.renderer.drawMs });
       this.mark({ state: "done", done: "true", "decode-ms": (this.timing.done - this.timing.lastByte).toFixed(1),
         "records-ms": reader.decodeMs.toFixed(1) });
       if (reader.target < reader.h.nr) {
@@ -790,7 +802,7 @@ void main() {
       } else {
         this.say("");
       }
-      this.counter.title = `${fmt(dec.done)} of ${fmt(reader.h.nr)} records; file checked (SHA-256)`;
+      this.counter.title = `${fmt(reader.dec.done)} of ${fmt(reader.h.nr)} records; file checked (SHA-256)`;
     }
 
     /** New levels are decoded: slider stops, and the last one shown when following. */
