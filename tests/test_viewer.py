@@ -26,6 +26,7 @@ import pytest
 
 import meshes
 import pmwm
+import pmwm.viewer
 from pmwm.key import mesh_sha256
 from pmwm.pmfile import HEADER, to_bytes
 from pmwm.viewer import write_site
@@ -34,6 +35,7 @@ from pmwm_bench.browser import Browser, find_chromium
 SLOW_CHUNK = 16384  # bytes per piece of a slowed stream
 SLOW_PAUSE = 0.04  # seconds between pieces
 PASSPHRASE = "a viewer's test phrase"
+ROOT = Path(__file__).resolve().parents[1]
 
 
 class _Handler(http.server.SimpleHTTPRequestHandler):
@@ -167,6 +169,31 @@ def test_cli_viewer_writes_the_folder_and_keeps_a_used_one(tmp_path):
     assert (tmp_path / "web" / "index.html").read_bytes() == before
 
 
+def test_the_page_ships_in_the_package_and_the_blender_extension():
+    """Every file of the page is package data of pmwm, in the project's pyproject and in the one the
+    Blender extension's pmwm wheel is built from (build_addon.library_pyproject)."""
+    import fnmatch
+    import tomllib
+
+    sys.path.insert(0, str(ROOT))
+    import build_addon
+
+    text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    folder = Path(pmwm.viewer.__file__).parent
+    assets = sorted(f"viewer/{p.name}" for p in folder.iterdir() if p.suffix in (".html", ".css", ".js"))
+    assert assets == ["viewer/index.html", "viewer/viewer.css", "viewer/viewer.js"]
+    for doc in (tomllib.loads(text), tomllib.loads(build_addon.library_pyproject(text))):
+        globs = doc["tool"]["setuptools"]["package-data"]["pmwm"]
+        assert all(any(fnmatch.fnmatch(a, g) for g in globs) for a in assets), globs
+
+
+def test_a_bad_level_in_the_address_says_so(page, served):
+    path = _site(served, "bad_level", _pm("blob"))
+    for bad in ("-1", "two"):
+        st = _open(page, served, f"{path}?level={bad}")
+        assert st["state"] == "error" and st["error"] == "usage" and "number of records" in _message(page)
+
+
 def _levels_to_check(pm: pmwm.ProgressiveMesh) -> list[int]:
     """The base, inside the first level, a level's end and the record after it, half way, the end."""
     L = pm.level_records.tolist()
@@ -295,6 +322,10 @@ def test_a_corrupted_file_shows_a_message_and_no_mesh(page, served):
     st = _open(page, served, path)
     assert st["state"] == "error" and st["error"] == "corrupted" and f"record {r}" in _message(page)
     assert (st["level"], st["vertices"], st["faces"]) == ("-1", "0", "0")
+    # bytes past the end the header promises
+    path = _site(served, "padded", pm, to_bytes(pm) + b"\0" * 8)
+    st = _open(page, served, path)
+    assert st["state"] == "error" and st["error"] == "corrupted" and "longer than its header" in _message(page)
     # not a .pmwm at all
     path = _site(served, "not_pmwm", pm, b"solid cube\n" * 10)
     st = _open(page, served, path)
