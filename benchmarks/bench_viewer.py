@@ -44,7 +44,7 @@ CHUNK, PAUSE = 65536, 0.02
 class _Handler(http.server.SimpleHTTPRequestHandler):
     """The site; under /throttled/ a .pmwm arrives CHUNK bytes every PAUSE seconds."""
 
-    def do_GET(self):  # noqa: N802
+    def do_GET(self):
         if not (self.path.startswith("/throttled/") and self.path.endswith(".pmwm")):
             return super().do_GET()
         data = Path(self.translate_path(self.path)).read_bytes()

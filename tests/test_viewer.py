@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 class _Handler(http.server.SimpleHTTPRequestHandler):
     """Serves the test folder; under /slow/ a .pmwm arrives in small pieces with pauses."""
 
-    def do_GET(self):  # noqa: N802 (the standard library's name)
+    def do_GET(self):  # (the standard library names it)
         if not self.path.startswith("/slow/") or not self.path.endswith(".pmwm"):
             return super().do_GET()
         data = (Path(self.directory) / self.path[len("/slow/"):].lstrip("/")).read_bytes()

@@ -15,6 +15,7 @@ import os
 import queue
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -50,22 +51,20 @@ class Browser:
         self.profile = tempfile.mkdtemp(prefix="pmwm-chromium-")
         cmd_r, cmd_w = os.pipe()  # we write commands, chromium reads them on fd 3
         res_r, res_w = os.pipe()  # chromium writes on fd 4, we read
-        # moved above the low numbers, so that placing them on 3 and 4 in the child cannot clobber one
-        high = [fcntl.fcntl(fd, fcntl.F_DUPFD, 16) for fd in (cmd_r, res_w)]
-        for fd in (cmd_r, res_w):
-            os.close(fd)
-
-        def place() -> None:
-            os.dup2(high[0], 3)
-            os.dup2(high[1], 4)
-
+        # the child's ends moved above 3 and 4, where a small Python trampoline puts them before it
+        # becomes chromium (no preexec_fn: unsafe in a process with threads; sh takes fds 0-9 only)
+        a, b = (fcntl.fcntl(fd, fcntl.F_DUPFD, 10) for fd in (cmd_r, res_w))
+        os.close(cmd_r)
+        os.close(res_w)
+        place = f"import os, sys; os.dup2({a}, 3); os.dup2({b}, 4); os.close({a}); os.close({b}); " \
+                "os.execv(sys.argv[1], sys.argv[1:])"
         self.proc = subprocess.Popen(
-            [exe, *FLAGS, f"--user-data-dir={self.profile}", "--remote-debugging-pipe", "about:blank"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            preexec_fn=place, pass_fds=(3, 4),
+            [sys.executable, "-c", place, exe, *FLAGS, f"--user-data-dir={self.profile}", "--remote-debugging-pipe",
+             "about:blank"],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(a, b),
         )
-        for fd in high:
-            os.close(fd)
+        os.close(a)
+        os.close(b)
         self._out = os.fdopen(cmd_w, "wb", buffering=0)
         self._in = res_r
         self._next = 0
