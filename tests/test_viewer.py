@@ -275,6 +275,35 @@ def test_a_slow_stream_shows_the_base_then_level_after_level(page, served):
         assert _page_hash(page) == digest
 
 
+_PIXELS = """(() => {
+  const r = pmwmViewer.renderer, gl = r.gl;
+  r.draw();  // read back in the same task as the draw
+  const w = gl.drawingBufferWidth, h = gl.drawingBufferHeight, px = new Uint8Array(4 * w * h);
+  gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
+  const bg = px.slice(0, 3), shades = new Set();
+  let mesh = 0;
+  for (let i = 0; i < px.length; i += 4) {
+    if (px[i] !== bg[0] || px[i + 1] !== bg[1] || px[i + 2] !== bg[2]) { mesh++; shades.add(px[i]); }
+  }
+  return [mesh / (w * h), shades.size, Array.from(px.subarray(0, 4 * w * h)).reduce((a, x, i) => (a + x * (i % 97)) % 1000003, 0)];
+})()"""
+
+
+def test_the_page_draws_the_mesh_and_turns_it_with_the_mouse(page, served):
+    """WebGL (software GL here) draws a shaded mesh over a good part of the canvas; a drag turns it."""
+    path = _site(served, "drawn", _pm("bunny"))
+    st = _open(page, served, path)
+    assert st["state"] == "done"
+    assert page.eval("!!pmwmViewer.renderer.gl"), "no WebGL 2 in this chromium"
+    cover, shades, before = page.eval(_PIXELS)
+    assert 0.05 < cover < 0.9 and shades > 20  # a shaded surface, not a flat shape or an empty canvas
+    for kind, x in (("mousePressed", 400), ("mouseMoved", 470), ("mouseMoved", 540), ("mouseReleased", 540)):
+        page.send("Input.dispatchMouseEvent", {"type": kind, "x": x, "y": 500, "button": "left", "buttons": 1,
+                                               "clickCount": 1})
+    cover2, _, after = page.eval(_PIXELS)
+    assert after != before and 0.05 < cover2 < 0.9
+
+
 def _last_complete_level(pm: pmwm.ProgressiveMesh, n_bytes: int) -> int:
     data = to_bytes(pm)
     f = 8 if data[10] & 1 else 4
