@@ -830,9 +830,9 @@ void main() {
       const m = dec.facesAfter[k];
       this.shown = k;
       this.renderer.set(() => [dec.pos32, dec.nb + k, dec.facesAt(k)]);
-      const step = this.stops.indexOf(k);
+      const step = k === 0 ? 0 : dec.levels.indexOf(k) + 1; // the file's levels (0: not at one's end)
       this.counter.textContent = `${fmt(dec.nb + k)} vertices · ${fmt(m)} faces · ` +
-        `level ${fmt(k)} of ${fmt(this.reader.h.nr)}` + (step >= 0 ? ` (step ${step} of ${this.reader.h.nl})` : "");
+        `level ${fmt(k)} of ${fmt(this.reader.h.nr)}` + (step || !k ? ` (step ${step} of ${this.reader.h.nl})` : "");
       this.mark({ level: k, vertices: dec.nb + k, faces: m });
       this.hashOut.textContent = "";
       this.status.removeAttribute("data-hash");
