@@ -11,7 +11,8 @@ headless chromium (software GL, ``pmwm_bench.browser``) opens the page ``--repea
 
 Figures read from the page (``performance.now()``): last byte -> done (every record decoded, the
 checksum checked, the status set), the time spent applying records and the time spent uploading and
-drawing levels (WebGL calls, main thread) over the whole load, and first request -> done. The issue's targets: the bunny within 0.5 s of its last byte, Igea within 2 s.
+drawing levels (WebGL calls, main thread) over the whole load, and first request -> done. The issue's
+targets: the bunny within 0.5 s of its last byte, Igea within 2 s.
 
 Run: python benchmarks/bench_viewer.py [--repeat 3] [--meshes bunny igea] [--out benchmarks/results/viewer.json]
 Prints a markdown section (command, commit, machine) and writes the raw figures as JSON.
@@ -20,14 +21,10 @@ Prints a markdown section (command, commit, machine) and writes the raw figures 
 from __future__ import annotations
 
 import argparse
-import functools
-import http.server
 import json
 import statistics
 import sys
 import tempfile
-import threading
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -36,31 +33,9 @@ import _report  # noqa: E402
 
 import pmwm  # noqa: E402
 from pmwm.viewer import write_site  # noqa: E402
-from pmwm_bench.browser import Browser  # noqa: E402
+from pmwm_bench.browser import Browser, serve  # noqa: E402
 
-CHUNK, PAUSE = 65536, 0.02
-
-
-class _Handler(http.server.SimpleHTTPRequestHandler):
-    """The site; under /throttled/ a .pmwm arrives CHUNK bytes every PAUSE seconds."""
-
-    def do_GET(self):
-        if not (self.path.startswith("/throttled/") and self.path.endswith(".pmwm")):
-            return super().do_GET()
-        data = Path(self.translate_path(self.path)).read_bytes()
-        self.send_response(200)
-        self.send_header("Content-Length", str(len(data)))
-        self.end_headers()
-        for i in range(0, len(data), CHUNK):
-            self.wfile.write(data[i:i + CHUNK])
-            self.wfile.flush()
-            time.sleep(PAUSE)
-
-    def translate_path(self, path):
-        return super().translate_path(path.removeprefix("/throttled"))
-
-    def log_message(self, *args):
-        pass
+CHUNK, PAUSE = 65536, 0.02  # the throttled delivery: about 3.2 MB/s
 
 
 def _mesh(name: str):
@@ -77,11 +52,8 @@ def main() -> None:
     ap.add_argument("--out", default=str(_report.ROOT / "benchmarks" / "results" / "viewer.json"))
     a = ap.parse_args()
     rows, raw = [], []
-    with tempfile.TemporaryDirectory(prefix="pmwm-bench-viewer-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="pmwm-bench-viewer-") as tmp, serve(tmp, CHUNK, PAUSE) as url:
         root = Path(tmp)
-        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Handler, directory=tmp))
-        threading.Thread(target=server.serve_forever, daemon=True).start()
-        url = f"http://127.0.0.1:{server.server_address[1]}"
         sizes = {}
         for name in a.meshes:
             V, F = _mesh(name)
@@ -96,7 +68,7 @@ def main() -> None:
                 for delivery in ("local", "throttled"):
                     runs = []
                     for _ in range(a.repeat):
-                        prefix = "/throttled" if delivery == "throttled" else ""
+                        prefix = "/slow" if delivery == "throttled" else ""
                         page.goto(f"{url}{prefix}/{name}/index.html")
                         page.wait("document.getElementById('pmwm-status').dataset.state !== 'loading'", 300)
                         st = page.eval("Object.assign({}, document.getElementById('pmwm-status').dataset)")
@@ -110,9 +82,8 @@ def main() -> None:
                     worst = max(r["after_last_byte_ms"] for r in runs)
                     n, m, size, nr, nl = sizes[name]
                     rows.append(f"| {name} | {n:,} | {m:,} | {size / 1e6:.2f} MB | {nr:,} / {nl} | {delivery} | "
-                                f"{med['after_last_byte_ms']:.0f} (max {worst:.0f}) | {med['records_ms']:.0f} | {med['draw_ms']:.0f} | "
-                                f"{med['total_ms']:.0f} |")
-        server.shutdown()
+                                f"{med['after_last_byte_ms']:.0f} (max {worst:.0f}) | {med['records_ms']:.0f} | "
+                                f"{med['draw_ms']:.0f} | {med['total_ms']:.0f} |")
     body = "\n".join([
         "## viewer: decoding in the browser",
         "",

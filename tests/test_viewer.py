@@ -12,12 +12,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import http.server
 import json
 import os
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -30,47 +28,19 @@ import pmwm.viewer
 from pmwm.key import mesh_sha256
 from pmwm.pmfile import HEADER, to_bytes
 from pmwm.viewer import write_site
-from pmwm_bench.browser import Browser, find_chromium
+from pmwm_bench.browser import Browser, find_chromium, serve
 
-SLOW_CHUNK = 16384  # bytes per piece of a slowed stream
-SLOW_PAUSE = 0.04  # seconds between pieces
 PASSPHRASE = "a viewer's test phrase"
 ROOT = Path(__file__).resolve().parents[1]
 
 
-class _Handler(http.server.SimpleHTTPRequestHandler):
-    """Serves the test folder; under /slow/ a .pmwm arrives in small pieces with pauses."""
-
-    def do_GET(self):  # (the standard library names it)
-        if not self.path.startswith("/slow/") or not self.path.endswith(".pmwm"):
-            return super().do_GET()
-        data = (Path(self.directory) / self.path[len("/slow/"):].lstrip("/")).read_bytes()
-        self.send_response(200)
-        self.send_header("Content-Type", "application/octet-stream")
-        self.send_header("Content-Length", str(len(data)))
-        self.end_headers()
-        for i in range(0, len(data), SLOW_CHUNK):
-            self.wfile.write(data[i:i + SLOW_CHUNK])
-            self.wfile.flush()
-            time.sleep(SLOW_PAUSE)
-
-    def translate_path(self, path):
-        return super().translate_path(path[len("/slow"):] if path.startswith("/slow/") else path)
-
-    def log_message(self, *args):
-        pass
-
-
 @pytest.fixture(scope="module")
 def served(tmp_path_factory):
-    """(folder, base URL) of a local HTTP server on 127.0.0.1."""
+    """(folder, base URL) of a local HTTP server on 127.0.0.1; under /slow/ a .pmwm arrives in pieces of
+    16 KB every 40 ms."""
     root = tmp_path_factory.mktemp("served")
-    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(_Handler, directory=str(root)))
-    thread = threading.Thread(target=server.serve_forever, daemon=True)
-    thread.start()
-    yield root, f"http://127.0.0.1:{server.server_address[1]}"
-    server.shutdown()
-    server.server_close()
+    with serve(root, chunk=16384, pause=0.04) as url:
+        yield root, url
 
 
 @pytest.fixture(scope="module")
@@ -285,7 +255,9 @@ _PIXELS = """(() => {
   for (let i = 0; i < px.length; i += 4) {
     if (px[i] !== bg[0] || px[i + 1] !== bg[1] || px[i + 2] !== bg[2]) { mesh++; shades.add(px[i]); }
   }
-  return [mesh / (w * h), shades.size, Array.from(px.subarray(0, 4 * w * h)).reduce((a, x, i) => (a + x * (i % 97)) % 1000003, 0)];
+  let sum = 0;  // a checksum of the picture
+  for (let i = 0; i < px.length; i++) sum = (sum + px[i] * (i % 97)) % 1000003;
+  return [mesh / (w * h), shades.size, sum];
 })()"""
 
 

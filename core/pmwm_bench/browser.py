@@ -1,5 +1,5 @@
-"""Headless chromium driven over the DevTools protocol, standard library only (for the web viewer's
-tests and benchmark).
+"""Headless chromium driven over the DevTools protocol, and a local web server that can send slowly,
+standard library only (for the web viewer's tests and benchmark).
 
 Chromium runs with ``--remote-debugging-pipe``: it reads protocol commands on its file descriptor 3
 and writes answers and events on 4, each message JSON ended by a NUL byte, so no websocket client and
@@ -9,7 +9,10 @@ chromium runs; nothing is downloaded.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
+import functools
+import http.server
 import json
 import os
 import queue
@@ -19,7 +22,8 @@ import sys
 import tempfile
 import threading
 import time
-from typing import Any, Optional
+from pathlib import Path
+from typing import Any, Iterator, Optional
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = (
@@ -192,3 +196,43 @@ class Page:
 
     def close(self) -> None:
         self.browser.send("Target.closeTarget", {"targetId": self.target})
+
+
+class _Handler(http.server.SimpleHTTPRequestHandler):
+    """Serves a folder; under /slow/ a .pmwm arrives ``chunk`` bytes every ``pause`` seconds."""
+
+    chunk, pause = 16384, 0.04
+
+    def do_GET(self):  # (the standard library names it)
+        if not (self.path.startswith("/slow/") and self.path.endswith(".pmwm")):
+            return super().do_GET()
+        data = Path(self.translate_path(self.path)).read_bytes()
+        self.send_response(200)
+        self.send_header("Content-Type", "application/octet-stream")
+        self.send_header("Content-Length", str(len(data)))
+        self.end_headers()
+        for i in range(0, len(data), self.chunk):
+            self.wfile.write(data[i:i + self.chunk])
+            self.wfile.flush()
+            time.sleep(self.pause)
+
+    def translate_path(self, path):
+        return super().translate_path(path.removeprefix("/slow"))
+
+    def log_message(self, *args):
+        pass
+
+
+@contextlib.contextmanager
+def serve(folder, chunk: int = 16384, pause: float = 0.04) -> Iterator[str]:
+    """Serve ``folder`` on 127.0.0.1 (a free port) while in the block; yields the base URL. A path under
+    /slow/ is the same file, a .pmwm sent ``chunk`` bytes every ``pause`` seconds (a slow network)."""
+    handler = type("Handler", (_Handler,), {"chunk": chunk, "pause": pause})
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(handler, directory=str(folder)))
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
