@@ -327,6 +327,12 @@ def test_a_corrupted_file_shows_a_message_and_no_mesh(page, served):
     path = _site(served, "padded", pm, to_bytes(pm) + b"\0" * 8)
     st = _open(page, served, path)
     assert st["state"] == "error" and st["error"] == "corrupted" and "longer than its header" in _message(page)
+    # a header that promises a file too large for a web page: said at once, nothing allocated for it
+    data = bytearray(to_bytes(pm))
+    data[20:24] = (20_000_000).to_bytes(4, "little")  # records
+    path = _site(served, "huge", pm, bytes(data))
+    st = _open(page, served, path)
+    assert st["state"] == "error" and st["error"] == "format" and "too large" in _message(page)
     # not a .pmwm at all
     path = _site(served, "not_pmwm", pm, b"solid cube\n" * 10)
     st = _open(page, served, path)

@@ -117,6 +117,7 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
   const FLAG_SECOND = 2; // ... the one holding the half-edge v -> u
   const ENDS_SHIFT = 52; // the mask's top 12 bits name the arc's end faces (version 2, v of at most 52 faces)
   const NO_END = 63;
+  const MAX_BYTES = 256e6; // the largest file the page takes (its arrays take about three times that)
   const LITTLE = new Uint8Array(new Uint16Array([1]).buffer)[0] === 1;
 
   class PmError extends Error {
@@ -153,6 +154,10 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
     h.recordsAt = h.levelsAt + h.nl * 4;
     h.total = h.recordsAt + h.nr * h.rsize + DIGEST;
     if (h.nb + h.nr >= 2 ** 30 || h.total > 2 ** 31) throw corrupted("its header promises an impossible size");
+    if (h.total > MAX_BYTES) {
+      throw new PmError("format", `The model is too large for this web viewer (${(h.total / 1e6).toFixed(0)} MB; ` +
+        `at most ${MAX_BYTES / 1e6} MB): publish a smaller mesh.`);
+    }
     return h;
   }
 
@@ -430,10 +435,7 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         i = t;
         if (this.got < HEADER) return;
         this.h = parseHeader(this.head);
-        this.bytes = new Uint8Array(this.h.total);
-        this.dv = new DataView(this.bytes.buffer);
-        this.u32 = new Uint32Array(this.bytes.buffer);  // (the size of a .pmwm is a multiple of 4)
-        this.f32 = new Float32Array(this.bytes.buffer);
+        this.room(HEADER);
         this.bytes.set(this.head, 0);
         this.target = this.target === null ? this.h.nr : Math.min(this.target, this.h.nr);
       }
@@ -441,6 +443,7 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
       if (this.got + rest > this.h.total) {
         throw corrupted(`it is longer than its header promises (${this.h.total} bytes)`);
       }
+      this.room(this.got + rest);
       this.bytes.set(chunk.subarray(i), this.got);
       this.got += rest;
       const upto = Math.min(this.got, this.h.total - DIGEST);
@@ -451,6 +454,20 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         this.shaMs += performance.now() - t0;
       }
       this.advance();
+    }
+
+    /** Room for ``n`` bytes of the file: the buffer grows with what arrives (a damaged header that
+     *  promises a huge file costs nothing until the bytes come), in multiples of 4 bytes (records
+     *  start at multiples of 4: typed views read them). */
+    room(n) {
+      if (this.bytes && this.bytes.length >= n) return;
+      const size = Math.min(this.h.total, Math.max(n, 2 * (this.bytes ? this.bytes.length : 0), 1 << 20));
+      const bigger = new Uint8Array(size + ((4 - (size % 4)) % 4));
+      if (this.bytes) bigger.set(this.bytes.subarray(0, this.got));
+      this.bytes = bigger;
+      this.dv = new DataView(bigger.buffer);
+      this.u32 = new Uint32Array(bigger.buffer);
+      this.f32 = new Float32Array(bigger.buffer);
     }
 
     advance() {
@@ -491,7 +508,7 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         throw new PmError("truncated", `The model file is truncated: ${this.got} bytes arrived${promised}.`);
       }
       const sum = this.sha.digest();
-      const stored = this.bytes.subarray(h.total - DIGEST);
+      const stored = this.bytes.subarray(h.total - DIGEST, h.total);
       for (let i = 0; i < DIGEST; i++) {
         if (sum[i] !== stored[i]) throw corrupted("its checksum does not match");
       }
