@@ -118,6 +118,8 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
   const ENDS_SHIFT = 52; // the mask's top 12 bits name the arc's end faces (version 2, v of at most 52 faces)
   const NO_END = 63;
   const MAX_BYTES = 256e6; // the largest file the page takes (its arrays take about three times that)
+  const NEXT = [1, 2, 0]; // a face's next corner, by corner
+  const PREV = [2, 0, 1];
   const LITTLE = new Uint8Array(new Uint16Array([1]).buffer)[0] === 1;
 
   class PmError extends Error {
@@ -218,6 +220,8 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         this.pool[this.start[x] + this.deg[x]++] = c;
       }
       this.scratch = new Int32Array(64);
+      this.nxs = new Int32Array(64); // the moved faces' vertices after and before v
+      this.pvs = new Int32Array(64);
     }
 
     /** A block of ``room`` slots at the pool's end (the pool doubles when full). */
@@ -288,18 +292,24 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         else pool[s + nk++] = c;
       }
       // p and q: the one "next" vertex of the arc that is no face's "previous", and the reverse
-      let p = -1, q = -1;
+      if (this.nxs.length < nm) {
+        this.nxs = new Int32Array(2 * nm);
+        this.pvs = new Int32Array(2 * nm);
+      }
+      const NX = this.nxs, PV = this.pvs;
       for (let i = 0; i < nm; i++) {
         const c = sc[i];
         const f = c - (c % 3);
-        const nx = F[f + ((c + 1) % 3)];
-        const pv = F[f + ((c + 2) % 3)];
+        NX[i] = F[f + NEXT[c % 3]];
+        PV[i] = F[f + PREV[c % 3]];
+      }
+      let p = -1, q = -1;
+      for (let i = 0; i < nm; i++) {
+        const nx = NX[i], pv = PV[i];
         let nxIsPrev = false, pvIsNext = false;
         for (let j = 0; j < nm; j++) {
-          const c2 = sc[j];
-          const f2 = c2 - (c2 % 3);
-          if (F[f2 + ((c2 + 2) % 3)] === nx) nxIsPrev = true;
-          if (F[f2 + ((c2 + 1) % 3)] === pv) pvIsNext = true;
+          if (PV[j] === nx) nxIsPrev = true;
+          if (NX[j] === pv) pvIsNext = true;
         }
         if (!nxIsPrev) {
           if (p >= 0) throw corrupted(`record ${r} moves faces that are not one arc`);
