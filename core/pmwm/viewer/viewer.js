@@ -213,7 +213,7 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         this.room[x] = Math.max(8, deg[x] + 4);
         top += this.room[x];
       }
-      this.pool = new Int32Array(top + 10 * h.nr + 64);
+      this.pool = new Int32Array(2 * top + 64); // (grows as the records add vertices)
       this.top = top;
       for (let c = 0; c < 3 * h.fb; c++) {
         const x = this.F[c];
@@ -331,12 +331,13 @@ are the places where the mesh is drawn while it streams, and the slider's stops.
         bigger.set(this.moved);
         this.moved = bigger;
       }
-      const at = this.alloc(nm + 8);
+      const at = this.alloc(nm + 8); // (the pool may grow: this.pool, not the earlier ``pool``)
       this.start[u] = at;
       this.room[u] = nm + 8;
+      const grown = this.pool;
       for (let i = 0; i < nm; i++) {
         F[sc[i]] = u;
-        pool[at + i] = sc[i];
+        grown[at + i] = sc[i];
         this.moved[m++] = sc[i];
       }
       this.movedAt[r + 1] = m;
