@@ -756,7 +756,9 @@ void main() {
       });
       this.download.addEventListener("click", () => this.save());
       this.hashButton.addEventListener("click", () => this.showHash());
-      if (!this.renderer.gl) this.say("This browser cannot draw 3D here (WebGL 2 is off); the counter, hash and download still work.");
+      this.note = this.renderer.gl ? "" : "This browser cannot draw 3D here (WebGL 2 is off); the counter, hash " +
+        "and download still work.";
+      this.say(this.note);
     }
 
     say(text, isError) {
@@ -786,7 +788,7 @@ void main() {
       this.timing.start = performance.now();
       let resp;
       try {
-        resp = await fetch(this.url, { cache: "no-store" });
+        resp = await fetch(this.url);
       } catch (e) {
         throw new PmError("network", `Could not load ${this.url}: ${e.message}.`);
       }
@@ -828,7 +830,7 @@ void main() {
         this.say(`Stopped at level ${fmt(reader.target)} of ${fmt(reader.h.nr)} as the address asks (?level=); ` +
           "the whole file was checked.");
       } else {
-        this.say("");
+        this.say(this.note);
       }
       this.counter.title = `${fmt(reader.dec.done)} of ${fmt(reader.h.nr)} records; file checked (SHA-256)`;
     }
