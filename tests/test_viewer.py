@@ -295,6 +295,12 @@ def test_a_truncated_file_says_so_and_keeps_its_last_complete_level(page, served
     k = _last_complete_level(pm, cut)
     assert 0 < k < pm.n_records and int(st["level"]) == k == int(st["received"])
     assert _page_hash(page) == mesh_sha256(*pm.decode(records=k), "<f8")
+    # cut just after the base mesh: the base mesh is shown, nothing more
+    cut = HEADER.size + pm.n_base_vertices * 24 + len(pm.base_faces) * 12 + len(pm.level_records) * 4 + 30
+    path = _site(served, "truncated_base", pm, data[:cut])
+    st = _open(page, served, path)
+    assert st["error"] == "truncated" and (st["level"], st["vertices"]) == ("0", str(pm.n_base_vertices))
+    assert _page_hash(page) == mesh_sha256(*pm.decode(records=0), "<f8")
     # cut inside the header or the base mesh: no mesh at all
     for cut in (20, HEADER.size + 100):
         path = _site(served, f"truncated_{cut}", pm, data[:cut])
