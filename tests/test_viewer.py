@@ -354,7 +354,8 @@ def _embedded(scheme: str):
 
 @pytest.mark.parametrize("scheme, fraction", [
     ("robust", 0.0),  # README: every level, from the base mesh up, reads the full payload
-    ("blind", 0.2),  # README: a progressive mesh reads it from a level of 3-20 % of the vertices
+    ("blind", 0.2),  # README: blind and paper from a level of 20 % of the vertices
+    ("paper", 0.2),
 ])
 def test_the_downloaded_level_is_read_by_pmwm_verify(page, served, downloads, tmp_path, scheme, fraction):
     res = _embedded(scheme)
