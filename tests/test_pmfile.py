@@ -21,11 +21,11 @@ import pmwm
 from pmwm.errors import KeyFileError, OutputExistsError, PmwmError, PMFormatError
 from pmwm.api import load_key_data
 from pmwm.key import WatermarkKey
-from pmwm.pmfile import MAGIC, VERSION, from_bytes, read_pm, to_bytes, write_pm
+from pmwm.progressive import MAGIC, VERSION, from_bytes, read_pm, to_bytes, write_pm
 from pmwm.progressive import ENDS_SHIFT, FLAG_SINGLE, ProgressiveMesh, build_progressive_mesh
 
 COW = meshes.mesh_file("blob.off")  # a small closed organic mesh (2.9k vertices), generated
-# The header as documented in pmwm/pmfile.py: magic, version u16, flags u16, then
+# The header as documented in pmwm/progressive/fileformat.py: magic, version u16, flags u16, then
 # n_base_vertices, n_base_faces, n_records, n_levels, reserved as u32; a SHA-256 ends the file.
 HEADER = struct.Struct("<8sHHIIIII")
 FIELDS = ("magic", "version", "flags", "nb", "fb", "nr", "nl", "reserved")

@@ -26,7 +26,7 @@ from .base import EmbedOptions, Verdict
 from .errors import OutputExistsError, PmwmError
 from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
-from .pmfile import read_pm, record_size, write_pm
+from .progressive import read_pm, record_size, write_pm
 from .schemes import SCHEMES
 from .schemes.blind import guessed_payload, mesh_read
 
