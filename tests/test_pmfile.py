@@ -439,9 +439,9 @@ def test_end_ranks_that_name_the_wrong_faces_never_crash_decoding(ranks):
     assert _load_or_reject(_rebuild(pm, mask=mask)) is not None
 
 
-# A version-1 file written by the encoder and decoder before issue 13 (main at 88eb246): the open
-# icosphere of _open_pm. Its decodings (base, a prefix ending inside a level, all) must stay
-# byte-identical to what that decoder gave: the SHA-256 of vertices (float64) then faces (int64).
+# A version-1 file written by the first encoder and decoder (main at 88eb246): the open icosphere of
+# _open_pm. Its decodings (base, a prefix ending inside a level, all) must stay byte-identical to what
+# that decoder gave: the SHA-256 of vertices (float64) then faces (int64).
 V1_FILE = """
 iVBNV00NChoBAAAABgAAAAcAAAAhAAAADwAAAAAAAABAxFk/AAAAAFCWBr9AxFk/AAAAAFCWBj9AxFm/AAAAAFCWBr96N56+
 vRtPPwAAAD96N56+vRtPvwAAAL8AAAA/ejeePr0bTz8DAAAABQAAAAAAAAADAAAAAAAAAAIAAAAAAAAABQAAAAEAAAADAAAA
@@ -466,7 +466,7 @@ V1_DECODED = {
 }
 
 
-def test_a_version_1_file_from_before_issue_13_decodes_as_it_did():
+def test_a_version_1_file_of_the_first_decoder_decodes_as_it_did():
     import base64
 
     data = base64.b64decode("".join(V1_FILE.split()))
