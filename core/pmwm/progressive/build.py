@@ -95,24 +95,24 @@ def build_progressive_mesh(
             local = np.full(n, n_local, np.int64)  # a removed vertex maps to the sink: no edge
             local[ids] = np.arange(n_local)
             pairs = local[forced_pairs[todo]]
-            ch = select_forced_collapses(verts, live, face_count, pairs)
-            hit = np.isin(pairs[:, 0] * (n_local + 1) + pairs[:, 1], ch.u * (n_local + 1) + ch.v)
+            chosen = select_forced_collapses(verts, live, face_count, pairs)
+            hit = np.isin(pairs[:, 0] * (n_local + 1) + pairs[:, 1], chosen.u * (n_local + 1) + chosen.v)
             forced_done[todo[hit]] = True
         else:
-            ch = select_collapses(verts, live, face_count, selection_rounds)
+            chosen = select_collapses(verts, live, face_count, selection_rounds)
             room = n_alive - target
-            if len(ch.u) > room:
-                qs = verts.quadrics[ch.u] + verts.quadrics[ch.v]
-                first = np.argsort(quadric_values(qs.T, verts.positions[ch.v].T), kind="stable")[:room]
-                keep_rec = np.zeros(len(ch.u), bool)
+            if len(chosen.u) > room:
+                qs = verts.quadrics[chosen.u] + verts.quadrics[chosen.v]
+                first = np.argsort(quadric_values(qs.T, verts.positions[chosen.v].T), kind="stable")[:room]
+                keep_rec = np.zeros(len(chosen.u), bool)
                 keep_rec[first] = True
-                ch = ch.subset(keep_rec)
-        if len(ch.u) == 0:
+                chosen = chosen.subset(keep_rec)
+        if len(chosen.u) == 0:
             stalls += 1
             if not forced_phase:
                 break
             continue
-        done = apply_collapses(verts, live, ch, face_count)
+        done = apply_collapses(verts, live, chosen, face_count)
         if self_check and not np.array_equal(face_count, np.bincount(live.faces.ravel(), minlength=len(face_count))):
             raise RuntimeError("internal error: the faces per vertex kept by the passes differ from a recount")
         done.u, done.v = ids[done.u], ids[done.v]

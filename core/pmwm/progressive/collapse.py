@@ -46,16 +46,16 @@ def _arc_end_faces(nxt: np.ndarray, prv: np.ndarray, r: np.ndarray, pq: np.ndarr
     return np.stack([nxt == np.take(pq[0], r), prv == np.take(pq[1], r)])
 
 
-def apply_collapses(verts: EncoderVertices, live: LiveMesh, ch: Collapses, face_count: np.ndarray) -> CollapsedPass:
-    """Apply independent collapses ``ch`` to the live mesh, and to ``face_count`` (n + 1,) int64, its
+def apply_collapses(verts: EncoderVertices, live: LiveMesh, chosen: Collapses, face_count: np.ndarray) -> CollapsedPass:
+    """Apply independent collapses ``chosen`` to the live mesh, and to ``face_count`` (n + 1,) int64, its
     corners per local vertex (as ``np.bincount(live.faces.ravel())``: the sink's entry counts the
     retired faces' corners); returns the records' data (local vertex ids)."""
-    u, v = ch.u, ch.v
+    u, v = chosen.u, chosen.v
     k = len(u)
     sink = len(verts.removable) - 1
     F = live.faces
     flat = F.ravel()
-    cu, ru, cv, rv = ch.u_corners, ch.u_records, ch.v_corners, ch.v_records
+    cu, ru, cv, rv = chosen.u_corners, chosen.u_records, chosen.v_corners, chosen.v_records
     fu, ju = cu // 3, cu % 3
     vu = np.take(v, ru)
     in_f1 = np.take(flat, fu * 3 + np.take(NEXT_CORNER, ju)) == vu  # f1 holds the half-edge u -> v
@@ -123,7 +123,7 @@ def apply_collapses(verts: EncoderVertices, live: LiveMesh, ch: Collapses, face_
     if live.failed:
         c = np.concatenate(live.failed)
         ring = np.zeros(sink + 1, bool)  # the u's former 1-rings (their faces now hold v)
-        ring[np.take(F, ch.near_faces, axis=0)] = True
+        ring[np.take(F, chosen.near_faces, axis=0)] = True
         ring[sink] = False
         at_v_face = np.zeros(len(F), bool)
         at_v_face[fv] = True

@@ -14,6 +14,10 @@ a better priority or with an accepted collapse drop out; the rest are validated 
 and the pairs of the third rule settled by priority (``_try_winners``). Accepted collapses take their
 closed 1-ring out of play; failed candidates are marked, so that the vertex tries its next one. Why one
 round per pass and the cheaper half: docs/decisions/061-progressive-selection.md.
+
+Names in the code: ``wu``, ``wv`` the winners' u and v (k,); ``cu``, ``ru`` the flat corners at the u
+and the record (winner) of each; ``cv``, ``rv`` the same at the v; ``K`` (3, k) each collapse's v, a, b
+(the sink's id where a face is absent); ``n_with_sink`` the local vertices and the sink.
 """
 
 from __future__ import annotations
@@ -131,12 +135,12 @@ class SelectionRound:
     accepted: list  # Collapses accepted so far
 
 
-def _try_winners(s: SelectionRound, rows, wu: np.ndarray, value: np.ndarray, last: bool) -> None:
+def _try_winners(shared: SelectionRound, rows, wu: np.ndarray, value: np.ndarray, last: bool) -> None:
     """Try each winner's cheapest candidate (winners ``wu``: pairwise non-adjacent vertices of the faces
     in play, rows ``rows`` of the live faces or all when None; ``value``: their priorities by vertex).
-    Accepted collapses go to ``s.accepted``; ``last``: no round follows if any is accepted."""
+    Accepted collapses go to ``shared.accepted``; ``last``: no round follows if any is accepted."""
     take = np.take
-    verts, live, cheapest = s.verts, s.live, s.cheapest
+    verts, live, cheapest = shared.verts, shared.live, shared.cheapest
     forward, reverse = live.forward_cost, live.reverse_cost
     n_with_sink = len(verts.removable)
     F = live.faces
@@ -171,8 +175,8 @@ def _try_winners(s: SelectionRound, rows, wu: np.ndarray, value: np.ndarray, las
     K_free = take(least, K) == prio
     K_free |= K == n_with_sink
     sel = K_free[0] & K_free[1] & K_free[2]  # no winner of a better priority shares a K vertex
-    if s.accepted:  # (later rounds) not a K vertex of an accepted collapse
-        held = take(s.taken, K)
+    if shared.accepted:  # (later rounds) not a K vertex of an accepted collapse
+        held = take(shared.taken, K)
         sel = sel & ~(held[0] | held[1] | held[2])
     if not sel.any():
         return
@@ -186,15 +190,15 @@ def _try_winners(s: SelectionRound, rows, wu: np.ndarray, value: np.ndarray, las
     k = len(wu)
     cv, rv = tagged_corners(F, inverse_index(n_with_sink, wv), rows)  # the corners at their v (distinct)
     owners = _ring_owners(n_with_sink, np.concatenate([nxt, prv]), np.concatenate([ru, ru]))
-    ok, undecided = _valid_collapses(verts, live, s.face_count, wu, wv, cu, ru, cv, rv, owners, check_flips=True)
+    ok, undecided = _valid_collapses(verts, live, shared.face_count, wu, wv, cu, ru, cv, rv, owners, check_flips=True)
     # the third rule: v_i by u_j and v_j by u_i, with j accepted or a winner of a better priority
     late = np.zeros(k, bool)
-    if s.accepted:
+    if shared.accepted:
         fv3 = cv - cv % 3
         y = np.concatenate([take(flat, fv3 + take(NEXT_CORNER, cv % 3)), take(flat, fv3 + take(PREV_CORNER, cv % 3))])
         y_rec = np.concatenate([rv, rv])
-        (i,) = np.nonzero(take(s.accepted_v, y) >= 0)  # an accepted u by v_i: does its v lie by u_i?
-        yes, unsure = _in_ring(owners, take(s.accepted_v, take(y, i)), take(y_rec, i))
+        (i,) = np.nonzero(take(shared.accepted_v, y) >= 0)  # an accepted u by v_i: does its v lie by u_i?
+        yes, unsure = _in_ring(owners, take(shared.accepted_v, take(y, i)), take(y_rec, i))
         late[take(y_rec, i)[yes | unsure]] = True
     lo, hi, many = owners
     lose = take(many, wv)  # v_i held by a third winner: left for later
@@ -212,7 +216,7 @@ def _try_winners(s: SelectionRound, rows, wu: np.ndarray, value: np.ndarray, las
     reverse.ravel()[cand_corner[bad & is_reverse]] = np.inf
     if acc.any():
         (accepted_faces,) = compress(take(acc, ru), cu // 3)
-        s.accepted.append(Collapses(wu, wv, cu, ru, cv, rv, accepted_faces).subset(acc))
+        shared.accepted.append(Collapses(wu, wv, cu, ru, cv, rv, accepted_faces).subset(acc))
         if last:  # (what follows only serves later rounds of the pass)
             return
     cheapest[wu[bad]] = np.inf
@@ -220,14 +224,14 @@ def _try_winners(s: SelectionRound, rows, wu: np.ndarray, value: np.ndarray, las
     if bad_c.any():
         np.minimum.at(cheapest, wu[ru[bad_c]], np.minimum(forward.ravel()[cu[bad_c]], reverse.ravel()[pc[bad_c]]))
         w_bad = wu[bad]
-        bucket = _bucket_of(s.bucket_bounds, cheapest[w_bad]).astype(np.int64)
-        s.priority[w_bad] = (bucket << 32) | verts.tiebreak[w_bad]
+        bucket = _bucket_of(shared.bucket_bounds, cheapest[w_bad]).astype(np.int64)
+        shared.priority[w_bad] = (bucket << 32) | verts.tiebreak[w_bad]
     if acc.any():
         cheapest[take(F, accepted_faces, axis=0)] = np.inf  # the accepted u's closed 1-rings leave the running
         acc_i = np.flatnonzero(acc)
-        s.taken[take(K, acc_i, axis=1)] = True
-        s.taken[n_with_sink] = False
-        s.accepted_v[take(wu, acc_i)] = take(wv, acc_i)
+        shared.taken[take(K, acc_i, axis=1)] = True
+        shared.taken[n_with_sink] = False
+        shared.accepted_v[take(wu, acc_i)] = take(wv, acc_i)
 
 
 def _bucket_of(bounds: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -258,12 +262,12 @@ def select_collapses(verts: EncoderVertices, live: LiveMesh, face_count: np.ndar
     # (sorted first: numpy's SIMD sort and a selection in sorted data beat the selection alone)
     bounds = np.quantile(np.sort(finite[::step]), np.arange(1, _N_BUCKETS) / _N_BUCKETS)
     priority = (_bucket_of(bounds, cheapest).astype(np.int64) << 32) | verts.tiebreak
-    s = SelectionRound(verts, live, face_count, cheapest, priority, bounds, np.zeros(n_with_sink + 1, bool),
+    shared = SelectionRound(verts, live, face_count, cheapest, priority, bounds, np.zeros(n_with_sink + 1, bool),
                        np.full(n_with_sink, -1, np.int64), [])
     rows = None  # faces in play (None: all)
     F_play = F
     for r in range(64):
-        if r >= rounds and s.accepted:
+        if r >= rounds and shared.accepted:
             break
         playing = np.flatnonzero(np.isfinite(cheapest))
         if len(playing) == 0:
@@ -282,8 +286,8 @@ def select_collapses(verts: EncoderVertices, live: LiveMesh, face_count: np.ndar
         value = np.full(n_with_sink, _INT_INF, np.int64)
         value[cheap] = take(priority, cheap) ^ salt
         (wu,) = compress(take(value, cheap) == take(ring_minimum(F_play, value), cheap), cheap)
-        _try_winners(s, rows, wu, value, last=r + 1 >= rounds)
-    return Collapses.join(s.accepted)
+        _try_winners(shared, rows, wu, value, last=r + 1 >= rounds)
+    return Collapses.join(shared.accepted)
 
 
 def select_forced_collapses(verts: EncoderVertices, live: LiveMesh, face_count: np.ndarray,
