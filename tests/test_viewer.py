@@ -26,7 +26,7 @@ import meshes
 import pmwm
 import pmwm.viewer
 from pmwm.key import mesh_sha256
-from pmwm.pmfile import HEADER, to_bytes
+from pmwm.progressive import HEADER, to_bytes
 from pmwm.viewer import write_site
 from pmwm_bench.browser import Browser, find_chromium, serve
 

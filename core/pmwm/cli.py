@@ -26,7 +26,7 @@ from .base import PASS_PHRASE, EmbedOptions, Verdict
 from .errors import OutputExistsError, PmwmError
 from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
-from .pmfile import read_pm, record_size, write_pm
+from .progressive import read_pm, record_size, write_pm
 from .schemes import SCHEMES, keyed_by
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2

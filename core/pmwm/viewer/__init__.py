@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..atomic import atomic_write_bytes
 from ..errors import OutputExistsError, PmwmError
-from ..pmfile import ProgressiveMesh, to_bytes
+from ..progressive import ProgressiveMesh, to_bytes
 
 ASSETS = ("viewer.js", "viewer.css")  # copied as they are; index.html gets the title
 MODEL = "model.pmwm"
