@@ -97,7 +97,10 @@ def _break_word(word: str, room: float, ui_scale: float) -> list[str]:
 
 def wrap(text: str, room: float, ui_scale: float = 1.0) -> list[str]:
     """``text`` in lines that each fit ``room`` pixels: broken between words, and inside a word
-    only when the word alone is too long."""
+    only when the word alone is too long. Narrower than a few letters, the text stays one line (Blender
+    clips it)."""
+    if room < text_width("MMM", ui_scale):
+        return [text]
     lines: list[str] = []
     line = ""
     for word in text.split():
