@@ -17,3 +17,15 @@ def keying(scheme: str) -> str:
     if found is not None:
         return found
     return "pass phrase" if scheme == "blind" else "key file"
+
+
+def notes(v) -> list[str]:
+    """How a verdict was read when that departs from the suspect as given (``pmwm.wording.lines``'s middle
+    lines), for a library whose verdicts still carry ``extra``."""
+    mesh = getattr(v, "extra", {}).get("mesh")
+    if not isinstance(mesh, str):
+        return []
+    from pmwm.schemes.blind import mesh_read
+
+    note = mesh_read(mesh)
+    return [note] if note else []

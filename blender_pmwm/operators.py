@@ -336,8 +336,7 @@ class VerifyTask(_Task):
         record.p_value = min(max(float(verdict.p_value), 0.0), 1.0)
         record.payload = verdictwords.confirmed_payload(verdict)
         how = " with the pass phrase" if self.key is None else ""
-        report({"INFO"}, f"'{ob.name}' read{how}: {verdictwords.headline(verdict)}; "
-                         f"{verdictwords.payload_line(verdict)}")
+        report({"INFO"}, f"'{ob.name}' read{how}: {verdictwords.report_line(verdict)}")
 
 
 class ReportTask(_Task):
@@ -578,18 +577,20 @@ class PMWM_OT_watermark(_BackgroundOperator, Operator):
     def poll(cls, context):
         return _poll_mesh(cls, context)
 
-    def _names(self) -> tuple:
-        return self.SHARED + (self.PASS_PHRASE if _uses_passphrase(self.scheme) else self.KEY_FILE)
+    @classmethod
+    def options_for(cls, scheme: str) -> tuple:
+        """The options a run with ``scheme`` reads (and its redo panel shows)."""
+        return cls.SHARED + (cls.PASS_PHRASE if _uses_passphrase(scheme) else cls.KEY_FILE)
 
     def make_task(self, context):
-        self.option(context, "scheme")
-        return WatermarkTask(context, **{n: self.option(context, n) for n in self._names()})
+        names = self.options_for(self.option(context, "scheme"))
+        return WatermarkTask(context, **{n: self.option(context, n) for n in names})
 
     def draw(self, context):  # the redo panel: the options this run used, no key path for the Blind scheme
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        for name in self._names():
+        for name in self.options_for(self.scheme):
             layout.prop(self, name)
 
 

@@ -6,6 +6,7 @@ which rows its box shows. A payload is shown only when the verdict confirms it.
 
 from __future__ import annotations
 
+from . import compat
 from .compat import wording  # COMPAT: the branches for ``wording is None`` go with compat.py
 
 # Rows of wording.rows left out of the sidebar's box (too long for it; the report has them).
@@ -47,7 +48,7 @@ def box_rows(v) -> list[tuple[str, str]]:
     return [("Verdict", "MARKED" if v.marked else "NOT MARKED"),
             ("p-value", f"{v.p_value:.3g} (threshold {v.p_threshold:g})"),
             ("Matching bits", f"{v.matches} of {v.carriers_total} ({v.bit_errors} wrong)"),
-            ("Payload read", payload)]
+            ("Payload read", payload)] + [("Read", note) for note in compat.notes(v)]
 
 
 def numbers(v) -> list[tuple[str, str]]:
@@ -56,6 +57,13 @@ def numbers(v) -> list[tuple[str, str]]:
         return wording.technical_rows(v)
     return [("mode", v.mode), ("p-value", f"{v.p_value:.6g}"), ("correlation", f"{v.correlation:.4f}"),
             ("bits read (not erased)", f"{v.carriers_found}/{v.carriers_total}")]
+
+
+def report_line(v) -> str:
+    """The verdict in one line for Blender's report: headline, how it was read, payload line."""
+    if wording is not None:
+        return "; ".join(wording.lines(v))
+    return "; ".join([headline(v), *compat.notes(v), payload_line(v)])
 
 
 def confirmed_payload(v) -> str:

@@ -32,7 +32,8 @@ def test_the_room_model_cuts_where_a_real_window_cut(textfit):
     boxed = room.boxed()
     whole = [(room.label(), "Higher: more robust, more vis..."), (room.label(icon=True), "Key: bunny.pmwm-key.js..."),
              (room.split_name(), "Progressive ..."), (boxed.split_name(), "Level of ..."),
-             (boxed.label(icon=True), "Stream preview: bunny..."), (room.label(icon=True), "Being watermarked: Esc ...")]
+             (boxed.label(icon=True), "Stream preview: bunny..."),
+             (room.label(icon=True), "Being watermarked: Esc ...")]
     cut = [(room.label(), "Higher: more robust, more visible"), (room.label(icon=True), "Key: bunny.pmwm-key.json"),
            (room.split_name(), "Progressive Mesh"), (boxed.split_name(), "Level of Detail"),
            (boxed.label(icon=True), "Stream preview: bunny.pmwm"),
