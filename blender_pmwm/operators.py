@@ -507,7 +507,7 @@ class _BackgroundOperator(_PmwmOperator):
 
     def _in_background(self, context):
         if bpy.app.background or context.window is None:
-            return self.execute(context)
+            return self._guard(self.run, context)
         return self._guard(self._start, context)
 
     def _start(self, context):
@@ -540,8 +540,9 @@ class _BackgroundOperator(_PmwmOperator):
             self._redraw_sidebars(context)  # the panel's progress line and, at the end, the verdict
         return result
 
-    def cancel(self, context):  # Blender ends the modal operator (e.g. a file is loaded)
-        self._run.cancel(context)
+    def cancel(self, context):  # Blender ends the modal operator (a file is loaded, the file browser closed)
+        if getattr(self, "_run", None) is not None:
+            self._run.cancel(context)
         self._stop_timer(context)
 
 

@@ -137,6 +137,9 @@ def test_an_existing_report_is_never_replaced_unless_asked(scene, addon, bl, tmp
         ops.ReportTask(bpy.context, str(report))
     assert bpy.ops.pmwm.save_report(filepath=str(report), overwrite=True) == {"FINISHED"}
     assert "MARKED" in report.read_text() and ob.name in report.read_text()
+    # as after the file browser (no window here: it runs at once, as from a script)
+    again = tmp_path / "again.html"
+    assert bpy.ops.pmwm.save_report(filepath=str(again), chosen=True) == {"FINISHED"} and again.is_file()
     # the same for Export Progressive Mesh
     pm = tmp_path / "m.pmwm"
     pm.write_bytes(b"keep")
