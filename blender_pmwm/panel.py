@@ -176,12 +176,13 @@ class VIEW3D_PT_pmwm_advanced(_Sidebar, Panel):
         room = textfit.Room.of(context)
         s = context.scene.pmwm
         col = layout.column()
-        field(col, room, s, "blind_margin" if _reads_with_passphrase(context) else "strength")
+        blind = _reads_with_passphrase(context)
+        field(col, room, s, "blind_margin" if blind else "strength")
         label(col, room, "Higher: more robust, more visible")
         field(col, room, s, "base_ratio")
         label(col, room, "Size of the first streamed level")
         field(col, room, s, "seed")
-        label(col, room, "-1: fresh secret, kept in the key")
+        label(col, room, "-1: fresh random choices" if blind else "-1: fresh secret, kept in the key")
         field(col, room, s, "progressive")
         label(col, room, "Off: faster, nothing to export")
 
