@@ -220,33 +220,44 @@ def test_blind_mark_reports_no_carrier_count(scene, addon, bl, ops, window_manag
     assert "Watermarked 'bunny': " in reports.text() and "carriers" not in reports.text()
 
 
-def test_save_report_runs_in_the_background_with_moving_progress(scene, addon, bl, tmp_path, ops):
+def test_save_report_runs_in_the_background_with_moving_progress(scene, addon, bl, tmp_path, ops, monkeypatch):
+    import threading
+
+    from pmwm import verify_report
+
     ob = bl.bunny()
     key = tmp_path / "k.json"
     bpy.ops.pmwm.watermark(payload="Owner", key_path=str(key), seed=1)
     bpy.ops.pmwm.verify(key_path=str(key))
+    # the report's drawing waits for the test's go, so that the run is caught under way
+    go = threading.Event()
+    real = verify_report.build_report
+    monkeypatch.setattr(verify_report, "build_report", lambda *a, **k: (go.wait(120), real(*a, **k))[1])
     report = tmp_path / "bunny.pmwm-report.html"
     reports = Reports()
     run = ops.ModalRun(ops.ReportTask(bpy.context, str(report)), reports)
     run.start(bpy.context)
     assert run.status_text.startswith("Saving the report of 'bunny': ") and "Esc to cancel" in run.status_text
     assert not bpy.ops.pmwm.watermark.poll()  # the object is busy meanwhile
-    if not run.job.done:  # the seconds shown move while the stage reports nothing
-        run.job.started_at -= 7.0
-        assert run.step(bpy.context, "TIMER") in ({"RUNNING_MODAL"}, {"FINISHED"})
-        if run.status_text is not None:
-            assert "7 s" in run.status_text or "8 s" in run.status_text, run.status_text
-            assert "s" in addon.session.progress(ob)
-            assert _squeeze("Saving the report") in _text(draw(addon, "VIEW3D_PT_pmwm"))
+    run.job.started_at -= 7.0  # the seconds shown move while the stage reports nothing
+    assert run.step(bpy.context, "TIMER") == {"RUNNING_MODAL"}
+    assert run.status_text.endswith(", 7 s (Esc to cancel)"), run.status_text
+    assert addon.session.progress(ob) == "drawing the pictures, 7 s"
+    assert _squeeze("Saving the report: drawing the pictures, 7 s") in _text(draw(addon, "VIEW3D_PT_pmwm"))
+    go.set()
     status, _ = _run_to_end(run, bpy.context)
     assert status == {"FINISHED"} and report.is_file() and "MARKED" in report.read_text()
     assert f"Report on 'bunny' written to {report}" in reports.text()
+    assert addon.session.busy(ob) is None and addon.session.progress(ob) == ""
     # Esc: nothing written
+    go.clear()
     other = tmp_path / "cancelled.html"
     run = ops.ModalRun(ops.ReportTask(bpy.context, str(other)), Reports())
     run.start(bpy.context)
     assert run.step(bpy.context, "ESC") == {"CANCELLED"}
-    run.job.wait(120)
+    go.set()
+    assert run.job.wait(120)
+    assert run.step(bpy.context, "TIMER") == {"CANCELLED"}
     assert not other.exists() and addon.session.busy(ob) is None
 
 
