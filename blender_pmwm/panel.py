@@ -47,13 +47,19 @@ def label(layout, room: textfit.Room, text: str, icon: str = "NONE") -> None:
 
 
 def field(layout, room: textfit.Room, data, name: str, **kw) -> None:
-    """A property with its name beside it (property split) when the name and an enum's choice fit there,
-    else its name on a line above and the field the full width below."""
+    """A property with its name beside it (property split) when the name and an enum's choice fit there;
+    else a checkbox with its name right of it, or the name on a line above and the field the full width
+    below."""
     prop = data.bl_rna.properties[name]
     text = kw.pop("text", prop.name)
     shown = [prop.enum_items[getattr(data, name)].name] if prop.type == "ENUM" else []
     if room.fits(text, room.split_name()) and all(room.fits(t, room.field()) for t in shown):
         layout.prop(data, name, text=text, **kw)
+        return
+    if prop.type == "BOOLEAN" and room.fits(text, room.label(icon=True)):
+        row = layout.row()
+        row.use_property_split = False
+        row.prop(data, name, text=text, **kw)
         return
     col = layout.column(align=True)
     label(col, room, text)
@@ -77,7 +83,7 @@ def button(layout, room: textfit.Room, idname: str, text: str, short: str, icon:
 def _where(layout, room, path: str, what: str) -> None:
     """The file name and folder of a path, whole (the field shows only its start)."""
     absolute = bpy.path.abspath(path) if path else ""
-    label(layout, room, f"{what}: {bpy.path.basename(path)}", icon="INFO")
+    label(layout, room, f"{what}: {bpy.path.basename(path)}")
     if path.startswith("//") and os.path.dirname(path[2:]) == "":
         label(layout, room, "beside the .blend")
     else:

@@ -65,8 +65,10 @@ def _too_wide(log, textfit, width):
             if split:
                 checks.append((kw["text"], room.split_name()))
                 checks.append((kw["value"], room.field()))
+            elif kw["boolean"]:  # a checkbox, its name right of it
+                checks.append((kw["text"], room.label(icon=True)))
             else:  # a field the full width, its name on the line above
-                assert kw["text"] == "" or kw["boolean"], (kw["text"], "a name inside a full-width field")
+                assert kw["text"] == "", (kw["text"], "a name inside a full-width field")
                 checks.append((kw["value"], room.field(split=False)))
         elif kind == "operator":
             icon = kw["icon"] != "NONE"
