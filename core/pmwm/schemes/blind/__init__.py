@@ -4,11 +4,14 @@
 - ``radial``: the carrier, the distribution of the vertices' distances to the surface centroid in equal bins
   (Cho et al.'s method I over an area-quantile range, with an edge-preserving push), and the frame refinement.
 - ``crop``: the frame of a plane-cropped copy; ``frames``: the frames and meshes the reader reads in.
+- ``plan``: the reading's stages in order, each one's share of the p-value's budget, the union bound;
+  ``config``: ``ReaderConfig``, the reader's settings and the stages it may read.
 - ``detail``: ``BlindDetail``, how a verdict was read. No key exists: ``pmwm.embed`` returns none.
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed bins, and
 checks that it reads back. Reading chooses frames, meshes and the word length without the pass phrase, then
-keeps the candidate whose check bits match best; its p-value is a union bound over every candidate read. A
+keeps the candidate whose check bits match best; its p-value is a union bound over every candidate read
+(``plan.p_value``). A
 marked reading's payload is confirmed by its check bits; a reading that finds no mark returns no payload. The
 algorithm: docs/schemes/blind.md; the measurements behind its choices: docs/decisions/080-blind-reader-frames.md.
 """
@@ -27,11 +30,12 @@ from ...errors import KeyFileError, MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...validate import check_mesh
-from . import frames, radial, word
+from . import frames, plan, radial, word
+from .config import READER, ReaderConfig
 from .detail import BlindDetail, mesh_read
 
 __all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "read", "verify", "bin_statistics", "decide", "Statistics",
-           "word_read", "guess_word", "mesh_read", "BlindDetail"]
+           "word_read", "guess_word", "mesh_read", "BlindDetail", "ReaderConfig", "READER"]
 
 DEFAULT_ALPHA = 0.07
 TARGET_MRMS = 0.019  # without an explicit strength: the margin giving this MRMS (% of the bbox diagonal)
@@ -115,54 +119,61 @@ class Statistics:
     """What the reader measures on a suspect, independent of the pass phrase: per word length N the
     bins' statistics (R, N * BINS_PER_BIT) float64 (bin mean of r - 1/2; NaN: an empty bin) in R = 1
     to 4 or 6 frames (``frame_names``: the suspect's own, then a refined one, or a cropped copy's and its
-    neighbours, then the "denoised" ones; see ``frames.read_statistics``), and the length ``n_word`` the
-    reader reads;
+    neighbours, then the "denoised" ones; see ``frames.read_statistics``), the stage of the reading plan that
+    read each (``frame_stages``, R names of ``plan.STAGES``: what each frame pays of the p-value's budget),
+    and the length ``n_word`` the reader reads;
     ``shares``, the same shape, each bin's share of the vertices (None: taken as equal), which weighs how
     reliable its reading is (``word_read``); ``mesh``, the mesh measured ("suspect", or the mesh a
     subdivided suspect was made from: ``frames.Frames.mesh``; the "denoised" frames': ``frames.mesh_of``);
-    ``reserve``, the number of trailing frames read with what the p-value's budget leaves
-    (``frames.Frames.reserve``, ``candidates``); ``guess``, called by ``guess_word`` only
+    ``guess``, called by ``guess_word`` only
     (``frames.Frames.guess``: for a suspect on a coarse grid, the statistics of the suspect as it is or
     smoothed, and the length (an index into ``words``) whose bins show the most energy, else None)."""
 
     words: dict[int, np.ndarray]
     n_word: int
     frame_names: tuple[str, ...]
+    frame_stages: tuple[str, ...]
     shares: Optional[dict[int, np.ndarray]] = None
     mesh: str = "suspect"
     guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
-    reserve: int = 0
+
+    def __post_init__(self):
+        if len(self.frame_stages) != len(self.frame_names):
+            raise ValueError("Statistics: one stage per frame read")
+
+    @property
+    def reserve(self) -> int:
+        """The frames read with what the p-value's budget leaves (``plan.REST``)."""
+        return sum(plan.stage(s).pays == plan.REST for s in self.frame_stages)
 
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
         shares = None if self.shares is None else {n: s[:1] for n, s in self.shares.items()}
-        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1], shares,
-                          self.mesh, self.guess)
+        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1],
+                          self.frame_stages[:1], shares, self.mesh, self.guess)
 
     def candidates(self) -> list[int]:
-        """The Chase candidates read per kind in each frame: 2^``word.chase_bits`` in the frames read in full,
-        ``word.reserve_candidates`` in the last ``reserve`` ones (``frames.Frames.reserve``)."""
-        n_frames = len(self.frame_names)
-        full = n_frames - self.reserve
-        return [2 ** word.chase_bits(full)] * full + [word.reserve_candidates(full, self.reserve)] * self.reserve
+        """The Chase candidates read per kind in each frame (``plan.candidates`` of ``frame_stages``)."""
+        return plan.candidates(self.frame_stages)
 
 
-def bin_statistics(vertices, faces) -> Statistics:
+def bin_statistics(vertices, faces, config: ReaderConfig = READER) -> Statistics:
     """The ``Statistics`` of a suspect, vertices (n, 3), faces (m, 3) (``frames.read_statistics``: its
-    own, or those of the coarse mesh under it when it is a subdivided copy)."""
+    own, or those of the coarse mesh under it when it is a subdivided copy), read by the stages and settings
+    of ``config``."""
     V, F = check_mesh(vertices, faces)
     if len(F) == 0:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
-    got = frames.read_statistics(V, F, [_n_bins(n) for n in words])
+    got = frames.read_statistics(V, F, [_n_bins(n) for n in words], config)
     return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
-                      words[got.index], got.names,
+                      words[got.index], got.names, got.stages,
                       {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)},
-                      got.mesh, got.guess, got.reserve)
+                      got.mesh, got.guess)
 
 
-def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None
-              ) -> tuple[np.ndarray, np.ndarray]:
+def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None,
+              equalize: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The word of length ``n_word`` as read from the bins' statistics (M,) in radial order (after
     ``radial.equalized``: hard decisions, erasures drawn from a keyed coin) (N,) uint8, and the score of
     each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure). With the bins' shares of the
@@ -171,11 +182,12 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
     rank the bits by how likely they are right (the Chase search's order, ``word.likely_flips``). The
     neighbours' interference is removed in those units: the margins make every bin's mark the same
     number of standard errors (``radial.bin_margins``), as the equalizer's model has it (one g for all
-    bins), where in bin means they differ from bin to bin."""
+    bins), where in bin means they differ from bin to bin. ``equalize`` False: the bins as read
+    (``ReaderConfig.equalize``)."""
     bit_of_bin, scramble = word.layout(secret, n_word, len(stat))
     if share is not None:
         stat = radial.in_standard_errors(stat, share)
-    z = np.nan_to_num(radial.equalized(stat), nan=0.0)
+    z = np.nan_to_num(radial.equalized(stat) if equalize else stat, nan=0.0)
     score = np.bincount(bit_of_bin, weights=z, minlength=n_word)
     got = (score > 0).astype(np.uint8)
     erased = score == 0
@@ -183,11 +195,11 @@ def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.nda
     return got ^ scramble, score
 
 
-def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict:
+def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6, config: ReaderConfig = READER) -> Verdict:
     """The verdict from the ``Statistics`` of ``bin_statistics`` and a secret (module docstring): the
     chosen length in every frame, both kinds, every Chase candidate; the p-value is the union bound over
-    all of these candidates (R frames * 2 kinds * 2^C, C = ``word.chase_bits(R)``, and the reserve frames'
-    candidates: ``Statistics.candidates``), so it stays exact when the reader keeps the best of them."""
+    all of these candidates (``plan.p_value`` over the stages of the frames read), so it stays exact when the
+    reader keeps the best of them. ``config.equalize``: whether ``word_read`` equalizes the bins."""
     readings = []
     n_word = stats.n_word
     L = n_word - word.CHECK_BITS
@@ -195,11 +207,11 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
     shares = [None] * len(per_frame) if stats.shares is None else np.atleast_2d(stats.shares[n_word])
     n_frames = len(per_frame)
     per_reading = stats.candidates()
-    chase = word.chase_bits(n_frames - stats.reserve)
+    chase = plan.chase_bits(n_frames - stats.reserve)
     for fi, stat in enumerate(per_frame):
         if per_reading[fi] == 0:
             continue
-        got, score = word_read(stat, secret, n_word, shares[fi])
+        got, score = word_read(stat, secret, n_word, shares[fi], config.equalize)
         candidates = got[None] ^ word.likely_flips(np.abs(score), per_reading[fi])  # row 0: the word as read
         # the flips of check bits leave the payload as it is: each distinct payload's check computed once
         _, first, which = np.unique(np.packbits(candidates[:, :L], axis=1), axis=0, return_index=True,
@@ -211,7 +223,7 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6) -> Verdict
             m, cand = int(matches[best]), candidates[best]
             readings.append((metrics.binomial_tail(m, word.CHECK_BITS), -m, fi, L, kind, cand, score, got))
     p1, neg_m, fi, L, kind, cand, score, raw = min(readings, key=lambda r: (r[0], r[1], r[2]))
-    p = float(min(1.0, len(word.KINDS) * sum(per_reading) * p1))
+    p = plan.p_value(p1, stats.frame_stages)
     m = -neg_m
     payload = cand[:L]
     expected = word.check_bits(secret, kind, payload)
@@ -255,20 +267,20 @@ def guess_word(stats: Statistics, secret: str) -> tuple[np.ndarray, str]:
     return got, mesh
 
 
-def read(vertices, faces, secret: str, p_threshold: float = 1e-6) -> Verdict:
+def read(vertices, faces, secret: str, p_threshold: float = 1e-6, config: ReaderConfig = READER) -> Verdict:
     """The blind reading: the payload read, its verdict and p-value. vertices (n, 3), faces (m, 3)
-    of the suspect; ``secret`` from ``word.derive_secret``."""
-    return decide(bin_statistics(vertices, faces), secret, p_threshold)
+    of the suspect; ``secret`` from ``word.derive_secret``; ``config``, the reader's stages and settings."""
+    return decide(bin_statistics(vertices, faces, config), secret, p_threshold, config)
 
 
-def verify(vertices, faces, passphrase: str, p_threshold: float = 1e-6) -> Verdict:
+def verify(vertices, faces, passphrase: str, p_threshold: float = 1e-6, config: ReaderConfig = READER) -> Verdict:
     """``read`` with the secret of ``passphrase``, derived in a worker thread beside the bins' statistics,
     which need none: hashlib's scrypt (``word.SCRYPT``) releases the GIL, so the derivation costs the
     reading no time on two cores."""
     word.check_passphrase(passphrase)
     with Background(silent(word.derive_secret), passphrase) as deriving:
-        stats = bin_statistics(vertices, faces)
-        return decide(stats, deriving.result(), p_threshold)
+        stats = bin_statistics(vertices, faces, config)
+        return decide(stats, deriving.result(), p_threshold, config)
 
 
 def load_key_data(key: WatermarkKey) -> None:

@@ -5,8 +5,8 @@ original centroid c0 = c + lam (c_cap - c) (c the centroid of what is left, lam 
 lies near a two-parameter family given by the cut: c_cap ~ h + t n, h the centroid of the cut's boundary edges,
 n the cut plane's normal. ``cut_planes`` finds the cuts; ``crop_frames`` searches the family and copies of it
 off its plane for the frame of each word length that shows the most mark energy. Key-free: the search costs
-the p-value nothing. The algorithm: docs/schemes/blind.md; the measurements behind the constants:
-docs/decisions/081-blind-crop-frame-search.md."""
+the p-value nothing. Its settings: ``config.CropConfig``. The algorithm: docs/schemes/blind.md; the
+measurements behind them: docs/decisions/081-blind-crop-frame-search.md."""
 
 from __future__ import annotations
 
@@ -17,67 +17,39 @@ from ...background import parallel_map
 from ...features import row_norms
 from ...metrics import bbox_diagonal
 from ...spatial import pairs_within
+from .config import READER, CropConfig, CutConfig
 from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
                      distances, excess_energy, in_phase, low_quantile, refine_frame_on, scale_energies, statistics_in,
                      thinned)
 
-LAMBDA_MAX = 0.55  # the largest share of the area a crop may have taken (by the family's model)
-T_RANGE = (-0.1, 0.6)  # the cap's centroid from the cut, along its normal, in bounding-box diagonals
-REACH = 40.0  # candidate centres within this many bin widths of the suspect's centroid
-LATTICE = 0.3  # spacing of the candidate centres, in bin widths (the mark shows within about 0.5)
-COARSE_SAMPLE = 6000  # vertices scoring the candidate centres
-LAYERS = tuple(0.9 * k for k in range(-4, 5))  # the family's plane and copies of it this many bin widths off it
-SCREEN_LATTICE = 0.9  # the screening looks first at candidates this far apart (3 LATTICE, in bin widths)
-SCREEN_TOP = 0.02  # then, near the best share of those (SCREEN_MIN at least),
-EXPAND = 0.65  # at the candidates LATTICE apart within this many bin widths
-SCREEN_WIDTHS = (0.6, 1.6)  # every candidate: the bin widths, relative to the suspect's own, where its
-SCREEN_CELLS = 4  # radii may add up in phase (``radial.in_phase``; cells per smallest width, counts
-SCREEN_PAD = 2  # zero-padded to twice their length)
-SCREEN_KEEP = 0.05  # the share of the candidates (SCREEN_MIN at least) scored again, over
-SCREEN_MIN = 64
-COARSE_AROUND = 1.0 + 0.01 * np.arange(-6, 7)  # the widths within 6 % of each one's in-phase width
-COARSE_PHASES = np.linspace(-0.75, 0.75, 5)  # and these lo offsets
-TOP = 10  # candidates searched finely
-OFF_PLANE = np.linspace(-1.5, 1.5, 11)  # offsets of a candidate off its family's plane, in bin widths
-FINE_CELLS, FINE_PAD = 16, 8  # the fine fit's in-phase width (``radial.in_phase``) over SCREEN_WIDTHS,
-FINE_STEP, FINE_HALF = 0.00125, 24  # and the widths it tries: 0.125 % steps, 3 % either side of it
-FINE_PHASES = np.linspace(-0.5, 0.5, 33)  # within half a bin: a whole bin off reads the word shifted
-FINE_KEEP = 8  # widths of most energy at the phases FINE_PHASES[::4], tried at every phase
-REFINED = 4  # of the TOP, the best (by the fine fit's energy) refined, on REFINE_FIRST vertices
-REFINE_FIRST = 8000
-FINAL = 2  # of those, the best fitted again at their refined centre
-BEYOND = 2.0  # vertices beyond the suspect's hi + 2 REACH bin widths + this many ranges are left out
-MIN_EDGES = 12  # a boundary loop of fewer edges is not a cut
-MAX_LOOPS = 32  # the largest loops are looked at, no more (a mesh may have thousands of holes)
-MAX_PLANES = 4  # the cut planes searched, those of the largest loops first
-THICKNESS = 2.0  # a loop is planar when it lies within this many mean edge lengths (RMS) of a plane
-_BATCH = 32  # candidate centres scored together
+_BATCH = 32  # candidate centres scored together (a memory bound, not a tuning)
 
 
-def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray, cfg: CutConfig = READER.crop.cut
+               ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The planes in which the mesh V (n, 3), F (m, 3) was cut: [(h (3,), normal (3,))], h the
     length-weighted centroid of the boundary edges in the plane, the unit normal pointing away from
-    ``centre``. A boundary loop of at least MIN_EDGES edges is a cut when its edges' midpoints lie within
-    THICKNESS of its mean edge length from a plane (RMS; a crop deletes the faces of the vertices beyond
+    ``centre``. A boundary loop of at least ``cfg.min_edges`` edges is a cut when its edges' midpoints lie within
+    ``cfg.thickness`` of its mean edge length from a plane (RMS; a crop deletes the faces of the vertices beyond
     the plane, so the loop zigzags within about an edge of it); loops in the same plane (the largest
-    first) count together, and the plane is fitted to all of them. The MAX_LOOPS largest loops are looked
-    at, and the planes of the MAX_PLANES largest are returned."""
+    first) count together, and the plane is fitted to all of them. The ``cfg.max_loops`` largest loops are
+    looked at, and the planes of the ``cfg.max_planes`` largest are returned."""
     E = boundary_edges(F, len(V))
-    if len(E) < MIN_EDGES:
+    if len(E) < cfg.min_edges:
         return []
     loop = component_labels(E)
     mid = 0.5 * (V[E[:, 0]] + V[E[:, 1]])
     length = row_norms(V[E[:, 1]] - V[E[:, 0]])
     loops, size = np.unique(loop, return_counts=True)
     flat = []
-    for k in loops[np.argsort(-size, kind="stable")][:MAX_LOOPS]:
+    for k in loops[np.argsort(-size, kind="stable")][:cfg.max_loops]:
         on = loop == k
-        if on.sum() < MIN_EDGES:
+        if on.sum() < cfg.min_edges:
             break
         if not length[on].sum() > 0:
             continue
         h, n = _plane(mid[on], length[on])
-        if _thickness(mid[on], length[on], h, n) <= THICKNESS:
+        if _thickness(mid[on], length[on], h, n) <= cfg.thickness:
             flat.append((h, n, on))
     planes = []
     used = np.zeros(len(flat), bool)
@@ -86,12 +58,12 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray) -> list[tuple[n
             continue
         group = on.copy()
         for j in range(i + 1, len(flat)):
-            if not used[j] and _thickness(mid[flat[j][2]], length[flat[j][2]], h, n) <= THICKNESS:
+            if not used[j] and _thickness(mid[flat[j][2]], length[flat[j][2]], h, n) <= cfg.thickness:
                 group |= flat[j][2]
                 used[j] = True
         h, n = _plane(mid[group], length[group])
         planes.append((h, n if (h - centre) @ n >= 0 else -n))
-    return planes[:MAX_PLANES]
+    return planes[:cfg.max_planes]
 
 
 def _plane(P: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -107,12 +79,13 @@ def _thickness(P: np.ndarray, w: np.ndarray, h: np.ndarray, n: np.ndarray) -> fl
     return float(np.sqrt(np.average(((P - h) @ n) ** 2, weights=w)) / np.mean(w))
 
 
-def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Candidate centres (K, 3) on every plane's family c + lam (h + t n - c), LATTICE bin widths apart,
+def _candidates(c: np.ndarray, planes, width: float, diag: float, cfg: CropConfig
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Candidate centres (K, 3) on every plane's family c + lam (h + t n - c), ``cfg.lattice`` bin widths apart,
     with their lam (K,) and the unit normal of their family's plane (K, 3) (the plane through c spanned
     by h - c and n)."""
-    lam = np.linspace(0.0, LAMBDA_MAX, 161)[:, None, None]
-    t = np.linspace(T_RANGE[0] * diag, T_RANGE[1] * diag, 121)[None, :, None]
+    lam = np.linspace(0.0, cfg.lambda_max, 161)[:, None, None]
+    t = np.linspace(cfg.t_range[0] * diag, cfg.t_range[1] * diag, 121)[None, :, None]
     C, L, N = [], [], []
     for h, n in planes:
         off = np.cross(h - c, n)
@@ -120,11 +93,11 @@ def _candidates(c: np.ndarray, planes, width: float, diag: float) -> tuple[np.nd
         L.append(np.broadcast_to(lam, (161, 121, 1)).reshape(-1))
         N.append(np.broadcast_to(off / max(float(np.linalg.norm(off)), 1e-300), (161 * 121, 3)))
     C, L, N = np.concatenate(C), np.concatenate(L), np.concatenate(N)
-    off = np.asarray(LAYERS, float) * width  # the family's plane and its copies off it
+    off = np.asarray(cfg.layers, float) * width  # the family's plane and its copies off it
     C = (C[None] + off[:, None, None] * N[None]).reshape(-1, 3)
     L, N = np.tile(L, len(off)), np.tile(N, (len(off), 1))
-    near = row_norms(C - c) <= REACH * width
-    first = np.flatnonzero(near)[_spread(C[near] - c, LATTICE * width)]
+    near = row_norms(C - c) <= cfg.reach * width
+    first = np.flatnonzero(near)[_spread(C[near] - c, cfg.lattice * width)]
     return C[first], L[first], N[first]
 
 
@@ -144,21 +117,22 @@ def _spread(D: np.ndarray, spacing: float) -> np.ndarray:
     return first
 
 
-def _screen(P: np.ndarray, C: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
+def _screen(P: np.ndarray, C: np.ndarray, width: float, cfg: CropConfig) -> tuple[np.ndarray, np.ndarray]:
     """The screening's score of candidate centres C (K, 3): how strongly the distances of the vertices
-    P (k, 3) add up in phase at a bin width within SCREEN_WIDTHS times ``width`` (``radial.in_phase``),
+    P (k, 3) add up in phase at a bin width within ``cfg.screen_widths`` times ``width`` (``radial.in_phase``),
     (K,), and that bin width, (K,). P and C relative to a point near them (``radial.distances``),
     float32 is enough."""
-    w_min, w_max = width * SCREEN_WIDTHS[0], width * SCREEN_WIDTHS[1]
+    w_min, w_max = width * cfg.screen_widths[0], width * cfg.screen_widths[1]
     score, at = np.empty(len(C)), np.empty(len(C))
     for s0 in range(0, len(C), _BATCH):
         score[s0:s0 + _BATCH], at[s0:s0 + _BATCH] = in_phase(distances(P, C[s0:s0 + _BATCH]),
-                                                             w_min / SCREEN_CELLS, w_min, w_max, SCREEN_PAD)
+                                                             w_min / cfg.screen_cells, w_min, w_max,
+                                                             cfg.screen_pad)
     return score, at
 
 
 def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, widths: np.ndarray, n_bins: int,
-            phases: np.ndarray = COARSE_PHASES, cells: int = SCALE_CELLS) -> np.ndarray:
+            phases: np.ndarray, cells: int = SCALE_CELLS) -> np.ndarray:
     """The coarse score of candidate centres C (K, 3) with their lam (K,): the most mark energy over
     each one's bin ``widths`` (K, W) x ``phases`` (in bin widths) from lo, on the vertices P (k, 3) of
     areas (k,); P and C relative to a point near them (``radial.distances``), float32 is enough.
@@ -193,73 +167,77 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
 
 
 def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, planes: list,
-                bin_counts) -> list[Frame]:
+                bin_counts, cfg: CropConfig = READER.crop) -> list[Frame]:
     """For each count in ``bin_counts``, the frame of that many bins where a cropped copy shows the most
     mark energy (``excess_energy``) near the families of the cut ``planes`` (``cut_planes``, not empty).
     V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``; ``own`` the suspect's own
-    frame (its centre and range).
+    frame (its centre and range); ``cfg`` the search's settings (``config.CropConfig``, named below without
+    the prefix).
 
     Stages, per count: the candidate centres (``_candidates``) screened by how their radii add up in phase
-    (SCREEN_*), the kept ones scored by the mark's energy over widths and phases (COARSE_*), the TOP best moved
-    off their family's plane (OFF_PLANE) and fitted finely (``_fit_scale``), the REFINED best of those refined
-    (``radial.refine_frame_on``) and the FINAL best fitted again at their refined centre; the frame of most
-    energy wins. The counts are searched in parallel threads (``background.parallel_map``).
+    (screen_*), the kept ones scored by the mark's energy over widths and phases (coarse_*), the ``top`` best
+    moved off their family's plane (off_plane) and fitted finely (``_fit_scale``), the ``refined`` best of those
+    refined (``radial.refine_frame_on``) and the ``final`` best fitted again at their refined centre; the frame
+    of most energy wins. The counts are searched in parallel threads (``background.parallel_map``).
 
-    The vertices farther from the centroid than own.hi + 2 REACH bin widths (of the fewest bins) + BEYOND
-    ranges (hi - lo) are left out. No frame the search tries reaches them: its centre lies within REACH
-    bin widths of the centroid; its lo below the distance of the innermost 2 / (1 - LAMBDA_MAX) of the
-    area, so below own.hi + REACH bin widths; its bins span at most SCREEN_WIDTHS[1] = 1.6 ranges, and
+    The vertices farther from the centroid than own.hi + 2 reach bin widths (of the fewest bins) + beyond
+    ranges (hi - lo) are left out. No frame the search tries reaches them: its centre lies within reach
+    bin widths of the centroid; its lo below the distance of the innermost 2 / (1 - lambda_max) of the
+    area, so below own.hi + reach bin widths; its bins span at most screen_widths[1] = 1.6 ranges, and
     the phases and the refinement move them by a few bins. But its histograms would reach them: a stray
     part far from the model would make every candidate's counts and FFT as long as its distance. A model
     has none there."""
     dist = row_norms(V - own.centre)
-    within = dist <= own.hi + (2.0 * REACH / min(bin_counts) + BEYOND) * (own.hi - own.lo)
+    within = dist <= own.hi + (2.0 * cfg.reach / min(bin_counts) + cfg.beyond) * (own.hi - own.lo)
     by_rho = by_distance(V, a, own.centre)
     by_rho = by_rho[within[by_rho]]
-    sub, fine = thinned(by_rho, COARSE_SAMPLE), thinned(by_rho, REFINE_SAMPLE)
+    sub, fine = thinned(by_rho, cfg.coarse_sample), thinned(by_rho, REFINE_SAMPLE)
     # the coarse stages in float32: distances of a few hundred bin widths, accurate to 1e-5 bins
     Pc, area_c = (V[sub] - own.centre).astype(np.float32), area[sub]
     Pf, af = V[fine], a[fine]
-    sub_first = thinned(by_rho, REFINE_FIRST)
+    sub_first = thinned(by_rho, cfg.refine_first)
     first_sample = V[sub_first], a[sub_first]
     Pw, aw, area_w = V[by_rho], a[by_rho], area[by_rho]  # the fine width fit: every vertex of positive weight
     diag = bbox_diagonal(V[within])
     total = float(a.sum())
+    around, phases = np.asarray(cfg.coarse_around), np.asarray(cfg.coarse_phases)
+    off_plane = np.asarray(cfg.off_plane)
 
     def frame_for(n_bins: int) -> Frame:
         width = (own.hi - own.lo) / n_bins
-        C, L, N = _candidates(own.centre, planes, width, diag)
+        C, L, N = _candidates(own.centre, planes, width, diag, cfg)
         Cc = (C - own.centre).astype(np.float32)
-        # screening: the candidates SCREEN_LATTICE apart, then those LATTICE apart near the best of them
-        s = _spread(C - own.centre, SCREEN_LATTICE * width)
-        first = _screen(Pc, Cc[s], width)[0]
-        top = C[s[np.argsort(-first, kind="stable")[:max(SCREEN_MIN, int(SCREEN_TOP * len(s)))]]]
-        near = unique_values(pairs_within(top, C, EXPAND * width)[1])
-        second, at = _screen(Pc, Cc[near], width)
-        keep = max(SCREEN_MIN, int(SCREEN_KEEP * len(C) / len(LAYERS)))  # (a share of one layer's candidates)
+        # screening: the candidates screen_lattice apart, then those a lattice apart near the best of them
+        s = _spread(C - own.centre, cfg.screen_lattice * width)
+        first = _screen(Pc, Cc[s], width, cfg)[0]
+        top = C[s[np.argsort(-first, kind="stable")[:max(cfg.screen_min, int(cfg.screen_top * len(s)))]]]
+        near = unique_values(pairs_within(top, C, cfg.expand * width)[1])
+        second, at = _screen(Pc, Cc[near], width, cfg)
+        keep = max(cfg.screen_min, int(cfg.screen_keep * len(C) / len(cfg.layers)))  # (a share of one layer's)
         best = np.argsort(-second, kind="stable")[:keep]
         kept = near[best]
         score, w_phase = np.full(len(C), -np.inf), np.zeros(len(C))
         w_phase[kept] = at[best]  # each one's in-phase width, around which the coarse stage tries widths
-        score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], np.outer(at[best], COARSE_AROUND), n_bins)
+        score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], np.outer(at[best], around), n_bins, phases)
 
         def refined(fr: Frame, sample: tuple[np.ndarray, np.ndarray]) -> tuple[float, Frame]:
             fr = refine_frame_on(*sample, fr, n_bins)
             return excess_energy(*statistics_in(V, a, fr, [n_bins])[0], total), fr
 
         scaled = []
-        for i in np.argsort(-score, kind="stable")[:TOP]:
+        for i in np.argsort(-score, kind="stable")[:cfg.top]:
             # off the family's plane (the cap's centroid off the hole's axis), then the scale
-            off = C[i] - own.centre + np.outer(OFF_PLANE * width, N[i])
+            off = C[i] - own.centre + np.outer(off_plane * width, N[i])
             e = _coarse(Pc, area_c, off.astype(np.float32), np.full(len(off), L[i]),
-                        np.tile(w_phase[i] * COARSE_AROUND, (len(off), 1)), n_bins)
+                        np.tile(w_phase[i] * around, (len(off), 1)), n_bins, phases)
             best_off = off[int(np.argmax(e))]
-            scaled.append((*_fit_scale(Pw, aw, area_w, own.centre + best_off, L[i], width, n_bins), L[i]))
+            scaled.append((*_fit_scale(Pw, aw, area_w, own.centre + best_off, L[i], width, n_bins, cfg), L[i]))
         scaled.sort(key=lambda f: -f[0])
-        fits = sorted(((*refined(fr, first_sample), lam) for _, fr, lam in scaled[:REFINED]), key=lambda f: -f[0])
-        # the FINAL best, and each fitted again at its refined centre: the one of most energy
-        finals = [f for z, fr, lam in fits[:FINAL]
-                  for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins)[1],
+        fits = sorted(((*refined(fr, first_sample), lam) for _, fr, lam in scaled[:cfg.refined]),
+                      key=lambda f: -f[0])
+        # the ``final`` best, and each fitted again at its refined centre: the one of most energy
+        finals = [f for z, fr, lam in fits[:cfg.final]
+                  for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins, cfg)[1],
                                              (Pf, af)))]
         return max(finals, key=lambda f: f[0])[1]
 
@@ -268,22 +246,23 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
 
 
 def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarray, lam: float, width: float,
-               n_bins: int) -> tuple[float, Frame]:
+               n_bins: int, cfg: CropConfig) -> tuple[float, Frame]:
     """The frame around ``centre`` whose lo (near the area quantile the crop left of the original's,
-    ``lam`` its share taken) and bin width (within FINE_HALF steps of FINE_STEP of the width where the
-    radii add up in phase, within SCREEN_WIDTHS times ``width``) show the most mark energy on the
+    ``lam`` its share taken) and bin width (within ``cfg.fine_half`` steps of ``cfg.fine_step`` of the width
+    where the radii add up in phase, within ``cfg.screen_widths`` times ``width``) show the most mark energy on the
     vertices P (k, 3) with reader weights a (k,) and areas (k,); and that energy."""
     rho = row_norms(P - centre)[None]
     lo = np.array([low_quantile(rho[0], area, QUANTILES[0] / (1.0 - lam))])
     # the widths near the one where the radii add up in phase, at a few phases; then the widths of
     # most energy at every phase
-    w_min, w_max = width * SCREEN_WIDTHS[0], width * SCREEN_WIDTHS[1]
-    w_phase = float(in_phase(rho, w_min / FINE_CELLS, w_min, w_max, FINE_PAD)[1][0])
-    widths = w_phase * (1.0 + FINE_STEP * np.arange(-FINE_HALF, FINE_HALF + 1))
-    e = scale_energies(rho, a, lo, widths, FINE_PHASES[::4], n_bins)[0].max(1)
-    rel = widths[np.sort(np.argsort(-e, kind="stable")[:FINE_KEEP])]
-    e = scale_energies(rho, a, lo, rel, FINE_PHASES, n_bins)[0]
+    w_min, w_max = width * cfg.screen_widths[0], width * cfg.screen_widths[1]
+    w_phase = float(in_phase(rho, w_min / cfg.fine_cells, w_min, w_max, cfg.fine_pad)[1][0])
+    widths = w_phase * (1.0 + cfg.fine_step * np.arange(-cfg.fine_half, cfg.fine_half + 1))
+    phases = np.asarray(cfg.fine_phases)
+    e = scale_energies(rho, a, lo, widths, phases[::4], n_bins)[0].max(1)
+    rel = widths[np.sort(np.argsort(-e, kind="stable")[:cfg.fine_keep])]
+    e = scale_energies(rho, a, lo, rel, phases, n_bins)[0]
     wi, pi = np.unravel_index(int(np.argmax(e)), e.shape)
     w = float(rel[wi])
-    start = float(lo[0] + FINE_PHASES[pi] * w)
+    start = float(lo[0] + phases[pi] * w)
     return float(e.max()), Frame(centre, start, start + n_bins * w, n_bins)

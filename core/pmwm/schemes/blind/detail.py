@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from ...base import Verdict, VerdictDetail
-from .frames import DENOISE_LAM, UNSMOOTH_LAM
+from .config import READER
 
 
 def mesh_read(mesh: str) -> str:
@@ -20,8 +20,8 @@ def mesh_read(mesh: str) -> str:
     if mesh.startswith("smoothing:"):
         steps = int(mesh.split(":", 1)[1])
         if steps < 0:
-            return f"read after {-steps} steps of Laplacian smoothing ({DENOISE_LAM:g} each) against noise"
-        return f"read with {steps} steps of Laplacian smoothing ({UNSMOOTH_LAM:g} each) undone"
+            return f"read after {-steps} steps of Laplacian smoothing ({READER.denoise.lam:g} each) against noise"
+        return f"read with {steps} steps of Laplacian smoothing ({READER.unsmooth.lam:g} each) undone"
     return f"read on the mesh it was subdivided from: {mesh} undone"
 
 

@@ -7,19 +7,15 @@ The word. ``PAYLOAD_BITS`` lists the payload lengths a word can have (32, 64, 96
 12 or 28 bytes of text); behind the payload come ``CHECK_BITS`` = 32 check bits, a keyed hash of the
 secret, the payload kind (text or bits) and the payload. The reader knows neither the length nor the
 kind: it reads the length whose bins show the most mark energy (chosen without the pass phrase),
-as either kind, and in each of the 2 readings the 2^10 words that flip the 2^10 most likely sets of
+as either kind, and in each of the 2 readings up to 2^10 words that flip the most likely sets of
 bits (``likely_flips``: the sets of least total reliability, a bit's reliability its score in units of
-its bins' standard error; a Chase search over 2^``CHASE_BITS`` = 1024 candidates, which corrects a few
-weak bits wherever they are, not only among the 10 least reliable). Under the null (an unmarked
-mesh, or the wrong pass phrase) the expected check bits of a candidate are fair coins independent of
-the bits read (a keyed hash of what was read), so P(m or more of the 32 match) = P(Binomial(32, 1/2)
->= m) exactly per candidate, and the p-value reported is the union bound over the 2 * 1024 = 2048
-candidates per frame: all 32 matching gives p <= 2048 * 2^-32 = 4.8e-7 per frame (9.5e-7 with the
-refined frame) < 1e-6. A cropped copy is read in 6 frames (``frames``): then 2^8 candidates each
-(``chase_bits``), 7.2e-7 at best. A copy on a coarse grid is also read in reserve frames, each with
-what the budget leaves (``reserve_candidates``: 49 candidates beside 2 frames), so that the others keep
-their 2^10 and a reading with all 32 right stays below 1e-6. The candidates depend on the bits and scores read
-only, never on the check bits expected, so the bound holds whichever they are.
+its bins' standard error; a Chase search, which corrects a few weak bits wherever they are, not only
+among the 10 least reliable). Under the null (an unmarked mesh, or the wrong pass phrase) the expected
+check bits of a candidate are fair coins independent of the bits read (a keyed hash of what was read), so
+P(m or more of the 32 match) = P(Binomial(32, 1/2) >= m) exactly per candidate, and the p-value is the
+union bound over every candidate of every frame read (``plan``: how many candidates each frame gets so that
+a reading with all 32 right stays below 1e-6). The candidates depend on the bits and scores read only,
+never on the check bits expected, so the bound holds whichever they are.
 
 Why 32 check bits in the 64-bit benchmark word (32 payload + 32 check): with 24 (and no Chase
 search) p < 1e-6 needs every bit of the word right, and one weak bit loses the payload; 32 check bits pay
@@ -43,27 +39,9 @@ from ...validate import parse_bits
 
 PAYLOAD_BITS = (32, 64, 96, 224)
 CHECK_BITS = 32
-CHASE_BITS = 10  # the reader tries (at most) 2^10 candidate words per reading: the most likely flips
-P_BEST = 1e-6  # the p-value of a reading with every check bit right stays below this
 KINDS = ("bits", "text")
 SALT = b"pmwm-blind-v1 public salt"  # fixed and public: the pass phrase is the only secret
 SCRYPT = dict(n=2**14, r=8, p=1)  # ~16 MB, ~0.05 s per derivation
-
-
-def chase_bits(n_frames: int) -> int:
-    """The reader's 2^C candidates per reading when it reads ``n_frames`` frames, as C: the most, up to
-    CHASE_BITS, for which n_frames * 2 kinds * 2^C candidates keep the p-value of a reading with all
-    CHECK_BITS right below P_BEST (1 or 2 frames: 10; 3 or 4: 9)."""
-    budget = P_BEST * 2.0**CHECK_BITS / (len(KINDS) * max(1, n_frames))  # candidates allowed per reading
-    return int(min(CHASE_BITS, np.floor(np.log2(budget))))
-
-
-def reserve_candidates(n_frames: int, n_reserve: int) -> int:
-    """The candidates per reading of each of ``n_reserve`` reserve frames read beside ``n_frames`` frames of
-    2^``chase_bits(n_frames)`` candidates each: what the p-value's budget (P_BEST) leaves, shared equally
-    (0 when nothing is left). With 2 frames: 49; with 1: 561 (2 reserve frames)."""
-    main = len(KINDS) * max(1, n_frames) * 2 ** chase_bits(n_frames)
-    return max(0, int(np.floor((P_BEST * 2.0**CHECK_BITS - main) / (len(KINDS) * max(1, n_reserve)))))
 
 
 def likely_flips(reliability: np.ndarray, count: int) -> np.ndarray:
