@@ -23,7 +23,7 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1]))  # the add-on packa
 from _report import command, commit, load, machine, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
-from pmwm.schemes.blind import frames  # noqa: E402
+from pmwm.schemes import blind  # noqa: E402
 from pmwm.subdivision import coarse_mesh  # noqa: E402
 
 PAYLOAD_BITS = 32
@@ -55,15 +55,9 @@ def subsurf(V: np.ndarray, F: np.ndarray, limit: bool, ply: Path) -> tuple[tuple
 
 
 def as_it_is(Vs: np.ndarray, Fs: np.ndarray, phrase: str):
-    """``pmwm.verify`` with no subdivision step undone and no smoothing taken back (the reader before
-    d46800f, for this copy)."""
-    real, real_unsmoothing = frames.coarse_mesh, frames.unsmoothing
-    frames.coarse_mesh = lambda V, F: None
-    frames.unsmoothing = lambda *a: None
-    try:
-        return pmwm.verify(Vs, Fs, passphrase=phrase)
-    finally:
-        frames.coarse_mesh, frames.unsmoothing = real, real_unsmoothing
+    """``blind.verify`` without the reading plan's "coarse" and "unsmoothed" stages: no subdivision step
+    undone and no smoothing taken back."""
+    return blind.verify(Vs, Fs, phrase, config=blind.READER.without("coarse", "unsmoothed"))
 
 
 def main(argv=None) -> int:

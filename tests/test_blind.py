@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import json
 import dataclasses
+from dataclasses import replace
 import os
 import subprocess
 import sys
@@ -20,13 +21,34 @@ import meshes
 import pmwm
 from pmwm import attacks as A
 from pmwm.errors import MeshError, PayloadError
+from pmwm.features import vertex_areas
 from pmwm.meshio import read_mesh, write_mesh
 from pmwm.schemes import blind
-from pmwm.schemes.blind import crop, frames, radial, word
+from pmwm.schemes.blind import crop, frames, plan, radial, word
+from pmwm.schemes.blind.config import READER
 
 BUNNY = Path(pmwm.__file__).parent / "data" / "bunny.off"
 PHRASE = "correct horse battery staple"
 SECRET = word.derive_secret(PHRASE)
+
+
+@contextlib.contextmanager
+def calls_of(fn):
+    """The names of the threads in which ``fn`` was called while the context was open (a profile hook on
+    this thread and on the threads started meanwhile: the code is observed, not replaced)."""
+    code, where = fn.__code__, []
+
+    def hook(frame, event, arg):
+        if event == "call" and frame.f_code is code:
+            where.append(threading.current_thread().name)
+
+    sys.setprofile(hook)
+    threading.setprofile(hook)
+    try:
+        yield where
+    finally:
+        sys.setprofile(None)
+        threading.setprofile(None)
 
 
 @pytest.fixture(scope="module")
@@ -123,16 +145,16 @@ def test_whole_payload_survives(marked, attack):
     lambda v, f: A.smooth_laplacian(v, f, lam=0.1, iterations=8, seed=0),
     lambda v, f: A.noise_benchmark(v, f, 0.01, seed=2),
 ], ids=["smoothing8", "noise1%"])
-def test_refined_frame_reads_what_the_own_frame_loses(marked, attack, monkeypatch):
+def test_refined_frame_reads_what_the_own_frame_loses(marked, attack):
     """These attacks move the suspect's frame by a fraction of a bin; read in its own frame alone the
     payload is lost, the key-free frame refinement finds it, with p still below 1e-6 (the smoothed copy
     reads with its smoothing undone too: left out here, the refinement alone)."""
-    monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)
+    config = READER.without("unsmoothed")
     V, F = attack(marked.vertices, marked.faces)
-    stats = blind.bin_statistics(V, F)
+    stats = blind.bin_statistics(V, F, config)
     own_only = blind.decide(stats.own_frame(), SECRET)
     assert not (own_only.marked and own_only.payload == "Acme")
-    v = pmwm.verify(V, F, passphrase=PHRASE)
+    v = blind.verify(V, F, PHRASE, config=config)
     assert v.marked and v.payload == "Acme" and v.detail.frame == "refined" and v.p_value < 1e-6
 
 
@@ -166,7 +188,7 @@ def test_the_search_corrects_the_most_likely_errors_even_beyond_the_ten_least_re
     stat[np.isin(bit_of_bin, wrong)] *= -1  # the same reliabilities, those bits read wrong
     words, shares = dict(stats.words), dict(stats.shares)
     words[n], shares[n] = stat[None], share[None]
-    v = blind.decide(blind.Statistics(words, n, ("own",), shares), SECRET)
+    v = blind.decide(blind.Statistics(words, n, ("own",), ("own",), shares), SECRET)
     assert v.detail.word_read != v.detail.word
     assert v.marked and v.payload == "Acme" and v.p_value == pytest.approx(2 * 1024 * 2.0**-32)
 
@@ -203,17 +225,19 @@ def test_a_word_read_bins_off_in_a_neighbour_frame_counts_every_frame_in_its_p_v
     words = dict(stats.words)
     words[n] = np.stack([shifted, shifted, right, np.roll(right, 1), np.roll(right, 3), np.roll(right, 4)])
     names = ("own", "crop", "crop-2", "crop-1", "crop+1", "crop+2")
-    v = blind.decide(blind.Statistics(words, n, names), SECRET)
+    stages = ("own",) + ("crop",) * 5
+    v = blind.decide(blind.Statistics(words, n, names, stages), SECRET)
     assert v.marked and v.payload == "Acme" and v.detail.frame == "crop-2" and v.detail.frame_index == 2
     assert v.detail.chase_bits == 8 and v.p_value == pytest.approx(6 * 2 * 256 * 2.0**-32) and v.p_value < 1e-6
-    wrong = blind.decide(blind.Statistics(words, n, names), word.derive_secret(PHRASE + "!"))
+    wrong = blind.decide(blind.Statistics(words, n, names, stages), word.derive_secret(PHRASE + "!"))
     assert not wrong.marked
-    assert [word.chase_bits(k) for k in (1, 2, 3, 4, 5, 6)] == [10, 10, 9, 9, 8, 8]
+    assert [plan.chase_bits(k) for k in (1, 2, 3, 4, 5, 6)] == [10, 10, 9, 9, 8, 8]
 
 
 def test_a_reserve_frame_reads_with_what_the_budget_leaves_and_the_others_keep_their_chase_bits(marked):
-    """A copy on a coarse grid is also read in reserve frames (``Statistics.reserve``): the frames read in full
-    keep 2^10 candidates, each reserve reading gets what P_BEST leaves (49 beside 2 frames), and the p-value
+    """A copy on a coarse grid is also read in reserve frames (the plan's "reserve" stage, paid from what the
+    others leave): the frames read in full keep 2^10 candidates, each reserve reading gets what P_BEST leaves
+    (49 beside 2 frames), and the p-value
     counts them all. A word the full frames lose and a reserve frame holds with a weak bit wrong is read
     there, p < 1e-6; a wrong pass phrase reads nothing."""
     stats = blind.bin_statistics(marked.vertices, marked.faces).own_frame()
@@ -233,19 +257,77 @@ def test_a_reserve_frame_reads_with_what_the_budget_leaves_and_the_others_keep_t
     words, shares = dict(stats.words), dict(stats.shares)
     words[n], shares[n] = np.stack([lost, lost, weak, lost]), np.stack([share] * 4)
     names = ("own", "refined", "denoised", "denoised-refined")
-    v = blind.decide(blind.Statistics(words, n, names, shares, reserve=2), SECRET)
-    assert v.marked and v.payload == "Acme" and v.detail.frame == "denoised"
-    assert v.detail.chase_bits == 10 and v.detail.candidates == word.reserve_candidates(2, 2) == 49
+    stages = ("own", "refined", "reserve", "reserve")
+    v = blind.decide(blind.Statistics(words, n, names, stages, shares), SECRET)
+    assert v.marked and v.payload == "Acme" and v.detail.frame == "denoised" and v.detail.reserve_frames == 2
+    assert v.detail.chase_bits == 10 and v.detail.candidates == plan.reserve_candidates(2, 2) == 49
     assert v.p_value == pytest.approx(2 * (2 * 1024 + 2 * 49) * 2.0**-32) and v.p_value < 1e-6
-    wrong = blind.decide(blind.Statistics(words, n, names, shares, reserve=2),
-                         word.derive_secret(PHRASE + "!"))
+    wrong = blind.decide(blind.Statistics(words, n, names, stages, shares), word.derive_secret(PHRASE + "!"))
     assert not wrong.marked and wrong.p_value >= 2 * (2 * 1024 + 2 * 49) * 2.0**-32
-    # every split of the frames keeps a reading with all 32 check bits right below P_BEST
-    for full in range(1, 7):
-        for reserve in range(0, 3):
-            total = 2 * (full * 2 ** word.chase_bits(full) + reserve * word.reserve_candidates(full, reserve))
-            assert total * 2.0**-word.CHECK_BITS < word.P_BEST
-    assert word.reserve_candidates(1, 2) == 561
+    assert plan.reserve_candidates(1, 2) == 561
+
+
+def test_every_reading_the_plan_allows_keeps_all_check_bits_right_below_1e_6():
+    """The stages' shares of the budget (``plan.STAGES``: shared frames split it, the reserve takes what they
+    leave) keep every reading the plan can make within it: any number of frames of each stage up to what it
+    declares, the union bound over all their candidates times 2^-32 (all 32 check bits right) stays below
+    P_BEST = 1e-6, and every frame read gets at least one candidate while the budget lasts."""
+    import itertools
+
+    frame_stages = [s for s in plan.STAGES if s.pays != plan.MESH]
+    assert [s.name for s in frame_stages][0] == "own"
+    for counts in itertools.product(*(range(len(s.frames) + 1) for s in frame_stages)):
+        read = [s.name for s, k in zip(frame_stages, counts) for _ in range(k)]
+        if not read:
+            continue
+        per_frame = plan.candidates(read)
+        assert plan.union_bound(read) == 2 * sum(per_frame)
+        assert plan.p_value(2.0**-word.CHECK_BITS, read) < plan.P_BEST
+        shared = [c for c, s in zip(per_frame, read) if plan.stage(s).pays == plan.SHARED]
+        assert all(c == 2 ** plan.chase_bits(len(shared)) >= 256 for c in shared)
+    assert plan.candidates(["own", "refined", "reserve", "reserve"]) == [1024, 1024, 49, 49]
+    assert plan.candidates(["own"] + ["crop"] * 5) == [256] * 6
+    with pytest.raises(ValueError):
+        plan.candidates(["own", "coarse"])
+
+
+@pytest.mark.parametrize("copy", ["marked", "8-bit", "crop", "noise 0.95 %"])
+def test_a_verdicts_p_value_is_the_union_bound_over_the_stages_it_read(marked, copy):
+    """Whatever stages a reading takes, its frames are the ones their stages declare and the verdict's
+    p-value is ``plan.p_value`` over those stages: the union bound times the best candidate's tail."""
+    V, F = {"marked": lambda v, f: (v, f), "8-bit": lambda v, f: A.quantize(v, f, bits=8),
+            "crop": lambda v, f: A.crop_plane(v, f, fraction=0.1, seed=1),
+            "noise 0.95 %": lambda v, f: A.noise_benchmark(v, f, 0.0095, seed=0)}[copy](marked.vertices, marked.faces)
+    stats = blind.bin_statistics(V, F)
+    assert all(name in plan.stage(stage).frames for name, stage in zip(stats.frame_names, stats.frame_stages))
+    order = [s.name for s in plan.STAGES]
+    assert [order.index(s) for s in stats.frame_stages] == sorted(order.index(s) for s in stats.frame_stages)
+    v = blind.decide(stats, SECRET)
+    assert v.marked and v.payload == "Acme"
+    assert v.p_value == plan.p_value(pmwm.metrics.binomial_tail(v.matches, word.CHECK_BITS), stats.frame_stages)
+    assert v.detail.frames == len(stats.frame_stages) and v.detail.reserve_frames == stats.frame_stages.count("reserve")
+    wrong = blind.decide(stats, word.derive_secret(PHRASE + "!"))
+    assert wrong.p_value == plan.p_value(pmwm.metrics.binomial_tail(wrong.matches, word.CHECK_BITS),
+                                         stats.frame_stages)
+
+
+def test_a_stage_the_configuration_leaves_out_is_not_read(marked):
+    """``ReaderConfig.stages`` chooses the stages: without "refined" the marked bunny is read in its own frame
+    alone, and with 1 frame its p-value halves; a name the plan does not have is refused."""
+    stats = blind.bin_statistics(marked.vertices, marked.faces)
+    assert stats.frame_stages == ("own", "refined")
+    alone = blind.bin_statistics(marked.vertices, marked.faces, READER.without("refined"))
+    assert alone.frame_stages == ("own",)
+    v = blind.decide(alone, SECRET)
+    assert v.marked and v.payload == "Acme" and v.p_value == pytest.approx(2 * 1024 * 2.0**-32)
+    with pytest.raises(ValueError, match="no stage"):
+        replace(READER, stages=("own", "sharpened"))
+
+
+def test_the_docs_list_the_reading_plan_as_the_code_has_it():
+    """docs/schemes/blind.md, "The reading plan": the table of ``plan.table()``, so the two cannot drift."""
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "schemes" / "blind.md").read_text()
+    assert "\n".join(plan.table()) in doc
 
 
 def test_a_copy_on_a_coarse_grid_is_read_in_reserve_denoised_frames_too(marked):
@@ -253,15 +335,15 @@ def test_a_copy_on_a_coarse_grid_is_read_in_reserve_denoised_frames_too(marked):
     which gives them in full): the marked bunny as it is has none, its 8-bit copy both reserve frames, and
     still reads, its p-value counting their candidates."""
     plain = blind.bin_statistics(marked.vertices, marked.faces)
-    assert plain.reserve == 0 and not any(name.startswith("denoised") for name in plain.frame_names)
+    assert "reserve" not in plain.frame_stages and not any(name.startswith("denoised") for name in plain.frame_names)
     V, F = A.quantize(marked.vertices, marked.faces, bits=8)
     assert frames.on_grid(V)
     stats = blind.bin_statistics(V, F)
     # its bins show no blur (that would give the denoised frames in full): they come as reserve frames
-    assert stats.frame_names[-2:] == ("denoised", "denoised-refined") and stats.reserve == 2
+    assert stats.frame_names[-2:] == ("denoised", "denoised-refined") and stats.frame_stages[-2:] == ("reserve",) * 2
     v = blind.decide(stats, SECRET)
     assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
-    assert v.p_value == pytest.approx(2 * sum(stats.candidates()) * 2.0**-32)
+    assert v.p_value == plan.p_value(2.0**-32, stats.frame_stages)
 
 
 def test_bin_margins_give_every_bin_the_same_signal_to_noise():
@@ -397,7 +479,7 @@ def test_a_cropped_copy_is_not_read_after_its_border_blew_up(marked):
     """Steps of smoothing undone amplify what smoothing never damped, a crop's zigzag border first (1.2
     times per step): past the count a smoothed copy needs, the mesh grows without bound and its own frame
     shows a large energy that is not the mark's. The reader stops where the bounding box has grown by 10 %
-    (``frames.UNSMOOTH_GROWTH``), so these crops of the bunny (20 % and 30 %, each read before after 75-84
+    (``UnsmoothConfig.growth``), so these crops of the bunny (20 % and 30 %, each read before after 75-84
     steps back, the bunny blown up) keep their crop frames."""
     for fraction, seed in ((0.2, 6), (0.2, 7), (0.3, 1)):
         V, F = A.crop_plane(marked.vertices, marked.faces, fraction=fraction, seed=seed)
@@ -405,7 +487,7 @@ def test_a_cropped_copy_is_not_read_after_its_border_blew_up(marked):
         assert stats.mesh == "suspect" and stats.frame_names[:2] == ("own", "crop")
 
 
-def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny, monkeypatch):
+def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny):
     """An asset with a planar cut of its own (a bust's base), marked and read intact, re-ordered or with
     0.3 % noise, shows the mark in full in its own frame: read there, without the crop search (over a
     second otherwise), at the p-value of a suspect without a cut. Its crops are still searched (the test
@@ -413,23 +495,20 @@ def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny,
     V, F = A.crop_plane(*bunny, fraction=0.1, seed=7)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Flat", passphrase=PHRASE, seed=5,
                                              progressive=False))
-
-    def refuse(*args, **kwargs):
-        raise AssertionError("the crop search ran on a copy that shows the mark in full")
-
-    monkeypatch.setattr(frames, "crop_frames", refuse)
     assert crop.cut_planes(res.vertices, F, res.vertices.mean(0))  # the asset has a planar cut
     for X, G in [(res.vertices, F), A.reorder(res.vertices, F, seed=1),
                  A.noise_benchmark(res.vertices, F, amplitude=0.003, seed=2)]:
-        v = pmwm.verify(X, G, passphrase=PHRASE)
+        with calls_of(crop.crop_frames) as searched:
+            v = pmwm.verify(X, G, passphrase=PHRASE)
+        assert not searched  # the crop search did not run
         assert v.marked and v.payload == "Flat" and v.detail.chase_bits == 10 and v.p_value < 1e-6
 
 
 @pytest.mark.slow
-def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, monkeypatch):
+def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked):
     """The centre a crop took away can lie a bin width or more off the plane of the family the search
     follows (the cap's centroid off the hole's axis), too far for the mark to show on the plane: the search
-    also follows copies of the family ``crop.LAYERS`` bin widths off its plane. Two bunny crops whose
+    also follows copies of the family ``CropConfig.layers`` bin widths off its plane. Two bunny crops whose
     lost centre lies more than a bin width off it are read; with the plane alone, neither is
     (docs/decisions/081-blind-crop-frame-search.md)."""
     fr0, _ = radial.frame_of(marked.vertices, marked.faces, 64)
@@ -442,12 +521,12 @@ def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked, mon
         assert abs((fr0.centre - fr.centre) @ normal) / np.linalg.norm(normal) > width
         v = pmwm.verify(V, F, passphrase=PHRASE)
         assert v.marked and v.payload == "Acme" and v.detail.frame.startswith("crop")
-    monkeypatch.setattr(crop, "LAYERS", (0.0,))
-    assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
+    plane_alone = replace(READER, crop=replace(READER.crop, layers=(0.0,)))
+    assert not any(blind.verify(V, F, PHRASE, config=plane_alone).payload == "Acme" for V, F in crops)
 
 
 @pytest.mark.slow
-def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_read(marked, monkeypatch):
+def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_read(marked):
     """A 30 % crop can leave the lost centre several bin widths off the family's plane (up to 5 on the
     benchmark models): the search follows copies of the family up to 3.6 bin widths either side. Two
     posed 30 % crops of the bunny whose lost centre lies more than 1.8 bin widths off the plane are read
@@ -465,32 +544,32 @@ def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_r
         v = pmwm.verify(V, F, passphrase=PHRASE)
         assert v.marked and v.payload == "Acme" and v.detail.frame.startswith("crop") and v.p_value < 1e-6
         crops.append((V, F))
-    monkeypatch.setattr(crop, "LAYERS", (-1.8, -0.9, 0.0, 0.9, 1.8))
-    assert not any(pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme" for V, F in crops)
+    nearer = replace(READER, crop=replace(READER.crop, layers=(-1.8, -0.9, 0.0, 0.9, 1.8)))
+    assert not any(blind.verify(V, F, PHRASE, config=nearer).payload == "Acme" for V, F in crops)
 
 
 @pytest.mark.slow
-def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marked, monkeypatch):
+def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marked):
     """The search for the longer word can find the shorter mark's own bins (lo and bin width): read with
     the longer word's count, those bins hold the mark and the bins beyond it, so the frame is read at
-    every length and the length of most excess energy wins. Here the search for 96 bins returns the
-    64-bin mark's frame (the frame its own search found, extended to 96 bins) and the search for 64
-    bins a frame that holds no mark: the payload is still read, at 64 bins (each length read in its own
+    every length and the length of most excess energy wins (``frames.best_length``). Here the search for 96
+    bins is given the 64-bin mark's frame (the frame its own search found, extended to 96 bins) and the search
+    for 64 bins a frame that holds no mark: the payload is still read, at 64 bins (each length read in its own
     frame read 96 bins there, and nothing)."""
     V, F = A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=1)
     assert pmwm.verify(V, F, passphrase=PHRASE).payload == "Acme"
-    real = frames.crop_frames
-
-    def swapped(V, a, area, own, planes, counts):
-        g = real(V, a, area, own, planes, counts)[0]  # the 64-bin mark's frame
-        assert counts == [64, 96] and g.n_bins == 64
-        return [radial.Frame(own.centre + 40 * g.width, own.lo, own.hi, 64),
-                radial.Frame(g.centre, g.lo, g.lo + 96 * g.width, 96)]
-
-    monkeypatch.setattr(frames, "crop_frames", swapped)
-    stats = blind.bin_statistics(V, F)
-    v = blind.decide(stats, SECRET)
-    assert stats.n_word == 64 and v.marked and v.payload == "Acme" and v.detail.frame.startswith("crop")
+    area = vertex_areas(V, F)
+    own, a = radial.frame_of_areas(V, area, 1)
+    counts = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
+    g = crop.crop_frames(V, a, area, own, crop.cut_planes(V, F, own.centre), [64, 96])[0]  # the 64-bin mark's
+    assert g.n_bins == 64
+    swapped = [radial.Frame(own.centre + 40 * g.width, own.lo, own.hi, 64),
+               radial.Frame(g.centre, g.lo, g.lo + 96 * g.width, 96)]
+    _, j, f = frames.best_length(V, a, swapped, counts, [0, 1])
+    assert counts[j] == 64 and f.n_bins == 64
+    stat, share = radial.statistics_in(V, a, f, [64])[0]
+    v = blind.decide(blind.Statistics({64: stat[None]}, 64, ("crop",), ("crop",), {64: share[None]}), SECRET)
+    assert v.marked and v.payload == "Acme"
 
 
 @pytest.fixture(scope="module")
@@ -503,16 +582,15 @@ def small_marked(bunny):
 
 @pytest.mark.parametrize("scheme", ["loop", "sqrt3", "catmull-clark"])
 @pytest.mark.slow
-def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, scheme, monkeypatch):
+def test_a_subdivided_copy_is_read_on_the_coarse_mesh_under_it(small_marked, scheme):
     """One step of Loop, sqrt(3) or Catmull-Clark subdivision (and a new order) smooths a mesh this small
     so much that its own reading loses the payload; the coarse mesh solved from the new vertices reads
     it."""
     V, F = A.reorder(*A.subdivide(small_marked.vertices, small_marked.faces, scheme), seed=2)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.detail.mesh == scheme and v.p_value < 1e-6
-    monkeypatch.setattr(frames, "coarse_mesh", lambda V, F, *counts: None)
-    monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)  # (a Loop copy reads with smoothing undone too)
-    v = pmwm.verify(V, F, passphrase=PHRASE)
+    # (a Loop copy reads with smoothing undone too)
+    v = blind.verify(V, F, PHRASE, config=READER.without("coarse", "unsmoothed"))
     assert not (v.marked and v.payload == "Acme") and v.detail.mesh == "suspect"
 
 
@@ -524,7 +602,7 @@ def test_two_steps_of_subdivision_are_undone_one_at_a_time(small_marked):
 
 
 @pytest.mark.slow
-def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(small_marked, monkeypatch):
+def test_an_interpolating_subdivision_is_read_on_the_original_vertices_it_kept(small_marked):
     """A 1-to-4 step that keeps the original vertices where they are and puts the new ones off the
     edges' midpoints (as butterfly does): solved as Loop's (the better fit of the two rules), the coarse
     mesh is smoothed; the original vertices as the copy has them read the payload."""
@@ -546,17 +624,17 @@ def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, schem
     """A mesh that is itself a subdivision (a modeller's output), marked: the mark is on every vertex,
     so the suspect, not the coarse mesh under it, shows it (intact: in full view, no coarse mesh looked
     for; quantized to 7 bits: its coarse mesh, solved or as it is, shows no more energy per vertex, far
-    from the factor COARSE_GAIN that a subdivided copy's shows; the suspect is read, as it is or a few
+    from the factor ``ReaderConfig.coarse_gain`` that a subdivided copy's shows; the suspect is read, as it is or a few
     steps smoothed)."""
     V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), scheme)
     res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4,
                                              progressive=False))
     S = (res.vertices, res.faces) if attack is None else attack(res.vertices, res.faces)
     own = frames.read_statistics_frames(*S, [L + word.CHECK_BITS for L in word.PAYLOAD_BITS])
-    assert (own.energy >= frames.FULL_VIEW) == (attack is None)
+    assert (own.energy >= READER.full_view) == (attack is None)
     assert frames.coarse_mesh(*S).rule == scheme  # the structure is there either way
     v = pmwm.verify(*S, passphrase=PHRASE)
-    assert v.marked and v.payload == "Acme" and v.detail.mesh in ("suspect", f"smoothing:-{frames.DENOISE_STEPS}")
+    assert v.marked and v.payload == "Acme" and v.detail.mesh in ("suspect", f"smoothing:-{READER.denoise.steps}")
 
 
 def test_cut_planes_find_the_plane_of_a_crop():
@@ -821,21 +899,20 @@ def test_bench_method_reads_its_bits(bunny):
     assert method.extract(*A.reorder(marked, bunny[1], seed=1), key) == "".join(map(str, bits))
 
 
-def test_equalizing_the_radial_neighbours_reads_what_the_plain_reading_loses(marked, monkeypatch):
+def test_equalizing_the_radial_neighbours_reads_what_the_plain_reading_loses(marked):
     """Noise of 0.95 % spills each bin's pushed vertices into its radial neighbours: read bin by bin,
     more bits come out wrong than the search can correct; with the neighbours' interference removed
     (``radial.equalized``, no pass phrase involved) the whole payload reads, p < 1e-6."""
     V, F = A.noise_benchmark(marked.vertices, marked.faces, 0.0095, seed=0)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
-    monkeypatch.setattr(radial, "equalized", lambda stat: stat)
-    monkeypatch.setattr(frames, "with_denoised", lambda got, *a: got)  # (the suspect's own frames alone)
-    plain = pmwm.verify(V, F, passphrase=PHRASE)
+    # (the suspect's own frames alone: no denoised frames)
+    plain = blind.verify(V, F, PHRASE, config=replace(READER.without("denoised"), equalize=False))
     assert not (plain.marked and plain.payload == "Acme")
 
 
 @pytest.mark.parametrize("copy", ["bunny quantized to 7 bits", "14,000 vertices, 0.95 % noise"])
-def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marked, copy, monkeypatch):
+def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marked, copy):
     """7-bit quantization of the bunny and 0.95 % noise of a 14,000-vertex copy move every vertex by a good
     part of a bin: read as they are, the bins lose the payload; after a few steps of Laplacian smoothing
     (``frames.with_denoised``, key-free) the "denoised" frames read it, p < 1e-6 with their frames counted
@@ -846,22 +923,21 @@ def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marke
         V, F = A.noise_benchmark(small_marked.vertices, small_marked.faces, 0.0095, seed=3)
     v = pmwm.verify(V, F, passphrase=PHRASE)
     assert v.marked and v.payload == "Acme" and v.detail.frame.startswith("denoised")
-    assert v.detail.mesh == f"smoothing:-{frames.DENOISE_STEPS}"
+    assert v.detail.mesh == f"smoothing:-{READER.denoise.steps}"
     assert blind.mesh_read(v.detail.mesh) == "read after 3 steps of Laplacian smoothing (0.1 each) against noise"
-    assert v.detail.frames in (2, 3, 4) and v.detail.chase_bits == word.chase_bits(v.detail.frames)
+    assert v.detail.frames in (2, 3, 4) and v.detail.chase_bits == plan.chase_bits(v.detail.frames)
     assert v.p_value == pytest.approx(v.detail.frames * 2 * 2.0 ** v.detail.chase_bits * 2.0**-32)
     assert v.p_value < 1e-6
-    monkeypatch.setattr(frames, "with_denoised", lambda got, *a: got)
-    plain = pmwm.verify(V, F, passphrase=PHRASE)
+    plain = blind.verify(V, F, PHRASE, config=READER.without("denoised"))
     assert not (plain.marked and plain.payload == "Acme")
 
 
 @pytest.mark.parametrize("case", [3, 29, 34])
 @pytest.mark.slow
-def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny, case, monkeypatch):
+def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny, case):
     """The bundled bunny marked at the fixed margin DEFAULT_ALPHA (weaker than the calibrated default), then
     0.5 % noise: read in its "denoised" frames refined on all of its 34,835 vertices
-    (``frames.DENOISE_REFINE_SAMPLE``), the whole payload; refined on the 17,418 of the other frames'
+    (``DenoiseConfig.refine_sample``), the whole payload; refined on the 17,418 of the other frames'
     sample (``radial.REFINE_SAMPLE``), not: its bins are blurred, and the sample's own noise moves the
     frame off the mark."""
     v, f = bunny
@@ -871,8 +947,8 @@ def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny
     V, F = A.noise_benchmark(res.vertices, f, amplitude=0.005, seed=case)
     got = pmwm.verify(V, F, passphrase=phrase)
     assert got.marked and got.payload == "studio" and got.detail.frame == "denoised-refined"
-    monkeypatch.setattr(frames, "DENOISE_REFINE_SAMPLE", radial.REFINE_SAMPLE)
-    sampled = pmwm.verify(V, F, passphrase=phrase)
+    sampled = blind.verify(V, F, phrase, config=replace(READER, denoise=replace(READER.denoise,
+                                                                                 refine_sample=radial.REFINE_SAMPLE)))
     assert not (sampled.marked and sampled.payload == "studio")
 
 
@@ -881,12 +957,12 @@ def _errors(bits: np.ndarray, want: np.ndarray) -> int:
 
 
 @pytest.mark.slow
-def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny, monkeypatch):
+def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny):
     """The bundled bunny marked at the fixed margin DEFAULT_ALPHA, then quantized to 7 bits: no whole payload
     is read, and the verdict's guess (chosen without the pass phrase) comes from the copy smoothed by the count
     of steps that shows the most mark energy (``frames.guess_statistics``). Over three phrases it errs on fewer
     bits of the word written than the hard decisions of the copy as it is, which are the guess without the
-    smoothing (GUESS_STEPS emptied)."""
+    smoothing (``DenoiseConfig.guess_steps`` emptied)."""
     v, f = bunny
     smoothed_errors, plain_errors = 0, 0
     for case in (3, 5, 6):
@@ -901,9 +977,8 @@ def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny,
         guess, mesh = blind.guess_word(blind.bin_statistics(V, F), secret)
         assert mesh.startswith("smoothing:-")
         smoothed_errors += _errors(guess, want)
-        with monkeypatch.context() as m:
-            m.setattr(frames, "GUESS_STEPS", ())
-            plain, plain_mesh = blind.guess_word(blind.bin_statistics(V, F), secret)
+        no_steps = replace(READER, denoise=replace(READER.denoise, guess_steps=()))
+        plain, plain_mesh = blind.guess_word(blind.bin_statistics(V, F, no_steps), secret)
         assert plain_mesh == "suspect"
         plain_errors += _errors(plain, want)
     assert smoothed_errors < plain_errors
@@ -949,27 +1024,20 @@ def test_a_grid_is_coarse_at_12_bits_or_fewer_and_only_on_the_copys_own_axes(mar
     assert not frames.on_grid(turned)
 
 
-def test_a_blurred_readings_denoised_frames_are_measured_in_a_worker_with_the_same_result(marked, monkeypatch):
+def test_a_blurred_readings_denoised_frames_are_measured_in_a_worker_with_the_same_result(marked):
     """A copy whose bins show the blur (the bunny quantized to 7 bits) has its denoised frames measured in a
     worker thread beside the unsmoothing scan (``frames.denoised_frames``): the same statistics, frames and
     verdict as measured in the caller's thread, and no thread outlives the reading."""
     V, F = A.quantize(marked.vertices, marked.faces, bits=7)
-    where = []
-    measure = frames.denoised_frames
-
-    def recorded(*args, **kwargs):
-        where.append(threading.current_thread().name)
-        return measure(*args, **kwargs)
-
-    monkeypatch.setattr(frames, "denoised_frames", recorded)
     before = threading.active_count()
-    beside = blind.bin_statistics(V, F)
+    with calls_of(frames.denoised_frames) as where:
+        beside = blind.bin_statistics(V, F)
     assert threading.active_count() == before
     assert len(where) == 1 and where[0].startswith("pmwm-background")
     assert any(n.startswith("denoised") for n in beside.frame_names)
-    monkeypatch.setattr(frames, "beside", lambda enabled, fn, *a, **k: contextlib.nullcontext())
-    alone = blind.bin_statistics(V, F)
-    assert len(where) == 2 and where[1] == threading.current_thread().name
+    with calls_of(frames.denoised_frames) as where:
+        alone = blind.bin_statistics(V, F, replace(READER, workers=False))
+    assert where == [threading.current_thread().name]
     assert alone.frame_names == beside.frame_names and alone.n_word == beside.n_word
     for n in alone.words:
         np.testing.assert_array_equal(alone.words[n], beside.words[n])
@@ -1198,7 +1266,7 @@ def test_cli_says_when_it_read_the_mesh_under_a_subdivided_copy(small_marked, tm
 @pytest.mark.parametrize("lam,iterations", [(0.1, 30), (0.1, 50), (0.25, 6)],
                          ids=["30x0.1", "50x0.1", "Blender-Smooth-0.5x6"])
 @pytest.mark.slow
-def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, monkeypatch, lam, iterations):
+def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, lam, iterations):
     """Uniform Laplacian smoothing (the benchmark's, lambda 0.1, and Blender's Smooth modifier, lambda =
     factor / 2) blurs the radii beyond reading, but leaves the mark in the copy; the reader takes the
     smoothing back step by step (``frames.unsmoothing``, key-free) and reads the payload."""
@@ -1207,8 +1275,7 @@ def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, monkeypatch, 
     assert v.marked and v.payload == "Acme" and v.p_value < 1e-6
     steps = int(v.detail.mesh.split("smoothing:")[1])
     assert lam * iterations <= 0.1 * steps <= 1.5 * lam * iterations
-    monkeypatch.setattr(frames, "unsmoothing", lambda *a: None)
-    plain = pmwm.verify(V, F, passphrase=PHRASE)
+    plain = blind.verify(V, F, PHRASE, config=READER.without("unsmoothed"))
     assert not (plain.marked and plain.payload == "Acme")
 
 
