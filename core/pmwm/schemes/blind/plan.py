@@ -30,6 +30,7 @@ from typing import Sequence
 
 import numpy as np
 
+from .radial import REFINE_BOUND
 from .word import CHECK_BITS, KINDS
 
 CHASE_BITS = 10  # the reader tries (at most) 2^10 candidate words per reading: the most likely flips
@@ -42,7 +43,8 @@ SHARED, REST, MESH = "shared", "rest", "mesh"
 class Stage:
     """One stage of the reading: its ``name`` (what ``config.ReaderConfig.stages`` lists), the ``frames`` it
     reads (their names, with the default crop shifts; none for a mesh stage), how it ``pays`` (SHARED, REST
-    or MESH: module docstring), and ``when`` it applies, in words (the docs' table)."""
+    or MESH: module docstring), and ``when`` it applies, in words (the docs' table: a template filled with a
+    ``config.ReaderConfig`` as ``c`` and ``radial.REFINE_BOUND`` as ``bound``)."""
 
     name: str
     frames: tuple[str, ...]
@@ -53,22 +55,23 @@ class Stage:
 STAGES: tuple[Stage, ...] = (
     Stage("own", ("own",), SHARED, "always: the suspect's area-weighted centre and quantile range"),
     Stage("refined", ("refined",), SHARED,
-          "the compass search (at most 1.5 bin widths) finds a frame of more mark energy than the own one"),
+          "the compass search (at most {bound:g} bin widths) finds a frame of more mark energy than the own one"),
     Stage("crop", ("crop", "crop-2", "crop-1", "crop+1", "crop+2"), SHARED,
           "the suspect has a planar cut, does not show the mark in full view, and the crop search finds a "
-          "frame of more energy than the refined one (which it replaces); words of up to 96 bins"),
+          "frame of more energy than the refined one (which it replaces); words of up to {c.crop_max_bins} bins"),
     Stage("coarse", (), MESH,
-          "not in full view, and the mesh a subdivided suspect was made from (up to 3 steps undone) shows "
-          "twice its excess energy per vertex"),
+          "not in full view, and the mesh a subdivided suspect was made from (up to {c.max_undo} steps undone) "
+          "shows {c.coarse_gain:g} times its excess energy per vertex"),
     Stage("unsmoothed", (), MESH,
-          "still not in full view, and the suspect with steps of smoothing undone shows twice the excess "
-          "energy per vertex of the best so far"),
+          "still not in full view, and the suspect with steps of smoothing undone shows {c.coarse_gain:g} times "
+          "the excess energy per vertex of the best so far"),
     Stage("denoised", ("denoised", "denoised-refined"), SHARED,
           "still not in full view, no crop frame, and the bins show their neighbours' interference (the blur "
-          "of noise or quantization): the own and refined frames of the suspect after 3 smoothing steps"),
+          "of noise or quantization): the own and refined frames of the suspect after {c.denoise.steps} "
+          "smoothing steps"),
     Stage("reserve", ("denoised", "denoised-refined"), REST,
-          "the suspect lies on a coarse grid (12 bits or fewer per axis), no crop frame and no denoised "
-          "stage: the same frames, paid from what the others leave"),
+          "the suspect lies on a coarse grid (at most {c.denoise.grid_values} values per axis), no crop frame "
+          "and no denoised stage: the same frames, paid from what the others leave"),
 )
 
 _PAYS = {s.name: s.pays for s in STAGES}
@@ -118,12 +121,14 @@ def p_value(p_one: float, frame_stages: Sequence[str]) -> float:
     return float(min(1.0, union_bound(frame_stages) * p_one))
 
 
-def table() -> list[str]:
-    """The plan as the lines of a Markdown table (docs/schemes/blind.md, "The reading plan")."""
+def table(config) -> list[str]:
+    """The plan as the lines of a Markdown table (docs/schemes/blind.md, "The reading plan"), its conditions
+    with the settings of ``config`` (a ``config.ReaderConfig``)."""
     rows = ["| stage | frames | share of the budget | read when |", "|---|---|---|---|"]
-    share = {SHARED: "an equal part with the other shared frames (2^C candidates per kind, C <= 10)",
+    share = {SHARED: f"an equal part with the other shared frames (2^C candidates per kind, C <= {CHASE_BITS})",
              REST: "an equal part of what the shared frames leave",
              MESH: "none: the mesh the frame stages read"}
     for s in STAGES:
-        rows.append(f"| {s.name} | {', '.join(s.frames) or '-'} | {share[s.pays]} | {s.when} |")
+        when = s.when.format(c=config, bound=REFINE_BOUND)
+        rows.append(f"| {s.name} | {', '.join(s.frames) or '-'} | {share[s.pays]} | {when} |")
     return rows
