@@ -43,6 +43,7 @@ __all__ = [
     "write_mesh",
     "write_marked",
     "weld",
+    "canonical_mesh",
 ]
 
 
@@ -254,6 +255,31 @@ def _load_trimesh(path: str, ext: str) -> tuple["trimesh.Trimesh", list[str]]:
     raise MeshError(f"{path} holds no triangle mesh ({_describe_nonmesh(loaded)})")
 
 
+def canonical_mesh(v_src: np.ndarray, f_src: np.ndarray, where: str,
+                   warnings: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mesh the schemes see from a file's own vertices (n, 3) float64 and triangles (m, 3) int64:
+    exact duplicates welded (``weld``), degenerate faces dropped. Returns (vertices, faces, inverse),
+    inverse (n,) int64 file vertex -> canonical vertex; appends what it did to ``warnings``; MeshError
+    (naming ``where``) when no face is left."""
+    vertices, faces, inverse = weld(v_src, f_src)
+    if len(vertices) < len(v_src):
+        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices "
+                        "(UV seams, split normals or a triangle soup)")
+    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    n_bad = int(degenerate.sum())
+    if n_bad:
+        faces = faces[~degenerate]
+        warnings.append(f"dropped {n_bad} degenerate faces")
+        if len(faces) == 0:
+            raise MeshError(f"{where} holds no triangle mesh (all {n_bad} faces are degenerate)")
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.ravel()] = True
+    n_unused = int(len(vertices) - used.sum())
+    if n_unused:
+        warnings.append(f"{n_unused} vertices are not used by any face")
+    return vertices, np.ascontiguousarray(faces, dtype=np.int64), inverse
+
+
 def _is_float32(v: np.ndarray) -> bool:
     with np.errstate(over="ignore", invalid="ignore"):
         return bool(np.array_equal(v.astype(np.float32).astype(np.float64), v))
@@ -275,26 +301,10 @@ def read_mesh(path) -> SourceMesh:
     if len(f_src) and (f_src.min() < 0 or f_src.max() >= len(v_src)):
         raise MeshError(f"{p} has faces that reference missing vertices; repair the mesh")
 
-    vertices, faces, inverse = weld(v_src, f_src)
-    if len(vertices) < len(v_src):
-        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices "
-                        "(UV seams, split normals or a triangle soup)")
-    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    n_bad = int(degenerate.sum())
-    if n_bad:
-        faces = faces[~degenerate]
-        warnings.append(f"dropped {n_bad} degenerate faces")
-        if len(faces) == 0:
-            raise MeshError(f"{p} holds no triangle mesh (all {n_bad} faces are degenerate)")
-    used = np.zeros(len(vertices), dtype=bool)
-    used[faces.ravel()] = True
-    n_unused = int(len(vertices) - used.sum())
-    if n_unused:
-        warnings.append(f"{n_unused} vertices are not used by any face")
-
+    vertices, faces, inverse = canonical_mesh(v_src, f_src, p, warnings)
     return SourceMesh(
         vertices=vertices,
-        faces=np.ascontiguousarray(faces, dtype=np.int64),
+        faces=faces,
         source=mesh,
         source_to_canonical=inverse,
         float32=_is_float32(v_src),
