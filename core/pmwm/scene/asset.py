@@ -6,10 +6,14 @@ chosen key-file scheme per object, named by the object; every object's secret is
 secret (the seed's, or fresh) and every object carries the same payload. A key of one mesh (a
 "pmwm-key" file) reads as a scene key of one object, so old keys read as before.
 
-Reading (``verify_objects``) tries every suspect object against every object key (or the pass phrase;
-only the keys of objects of the same connectivity when some match: a wrong key costs seconds of
-registration search) and keeps the best pair; its p-value pays the union bound over the pairs tried (``union_bound``), so
-that a scene of many objects is no easier to call marked by chance than one mesh. The verdict names the
+Reading (``verify_objects``) with a key file tries every suspect object against every object key (only
+the keys of objects of the same connectivity when some match: a wrong key costs seconds of
+registration search) and keeps the best pair; its p-value pays the union bound over the pairs tried
+(``union_bound``), so that a scene of many objects is no easier to call marked by chance than one
+mesh. With a pass phrase (one payload in every object) the scene is marked when every object is: the
+p-value is the largest object's, exact whatever the dependence between objects, with no union bound
+to pay (a pass-phrase scheme's p-value has a floor close to the threshold, which a union bound
+would lift above it). The verdict names the
 objects where the mark was read (``SceneDetail``).
 """
 
@@ -23,7 +27,7 @@ import numpy as np
 
 from ..api import embed, load_key_data, verify
 from ..base import EmbedOptions, EmbedResult, Progress, Verdict, VerdictDetail, no_progress
-from ..errors import KeyFileError, PmwmError
+from ..errors import KeyFileError, PayloadError, PmwmError
 from ..key import WatermarkKey, derive_seed, face_fingerprint, json_text, keyed_bits, make_secret, read_key_text, write_key
 
 __all__ = ["SCENE_KEY_FORMAT", "SceneKey", "SceneDetail", "AssetMarking", "embed_objects", "verify_objects",
@@ -88,9 +92,12 @@ def embed_objects(objects: Sequence[Named], options: Optional[EmbedOptions] = No
             report((i + f) / len(objects), f"{name}: {msg}")
 
         try:
-            results.append(embed(V, F, o, progress=part))
+            res = embed(V, F, o, progress=part)
         except PmwmError as exc:
             raise type(exc)(f"object {name!r}: {exc}") from None
+        if len(objects) > 1:
+            _check_reads_back(name, res, F, opts)
+        results.append(res)
     names = [n for n, _, _ in objects]
     keys = [r.key for r in results]
     if keys[0] is None:
@@ -102,11 +109,22 @@ def embed_objects(objects: Sequence[Named], options: Optional[EmbedOptions] = No
     return AssetMarking(names, results, key)
 
 
+def _check_reads_back(name: str, res: EmbedResult, faces: np.ndarray, opts: EmbedOptions) -> None:
+    """PayloadError unless the object's mark reads back, as float32 (what a glTF stores): a scene's
+    key must not name an object that carries nothing."""
+    stored = res.vertices.astype(np.float32).astype(np.float64)
+    v = verify(stored, faces, res.key, passphrase=None if res.key is not None else opts.passphrase)
+    if not v.marked:
+        raise PayloadError(f"object {name!r} does not read back as marked (p = {v.p_value:.3g}); it may be too "
+                           "small for the payload: give a stronger --strength, fewer bits, or another scheme")
+
+
 @dataclass(frozen=True)
 class SceneDetail(VerdictDetail):
-    """How a verdict over objects was read: the best pair's own detail (``inner``), the pairs tried
-    (suspect objects x object keys), the best pair's names and p-value before the correction, and the
-    (suspect object, key object, corrected p) of every pair read as marked."""
+    """How a verdict over objects was read: the deciding pair's own detail (``inner``), the pairs tried
+    (suspect objects x object keys; 0 for a pass phrase: then every object must read marked and the
+    weakest decides), the deciding pair's names and p-value before any correction, and the (suspect
+    object, key object, p) of every pair read as marked."""
 
     inner: VerdictDetail
     tried: int
@@ -130,19 +148,22 @@ class SceneDetail(VerdictDetail):
     def notes(self) -> list[str]:
         read = (f"mark read in {len(self.found)} of {self.n_objects} objects: {self._where()}" if self.found
                 else f"mark read in none of {self.n_objects} objects")
-        return [*self.inner.notes(), f"{read} (p-value x {self.tried}, the object/key pairs tried)"]
+        how = (f"p-value x {self.tried}, the object/key pairs tried" if self.tried
+               else "the p-value is the weakest object's: a pass phrase marks every object")
+        return [*self.inner.notes(), f"{read} ({how})"]
 
     def in_words(self) -> list[tuple[str, str]]:
         where = (f"{self._where()} ({len(self.found)} of {self.n_objects})" if self.found
                  else f"none of the {self.n_objects} objects")
-        return [("Objects marked", where),
-                ("Correction", f"the p-value is the best object's times {self.tried}, the object/key pairs "
-                               "tried, so that many objects do not make a chance match likelier"),
+        how = (f"the p-value is the best object's times {self.tried}, the object/key pairs tried, so that "
+               "many objects do not make a chance match likelier" if self.tried else
+               "the p-value is the weakest object's: with a pass phrase every object must carry the mark")
+        return [("Objects marked", where), ("Correction", how),
                 *self.inner.in_words()]
 
     def numbers(self) -> list[tuple[str, str]]:
-        return [("object/key pairs tried", str(self.tried)), ("best pair", " / ".join(self.best)),
-                ("best p before correction", f"{self.p_single:.6g}"), *self.inner.numbers()]
+        return [("object/key pairs tried", str(self.tried)), ("deciding pair", " / ".join(self.best)),
+                ("its p before correction", f"{self.p_single:.6g}"), *self.inner.numbers()]
 
 
 def verify_objects(objects: Sequence[Named], keys: Optional[Sequence[tuple[str, WatermarkKey]]] = None,
@@ -157,10 +178,15 @@ def verify_objects(objects: Sequence[Named], keys: Optional[Sequence[tuple[str, 
     tried = len(plan)
     pairs = [(name, key_name, verify(V, F, key, p_threshold, passphrase=passphrase))
              for name, V, F, key_name, key in plan]
-    found = tuple((s, k, union_bound(v.p_value, tried)) for s, k, v in pairs
-                  if union_bound(v.p_value, tried) < p_threshold)
-    s, k, best = min(pairs, key=lambda t: t[2].p_value)
-    p = union_bound(best.p_value, tried)
+    if keys is None:  # one pass phrase, one payload in every object: the weakest object decides
+        found = tuple((s, k, v.p_value) for s, k, v in pairs if v.p_value < p_threshold)
+        s, k, best = max(pairs, key=lambda t: t[2].p_value)
+        p, tried = best.p_value, 0
+    else:
+        found = tuple((s, k, union_bound(v.p_value, tried)) for s, k, v in pairs
+                      if union_bound(v.p_value, tried) < p_threshold)
+        s, k, best = min(pairs, key=lambda t: t[2].p_value)
+        p = union_bound(best.p_value, tried)
     marked = p < p_threshold
     confirmed = bool(marked and best.payload_confirmed)
     detail = SceneDetail(inner=best.detail, tried=tried, n_objects=len(objects), n_keys=len(secrets),
