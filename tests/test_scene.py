@@ -4,7 +4,6 @@ line and nothing written."""
 
 from __future__ import annotations
 
-import base64
 import json
 import struct
 
@@ -368,3 +367,32 @@ def test_a_scene_goes_back_to_its_own_format(tmp_path, capsys):
                  str(tmp_path / "k.json")]) == 2
     assert "use -o NAME.glb" in capsys.readouterr().err
     assert not (tmp_path / "m.ply").exists() and not (tmp_path / "k.json").exists()
+
+
+def test_morph_targets_are_kept_and_the_mesh_marked_at_rest(tmp_path, capsys):
+    """A mesh with a morph target: marked in its rest positions, the target's deltas and weights kept."""
+    def morph(doc, body):
+        prim = doc["meshes"][0]["primitives"][0]
+        count = doc["accessors"][prim["attributes"]["POSITION"]]["count"]
+        delta = np.tile(np.float32([0.0, 0.01, 0.0]), (count, 1)).tobytes()
+        body = body + b"\0" * (-len(body) % 4)
+        doc["bufferViews"].append({"buffer": 0, "byteOffset": len(body), "byteLength": len(delta)})
+        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5126, "count": count,
+                                 "type": "VEC3", "min": [0, 0.01, 0], "max": [0, 0.01, 0]})
+        prim["targets"] = [{"POSITION": len(doc["accessors"]) - 1}]
+        doc["meshes"][0]["weights"] = [0.5]
+        doc["buffers"][0]["byteLength"] = len(body) + len(delta)
+        return body + delta
+
+    path = _edited(tmp_path, "morph.glb", morph)
+    capsys.readouterr()
+    assert main(["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
+                 "--payload", PAYLOAD]) == 0
+    assert "marked at rest" in capsys.readouterr().err
+    doc0, bin0 = _glb_parts(path.read_bytes())
+    doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
+    assert _without_minmax(doc0) == _without_minmax(doc1)
+    moved = _moved_bytes(doc0)
+    a0, a1 = np.frombuffer(bin0, np.uint8), np.frombuffer(bin1, np.uint8)
+    assert np.array_equal(a0[~moved], a1[~moved])  # the target's deltas among them
+    assert main(["verify", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json")]) == 0

@@ -28,7 +28,8 @@ import numpy as np
 from ..api import embed, load_key_data, verify
 from ..base import EmbedOptions, EmbedResult, Progress, Verdict, VerdictDetail, no_progress
 from ..errors import KeyFileError, PayloadError, PmwmError
-from ..key import WatermarkKey, derive_seed, face_fingerprint, json_text, keyed_bits, make_secret, read_key_text, write_key
+from ..key import (WatermarkKey, derive_seed, face_fingerprint, json_text, keyed_bits, make_secret, read_key_text,
+                   write_key)
 
 __all__ = ["SCENE_KEY_FORMAT", "SceneKey", "SceneDetail", "AssetMarking", "embed_objects", "verify_objects",
            "union_bound", "read_keys", "write_keys"]

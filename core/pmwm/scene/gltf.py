@@ -166,12 +166,16 @@ def read_gltf(path: str) -> GltfScene:
     buffers = [_load_buffer(b, i, path, bin_chunk) for i, b in enumerate(gltf.buffers or [])]
     scene = GltfScene(path=path, doc=doc, buffers=buffers, objects=[], glb_tail=tail)
     names = _mesh_names(gltf)
+    skinned = {node.mesh for node in gltf.nodes or [] if node.skin is not None}
     for m, mesh in enumerate(gltf.meshes or []):
         obj, parts = _read_mesh(doc, gltf, buffers, m, mesh, names[m], path)
+        if m in skinned:
+            obj.warnings.append(f"{obj.name}: skinned; marked in its bind pose, joints and weights kept")
         scene.objects.append(obj)
         scene._parts.append(parts)
     if not scene.objects:
         raise MeshError(f"{path} holds no mesh (its nodes carry no geometry); nothing to mark")
+    scene.warnings = [w for obj in scene.objects for w in obj.warnings]
     return scene
 
 
@@ -281,7 +285,7 @@ def _read_mesh(doc, gltf, buffers, m: int, mesh, name: str, path: str):
         rows = np.arange(start, start + len(blocks[list(offsets).index(pos)]))
         parts.append((pos, normals.get(pos), rows))
     if mesh.weights or any(p.targets for p in mesh.primitives):
-        obj.warnings.append(f"{name}: morph targets kept as they are; marked at rest")
+        obj.warnings.append(f"{name}: morph targets kept as they are; marked at rest")  # (deltas from rest)
     return obj, parts
 
 

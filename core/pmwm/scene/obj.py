@@ -10,7 +10,6 @@ triangle fans; the file keeps them as written.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -184,7 +183,3 @@ def _objects(path, v_xyz, tris, tri_group, corner_group, cv, names) -> tuple[lis
         objects.append(canonical_object(name, v_xyz[local], faces, f"{path}: object {name!r}"))
         rows.append(local)
     return objects, rows
-
-
-def is_obj(path: str) -> bool:
-    return os.path.splitext(path)[1].lower() == ".obj"
