@@ -248,7 +248,7 @@ def _load_trimesh(path: str, ext: str) -> tuple["trimesh.Trimesh", list[str]]:
                     process=False,
                 )
                 warnings.append("scene materials could not be merged and were dropped")
-            warnings.append(f"scene of {len(meshes)} meshes concatenated")
+            warnings.append(f"scene of {len(meshes)} meshes concatenated (pmwm.scene reads them as objects)")
         return mesh, warnings
     if isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) > 0:
         return loaded, warnings
@@ -286,7 +286,8 @@ def _is_float32(v: np.ndarray) -> bool:
 
 
 def read_mesh(path) -> SourceMesh:
-    """Read a mesh file into a welded, triangulated canonical mesh (MeshError on any problem)."""
+    """Read a mesh file into a welded, triangulated canonical mesh (MeshError on any problem). A file of
+    several objects is flattened into one mesh (a warning); ``pmwm.scene`` reads it as objects."""
     p = os.fspath(path)
     if os.path.isdir(p):
         raise MeshError(f"{p} is a directory; give a mesh file")

@@ -88,6 +88,9 @@ class GltfScene:
                         name = f"{stem}.bin" if sum(x.changed and x.kind == "file" for x in buffers) == 1 \
                             else f"{stem}_{i}.bin"
                         target = os.path.join(os.path.dirname(os.path.abspath(path)), name)
+                        if any(x.path and os.path.realpath(x.path) == os.path.realpath(target) for x in buffers):
+                            raise MeshError(f"{target} is a buffer of {self.path}; pmwm never overwrites its "
+                                            "input: give the marked scene another name")
                         atomic_write_bytes(target, bytes(b.data), force=force)
                         written.append(target)
                         doc["buffers"][i]["uri"] = name
