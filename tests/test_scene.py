@@ -226,8 +226,7 @@ def _rows(fmt: str, a: np.ndarray) -> str:
 
 def scene_obj(path) -> None:
     """An OBJ of two objects: a textured shape (v with vertex colours, vt, vn, faces v/vt/vn, a material
-    library, smoothing) and a part in a group (faces v//vn, negative indices for its last faces, quads
-    on its first faces' pairs kept as triangles)."""
+    library, smoothing) and a part in a group (faces v//vn, negative indices for its last faces)."""
     V1, F1 = blob()
     V2, F2 = cad_part()
     n1 = pmwm.features.vertex_normals(V1, F1)
@@ -396,3 +395,93 @@ def test_morph_targets_are_kept_and_the_mesh_marked_at_rest(tmp_path, capsys):
     a0, a1 = np.frombuffer(bin0, np.uint8), np.frombuffer(bin1, np.uint8)
     assert np.array_equal(a0[~moved], a1[~moved])  # the target's deltas among them
     assert main(["verify", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json")]) == 0
+
+
+def test_obj_empty_object_is_refused(tmp_path, capsys):
+    V, F = cad_part()
+    text = "o Part\n" + _rows("v %r %r %r\n", V) + _rows("f %d %d %d\n", F + 1) + "o Empty\nv 0 0 0\n"
+    (tmp_path / "e.obj").write_text(text + "o Cube\nv 9 9 9\nv 9 9 8\nv 9 8 9\nv 9 8 8\nf -4 -3 -2 -1\n")
+    _refused(capsys, tmp_path, tmp_path / "e.obj", "'Empty' has no face")
+
+
+def test_obj_polygons_are_fans_and_kept_as_written(tmp_path):
+    """Quads and negative indices: the canonical mesh takes each polygon as a triangle fan, the file keeps
+    the polygon line as written."""
+    text = ("o A\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
+            "o B\nv 5 0 0\nv 6 0 0\nv 6 1 0\nv 5 1 0\nv 5.5 0.5 1\nf -5 -4 -3 -2\nf -5 -4 -1\n")
+    (tmp_path / "q.obj").write_text(text)
+    a, b = read_asset(tmp_path / "q.obj").objects
+    assert a.faces.tolist() == [[0, 1, 2], [0, 2, 3]]
+    assert b.faces.tolist() == [[0, 1, 2], [0, 2, 3], [0, 1, 4]] and len(b.vertices) == 5
+    moved = [a.vertices + 0.125, b.vertices]
+    read_asset(tmp_path / "q.obj").write(str(tmp_path / "m.obj"), moved)
+    out = (tmp_path / "m.obj").read_text().splitlines()
+    assert out[1] == "v 0.125 0.125 0.125" and out[5] == "f 1 2 3 4" and out[6:] == text.splitlines()[6:]
+
+
+def _interleaved_glb(path) -> None:
+    """A GLB by hand: the part's positions and normals interleaved in one buffer view (stride 24), the
+    torus's in their own views, indices of two widths."""
+    parts, views, accessors, meshes, nodes = [], [], [], [], []
+
+    def view(data: bytes, stride=None) -> int:
+        offset = sum(len(p) for p in parts)
+        parts.append(data + b"\0" * (-len(data) % 4))
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(data)} | (
+            {"byteStride": stride} if stride else {}))
+        return len(views) - 1
+
+    def accessor(v, offset, ctype, count, kind, **more) -> int:
+        accessors.append({"bufferView": v, "byteOffset": offset, "componentType": ctype, "count": count,
+                          "type": kind} | more)
+        return len(accessors) - 1
+
+    for name, (V, F), itype in (("Part", cad_part(), ("<u4", 5125)), ("Torus", pinched_torus(), ("<u2", 5123))):
+        N = pmwm.features.vertex_normals(V, F).astype("<f4")
+        P = V.astype("<f4")
+        if name == "Part":
+            v = view(np.hstack([P, N]).tobytes(), stride=24)
+            pos = accessor(v, 0, 5126, len(V), "VEC3", min=P.min(0).tolist(), max=P.max(0).tolist())
+            nrm = accessor(v, 12, 5126, len(V), "VEC3")
+        else:
+            pos = accessor(view(P.tobytes()), 0, 5126, len(V), "VEC3", min=P.min(0).tolist(), max=P.max(0).tolist())
+            nrm = accessor(view(N.tobytes()), 0, 5126, len(V), "VEC3")
+        ind = accessor(view(F.astype(itype[0]).tobytes()), 0, itype[1], F.size, "SCALAR")
+        meshes.append({"name": name + "Mesh", "primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm},
+                                                             "indices": ind}]})
+        nodes.append({"name": name, "mesh": len(meshes) - 1})
+    body = b"".join(parts)
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}], "nodes": nodes,
+           "meshes": meshes, "accessors": accessors, "bufferViews": views, "buffers": [{"byteLength": len(body)}]}
+    path.write_bytes(_glb(doc, body))
+
+
+def test_interleaved_buffers_are_patched_in_place(tmp_path, capsys):
+    _interleaved_glb(tmp_path / "i.glb")
+    assert main(["embed", str(tmp_path / "i.glb"), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
+                 "--payload", PAYLOAD, "-q"]) == 0
+    doc0, bin0 = _glb_parts((tmp_path / "i.glb").read_bytes())
+    doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
+    assert _without_minmax(doc0) == _without_minmax(doc1)
+    moved = _moved_bytes(doc0)
+    a0, a1 = np.frombuffer(bin0, np.uint8), np.frombuffer(bin1, np.uint8)
+    assert np.array_equal(a0[~moved], a1[~moved]) and (a0[moved] != a1[moved]).any()
+    capsys.readouterr()
+    assert main(["verify", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--json"]) == 0
+    objects = json.loads(capsys.readouterr().out)["objects"]
+    assert [r["object"] for r in objects["read"]] == ["Part", "Torus"] and objects["pairs_tried"] == 2
+
+
+def test_gltf_with_embedded_buffers(tmp_path, capsys):
+    """A .gltf whose buffers are data: URIs: written back as a .gltf of the same kind."""
+    s = trimesh.Scene()
+    s.add_geometry(trimesh.Trimesh(*cad_part(), process=False), node_name="A", geom_name="A")
+    s.add_geometry(trimesh.Trimesh(*pinched_torus(), process=False), node_name="B", geom_name="B")
+    (tmp_path / "s.gltf").write_bytes(trimesh.exchange.gltf.export_gltf(s, embed_buffers=True)["model.gltf"])
+    assert main(["embed", str(tmp_path / "s.gltf"), "-o", str(tmp_path / "m.gltf"), "--key", str(tmp_path / "k.json"),
+                 "--payload", PAYLOAD, "-q"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.json", "m.gltf", "s.gltf"]
+    assert json.loads((tmp_path / "m.gltf").read_text())["buffers"][0]["uri"].startswith("data:")
+    capsys.readouterr()
+    assert main(["verify", str(tmp_path / "m.gltf"), "--key", str(tmp_path / "k.json")]) == 0
+    assert "mark read in 2 of 2 objects: A, B" in capsys.readouterr().out

@@ -27,7 +27,8 @@ from .errors import OutputExistsError, PmwmError
 from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .pmfile import read_pm, record_size, write_pm
-from .scene import embed_objects, read_asset, read_keys, read_objects, verify_objects, write_asset, write_keys
+from .scene import (SceneDetail, embed_objects, read_asset, read_keys, read_objects, verify_objects, write_asset,
+                    write_keys)
 from .schemes import SCHEMES, keyed_by
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
@@ -203,7 +204,10 @@ def _scene(path: str, output: str):
 
 def _print_verdict(v: Verdict, as_json: bool) -> None:
     if as_json:
-        print(json.dumps(v.to_dict()))
+        doc = v.to_dict()
+        if isinstance(v.detail, SceneDetail):  # a verdict over objects: which were read
+            doc["objects"] = v.detail.to_dict()
+        print(json.dumps(doc))
         return
     for line in wording.lines(v):
         print(line)

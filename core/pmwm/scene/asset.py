@@ -162,6 +162,13 @@ class SceneDetail(VerdictDetail):
         return [("Objects marked", where), ("Correction", how),
                 *self.inner.in_words()]
 
+    def to_dict(self) -> dict:
+        """The objects' part of ``pmwm verify --json``: the objects read (suspect object, key object,
+        p-value), the pairs tried, the deciding pair and its p-value before any correction."""
+        return {"read": [{"object": s, "key": k, "p_value": p} for s, k, p in self.found],
+                "n_objects": self.n_objects, "pairs_tried": self.tried,
+                "deciding": {"object": self.best[0], "key": self.best[1], "p_value": self.p_single}}
+
     def numbers(self) -> list[tuple[str, str]]:
         return [("object/key pairs tried", str(self.tried)), ("deciding pair", " / ".join(self.best)),
                 ("its p before correction", f"{self.p_single:.6g}"), *self.inner.numbers()]

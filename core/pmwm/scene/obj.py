@@ -149,20 +149,27 @@ def read_obj_scene(path: str) -> ObjScene | None:
     group = np.searchsorted(cuts, f_line, side="right") - 1  # -1: faces before the first o/g line
     names = [lines[c].split(None, 1)[1].strip().decode("utf-8", "replace") if len(lines[c].split(None, 1)) > 1
              else f"{cut.decode()} {k}" for k, c in enumerate(cuts.tolist())]
-    objects, rows = _objects(path, v_xyz, tris, group[tri_face], np.repeat(group, count), cv, names)
+    objects, rows = _objects(path, v_xyz, tris, group[tri_face], np.repeat(group, count), cv, names, cut == b"o")
     if len(objects) < 2:
         return None
     return ObjScene(path, lines, objects, rows, v_line, v_xyz, vn_line, vn_xyz, cv, cn,
                     [w for o in objects for w in o.warnings])
 
 
-def _objects(path, v_xyz, tris, tri_group, corner_group, cv, names) -> tuple[list[SceneObject], list[np.ndarray]]:
+def _objects(path, v_xyz, tris, tri_group, corner_group, cv, names,
+             explicit: bool) -> tuple[list[SceneObject], list[np.ndarray]]:
     """The objects: groups (index into ``names``, -1 for faces before any) joined where they share
-    vertices; each with its own vertices (sorted v numbers) and fan triangles."""
+    vertices; each with its own vertices (sorted v numbers) and fan triangles. ``explicit``: the groups
+    are ``o`` objects, each of which must have faces (``g`` groups without faces are common and kept)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
     g = corner_group + 1  # 0: before the first o/g line
+    if explicit:
+        empty = sorted(set(range(1, len(names) + 1)) - set(np.unique(g).tolist()))
+        if empty:
+            raise MeshError(f"{path}: object {names[empty[0] - 1]!r} has no face (an empty object); delete it "
+                            "or give it faces")
     n_groups = len(names) + 1
     owner = np.full(len(v_xyz), n_groups, np.int64)
     np.minimum.at(owner, cv, g)
