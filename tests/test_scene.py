@@ -257,7 +257,8 @@ def test_obj_keeps_objects_groups_materials_and_uvs(tmp_path, capsys):
     assert len(before) == len(after)
     kind = [line.split()[0] if line.strip() else b"" for line in before]
     same = [a == b for a, b in zip(before, after)]
-    assert all(s for s, k in zip(same, kind) if k not in (b"v", b"vn"))  # o, g, mtllib, usemtl, vt, f, s
+    assert all(s for s, k in zip(same, kind) if k not in (b"v", b"vn", b"mtllib"))  # o, g, usemtl, vt, f, s
+    assert [a for a, k in zip(after, kind) if k == b"mtllib"] == [b"mtllib ../scene.mtl"]  # found from out/
     assert sum(not s for s, k in zip(same, kind) if k == b"v") > 1000
     assert all(a.split()[4:] == b.split()[4:] for a, b, k in zip(before, after, kind) if k == b"v")  # colours
     assert [o.name for o in read_asset(out / "m.obj").objects] == ["Horse", "Part"]

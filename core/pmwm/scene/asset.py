@@ -95,6 +95,8 @@ def embed_objects(objects: Sequence[Named], options: Optional[EmbedOptions] = No
         try:
             res = embed(V, F, o, progress=part)
         except PmwmError as exc:
+            if len(objects) == 1:
+                raise
             raise type(exc)(f"object {name!r}: {exc}") from None
         if len(objects) > 1:
             _check_reads_back(name, res, F, opts)

@@ -112,8 +112,8 @@ class GltfScene:
         if new.shape != obj.vertices.shape:
             raise MeshError(f"object {obj.name!r}: {len(new)} marked vertices for {len(obj.vertices)}")
         src_new = new[obj.source_to_canonical].astype("<f4")
-        old_n = obj.normals_before()
-        new_n = obj.normals_after(new)
+        if any(nrm is not None for _, nrm, _ in parts):
+            old_n, new_n = obj.normals_before(), obj.normals_after(new)
         for pos_acc, nrm_acc, rows in parts:
             view = _view(doc, buffers, pos_acc, writable=True)
             view[...] = src_new[rows]

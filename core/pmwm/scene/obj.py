@@ -1,6 +1,7 @@
 """OBJ files of several objects, marked line by line: only the ``v`` lines whose position moved (and
 the ``vn`` lines of normals that turned with them) are rewritten; every other line (``o``, ``g``,
-``mtllib``, ``usemtl``, ``vt``, ``s``, faces, comments) is kept byte for byte.
+``mtllib``, ``usemtl``, ``vt``, ``s``, faces, comments) is kept byte for byte, but for the ``mtllib`` paths
+of a file written to another folder (pointed back at the input's libraries).
 
 An object is what follows an ``o`` line (or, in a file without ``o`` lines, a ``g`` line) up to the
 next one; objects whose faces share vertices (groups that are material sections of one mesh) are one
@@ -10,6 +11,7 @@ triangle fans; the file keeps them as written.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -66,8 +68,23 @@ class ObjScene:
             new_n = moved_normals(self.vn_xyz, mean(before), mean(after))
             for i in np.flatnonzero((new_n != self.vn_xyz).any(axis=1)).tolist():
                 lines[self.vn_line[i]] = _replace_xyz(lines[self.vn_line[i]], b"vn", new_n[i], "%.6f")
+        _relocate_libraries(lines, self.path, path)
         atomic_write_bytes(path, b"".join(lines), force=force)
         return [path]
+
+
+def _relocate_libraries(lines: list[bytes], source: str, target: str) -> None:
+    """Point the ``mtllib`` lines from ``target``'s folder to the source's material libraries, so that
+    an OBJ written elsewhere still finds them (nothing changes when both are in one folder)."""
+    src_dir, dst_dir = (os.path.dirname(os.path.abspath(p)) for p in (source, target))
+    if src_dir == dst_dir:
+        return
+    for i, line in enumerate(lines):
+        parts = line.split()
+        if parts[:1] == [b"mtllib"] and len(parts) > 1:
+            names = [os.path.relpath(os.path.join(src_dir, n.decode("utf-8", "replace")), dst_dir).replace(os.sep, "/")
+                     for n in parts[1:]]
+            lines[i] = ("mtllib " + " ".join(names)).encode("utf-8") + line[len(line.rstrip(b"\r\n")):]
 
 
 def _replace_xyz(line: bytes, head: bytes, xyz: np.ndarray, fmt: str) -> bytes:
