@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import best_alternating, byte_compiled, command, commit, machine, mesh_path, write_section  # noqa: E402
 
 import pmwm  # noqa: E402
-from pmwm.pmfile import to_bytes  # noqa: E402
+from pmwm.progressive import to_bytes  # noqa: E402
 
 MODELS = ("bunny", "igea")  # names in the catalogue, pmwm_bench.models
 ROOT = Path(__file__).resolve().parents[1]

@@ -164,37 +164,25 @@ def lod_distances(V, F, pm) -> list:
 
 
 def numpy_kernels(V, F, adj) -> "float | None":
-    """The numba probe's two kernels in this code's numpy (None for code without them): all corners'
-    costs with each vertex's cheapest, and one 2-ring minimum step; best of 5."""
+    """The numba probe's two kernels in this code's numpy (None for code without them): every corner's
+    collapse cost with each vertex's cheapest (``collapse_costs``, with its set-up of the encoder's
+    state), and one 1-ring minimum step (``ring_minimum``, the selection's); best of 5."""
     import numpy as np
 
     try:
-        from pmwm.progressive import _best, _Ctx, _Live, _ring_min, _update_costs
+        from pmwm.progressive.build import collapse_costs
+        from pmwm.progressive.state import ring_minimum
     except ImportError:
         return None
-    try:
-        from pmwm.progressive import _monomials
-        extra = {"M": None}
-    except ImportError:  # code before the monomials
-        extra = {}
-    n, m = len(V), len(F)
+    n = len(V)
     rng = np.random.default_rng(0)
-    Vs = np.zeros((n + 1, 3))
-    Vs[:n] = V
-    no = np.zeros(n + 1, bool)
-    if extra:
-        extra.update(M=_monomials(Vs), VT=np.ascontiguousarray(Vs.T))
-    ctx = _Ctx(V=Vs, **extra, order=np.arange(n + 1), Q=rng.random((n + 1, 10)), E=np.zeros(n + 1), go=~no, locked=no,
-               bvert=no, area_eps=0.0)
-    live = _Live(F=F.copy(), fid=np.arange(m), bnd=np.zeros((m, 3), bool), cost=np.empty((m, 3)),
-                 rcost=np.empty((m, 3)), **({} if extra else {"failed": np.zeros((m, 3), np.uint8)}))
+    Q = rng.random((n, 10))
     val = np.r_[rng.permutation(n), n]
     runs = []
     for _ in range(5):
         t = time.perf_counter()
-        _update_costs(ctx, live, np.arange(3 * m))
-        _best(ctx, live)
-        _ring_min(F, val)
+        collapse_costs(V, F, Q)
+        ring_minimum(F, val)
         runs.append(time.perf_counter() - t)
     return min(runs)
 

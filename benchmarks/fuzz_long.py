@@ -26,7 +26,7 @@ import pmwm  # noqa: E402
 from pmwm.api import load_key_data  # noqa: E402
 from pmwm.errors import KeyFileError, PMFormatError  # noqa: E402
 from pmwm.key import WatermarkKey  # noqa: E402
-from pmwm.pmfile import HEADER, from_bytes, to_bytes  # noqa: E402
+from pmwm.progressive import HEADER, from_bytes, to_bytes  # noqa: E402
 
 
 def mutate_pm(data: bytes, rng: np.random.Generator) -> bytes:

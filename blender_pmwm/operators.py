@@ -1,22 +1,24 @@
-"""Operators: pmwm.watermark, pmwm.export_pm, pmwm.import_pm, pmwm.verify, pmwm.save_report.
+"""Operators: pmwm.watermark, pmwm.export_pm, pmwm.import_pm, pmwm.verify, pmwm.save_report, pmwm.publish_web.
 
 Each one reads its options, moves mesh data with foreach_get/foreach_set, calls ``pmwm`` and turns
 ``pmwm.PmwmError`` into ``self.report({'ERROR'}, ...)`` + ``{'CANCELLED'}``. Everything is computed
 first and written back only on success, so a failure leaves the object and the scene as they were.
 ``pmwm`` is imported inside the operators to keep Blender's start-up fast.
 
-Watermark and Verify run in three steps (a *task*): prepare (main thread: options, checks, mesh data
-read with foreach_get), compute (``pmwm.embed`` / ``pmwm.verify`` on numpy arrays, no bpy), finish
-(main thread: key file, write-back, verdict). ``execute`` (scripts, ``--background``) runs them in a
-row. Invoked from the interface, the compute step runs in a worker thread (``jobs.BackgroundJob``)
-driven by a modal operator with a timer (``ModalRun``): progress in the status bar, Esc cancels (the
-core unwinds at its next progress call; the object is untouched: nothing is written before finish),
-and finish, the only step that changes the scene, runs on the main thread at the end, as one undo step.
+Watermark, Verify and Save Report run in three steps (a *task*): prepare (main thread: options, checks,
+mesh data read with foreach_get), compute (``pmwm.embed`` / ``pmwm.verify`` / the report's HTML on numpy
+arrays, no bpy), finish (main thread: key file, write-back, verdict, report file). ``execute`` (scripts,
+``--background``) runs them in a row. Invoked from the interface, the compute step runs in a worker
+thread (``jobs.BackgroundJob``) driven by a modal operator with a timer (``ModalRun``): progress in the
+status bar and the panel, Esc cancels (the core unwinds at its next progress call; the object is
+untouched: nothing is written before finish), and finish, the only step that changes the scene or
+writes a file, runs on the main thread at the end, as one undo step.
 
 Scripting API (``blender --background --python script.py``): the keyword arguments of watermark
 and verify override the Scene options (``scene.pmwm``); arguments left out take the Scene's values;
-an empty key path is the default key path (``prefs.default_key_path``). watermark and verify work on
-the base mesh in object space (``object.data``: modifiers and the object transform are not applied),
+an empty key path is the default key path (``prefs.default_key_path``). The file operators never
+replace an existing file unless ``overwrite`` is on (*Replace Existing* in the file browser). watermark
+and verify work on the base mesh in object space (``object.data``: modifiers and the object transform are not applied),
 the data an exporter writes when both are neutral.
 """
 
@@ -32,7 +34,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy.types import Operator
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from . import meshdata, prefs, props, session
+from . import meshdata, prefs, props, session, verdictwords
 from .jobs import BackgroundJob
 from .props import SCHEME_ITEMS, records_at_level
 
@@ -89,6 +91,9 @@ def _poll_mesh(cls, context) -> bool:
 
 NOT_WATERMARKED = "'{}' was not watermarked in this session: watermark this object first"
 NOT_VERIFIED = "'{}' was not verified in this session: verify this object first"
+NOT_REPORTABLE = ("'{}' was read with the pass phrase: a report needs a key file to cite; verify it with "
+                  "a Robust or Paper key")
+CHANGED_SINCE_VERIFIED = "'{}' changed since it was verified: verify it again"
 
 
 def _poll_remembered(cls, context, lookup, message: str) -> bool:
@@ -98,6 +103,21 @@ def _poll_remembered(cls, context, lookup, message: str) -> bool:
         return False
     if lookup(context.active_object) is None:
         cls.poll_message_set(message.format(context.active_object.name))
+        return False
+    return True
+
+
+def _poll_reportable(cls, context) -> bool:
+    """Save Report: the active object's last verification, with a key file, of the mesh it holds now."""
+    if not _poll_remembered(cls, context, session.lookup_verified, NOT_VERIFIED):
+        return False
+    ob = context.active_object
+    rec = session.lookup_verified(ob)
+    if not rec.reportable:
+        cls.poll_message_set(NOT_REPORTABLE.format(ob.name))
+        return False
+    if not session.looks_unchanged(ob.data, rec.positions):
+        cls.poll_message_set(CHANGED_SINCE_VERIFIED.format(ob.name))
         return False
     return True
 
@@ -131,6 +151,36 @@ def _key_path(context, ob, raw: str) -> tuple[str, bool]:
         return os.path.abspath(bpy.path.abspath(raw)), False
     path = prefs.default_key_path(context, ob)
     return os.path.abspath(bpy.path.abspath(path)), not path.startswith("//")
+
+
+def _uses_passphrase(scheme: str) -> bool:
+    """True for a scheme marked and read with the Pass Phrase alone (no key file)."""
+    import pmwm
+
+    return pmwm.SCHEMES[scheme].keying == pmwm.PASS_PHRASE
+
+
+def default_file(context, ob, suffix: str) -> str:
+    """A new file's suggested path, named for ``ob``: beside the saved .blend, or the bare name (the file
+    browser's current folder) in an unsaved one; "-2", "-3", ... before the suffix while the name is taken."""
+    folder = os.path.dirname(bpy.data.filepath) if bpy.data.filepath else ""
+    stem = prefs.file_stem(ob.name) if ob is not None else "untitled"
+    for n in range(1, 1000):
+        path = os.path.join(folder, stem + ("" if n == 1 else f"-{n}") + suffix)
+        if not folder or not os.path.exists(path):
+            return path
+    return path
+
+
+def _check_new(path: str, overwrite: bool) -> None:
+    """_Failed when ``path`` exists and Replace Existing is off."""
+    if os.path.exists(path) and not overwrite:
+        raise _Failed(f"{path} exists: tick Replace Existing in the file browser (overwrite=True in scripts), "
+                      "or choose another name")
+
+
+REPLACE = dict(name="Replace Existing", description="Replace the file if it exists (its name shows red in "
+               "the file browser)", default=False, options={"SKIP_SAVE"})
 
 
 # ----------------------------------------------------------------------------- tasks
@@ -180,14 +230,15 @@ class WatermarkTask(_Task):
         import pmwm
 
         ob = _active_mesh(context)
-        self.blind = pmwm.SCHEMES[scheme].keying == pmwm.PASS_PHRASE
+        self.blind = _uses_passphrase(scheme)
         if self.blind:
             phrase = props.passphrase(context)
             if not phrase:
                 raise _Failed("the Blind scheme needs a Pass Phrase: type it in the Mark panel")
             self._remember_mesh(ob)
             self.key_path = ""
-            self.opts = pmwm.EmbedOptions(payload=payload or None, strength=round(float(blind_margin), 6) or None,  # 0: per mesh
+            margin = round(float(blind_margin), 6) or None  # 0: chosen per mesh
+            self.opts = pmwm.EmbedOptions(payload=payload or None, strength=margin,
                                           base_ratio=float(base_ratio),
                                           seed=None if seed < 0 else int(seed), scheme=scheme, passphrase=phrase,
                                           progressive=bool(progressive))
@@ -236,12 +287,14 @@ class WatermarkTask(_Task):
             report({"WARNING"}, "carriers are in vertex group 'pmwm_carriers': "
                                 "turn Show Carriers off before sharing the .blend")
         where = "no key file (the pass phrase reads it)" if self.blind else f"key written to {self.key_path}"
-        report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {len(res.carriers)} carriers, "
+        carriers = f"{len(res.carriers)} carriers, " if len(res.carriers) else ""
+        report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {carriers}"
                          f"VSNR {res.vsnr_db:.1f} dB; {where}")
 
 
 class VerifyTask(_Task):
-    """pmwm.verify: read the mark of a key file from the active object; the verdict goes to the panel."""
+    """pmwm.verify: read the mark from the active object with a key file, or with the Pass Phrase (the
+    Scheme chosen in Mark reads with one); the verdict goes to the object and the panel."""
 
     verb, doing = "verified", "verifying"
 
@@ -249,9 +302,8 @@ class VerifyTask(_Task):
         import pmwm
 
         ob = _active_mesh(context)
-        self.blind = pmwm.SCHEMES[context.scene.pmwm.scheme].keying == pmwm.PASS_PHRASE
         self.passphrase = None
-        if self.blind:
+        if _uses_passphrase(context.scene.pmwm.scheme):
             phrase = props.passphrase(context)
             if not phrase:
                 raise _Failed("the Blind scheme needs a Pass Phrase: type it in the Mark panel")
@@ -262,8 +314,8 @@ class VerifyTask(_Task):
             return
         self.key_path, _ = _key_path(context, ob, key_path)
         if not os.path.isfile(self.key_path):
-            raise _Failed(f"key file not found: {self.key_path}: set Key File to the key written when "
-                          "this object was watermarked")
+            raise _Failed(f"key file not found: {self.key_path}: set Key File (Verification) to the key "
+                          "written when this object was watermarked")
         from pmwm.atomic import file_sha256
 
         self.key = pmwm.read_key(self.key_path)
@@ -276,21 +328,63 @@ class VerifyTask(_Task):
         return pmwm.verify(self.V, self.F, self.key, passphrase=self.passphrase)
 
     def finish(self, context, verdict, report):
-        from pmwm import wording
-
         ob = self.current_object()
-        s = context.scene.pmwm
-        s.verdict_object = ob.name
-        s.verdict_marked = bool(verdict.marked)
-        s.verdict_p_value = f"{verdict.p_value:.3g}"
-        s.verdict_payload = wording.payload_value(verdict)
-        s.verdict_matches = f"{verdict.matches}/{verdict.carriers_total}"
-        report({"INFO"}, f"'{ob.name}' is " + "; ".join(wording.lines(verdict)))
-        if self.blind:  # no key file: nothing for the HTML report to cite
-            return
         session.remember_verified(ob, session.Verified(
             name=ob.name, verdict=verdict, key=self.key, key_path=self.key_path, key_sha256=self.key_sha256,
             positions=self.positions32, faces=self.F))
+        record = ob.pmwm_verdict
+        record.verified, record.marked = True, bool(verdict.marked)
+        record.p_value = min(max(float(verdict.p_value), 0.0), 1.0)
+        record.payload = verdictwords.confirmed_payload(verdict)
+        how = " with the pass phrase" if self.key is None else ""
+        report({"INFO"}, f"'{ob.name}' read{how}: {verdictwords.report_line(verdict)}")
+
+
+class ReportTask(_Task):
+    """pmwm.save_report: the HTML report of the active object's last verification (with a key file)."""
+
+    verb, doing = "reported", "saving the report of"
+
+    def __init__(self, context, filepath: str, overwrite: bool = False):
+        from pmwm.atomic import file_sha256
+
+        ob = _active_mesh(context)
+        rec = _remembered(ob, session.lookup_verified, NOT_VERIFIED)
+        if not rec.reportable:
+            raise _Failed(NOT_REPORTABLE.format(ob.name))
+        if not (session.same_positions(rec.positions, meshdata.read_positions32(ob.data))
+                and np.array_equal(meshdata.read_triangles(ob.data), rec.faces)):
+            raise _Failed(CHANGED_SINCE_VERIFIED.format(ob.name))
+        if not os.path.isfile(rec.key_path) or file_sha256(rec.key_path) != rec.key_sha256:
+            raise _Failed(f"the key file {rec.key_path} changed or went away since the verification: verify again")
+        path = _file_path(filepath, "report")
+        if not path.lower().endswith((".html", ".htm")):
+            raise _Failed(f"{path}: give the report an .html name")
+        if os.path.realpath(path) == os.path.realpath(rec.key_path):
+            raise _Failed(f"{path} is the key file: choose another name for the report")
+        if os.path.isdir(path):
+            raise _Failed(f"{path} is a folder: give the report a file name")
+        _check_new(path, overwrite)
+        self.path, self.overwrite, self.rec = path, bool(overwrite), rec
+        self.name, self.pointer = ob.name, ob.as_pointer()
+        self.positions32, self.F = rec.positions, rec.faces
+        blend = os.path.basename(bpy.data.filepath) if bpy.data.filepath else "an unsaved .blend"
+        self.suspect = f"Blender object '{ob.name}' in {blend}"
+
+    def compute(self, progress):
+        from pmwm.verify_report import build_report
+
+        progress(0.0, "drawing the pictures")
+        rec = self.rec
+        return build_report(rec.verdict, rec.key, rec.positions, rec.faces, key_path=rec.key_path,
+                            suspect_name=self.suspect)
+
+    def finish(self, context, text, report):
+        from pmwm.atomic import atomic_write_bytes
+
+        _check_new(self.path, self.overwrite)  # (a file may have appeared meanwhile)
+        atomic_write_bytes(self.path, text.encode("utf-8"), force=self.overwrite)
+        report({"INFO"}, f"Report on '{self.name}' written to {self.path}")
 
 
 class ModalRun:
@@ -317,13 +411,18 @@ class ModalRun:
         if workspace is not None and getattr(context, "window", None) is not None:
             workspace.status_text_set(text)
 
+    def progress_text(self) -> str:
+        """What runs, its stage and the seconds it has run (these move even while a stage reports nothing)."""
+        job = self.job
+        parts = [f"{int(100 * job.fraction)}%"] if isinstance(self.task, WatermarkTask) else []
+        parts += [job.message] if job.message else []
+        parts.append(f"{job.elapsed:.0f} s")
+        return ", ".join(parts)
+
     def _show(self, context) -> None:
-        job, verb = self.job, self.task.doing.capitalize()
-        if isinstance(self.task, WatermarkTask):
-            detail = f"{int(100 * job.fraction)}%" + (f", {job.message}" if job.message else "")
-        else:
-            detail = f"{job.elapsed:.0f} s"
-        self._status(context, f"{verb} '{self.task.name}': {detail} (Esc to cancel)")
+        session.set_progress(self.task.pointer, self.progress_text())
+        self._status(context, f"{self.task.doing.capitalize()} '{self.task.name}': {self.progress_text()} "
+                              "(Esc to cancel)")
 
     def _end(self, context) -> None:
         session.set_busy(self.task.pointer, None)
@@ -378,14 +477,14 @@ class _PmwmOperator:
             self.report({"ERROR"}, f"pmwm internal error ({type(exc).__name__}: {exc}); see the system console")
         return {"CANCELLED"}
 
-    def option(self, context, name):
-        """The operator argument when given, else the Scene option of the same name.
+    def option(self, context, name, scene_name=None):
+        """The operator argument when given, else the Scene option ``scene_name`` (default: the same name).
 
         The value used is stored back in the operator, so the redo panel shows what ran.
         """
         if self.properties.is_property_set(name):
             return getattr(self, name)
-        value = getattr(context.scene.pmwm, name)
+        value = getattr(context.scene.pmwm, scene_name or name)
         setattr(self, name, value)
         return value
 
@@ -405,8 +504,11 @@ class _BackgroundOperator(_PmwmOperator):
         return {"FINISHED"}
 
     def invoke(self, context, event):
+        return self._in_background(context)
+
+    def _in_background(self, context):
         if bpy.app.background or context.window is None:
-            return self.execute(context)
+            return self._guard(self.run, context)
         return self._guard(self._start, context)
 
     def _start(self, context):
@@ -422,6 +524,12 @@ class _BackgroundOperator(_PmwmOperator):
             context.window_manager.event_timer_remove(self._timer)
             self._timer = None
 
+    @staticmethod
+    def _redraw_sidebars(context) -> None:
+        for area in context.screen.areas if context.screen else ():
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+
     def modal(self, context, event):
         result = self._guard(self._run.step, context, event.type)
         if result not in ({"RUNNING_MODAL"}, {"PASS_THROUGH"}):
@@ -429,12 +537,13 @@ class _BackgroundOperator(_PmwmOperator):
                 self._run.cancel(context)
             self._run._end(context)
             self._stop_timer(context)
-            for area in context.screen.areas if context.screen else ():
-                area.tag_redraw()
+        if event.type == "TIMER" or result not in ({"RUNNING_MODAL"}, {"PASS_THROUGH"}):
+            self._redraw_sidebars(context)  # the panel's progress line and, at the end, the verdict
         return result
 
-    def cancel(self, context):  # Blender ends the modal operator (e.g. a file is loaded)
-        self._run.cancel(context)
+    def cancel(self, context):  # Blender ends the modal operator (a file is loaded, the file browser closed)
+        if getattr(self, "_run", None) is not None:
+            self._run.cancel(context)
         self._stop_timer(context)
 
 
@@ -462,14 +571,29 @@ class PMWM_OT_watermark(_BackgroundOperator, Operator):
     progressive: BoolProperty(name="Progressive Mesh", description="Build the progressive mesh (Export "
                               "Progressive Mesh needs it)", default=True, options={"SKIP_SAVE"})
 
+    SHARED = ("payload", "scheme", "base_ratio", "seed", "progressive")
+    KEY_FILE = ("key_path", "overwrite_key", "strength")  # only with a scheme that writes a key file
+    PASS_PHRASE = ("blind_margin",)  # only with the Blind scheme
+
     @classmethod
     def poll(cls, context):
         return _poll_mesh(cls, context)
 
+    @classmethod
+    def options_for(cls, scheme: str) -> tuple:
+        """The options a run with ``scheme`` reads (and its redo panel shows)."""
+        return cls.SHARED + (cls.PASS_PHRASE if _uses_passphrase(scheme) else cls.KEY_FILE)
+
     def make_task(self, context):
-        names = ("payload", "key_path", "scheme", "strength", "base_ratio", "seed", "overwrite_key", "blind_margin",
-                 "progressive")
+        names = self.options_for(self.option(context, "scheme"))
         return WatermarkTask(context, **{n: self.option(context, n) for n in names})
+
+    def draw(self, context):  # the redo panel: the options this run used, no key path for the Blind scheme
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        for name in self.options_for(self.scheme):
+            layout.prop(self, name)
 
 
 class PMWM_OT_verify(_BackgroundOperator, Operator):
@@ -479,27 +603,46 @@ class PMWM_OT_verify(_BackgroundOperator, Operator):
     bl_label = "Verify"
     bl_options = {"REGISTER"}
 
-    key_path: StringProperty(name="Key File", description="Empty: <object name>.pmwm-key.json beside the "
-                             ".blend, or in the key folder of the preferences", subtype="FILE_PATH",
-                             options={"SKIP_SAVE"})
+    key_path: StringProperty(name="Key File", description="Empty: the object's own key, <object name>"
+                             ".pmwm-key.json beside the .blend, or in the key folder of the preferences",
+                             subtype="FILE_PATH", options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):
         return _poll_mesh(cls, context)
 
     def make_task(self, context):
-        return VerifyTask(context, key_path=self.option(context, "key_path"))
+        if _uses_passphrase(context.scene.pmwm.scheme):
+            return VerifyTask(context)
+        return VerifyTask(context, key_path=self.option(context, "key_path", "verify_key_path"))
 
 
-class PMWM_OT_export_pm(_PmwmOperator, Operator, ExportHelper):
+class _FileOperator(_PmwmOperator):
+    """A file browser suggesting a new name for the active object (``suffix``), never replacing a file
+    unless Replace Existing is ticked (the file browser shows the name red when it exists)."""
+
+    suffix = ""
+
+    def invoke(self, context, event):
+        self.filepath = default_file(context, context.active_object, self.suffix)
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def draw(self, context):  # the file browser's side panel
+        self.layout.prop(self, "overwrite")
+
+
+class PMWM_OT_export_pm(_FileOperator, Operator, ExportHelper):
     """Write the progressive mesh of the active object's last watermark (this session) to a .pmwm file"""
 
     bl_idname = "pmwm.export_pm"
     bl_label = "Export Progressive Mesh"
     bl_options = {"REGISTER"}
 
-    filename_ext = ".pmwm"
+    filename_ext = suffix = ".pmwm"
     filter_glob: StringProperty(default="*.pmwm", options={"HIDDEN"})
+    filepath: StringProperty(name="File Path", subtype="FILE_PATH", options={"SKIP_SAVE"})
+    overwrite: BoolProperty(**REPLACE)
 
     @classmethod
     def poll(cls, context):
@@ -508,20 +651,25 @@ class PMWM_OT_export_pm(_PmwmOperator, Operator, ExportHelper):
     def run(self, context):
         import pmwm
 
-        ob = _active_mesh(context)
-        marked = _remembered(ob, session.lookup, NOT_WATERMARKED)
-        if not session.same_positions(marked.positions, meshdata.read_positions32(ob.data)):
-            raise _Failed(f"'{ob.name}' changed since it was watermarked (edit or undo): "
-                          "watermark this object first")
-        if marked.pm is None:
-            raise _Failed(f"'{ob.name}' was watermarked without its progressive mesh: undo the watermark, turn on "
-                          "Progressive Mesh (Advanced) and watermark it again")
+        ob, pm = _marked_pm(context)
         path = _file_path(self.filepath, "progressive mesh")
-        pmwm.write_pm(path, marked.pm, force=True)
-        pm = marked.pm
+        _check_new(path, self.overwrite)
+        pmwm.write_pm(path, pm, force=self.overwrite)
         self.report({"INFO"}, f"Wrote progressive mesh of '{ob.name}' to {path}: {pm.n_base_vertices} base "
                               f"vertices, {pm.n_records} vertex splits in {len(pm.level_records)} levels")
         return {"FINISHED"}
+
+
+def _marked_pm(context):
+    """(the active object, the progressive mesh of its last watermark) if the object still holds it."""
+    ob = _active_mesh(context)
+    marked = _remembered(ob, session.lookup, NOT_WATERMARKED)
+    if not session.same_positions(marked.positions, meshdata.read_positions32(ob.data)):
+        raise _Failed(f"'{ob.name}' changed since it was watermarked (edit or undo): watermark this object first")
+    if marked.pm is None:
+        raise _Failed(f"'{ob.name}' was watermarked without its progressive mesh: undo the watermark, turn on "
+                      "Progressive Mesh (Advanced) and watermark it again")
+    return ob, marked.pm
 
 
 class PMWM_OT_import_pm(_PmwmOperator, Operator, ImportHelper):
@@ -561,13 +709,14 @@ class PMWM_OT_import_pm(_PmwmOperator, Operator, ImportHelper):
         lod = ob.pmwm_lod
         lod.n_levels = n_levels
         lod.level = level  # no decode yet: pm_path is still empty
+        lod["detail"] = 100.0 * level / n_levels if n_levels else 100.0  # (an item write: no decode either)
         lod.pm_path = path
         self.report({"INFO"}, f"Imported '{ob.name}' at level {level}/{n_levels}: {len(V)} of "
                               f"{pm.n_vertices} vertices")
         return {"FINISHED"}
 
 
-class PMWM_OT_save_report(_PmwmOperator, Operator, ExportHelper):
+class PMWM_OT_save_report(_BackgroundOperator, _FileOperator, Operator, ExportHelper):
     """Save the last verification of the active object as a self-contained HTML report (verdict, hashes, \
 per-bit chart, pictures)"""
 
@@ -576,44 +725,71 @@ per-bit chart, pictures)"""
     bl_options = {"REGISTER"}
 
     filename_ext = ".html"
+    suffix = ".pmwm-report.html"
     filter_glob: StringProperty(default="*.html", options={"HIDDEN"})
+    filepath: StringProperty(name="File Path", subtype="FILE_PATH", options={"SKIP_SAVE"})
+    overwrite: BoolProperty(**REPLACE)
+    chosen: BoolProperty(options={"HIDDEN", "SKIP_SAVE"})  # set by invoke: the file browser ran
 
     @classmethod
     def poll(cls, context):
-        return _poll_remembered(cls, context, session.lookup_verified, NOT_VERIFIED)
+        return _poll_reportable(cls, context)
 
     def invoke(self, context, event):
-        ob = context.active_object
-        if not self.filepath and ob is not None:
-            folder = os.path.dirname(bpy.data.filepath) if bpy.data.filepath else prefs.key_folder(context)
-            self.filepath = os.path.join(folder, prefs.file_stem(ob.name) + ".pmwm-report.html")
-        context.window_manager.fileselect_add(self)
-        return {"RUNNING_MODAL"}
+        self.chosen = True
+        return _FileOperator.invoke(self, context, event)
+
+    def execute(self, context):
+        if self.chosen:  # back from the file browser: draw the report in the background
+            return self._in_background(context)
+        return _PmwmOperator.execute(self, context)
+
+    def make_task(self, context):
+        return ReportTask(context, self.filepath, overwrite=self.overwrite)
+
+
+class PMWM_OT_publish_web(_FileOperator, Operator, ExportHelper):
+    """Write a web page showing the active object's progressive mesh streaming in (a folder to upload: \
+index.html, its script and model.pmwm)"""
+
+    bl_idname = "pmwm.publish_web"
+    bl_label = "Publish for Web"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ""
+    suffix = "-web"
+    filter_glob: StringProperty(default="", options={"HIDDEN"})
+    filepath: StringProperty(name="Folder", subtype="FILE_PATH", options={"SKIP_SAVE"},
+                             description="The folder to write (created)")
+    overwrite: BoolProperty(name="Replace Existing", description="Replace the folder's web page if the "
+                            "folder exists and is not empty", default=False, options={"SKIP_SAVE"})
+
+    @classmethod
+    def poll(cls, context):
+        return _poll_remembered(cls, context, session.lookup, NOT_WATERMARKED)
+
+    def check(self, context):  # (ExportHelper's adds the extension; a folder has none)
+        return False
 
     def run(self, context):
-        from pmwm.atomic import file_sha256
-        from pmwm.verify_report import write_report
-
-        ob = _active_mesh(context)
-        rec = _remembered(ob, session.lookup_verified, NOT_VERIFIED)
-        if not (session.same_positions(rec.positions, meshdata.read_positions32(ob.data))
-                and np.array_equal(meshdata.read_triangles(ob.data), rec.faces)):
-            raise _Failed(f"'{ob.name}' changed since it was verified: verify it again")
-        if not os.path.isfile(rec.key_path) or file_sha256(rec.key_path) != rec.key_sha256:
-            raise _Failed(f"the key file {rec.key_path} changed or went away since the verification: verify again")
-        path = _file_path(self.filepath, "report")
-        if not path.lower().endswith((".html", ".htm")):
-            raise _Failed(f"{path}: give the report an .html name")
-        if os.path.realpath(path) == os.path.realpath(rec.key_path):
-            raise _Failed(f"{path} is the key file: choose another name for the report")
-        blend = os.path.basename(bpy.data.filepath) if bpy.data.filepath else "an unsaved .blend"
-        write_report(path, rec.verdict, rec.key, rec.positions, rec.faces, key_path=rec.key_path,
-                     suspect_name=f"Blender object '{ob.name}' in {blend}", force=True)
-        self.report({"INFO"}, f"Report on '{ob.name}' written to {path}")
+        ob, pm = _marked_pm(context)
+        folder = _file_path(self.filepath.rstrip("/\\") if self.filepath.strip("/\\") else "", "folder")
+        if os.path.exists(folder) and not os.path.isdir(folder):
+            raise _Failed(f"{folder} is a file: choose a name for a new folder")
+        if os.path.isdir(folder) and os.listdir(folder) and not self.overwrite:
+            raise _Failed(f"{folder} exists and is not empty: tick Replace Existing in the file browser "
+                          "(overwrite=True in scripts), or choose another name")
+        try:
+            from pmwm import viewer
+        except ImportError:
+            raise _Failed("this pmwm has no web viewer (pmwm.viewer): update the add-on") from None
+        site = viewer.write_site(pm, folder, title=ob.name, force=self.overwrite)
+        self.report({"INFO"}, f"Published '{ob.name}' for the web in {site}: upload the folder, open index.html")
         return {"FINISHED"}
 
 
-classes = (PMWM_OT_watermark, PMWM_OT_export_pm, PMWM_OT_import_pm, PMWM_OT_verify, PMWM_OT_save_report)
+classes = (PMWM_OT_watermark, PMWM_OT_export_pm, PMWM_OT_import_pm, PMWM_OT_verify, PMWM_OT_save_report,
+           PMWM_OT_publish_web)
 
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,6 +1,7 @@
-"""Properties: watermark options on the Scene, the progressive-mesh LoD slider on the Object.
+"""Properties: watermark options on the Scene; on the Object, the progressive-mesh level of detail and
+the last verdict (for scripts).
 
-Nothing of the key is stored here: only the key file *path*, the options and the last verdict.
+Nothing of the key is stored here: only the key file *paths*, the options and the verdict.
 """
 
 from __future__ import annotations
@@ -41,12 +42,14 @@ def _show_carriers_update(self, context) -> None:
 
 
 def _lod_update(self, context) -> None:
-    # Decode the stored .pmwm at the slider's level and replace the mesh data in place.
+    # Decode the stored .pmwm at the level and replace the mesh data in place; the Detail slider follows.
     if not self.pm_path:
         return
     if self.level > self.n_levels:
         self.level = self.n_levels  # re-enters this callback once with a valid level
         return
+    if self.n_levels and abs(self.detail - 100.0 * self.level / self.n_levels) > 1e-6:
+        self["detail"] = 100.0 * self.level / self.n_levels  # (an item write: no update callback)
     ob = self.id_data
     if ob.type != "MESH" or ob.mode != "OBJECT":
         self.status = "leave Edit Mode to change the level of detail"
@@ -62,8 +65,15 @@ def _lod_update(self, context) -> None:
     self.status = ""
 
 
+def _detail_update(self, context) -> None:
+    # The slider (0-100 %) picks the nearest level; the level's update decodes it.
+    level = round(self.detail / 100.0 * self.n_levels)
+    if level != self.level:
+        self.level = level
+
+
 class PMWM_SceneSettings(PropertyGroup):
-    """Options of the Watermark panel (scene.pmwm) and the last verdict."""
+    """Options of the Watermark panel (scene.pmwm)."""
 
     payload: StringProperty(
         name="Payload",
@@ -72,9 +82,15 @@ class PMWM_SceneSettings(PropertyGroup):
     )
     key_path: StringProperty(
         name="Key File",
-        description="JSON key file written by Watermark and read by Verify; keep it secret. Empty: "
-                    "<object name>.pmwm-key.json beside the saved .blend, or in the key folder of the "
-                    "add-on's preferences",
+        description="Where Watermark writes the key file; keep it secret. Empty: <object name>.pmwm-key.json "
+                    "beside the saved .blend, or in the key folder of the add-on's preferences",
+        subtype="FILE_PATH",
+        default="",
+    )
+    verify_key_path: StringProperty(
+        name="Key File",
+        description="The key file Verify reads (not the one Watermark writes). Empty: the active object's "
+                    "own key, <object name>.pmwm-key.json beside the saved .blend or in the key folder",
         subtype="FILE_PATH",
         default="",
     )
@@ -127,12 +143,6 @@ class PMWM_SceneSettings(PropertyGroup):
         default=False,
         update=_show_carriers_update,
     )
-    # Last verdict (display only).
-    verdict_object: StringProperty(name="Verified Object", default="")
-    verdict_marked: BoolProperty(name="Marked", default=False)
-    verdict_p_value: StringProperty(name="p-value", default="")
-    verdict_payload: StringProperty(name="Payload Found", default="")
-    verdict_matches: StringProperty(name="Matching Bits", default="")
 
 
 class PMWM_ObjectLoD(PropertyGroup):
@@ -141,12 +151,30 @@ class PMWM_ObjectLoD(PropertyGroup):
     pm_path: StringProperty(name="Progressive Mesh", subtype="FILE_PATH", default="")
     n_levels: IntProperty(name="Levels", default=0, min=0)
     level: IntProperty(
-        name="Level of Detail",
+        name="Level",
         description="0 is the base mesh, the highest level the full mesh: refines or coarsens in place",
         default=0, min=0,
         update=_lod_update,
     )
+    detail: FloatProperty(
+        name="Detail",
+        description="The level of detail from the base mesh (0 %) to the full mesh (100 %): refines or "
+                    "coarsens in place, to the nearest level",
+        default=100.0, min=0.0, max=100.0, precision=0, subtype="PERCENTAGE",
+        update=_detail_update,
+    )
     status: StringProperty(name="Status", default="")
+
+
+class PMWM_ObjectVerdict(PropertyGroup):
+    """The last verification of an object in this session, for scripts (object.pmwm_verdict); the
+    panel shows it in words."""
+
+    verified: BoolProperty(name="Verified", description="Verify ran on this object", default=False)
+    marked: BoolProperty(name="Marked", default=False)
+    p_value: FloatProperty(name="p-value", default=1.0, min=0.0, max=1.0)
+    payload: StringProperty(name="Payload", description="The payload read, only when the verdict confirms it",
+                            default="")
 
 
 class PMWM_Secrets(PropertyGroup):
@@ -185,7 +213,7 @@ def _restore_after_save(*_args) -> None:
     _kept.clear()
 
 
-classes = (PMWM_SceneSettings, PMWM_ObjectLoD, PMWM_Secrets)
+classes = (PMWM_SceneSettings, PMWM_ObjectLoD, PMWM_ObjectVerdict, PMWM_Secrets)
 
 
 def register() -> None:
@@ -193,6 +221,7 @@ def register() -> None:
         bpy.utils.register_class(cls)
     bpy.types.Scene.pmwm = PointerProperty(type=PMWM_SceneSettings)
     bpy.types.Object.pmwm_lod = PointerProperty(type=PMWM_ObjectLoD)
+    bpy.types.Object.pmwm_verdict = PointerProperty(type=PMWM_ObjectVerdict)
     bpy.types.WindowManager.pmwm_secrets = PointerProperty(type=PMWM_Secrets)
     bpy.app.handlers.save_pre.append(_forget_on_save)
     bpy.app.handlers.save_post.append(_restore_after_save)
@@ -204,6 +233,7 @@ def unregister() -> None:
         if fn in handlers:
             handlers.remove(fn)
     del bpy.types.WindowManager.pmwm_secrets
+    del bpy.types.Object.pmwm_verdict
     del bpy.types.Object.pmwm_lod
     del bpy.types.Scene.pmwm
     for cls in reversed(classes):

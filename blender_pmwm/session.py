@@ -26,20 +26,26 @@ class Marked:
 
 @dataclass
 class Verified:
-    """The last verification of one object (memory only), for its report."""
+    """The last verification of one object (memory only): the panel's verdict box and its report."""
 
     name: str
     verdict: object  # pmwm.Verdict
-    key: object  # pmwm.WatermarkKey
+    key: object  # pmwm.WatermarkKey; None when read with a pass phrase (nothing for a report to cite)
     key_path: str
     key_sha256: str
     positions: np.ndarray  # (n, 3) float32 positions read, to detect later edits
     faces: np.ndarray  # (m, 3) int64 triangles read
 
+    @property
+    def reportable(self) -> bool:
+        """True when Save Report can write this verification (a key file to cite)."""
+        return self.key is not None
+
 
 _MARKED: dict[int, Marked] = {}
 _VERIFIED: dict[int, Verified] = {}
 _BUSY: dict[int, str] = {}  # object pointer -> what runs on it in the background
+_PROGRESS: dict[int, str] = {}  # object pointer -> how far it is ("35%, building the progressive mesh, 4 s")
 _PM_FILES: dict[tuple[str, int], object] = {}
 
 
@@ -71,13 +77,44 @@ def busy(ob) -> str | None:
 def set_busy(pointer: int, what: str | None) -> None:
     if what is None:
         _BUSY.pop(pointer, None)
+        _PROGRESS.pop(pointer, None)
     else:
         _BUSY[pointer] = what
+
+
+def set_progress(pointer: int, text: str) -> None:
+    _PROGRESS[pointer] = text
+
+
+def progress(ob) -> str:
+    """How far the background run on ``ob`` is ("" when none runs or it has not reported yet)."""
+    return _PROGRESS.get(ob.as_pointer(), "")
 
 
 def same_positions(stored: np.ndarray, positions32: np.ndarray) -> bool:
     """True when two float32 position arrays are exactly equal."""
     return stored.shape == positions32.shape and np.array_equal(stored, positions32)
+
+
+WHOLE = 50_000  # meshes up to this many vertices are compared whole by ``looks_unchanged``
+SAMPLES = 64  # vertices compared in a larger mesh
+
+
+def looks_unchanged(mesh, stored: np.ndarray) -> bool:
+    """A check cheap enough for every redraw (a few milliseconds): every vertex of a mesh of up to WHOLE
+    vertices, else the vertex count and SAMPLES evenly spread vertices, equal ``stored`` (n, 3) float32.
+    The operators compare every vertex before they write anything."""
+    n = len(mesh.vertices)
+    if n != len(stored):
+        return False
+    if n <= WHOLE:
+        co = np.empty(n * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        return np.array_equal(co.reshape(-1, 3), stored)
+    for i in np.unique(np.linspace(0, n - 1, SAMPLES).astype(np.int64)).tolist():
+        if tuple(mesh.vertices[i].co) != tuple(stored[i].tolist()):
+            return False
+    return True
 
 
 def load_pm(path: str):
@@ -100,4 +137,5 @@ def clear() -> None:
     _MARKED.clear()
     _VERIFIED.clear()
     _BUSY.clear()
+    _PROGRESS.clear()
     _PM_FILES.clear()

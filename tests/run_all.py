@@ -1,9 +1,9 @@
 """The whole test suite on a fresh machine, from a clone alone (README "On a fresh machine"; .ci/run runs
 the README's test command, ``python3.11 tests/run_all.py``):
 
-1. Debian's chromium and tesseract, for the verification report's browser test (installed with apt-get
-   when missing and run as root; otherwise it asks you to install them, and that test fails rather than
-   skip);
+1. Debian's chromium and tesseract, for the browser tests (the verification report's, and the web
+   viewer's: chromium alone, driven over its DevTools pipe), installed with apt-get when missing and run
+   as root; otherwise it asks you to install them, and those tests fail rather than skip;
 2. .venv (Python 3.11, bpy 4.2.0 = Blender 4.2 LTS): every test;
 3. .venv313 (Python 3.13, bpy 5.2.3 = Blender 5.2 LTS): the add-on tests (tests/blender) again.
 
@@ -34,7 +34,8 @@ def run(*cmd: str, check: bool = True) -> int:
 
 
 #: command -> the Debian packages that bring it (fonts-dejavu-core: the report's font, named in case
-#: recommended packages are turned off; tesseract reads the verdict off the browser's screenshot)
+#: recommended packages are turned off; tesseract reads the verdict off the browser's screenshot;
+#: chromium also runs the web viewer's tests, tests/test_viewer.py)
 TOOLS = {"chromium": ["chromium", "fonts-dejavu-core"], "tesseract": ["tesseract-ocr", "tesseract-ocr-eng"]}
 
 
@@ -43,13 +44,13 @@ def ensure_tools() -> None:
     if not missing:
         return
     if os.geteuid() == 0 and shutil.which("apt-get"):
-        print(f"+ apt-get install {' '.join(missing)} (for the report's browser test)", flush=True)
+        print(f"+ apt-get install {' '.join(missing)} (for the browser tests)", flush=True)
         env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
         for cmd in (["apt-get", "update", "-q"], ["apt-get", "install", "-y", "-q", *missing]):
             if subprocess.run(cmd, env=env, stdin=subprocess.DEVNULL).returncode:
                 sys.exit(f"tests/run_all.py: {' '.join(cmd)} failed")
         return
-    sys.exit(f"tests/run_all.py: the report's browser test needs {' '.join(missing)}; install them first "
+    sys.exit(f"tests/run_all.py: the browser tests need {' '.join(missing)}; install them first "
              f"(Debian: sudo apt-get install {' '.join(missing)})")
 
 

@@ -14,7 +14,7 @@ import pmwm
 from pmwm import spatial
 from pmwm.background import Background, Later, parallel_map, silent
 from pmwm.errors import MeshError
-from pmwm.pmfile import from_bytes, to_bytes
+from pmwm.progressive import from_bytes, to_bytes
 
 import meshes
 

@@ -113,7 +113,7 @@ def test_no_library_module_imports_the_evaluation_or_blender():
 
 def test_atomic_writing_and_keys_do_not_pull_in_trimesh():
     g = graph()
-    for m in ("pmwm.atomic", "pmwm.key", "pmwm.pmfile"):
+    for m in ("pmwm.atomic", "pmwm.key", "pmwm.progressive.fileformat"):
         assert "trimesh" not in g[m] and "pmwm.meshio" not in g[m], m
 
 

@@ -21,11 +21,11 @@ import pmwm
 from pmwm.errors import KeyFileError, OutputExistsError, PmwmError, PMFormatError
 from pmwm.api import load_key_data
 from pmwm.key import WatermarkKey
-from pmwm.pmfile import MAGIC, VERSION, from_bytes, read_pm, to_bytes, write_pm
+from pmwm.progressive import MAGIC, VERSION, from_bytes, read_pm, to_bytes, write_pm
 from pmwm.progressive import ENDS_SHIFT, FLAG_SINGLE, ProgressiveMesh, build_progressive_mesh
 
 COW = meshes.mesh_file("blob.off")  # a small closed organic mesh (2.9k vertices), generated
-# The header as documented in pmwm/pmfile.py: magic, version u16, flags u16, then
+# The header as documented in pmwm/progressive/fileformat.py: magic, version u16, flags u16, then
 # n_base_vertices, n_base_faces, n_records, n_levels, reserved as u32; a SHA-256 ends the file.
 HEADER = struct.Struct("<8sHHIIIII")
 FIELDS = ("magic", "version", "flags", "nb", "fb", "nr", "nl", "reserved")
@@ -440,9 +440,9 @@ def test_end_ranks_that_name_the_wrong_faces_never_crash_decoding(ranks):
     assert _load_or_reject(_rebuild(pm, mask=mask)) is not None
 
 
-# A version-1 file written by the encoder and decoder before issue 13 (main at 88eb246): the open
-# icosphere of _open_pm. Its decodings (base, a prefix ending inside a level, all) must stay
-# byte-identical to what that decoder gave: the SHA-256 of vertices (float64) then faces (int64).
+# A version-1 file written by the first encoder and decoder (main at 88eb246): the open icosphere of
+# _open_pm. Its decodings (base, a prefix ending inside a level, all) must stay byte-identical to what
+# that decoder gave: the SHA-256 of vertices (float64) then faces (int64).
 V1_FILE = """
 iVBNV00NChoBAAAABgAAAAcAAAAhAAAADwAAAAAAAABAxFk/AAAAAFCWBr9AxFk/AAAAAFCWBj9AxFm/AAAAAFCWBr96N56+
 vRtPPwAAAD96N56+vRtPvwAAAL8AAAA/ejeePr0bTz8DAAAABQAAAAAAAAADAAAAAAAAAAIAAAAAAAAABQAAAAEAAAADAAAA
@@ -467,7 +467,7 @@ V1_DECODED = {
 }
 
 
-def test_a_version_1_file_from_before_issue_13_decodes_as_it_did():
+def test_a_version_1_file_of_the_first_decoder_decodes_as_it_did():
     import base64
 
     data = base64.b64decode("".join(V1_FILE.split()))

@@ -7,9 +7,7 @@ import pytest
 import trimesh
 
 import pmwm
-from pmwm.pmfile import from_bytes, to_bytes
-from pmwm import progressive
-from pmwm.progressive import build_progressive_mesh, with_positions
+from pmwm.progressive import build_progressive_mesh, from_bytes, to_bytes, with_positions
 
 import meshes
 from conftest import canonical_faces, quad_torus_obj
@@ -83,14 +81,13 @@ def test_bunny_every_level_exact(bunny):
 @pytest.mark.parametrize("rounds", [1, 4])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.slow
-def test_rough_shapes_every_level_exact_and_manifold(seed, rounds, monkeypatch):
+def test_rough_shapes_every_level_exact_and_manifold(seed, rounds):
     # noisy, unevenly sampled closed shapes: many collapses with overlapping 1-rings in one pass; with
     # more than one selection round, later rounds must respect the collapses accepted before
-    monkeypatch.setattr(progressive, "_ROUNDS", rounds)
     rng = np.random.default_rng(seed)
     m = trimesh.creation.icosphere(subdivisions=4)
     V = m.vertices * (1 + 0.2 * rng.random((len(m.vertices), 1))) + 0.01 * rng.standard_normal(m.vertices.shape)
-    pm = _check_every_level(V, np.asarray(m.faces), base_ratio=0.02)
+    pm = _check_every_level(V, np.asarray(m.faces), base_ratio=0.02, selection_rounds=rounds)
     assert len(pm.level_records) >= 4
 
 
@@ -130,26 +127,21 @@ def _thin_tube(per_ring: int, rings: int, seed: int) -> tuple[np.ndarray, np.nda
 
 
 @pytest.mark.slow
-def test_the_passes_count_the_faces_per_vertex_exactly(bunny, monkeypatch):
-    # the link and valence checks read each vertex's face count, which the collapses keep up to date
-    # instead of recounting: after every pass it must be the count itself (holes, protected vertices,
-    # the paper scheme's forced collapses)
-    collapse = progressive._collapse
-    checked = []
-
-    def counted(ctx, live, ch, cnt):
-        p = collapse(ctx, live, ch, cnt)
-        checked.append(np.array_equal(cnt, np.bincount(live.F.ravel(), minlength=len(cnt))))
-        return p
-
-    monkeypatch.setattr(progressive, "_collapse", counted)
+def test_every_level_keeps_the_topology_with_holes_protected_vertices_and_forced_collapses(bunny):
+    # the link and valence checks read each vertex's face count, which the passes keep up to date
+    # instead of recounting (``self_check`` compares it with a recount after every pass); a wrong count
+    # lets a collapse fold two faces onto each other or close a hole: every level must stay an oriented
+    # manifold with the input's Euler number (holes, protected vertices, the paper scheme's forced
+    # collapses)
     rng = np.random.default_rng(14)
     m = trimesh.creation.icosphere(subdivisions=3)
-    build_progressive_mesh(m.vertices, m.faces[rng.random(len(m.faces)) > 0.25], base_vertices=40)
+    _check_every_level(m.vertices, m.faces[rng.random(len(m.faces)) > 0.25], base_ratio=0.06, self_check=True)
     V, F = bunny
-    build_progressive_mesh(V, F, base_vertices=len(V) // 10, protected=rng.random(len(V)) < 0.05)
-    pmwm.embed(V, F, pmwm.EmbedOptions(scheme="paper", payload="x", seed=1))
-    assert len(checked) > 30 and all(checked)
+    _check_every_level(V, F, base_ratio=0.1, protected=rng.random(len(V)) < 0.05, self_check=True)
+    V, F = meshes.blob()
+    adj = pmwm.adjacency.build_adjacency(F, len(V))
+    u = np.arange(0, len(V), 31)
+    _check_every_level(V, F, forced=np.stack([u, adj.ring_idx[adj.ring_ptr[u]]], axis=1), self_check=True)
 
 
 @pytest.mark.parametrize("per_ring, rings, seed", [(4, 13, 30), (4, 14, 138), (4, 13, 159), (4, 19, 278)])
@@ -157,7 +149,7 @@ def test_thin_tubes_keep_every_level_manifold(per_ring, rings, seed):
     # rings of 4 vertices: two opposite vertices of a ring share both their neighbours in it, so one pass
     # could collapse each into a different one of them, each collapse valid alone, and make the edge
     # between those two twice (four faces on it); a pass allows no such pair (the third rule of
-    # ``progressive._select``)
+    # ``pmwm.progressive.select``)
     V, F = _thin_tube(per_ring, rings, seed)
     assert _oriented_manifold(F)
     _check_every_level(V, F, base_ratio=0.05)

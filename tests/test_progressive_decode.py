@@ -1,7 +1,7 @@
 """The vectorised decoder against a plain per-record reference, at every kind of prefix.
 
-``pmwm.progressive.decode`` applies a level's records together through per-vertex corner lists
-(issue 13). The reference below applies them one at a time from the definition of a record, with a
+``pmwm.progressive.decode`` applies a level's records together through per-vertex corner lists.
+The reference below applies them one at a time from the definition of a record, with a
 vertex -> faces map in Python dictionaries: record r adds vertex u = n_base + r, moves the faces of
 v whose rank (faces around v sorted by face index) is set in the mask to u, and appends [u, v, p]
 and/or [u, q, v], p and q the ends of the moved arc of faces. The two must give the same arrays,

@@ -11,7 +11,7 @@ from .base import KEY_FILE, PASS_PHRASE, EmbedOptions, EmbedResult, Verdict, Ver
 from .errors import KeyFileError, MeshError, OutputExistsError, PayloadError, PmwmError, PMFormatError
 from .key import WatermarkKey, write_key
 from .meshio import SourceMesh, read_mesh, write_marked, write_mesh
-from .pmfile import read_pm, write_pm
+from .progressive import read_pm, write_pm
 from .progressive import ProgressiveMesh, build_progressive_mesh
 from .schemes import SCHEMES
 

@@ -26,7 +26,7 @@ from .base import PASS_PHRASE, EmbedOptions, Verdict
 from .errors import OutputExistsError, PmwmError
 from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
-from .pmfile import read_pm, record_size, write_pm
+from .progressive import read_pm, record_size, write_pm
 from .scene import (SceneDetail, embed_objects, read_asset, read_keys, read_objects, verify_objects, write_asset,
                     write_keys)
 from .schemes import SCHEMES, keyed_by
@@ -287,6 +287,17 @@ def cmd_info(a) -> int:
     return EXIT_OK
 
 
+def cmd_viewer(a) -> int:
+    from .viewer import write_site
+
+    out = write_site(read_pm(a.input), a.output, title=a.title or os.path.splitext(os.path.basename(a.input))[0],
+                     force=a.force)
+    if not a.quiet:
+        print(f"{out}: a web page streaming {os.path.basename(a.input)}; try it: python -m http.server -d {out}, "
+              "then open http://localhost:8000")
+    return EXIT_OK
+
+
 def cmd_attack(a) -> int:
     from .attacks import ATTACKS
 
@@ -540,6 +551,14 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("input")
     i.add_argument("--json", action="store_true")
     i.set_defaults(func=cmd_info)
+
+    w = sub.add_parser("viewer", help="write a web page that streams a .pmwm: coarse first, refined as it arrives")
+    w.add_argument("input", help="the progressive mesh (.pmwm)")
+    w.add_argument("-o", "--output", required=True, help="the folder to write (index.html, viewer.js, model.pmwm)")
+    w.add_argument("--title", help="the page's title (default: the file's name)")
+    w.add_argument("--force", action="store_true", help="write into a folder that is not empty")
+    w.add_argument("-q", "--quiet", action="store_true")
+    w.set_defaults(func=cmd_viewer)
 
     at = sub.add_parser("attack", help="apply an attack of the evaluation protocols")
     atk = at.add_subparsers(dest="kind", required=True, parser_class=_Parser)

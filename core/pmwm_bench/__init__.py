@@ -20,6 +20,8 @@ models, published, protocols, report -> pmwm; ``tests/test_layout.py`` checks it
 - ``plots``      the PNGs (matplotlib, imported lazily)
 - ``report``     sections of a markdown file, the commit and the machine a section names
 - ``cli``        ``main(argv)``: ``pmwm bench`` and ``pmwm bench --sweep``
+- ``browser``    headless chromium over its DevTools pipe, and a local web server (the web viewer's tests
+  and benchmark; standard library only)
 """
 
 from .methods import SchemeMethod, default_methods

@@ -81,8 +81,8 @@ def use(workdir: str) -> dict:
     try:
         bpy.ops.pmwm.watermark(payload="Hi", key_path=key, seed=7)
         bpy.ops.pmwm.verify(key_path=key)
-        s = bpy.context.scene.pmwm
-        result["verdict"] = {"marked": s.verdict_marked, "payload": s.verdict_payload}
+        v = bpy.context.active_object.pmwm_verdict
+        result["verdict"] = {"marked": v.marked, "payload": v.payload}
     except RuntimeError as exc:  # reported by the test
         result["operator_error"] = str(exc)
     return result

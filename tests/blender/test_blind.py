@@ -12,6 +12,11 @@ import pytest
 PHRASE = "tangerine kettle 42"
 
 
+def _verdict():
+    v = bpy.context.active_object.pmwm_verdict
+    return v.marked, v.payload
+
+
 def _secrets():
     return bpy.context.window_manager.pmwm_secrets
 
@@ -24,12 +29,15 @@ def test_blind_watermark_and_verify_with_the_pass_phrase(scene, addon, bl, key_p
     folder = tmp_path / "key-folder"
     assert not folder.exists() or not any(folder.iterdir())  # no key file anywhere
     assert bpy.ops.pmwm.verify() == {"FINISHED"}
-    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert _verdict() == (True, "Acme")
     _secrets().passphrase = PHRASE + "?"
     assert bpy.ops.pmwm.verify() == {"FINISHED"}
-    assert scene.pmwm.verdict_marked is False
-    # no mark read: no payload and no payload bits shown (nothing confirms them)
-    assert scene.pmwm.verdict_payload == "none read"
+    assert bpy.context.active_object.pmwm_verdict.marked is False
+    # no mark read: no payload either (never bits or a guess in its place)
+    ob = bpy.context.active_object
+    assert ob.pmwm_verdict.payload == ""
+    rows = dict(addon.verdictwords.box_rows(addon.session.lookup_verified(ob).verdict))
+    assert rows["Payload read"] == "none read"
 
 
 def test_blind_without_a_pass_phrase_is_a_clear_error(scene, addon, bl):
@@ -74,7 +82,7 @@ def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
         after = bl.positions(bpy.context.active_object)
         moved.append(float(np.sqrt(np.mean(np.sum((after - before) ** 2, axis=1)))))
         assert bpy.ops.pmwm.verify() == {"FINISHED"}
-        assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+        assert _verdict() == (True, "Acme")
         if margin == 0.0:
             lib = pmwm.embed(before.astype(np.float64), bl.polygons(bpy.context.active_object)[0].reshape(-1, 3),
                              pmwm.EmbedOptions(payload="Acme", scheme="blind", seed=3, passphrase=PHRASE))
@@ -119,7 +127,7 @@ def test_verify_reads_a_subdivided_copy_and_says_so(scene, addon, bl):
     res = _small_marked()
     bl.new_object("copy", *attacks.subdivide(res.vertices, res.faces, "loop"))
     text = _verify_report(addon, scene)
-    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert _verdict() == (True, "Acme")
     assert "subdivided from: loop undone" in text
 
 
@@ -143,7 +151,7 @@ def test_verify_reads_a_copy_given_blenders_subdivision_surface(scene, addon, bl
     tris = addon.meshdata.read_triangles(ob.data)
     assert np.any(np.bincount(tris.ravel()) % 2 == 1)  # some quads split (e, e'), not from their corner
     text = _verify_report(addon, scene)
-    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert _verdict() == (True, "Acme")
     assert "subdivided from: catmull-clark undone" in text
 
 
@@ -162,7 +170,7 @@ def test_verify_reads_a_copy_given_simple_or_two_levels_of_subdivision_surface(s
     assert bpy.ops.object.modifier_apply(modifier=mod.name) == {"FINISHED"}
     assert len(ob.data.polygons) == 3 * 4 ** (levels - 1) * len(res.faces)
     text = _verify_report(addon, scene)
-    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert _verdict() == (True, "Acme")
     assert "subdivided from: catmull-clark" in text
 
 
@@ -178,7 +186,7 @@ def test_verify_reads_a_copy_given_blenders_smooth_modifier(scene, addon, bl):
     mod.factor, mod.iterations = 0.5, 6
     assert bpy.ops.object.modifier_apply(modifier=mod.name) == {"FINISHED"}
     text = _verify_report(addon, scene)
-    assert (scene.pmwm.verdict_marked, scene.pmwm.verdict_payload) == (True, "Acme")
+    assert _verdict() == (True, "Acme")
     assert "steps of Laplacian smoothing (0.1 each) undone" in text
     V, F = addon.meshdata.read_positions(ob.data), addon.meshdata.read_triangles(ob.data)
     real = frames.unsmoothing

@@ -50,6 +50,6 @@ def test_watermarks_every_mesh_object_once(scene, bl, example, tmp_path, capfd):
         assert os.path.isfile(key) and os.path.isfile(stem + ".pmwm")
         bl.activate(ob)
         bpy.ops.pmwm.verify(key_path=key)
-        assert scene.pmwm.verdict_marked and scene.pmwm.verdict_payload == "ACME 2026"
+        assert (ob.pmwm_verdict.marked, ob.pmwm_verdict.payload) == (True, "ACME 2026")
     assert sorted(p.name for p in key_dir.iterdir()) == sorted(
         [f"{example._file_stem(n)}{ext}" for n in (a.name, b.name) for ext in (".key.json", ".pmwm")])

@@ -129,9 +129,8 @@ def test_modal_verify_fills_the_verdict_and_a_report_can_be_saved(scene, bl, tmp
     run.start(bpy.context)
     assert run.status_text.startswith("Verifying 'Suzanne': ")
     status, _ = _run_to_end(run, bpy.context)
-    assert status == {"FINISHED"} and "is MARKED" in reports.text()
-    s = scene.pmwm
-    assert (s.verdict_object, s.verdict_marked, s.verdict_payload) == (ob.name, True, "Verified")
+    assert status == {"FINISHED"} and "'Suzanne' read: MARKED" in reports.text()
+    assert (ob.pmwm_verdict.marked, ob.pmwm_verdict.payload) == (True, "Verified")
 
     report = tmp_path / "suzanne-report.html"
     assert bpy.ops.pmwm.save_report(filepath=str(report)) == {"FINISHED"}
@@ -154,7 +153,7 @@ def test_default_key_path_unsaved_blend_uses_the_key_folder(scene, bl, key_prefs
     key = folder / "Suzanne.pmwm-key.json"
     assert key.is_file()  # the folder was created for it
     assert bpy.ops.pmwm.verify() == {"FINISHED"}
-    assert scene.pmwm.verdict_marked and scene.pmwm.verdict_payload == "1st"
+    assert bpy.context.active_object.pmwm_verdict.marked and bpy.context.active_object.pmwm_verdict.payload == "1st"
     # a second click does not lose the first key
     with pytest.raises(RuntimeError, match="key file exists"):
         bpy.ops.pmwm.watermark(payload="Again", seed=4)
@@ -178,7 +177,7 @@ def test_default_key_path_saved_blend_is_beside_it(scene, bl, key_prefs, tmp_pat
     assert bpy.ops.pmwm.watermark(payload="Beside", seed=4) == {"FINISHED"}
     key = blend.parent / "Head_v2.pmwm-key.json"
     assert key.is_file() and not (tmp_path / "key-folder").exists()
-    assert bpy.ops.pmwm.verify() == {"FINISHED"} and scene.pmwm.verdict_payload == "Beside"
+    assert bpy.ops.pmwm.verify() == {"FINISHED"} and bpy.context.active_object.pmwm_verdict.payload == "Beside"
 
 
 def test_invoked_without_an_interface_it_runs_synchronously(scene, bl, tmp_path):
@@ -190,4 +189,4 @@ def test_invoked_without_an_interface_it_runs_synchronously(scene, bl, tmp_path)
     assert bpy.ops.pmwm.watermark("INVOKE_DEFAULT", payload="Inv", key_path=str(key), seed=3) == {"FINISHED"}
     assert key.is_file() and not np.array_equal(bl.positions(ob), before)
     assert bpy.ops.pmwm.verify("INVOKE_DEFAULT", key_path=str(key)) == {"FINISHED"}
-    assert scene.pmwm.verdict_marked and scene.pmwm.verdict_payload == "Inv"
+    assert bpy.context.active_object.pmwm_verdict.marked and bpy.context.active_object.pmwm_verdict.payload == "Inv"

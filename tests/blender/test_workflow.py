@@ -12,8 +12,8 @@ PAYLOAD = "ACME 2026"
 
 
 def _verdict(scene):
-    s = scene.pmwm
-    return s.verdict_marked, s.verdict_payload
+    v = bpy.context.active_object.pmwm_verdict
+    return v.marked, v.payload
 
 
 @pytest.mark.parametrize("model", ["suzanne", "bunny"])
@@ -95,9 +95,9 @@ def test_verify_unmarked_object(scene, bl, tmp_path):
     clean.location.x = 3.0
     assert bpy.context.active_object == clean
     assert bpy.ops.pmwm.verify(key_path=str(key)) == {"FINISHED"}
-    s = scene.pmwm
-    assert s.verdict_object == clean.name and not s.verdict_marked and s.verdict_payload != PAYLOAD
-    assert float(s.verdict_p_value) > 1e-6
+    v = clean.pmwm_verdict
+    assert v.verified and not v.marked and v.payload == "" and v.p_value > 1e-6
+    assert not marked.pmwm_verdict.verified  # the verdict is the verified object's only
 
     ply = tmp_path / "clean.ply"
     bpy.ops.wm.ply_export(filepath=str(ply), export_selected_objects=True, forward_axis="Y", up_axis="Z",
@@ -136,7 +136,7 @@ def test_modifiers_and_shape_keys_mark_the_base_mesh(scene, bl, tmp_path, capfd)
     assert np.allclose(smile_after.reshape(-1, 3) - smile_before, delta, atol=1e-6)
     assert np.any(delta != 0)
     bpy.ops.pmwm.verify(key_path=str(key))
-    assert scene.pmwm.verdict_marked
+    assert bpy.context.active_object.pmwm_verdict.marked
 
 
 def test_show_carriers_group_is_temporary(scene, bl, tmp_path, capfd, addon):
@@ -226,11 +226,11 @@ def test_scene_options_are_the_defaults_of_the_operators(scene, bl, tmp_path):
     ob = bl.suzanne(levels=2)
     key = tmp_path / "panel.key.json"
     s = scene.pmwm
-    s.payload, s.key_path, s.seed = "Panel owner", str(key), 3
+    s.payload, s.key_path, s.verify_key_path, s.seed = "Panel owner", str(key), str(key), 3
     assert bpy.ops.pmwm.watermark() == {"FINISHED"}
     assert key.is_file()
     assert bpy.ops.pmwm.verify() == {"FINISHED"}
-    assert s.verdict_marked and s.verdict_payload == "Panel owner" and s.verdict_object == ob.name
+    assert (ob.pmwm_verdict.marked, ob.pmwm_verdict.payload) == (True, "Panel owner")
 
 
 def test_scheme_option_selects_the_paper_scheme(scene, bl, tmp_path):
@@ -244,7 +244,7 @@ def test_scheme_option_selects_the_paper_scheme(scene, bl, tmp_path):
     assert bpy.ops.pmwm.watermark(payload="P", key_path=str(key), seed=2) == {"FINISHED"}
     assert pmwm.read_key(key).scheme == "paper"
     assert bpy.ops.pmwm.verify(key_path=str(key)) == {"FINISHED"}
-    assert scene.pmwm.verdict_marked
+    assert bpy.context.active_object.pmwm_verdict.marked
     key2 = tmp_path / "robust.key.json"
     bl.suzanne(levels=2)
     assert bpy.ops.pmwm.watermark(payload="R", key_path=str(key2), seed=2, scheme="robust") == {"FINISHED"}

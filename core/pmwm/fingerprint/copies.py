@@ -26,7 +26,7 @@ from ..base import Progress, check_options, make_key, no_progress
 from ..errors import PayloadError
 from ..key import WatermarkKey, derive_seed, make_secret, mesh_sha256
 from ..meshio import ply_parts
-from ..pmfile import to_bytes
+from ..progressive import to_bytes
 from ..progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ..register import surface_frame
 from ..spatial import loading_engine

@@ -11,11 +11,10 @@ Layout (little endian)::
                     split flags, face mask u64): 24 bytes each with float32 positions
     checksum        SHA-256 of everything before it
 
-Version 2 (issue 13) differs from version 1 only in the masks' top 12 bits, which name the two
-faces that end each record's arc (``progressive.ENDS_SHIFT``), so that the decoder reads p and q
-from two faces instead of summing over the arc. A version-1 file reads as before (without them),
-and a progressive mesh without them (``end_ranks`` False: one read from a version-1 file) is
-written as version 1.
+Version 2 differs from version 1 only in the masks' top 12 bits, which name the two faces that end
+each record's arc (``records.ENDS_SHIFT``), so that the decoder reads p and q from two faces instead
+of summing over the arc. A version-1 file reads as before (without them), and a progressive mesh
+without them (``end_ranks`` False: one read from a version-1 file) is written as version 1.
 
 The size implied by the header is checked against the file size before anything is
 allocated, so a header that claims a billion records is rejected at once. Nothing of
@@ -30,9 +29,10 @@ import struct
 
 import numpy as np
 
-from .errors import PMFormatError
-from .atomic import atomic_write_bytes
-from .progressive import FLAG_SECOND, FLAG_SINGLE, ProgressiveMesh
+from ..atomic import atomic_write_bytes
+from ..errors import PMFormatError
+from .mesh import ProgressiveMesh
+from .records import FLAG_SECOND, FLAG_SINGLE
 
 MAGIC = b"\x89PMWM\r\n\x1a"
 VERSION = 2  # the newest this module reads and writes (it reads every version from 1)
