@@ -486,3 +486,50 @@ def test_gltf_with_embedded_buffers(tmp_path, capsys):
     capsys.readouterr()
     assert main(["verify", str(tmp_path / "m.gltf"), "--key", str(tmp_path / "k.json")]) == 0
     assert "mark read in 2 of 2 objects: A, B" in capsys.readouterr().out
+
+
+def test_marked_glb_loads_in_a_consumer_with_its_texture_and_uvs(marked_glb):
+    """trimesh (a consumer that knows nothing of pmwm) loads the marked scene with the same nodes,
+    transforms, UVs and texture image as the original."""
+    a = trimesh.load(marked_glb / "scene.glb", process=False)
+    b = trimesh.load(marked_glb / "marked.glb", process=False)
+    assert sorted(a.graph.nodes_geometry) == sorted(b.graph.nodes_geometry)
+    for node in a.graph.nodes_geometry:
+        assert np.array_equal(a.graph[node][0], b.graph[node][0])
+    ga, gb = a.geometry["HorseMesh"], b.geometry["HorseMesh"]
+    assert np.array_equal(ga.visual.uv, gb.visual.uv)
+    image = (np.asarray(g.visual.material.baseColorTexture) for g in (ga, gb))
+    assert np.array_equal(*image)
+    assert 0 < np.abs(ga.vertices - gb.vertices).max() < 0.01 * np.ptp(ga.vertices, axis=0).max()
+
+
+def test_skinned_mesh_is_marked_in_its_bind_pose(tmp_path, capsys):
+    def skin(doc, body):
+        mat = np.eye(4, dtype="<f4").tobytes()
+        body = body + b"\0" * (-len(body) % 4)
+        doc["bufferViews"].append({"buffer": 0, "byteOffset": len(body), "byteLength": len(mat)})
+        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5126, "count": 1,
+                                 "type": "MAT4"})
+        doc["nodes"].append({"name": "Bone"})
+        horse = next(n for n in doc["nodes"] if n.get("name") == "Horse")
+        horse["skin"] = 0
+        doc["skins"] = [{"joints": [len(doc["nodes"]) - 1], "inverseBindMatrices": len(doc["accessors"]) - 1}]
+        doc["buffers"][0]["byteLength"] = len(body) + len(mat)
+        return body + mat
+
+    path = _edited(tmp_path, "skin.glb", skin)
+    capsys.readouterr()
+    assert main(["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
+                 "--payload", PAYLOAD]) == 0
+    assert "Horse: skinned; marked in its bind pose" in capsys.readouterr().err
+    assert _without_minmax(_glb_parts(path.read_bytes())[0]) == \
+        _without_minmax(_glb_parts((tmp_path / "m.glb").read_bytes())[0])
+
+
+@pytest.mark.slow
+def test_a_scene_flattened_into_one_mesh_reads_marked(marked_glb):
+    """The whole marked scene re-exported as one mesh (every object in world coordinates, concatenated):
+    no object key has its connectivity, every key is tried, and the mark is read."""
+    src = pmwm.read_mesh(marked_glb / "marked.glb")
+    v = verify_objects([("flat", src.vertices, src.faces)], read_keys(marked_glb / "k.json"))
+    assert v.marked and v.payload == PAYLOAD and v.detail.tried == 2
