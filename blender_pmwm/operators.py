@@ -209,14 +209,19 @@ class _Task:
     def current_object(self):
         """The object this task read, if it still holds exactly the mesh that was read; else _Failed
         (the user may edit, undo or delete while the worker runs)."""
-        ob = bpy.data.objects.get(self.name)
-        same = (ob is not None and ob.as_pointer() == self.pointer and ob.type == "MESH" and ob.mode == "OBJECT"
-                and session.same_positions(self.positions32, meshdata.read_positions32(ob.data))
-                and np.array_equal(meshdata.read_triangles(ob.data), self.F))
-        if not same:
-            raise _Failed(f"'{self.name}' changed while it was being {self.verb}: nothing was written; "
-                          f"run it again")
-        return ob
+        return still_there(self.name, self.pointer, self.positions32, self.F, self.verb)
+
+
+def still_there(name: str, pointer: int, positions32: np.ndarray, F: np.ndarray, verb: str):
+    """The object ``name`` if it is the one read (``pointer``) and still holds exactly that mesh, its
+    positions (n, 3) float32 and triangles (m, 3); else _Failed saying nothing was written."""
+    ob = bpy.data.objects.get(name)
+    same = (ob is not None and ob.as_pointer() == pointer and ob.type == "MESH" and ob.mode == "OBJECT"
+            and session.same_positions(positions32, meshdata.read_positions32(ob.data))
+            and np.array_equal(meshdata.read_triangles(ob.data), F))
+    if not same:
+        raise _Failed(f"'{name}' changed while it was being {verb}: nothing was written; run it again")
+    return ob
 
 
 class WatermarkTask(_Task):
