@@ -13,10 +13,11 @@ from __future__ import annotations
 import os
 
 import bpy
+from bpy.types import Operator
 
 from . import meshdata, props, session, verdictwords
-from .operators import (PMWM_OT_verify, PMWM_OT_watermark, VerifyTask, WatermarkTask, _Failed, _key_path,
-                        _mesh_problem, _poll_mesh, _read_mesh, _uses_passphrase, still_there)
+from .operators import (VerifyOptions, VerifyTask, WatermarkOptions, WatermarkTask, _BackgroundOperator, _Failed,
+                        _key_path, _mesh_problem, _poll_mesh, _read_mesh, _uses_passphrase, still_there)
 
 
 def _selected_meshes(context) -> tuple[list, dict]:
@@ -143,7 +144,7 @@ def _poll_selection(cls, context) -> bool:
     return True
 
 
-class PMWM_OT_watermark_selected(PMWM_OT_watermark):
+class PMWM_OT_watermark_selected(WatermarkOptions, _BackgroundOperator, Operator):
     """Watermark every selected mesh object as one asset: one key file (or the pass phrase) for all, one undo
     step"""
 
@@ -156,11 +157,10 @@ class PMWM_OT_watermark_selected(PMWM_OT_watermark):
         return _poll_selection(cls, context)
 
     def make_task(self, context):
-        names = self.options_for(self.option(context, "scheme"))
-        return WatermarkSelectedTask(context, **{n: self.option(context, n) for n in names})
+        return WatermarkSelectedTask(context, **self.run_options(context))
 
 
-class PMWM_OT_verify_selected(PMWM_OT_verify):
+class PMWM_OT_verify_selected(VerifyOptions, _BackgroundOperator, Operator):
     """Verify the selected mesh objects against the key of an asset (or of one object), or the pass
     phrase: the verdict names the objects where the mark was read"""
 

@@ -148,7 +148,10 @@ class GltfScene:
 
 def read_gltf(path: str) -> GltfScene:
     """Read a .glb or .gltf file into its objects (MeshError naming the problem on anything refused)."""
-    import pygltflib
+    try:
+        import pygltflib
+    except ImportError:
+        raise MeshError(f"reading the scene {path} needs pygltflib: pip install pygltflib") from None
 
     try:
         with open(path, "rb") as fh:
