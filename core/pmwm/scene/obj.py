@@ -12,6 +12,7 @@ triangle fans; the file keeps them as written.
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,6 +22,8 @@ from ..meshio import _tokens_per_line
 from .canonical import SceneObject, canonical_object, moved_normals
 
 __all__ = ["ObjScene", "read_obj_scene"]
+
+_CUT_LINE = re.compile(rb"(?m)^[ \t]*[og][ \t]")  # an o or g line
 
 
 @dataclass
@@ -121,6 +124,8 @@ def read_obj_scene(path: str) -> ObjScene | None:
     MeshError naming the line on anything malformed."""
     with open(path, "rb") as fh:
         data = fh.read()
+    if len(_CUT_LINE.findall(data)) < 2:  # one object at most: no need to read it line by line
+        return None
     lines = data.splitlines(keepends=True)
     heads = np.array([ln.split(None, 1)[0] if ln.strip() else b"" for ln in lines] or [b""])
     cut = b"o" if (heads == b"o").any() else b"g"
