@@ -533,3 +533,33 @@ def test_a_scene_flattened_into_one_mesh_reads_marked(marked_glb):
     src = pmwm.read_mesh(marked_glb / "marked.glb")
     v = verify_objects([("flat", src.vertices, src.faces)], read_keys(marked_glb / "k.json"))
     assert v.marked and v.payload == PAYLOAD and v.detail.tried == 2
+
+
+def test_a_glb_of_one_mesh_is_marked_in_place_with_a_key_of_one_mesh(tmp_path, capsys):
+    """One mesh in a GLB: marked in place too (its texture and UVs kept byte for byte), its key the key
+    file of one mesh; written to PLY it is read as one mesh, as before."""
+    V, F = blob()
+    uv = (V[:, :2] - V[:, :2].min(0)) / np.ptp(V[:, :2], axis=0)
+    trimesh.Trimesh(V, F, process=False, visual=trimesh.visual.TextureVisuals(uv=uv)).export(tmp_path / "one.glb")
+    assert main(["embed", str(tmp_path / "one.glb"), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
+                 "--payload", PAYLOAD, "-q"]) == 0
+    assert json.loads((tmp_path / "k.json").read_text())["format"] == "pmwm-key"
+    doc0, bin0 = _glb_parts((tmp_path / "one.glb").read_bytes())
+    doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
+    moved = _moved_bytes(doc0)
+    assert _without_minmax(doc0) == _without_minmax(doc1)
+    assert np.array_equal(np.frombuffer(bin0, np.uint8)[~moved], np.frombuffer(bin1, np.uint8)[~moved])
+    capsys.readouterr()
+    assert main(["verify", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--report",
+                 str(tmp_path / "r.html")]) == 0  # one mesh, one key: the report as before
+    assert f"payload: '{PAYLOAD}'" in capsys.readouterr().out and (tmp_path / "r.html").is_file()
+    assert main(["embed", str(tmp_path / "one.glb"), "-o", str(tmp_path / "m.ply"), "--key",
+                 str(tmp_path / "k2.json"), "-q"]) == 0
+
+
+def test_a_report_reads_one_mesh_with_one_key(marked_glb, tmp_path, capsys):
+    capsys.readouterr()
+    assert main(["verify", str(marked_glb / "marked.glb"), "--key", str(marked_glb / "k.json"), "--report",
+                 str(tmp_path / "r.html")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pmwm: error: --report reads one mesh") and not (tmp_path / "r.html").exists()
