@@ -333,6 +333,14 @@ def test_mesh_without_triangles_is_refused(tmp_path, capsys):
     _refused(capsys, tmp_path, _edited(tmp_path, "lines.glb", lines), "no triangle")
 
 
+def test_meshes_sharing_positions_are_refused(tmp_path, capsys):
+    def shared(doc, body):
+        doc["meshes"].append({"name": "Twin", "primitives": [dict(doc["meshes"][0]["primitives"][0])]})
+        doc["nodes"].append({"name": "Twin", "mesh": len(doc["meshes"]) - 1})
+
+    _refused(capsys, tmp_path, _edited(tmp_path, "twin.glb", shared), "share their positions")
+
+
 def test_gltf_with_missing_buffer_file_is_refused(tmp_path, capsys):
     scene_glb(tmp_path / "base.glb", extra_node=False)
     doc, body = _glb_parts((tmp_path / "base.glb").read_bytes())

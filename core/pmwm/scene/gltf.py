@@ -177,6 +177,10 @@ def read_gltf(path: str) -> GltfScene:
         obj, parts = _read_mesh(doc, gltf, buffers, m, mesh, names[m], path)
         if m in skinned:
             obj.warnings.append(f"{obj.name}: skinned; marked in its bind pose, joints and weights kept")
+        for other, their in zip(scene.objects, scene._parts):
+            if {pos for pos, _, _ in parts} & {pos for pos, _, _ in their}:
+                raise MeshError(f"{path}: meshes {other.name!r} and {obj.name!r} share their positions; pmwm "
+                                "cannot mark them apart: make them one mesh, or give each its own data")
         scene.objects.append(obj)
         scene._parts.append(parts)
     if not scene.objects:
