@@ -52,7 +52,7 @@ class _Buffer:
 @dataclass
 class GltfScene:
     """A glTF or GLB file as read: its objects (one per mesh with triangles) for the schemes, and what
-    writing it back needs. ``objects[i]`` came from ``doc["meshes"][mesh_index[i]]``."""
+    writing it back needs. ``objects[i]`` is ``doc["meshes"][i]`` (every mesh is an object)."""
 
     path: str
     doc: dict  # the JSON document as read (written back with min/max and moved URIs changed)
@@ -60,7 +60,8 @@ class GltfScene:
     objects: list[SceneObject]
     glb_tail: bytes = b""  # chunks after BIN in a GLB, kept verbatim
     warnings: list[str] = field(default_factory=list)
-    _parts: list = field(default_factory=list, repr=False)  # per object: [(pos view, nrm view or None, rows)]
+    # per object: [(POSITION accessor, its NORMAL accessor or None, the object's file vertices it holds)]
+    _parts: list = field(default_factory=list, repr=False)
 
     def write(self, path: str, marked: list[np.ndarray], *, force: bool = False) -> list[str]:
         """Write the scene with each object's positions replaced by ``marked[i]`` ((n_i, 3) float64
@@ -214,7 +215,9 @@ def _load_buffer(buffer, index: int, path: str, bin_chunk: bytes | None) -> _Buf
     if uri is None:
         if bin_chunk is None:
             raise MeshError(f"{path}: buffer {index} has no data (no GLB binary chunk, no URI)")
-        return _Buffer(bytearray(bin_chunk[: buffer.byteLength]), "glb")
+        if len(bin_chunk) < buffer.byteLength:
+            raise MeshError(f"{path} is a truncated GLB file (its binary chunk is shorter than its buffer)")
+        return _Buffer(bytearray(bin_chunk), "glb")  # (whole: its padding written back as it was)
     if uri.startswith("data:"):
         try:
             data = base64.b64decode(uri.split(",", 1)[1], validate=True)
