@@ -571,3 +571,37 @@ def test_a_report_reads_one_mesh_with_one_key(marked_glb, tmp_path, capsys):
                  str(tmp_path / "r.html")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("pmwm: error: --report reads one mesh") and not (tmp_path / "r.html").exists()
+
+
+# ----------------------------------------------------------------------------- fingerprinting
+
+
+def test_a_scene_is_fingerprinted_and_traced_from_the_scene_or_one_object(tmp_path, capsys):
+    """One copy per recipient in the scene's own format (everything but positions and normals kept), a
+    registry per object; the copy traced to its recipient from the whole scene and from one object alone;
+    a second run skips the copies delivered intact."""
+    scene_glb(tmp_path / "s.glb", extra_node=False)
+    (tmp_path / "r.csv").write_text("id\nalice\nbob\ncarol\n")
+    out, key = tmp_path / "out", tmp_path / "fp.key.json"
+    args = ["fingerprint", str(tmp_path / "s.glb"), "--key", str(key), "--recipients", str(tmp_path / "r.csv"),
+            "--out", str(out), "--seed", "3", "-q"]
+    assert main(args) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["alice.glb", "bob.glb", "carol.glb", "registry.json"]
+    doc0, bin0 = _glb_parts((tmp_path / "s.glb").read_bytes())
+    doc1, bin1 = _glb_parts((out / "bob.glb").read_bytes())
+    moved = _moved_bytes(doc0)
+    assert _without_minmax(doc0) == _without_minmax(doc1)
+    assert np.array_equal(np.frombuffer(bin0, np.uint8)[~moved], np.frombuffer(bin1, np.uint8)[~moved])
+    trace = ["trace", "--key", str(key), "--registry", str(out / "registry.json")]
+    capsys.readouterr()
+    assert main([trace[0], str(out / "bob.glb"), *trace[1:]]) == 0
+    assert capsys.readouterr().out.startswith("TRACED to bob:")
+    name, V, F = read_objects(out / "carol.glb")[1]
+    pmwm.write_mesh(tmp_path / "part.ply", V, F)  # one object taken out alone
+    assert main([trace[0], str(tmp_path / "part.ply"), *trace[1:]]) == 0
+    assert capsys.readouterr().out.startswith("TRACED to carol:")
+    assert main([trace[0], str(tmp_path / "s.glb"), *trace[1:]]) == 1  # the scene as it was: no one
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert main(args[:-1]) == 0
+    assert "0 copies written" in capsys.readouterr().out
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before

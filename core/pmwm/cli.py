@@ -390,8 +390,18 @@ def cmd_fingerprint(a) -> int:
     new_key = not os.path.exists(a.key)
     if not new_key and a.seed is not None:
         print(f"warning: {a.key} exists: its secret and options are used, --seed is ignored", file=sys.stderr)
-    run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
-                            progress=_count_progress(a.quiet, "copies"))
+    asset = read_asset(a.asset)  # a scene of several objects: every object fingerprinted, copies in its format
+    if asset is not None and len(asset.objects) > 1:
+        from .fingerprint.scene import fingerprint_scene
+
+        if a.pm:
+            raise UsageError(f"--pm writes progressive meshes of one mesh; {a.asset} holds {len(asset.objects)} "
+                             "objects: omit --pm")
+        run = fingerprint_scene(asset, a.asset, a.key, recipients, a.out, options=_fingerprint_options(a),
+                                progress=_count_progress(a.quiet, "copies"))
+    else:
+        run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
+                                progress=_count_progress(a.quiet, "copies"))
     if not a.quiet:
         per = run.copies_seconds / max(len(run.written), 1)
         print(f"fingerprinted {a.asset} for {len(recipients)} recipients: {len(run.written)} copies written "
@@ -403,17 +413,24 @@ def cmd_fingerprint(a) -> int:
 
 
 def cmd_trace(a) -> int:
-    from .fingerprint import read_fingerprint_key, read_registry, trace
+    from .fingerprint import read_registry, trace
+    from .fingerprint.scene import SceneFingerprintKey, read_any_fingerprint_key, read_scene_registry, trace_objects
 
-    fk = read_fingerprint_key(a.key)
-    reg = read_registry(a.registry)
+    fk = read_any_fingerprint_key(a.key)
+    scene = isinstance(fk, SceneFingerprintKey)  # a scene's key: its objects traced, the union bound paid
+    reg = read_scene_registry(a.registry) if scene else read_registry(a.registry)
     reg.check(fk, a.registry)
     if a.suspect.lower().endswith(".pmwm"):
-        V, F = read_pm(a.suspect).decode()
+        objects = [(a.suspect, *read_pm(a.suspect).decode())]
+    elif scene:
+        objects = read_objects(a.suspect)
     else:
         src = read_mesh(a.suspect)
-        V, F = src.vertices, src.faces
-    r = trace(V, F, fk, reg, p_threshold=a.p_threshold)
+        objects = [(a.suspect, src.vertices, src.faces)]
+    if scene:
+        r = trace_objects(objects, fk, reg, p_threshold=a.p_threshold)
+    else:
+        r = trace(objects[0][1], objects[0][2], fk, reg, p_threshold=a.p_threshold)
     if a.json:
         print(json.dumps(r.to_dict()))
     elif r.accused:
