@@ -16,7 +16,7 @@ from pmwm import wording
 from pmwm.cli import main
 from pmwm.scene import read_asset, read_keys, read_objects, union_bound, verify_objects
 
-from meshes import blob, cad_part, pinched_torus
+from meshes import blob, cad_part, mesh_file, pinched_torus
 
 PAYLOAD = "ACME"
 
@@ -605,3 +605,32 @@ def test_a_scene_is_fingerprinted_and_traced_from_the_scene_or_one_object(tmp_pa
     assert main(args[:-1]) == 0
     assert "0 copies written" in capsys.readouterr().out
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+@pytest.mark.slow
+def test_the_catalogue_takes_a_scene_beside_a_mesh(tmp_path):
+    """On a local Dask cluster: a scene's copies in its format, traced from one object alone; a mesh's as
+    before; a second run writes nothing and changes nothing."""
+    from pmwm.fingerprint import read_fingerprint_key, read_registry, trace
+    from pmwm.fingerprint.catalogue import run_catalogue
+    from pmwm.fingerprint.scene import read_any_fingerprint_key, read_scene_registry, trace_objects
+
+    scene_glb(tmp_path / "s.glb", extra_node=False)
+    assets = [str(tmp_path / "s.glb"), str(mesh_file("blob.off"))]
+    ids = ["u1", "u2", "u3"]
+    opts = pmwm.fingerprint.FingerprintOptions(seed=5)
+    res = run_catalogue(assets, ids, tmp_path / "a", options=opts, n_workers=1, batch=2)
+    assert not res.failed and res.written == 6
+    assert sorted(p.name for p in (tmp_path / "a" / "s").iterdir()) == ["registry.json", "u1.glb", "u2.glb", "u3.glb"]
+    (_, V, F) = read_objects(tmp_path / "a" / "s" / "u2.glb")[0]
+    sfk = read_any_fingerprint_key(tmp_path / "a" / "s.key.json")
+    r = trace_objects([("alone", V, F)], sfk, read_scene_registry(tmp_path / "a" / "s" / "registry.json"))
+    assert [a.recipient for a in r.accused] == ["u2"]
+    src = pmwm.read_mesh(tmp_path / "a" / "blob" / "u3.ply")
+    fk = read_fingerprint_key(tmp_path / "a" / "blob.key.json")
+    reg = read_registry(tmp_path / "a" / "blob" / "registry.json")
+    assert [a.recipient for a in trace(src.vertices, src.faces, fk, reg).accused] == ["u3"]
+    tree = {p: p.read_bytes() for p in sorted((tmp_path / "a").rglob("*")) if p.is_file()}
+    again = run_catalogue(assets, ids, tmp_path / "a", options=opts, n_workers=1)
+    assert again.written == 0 and again.skipped == 6
+    assert {p: p.read_bytes() for p in sorted((tmp_path / "a").rglob("*")) if p.is_file()} == tree

@@ -382,6 +382,7 @@ def _fingerprint_options(a):
 
 def cmd_fingerprint(a) -> int:
     from .fingerprint import fingerprint_asset, read_recipients
+    from .fingerprint.scene import fingerprint_scene, prepare_scene
 
     _check_outputs([a.key if not os.path.exists(a.key) else None], [a.asset], False)
     if os.path.exists(a.out) and not os.path.isdir(a.out):
@@ -390,15 +391,14 @@ def cmd_fingerprint(a) -> int:
     new_key = not os.path.exists(a.key)
     if not new_key and a.seed is not None:
         print(f"warning: {a.key} exists: its secret and options are used, --seed is ignored", file=sys.stderr)
-    asset = read_asset(a.asset)  # a scene of several objects: every object fingerprinted, copies in its format
+    asset = read_asset(a.asset)  # a scene of several objects: every object marked, copies in the scene's format
     if asset is not None and len(asset.objects) > 1:
-        from .fingerprint.scene import fingerprint_scene
-
         if a.pm:
-            raise UsageError(f"--pm writes progressive meshes of one mesh; {a.asset} holds {len(asset.objects)} "
-                             "objects: omit --pm")
-        run = fingerprint_scene(asset, a.asset, a.key, recipients, a.out, options=_fingerprint_options(a),
-                                progress=_count_progress(a.quiet, "copies"))
+            raise UsageError(f"--pm writes progressive meshes of one mesh; {a.asset} is a scene: omit --pm")
+        t0 = time.perf_counter()
+        scene = prepare_scene(a.asset, a.key, _fingerprint_options(a), asset=asset)
+        run = fingerprint_scene(scene, recipients, a.out, progress=_count_progress(a.quiet, "copies"))
+        run.analysis_seconds = time.perf_counter() - t0 - run.copies_seconds
     else:
         run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
                                 progress=_count_progress(a.quiet, "copies"))

@@ -27,14 +27,15 @@ import numpy as np
 from ..atomic import atomic_write_bytes, file_sha256
 from ..errors import KeyFileError, PmwmError
 from ..key import derive_seed, face_fingerprint, json_text, make_secret, mesh_sha256
-from .asset import FingerprintRun, _on_disk, clean_temporaries, register
-from .codes import Accusation, accuse
+from .asset import FingerprintRun, _on_disk, clean_temporaries
+from .codes import Accusation, accuse, pack_codeword
 from .copies import FingerprintOptions, analyse_asset
-from .registry import KEY_FORMAT, FingerprintKey, Registry, RegistryError, _read_json
+from .registry import KEY_FORMAT, FingerprintKey, Registry, RegistryEntry, RegistryError, _read_json
 from .trace import TraceResult, site_readings
 
-__all__ = ["SCENE_KEY_FORMAT", "SCENE_REGISTRY_FORMAT", "SceneFingerprintKey", "SceneRegistry",
-           "read_any_fingerprint_key", "read_scene_registry", "fingerprint_scene", "trace_objects"]
+__all__ = ["SCENE_KEY_FORMAT", "SCENE_REGISTRY_FORMAT", "SceneFingerprintKey", "SceneRegistry", "SceneAnalysis",
+           "read_any_fingerprint_key", "read_scene_registry", "prepare_scene", "open_scene_registry",
+           "scene_pending", "add_copy", "fingerprint_scene", "trace_objects"]
 
 SCENE_KEY_FORMAT, SCENE_REGISTRY_FORMAT, VERSION = "pmwm-scene-fingerprint-key", "pmwm-scene-fingerprint-registry", 1
 REGISTRY_NAME = "registry.json"
@@ -146,34 +147,83 @@ def _analyses(asset, asset_path: str, key_path: str, options: Optional[Fingerpri
     return ans, sfk
 
 
-def fingerprint_scene(asset, asset_path, key_path, recipients, out_dir, options: Optional[FingerprintOptions] = None,
+@dataclass
+class SceneAnalysis:
+    """A scene analysed for fingerprinting: the scene (``pmwm.scene`` asset) to write copies of, its
+    extension, each object's analysis and the scene's key."""
+
+    asset: object
+    ext: str
+    analyses: list
+    key: SceneFingerprintKey
+
+    def codewords(self, recipient: str) -> list:
+        """The recipient's codeword of each object, packed (``codes.pack_codeword``)."""
+        return [pack_codeword(an.codeword(recipient)) for an in self.analyses]
+
+    def write_copy(self, folder, recipient: str) -> dict:
+        """Write the recipient's copy of the scene to ``folder``/<recipient><ext> (and, for a .gltf whose
+        buffers are files, its .bin), each atomically; {file name: SHA-256} of what was written."""
+        marked = [an.marked(an.codeword(recipient)) for an in self.analyses]
+        written = self.asset.write(os.path.join(os.fspath(folder), recipient + self.ext), marked, force=True)
+        return {os.path.basename(p): file_sha256(p) for p in written}
+
+
+def prepare_scene(asset_path, key_path, options: Optional[FingerprintOptions] = None,
+                  asset=None) -> Optional[SceneAnalysis]:
+    """The scene at ``asset_path`` (``asset``: as read already by ``pmwm.scene.read_asset``) analysed with
+    the key at ``key_path`` (written when new), or None when the file holds one mesh
+    (``asset.prepare_asset`` fingerprints it)."""
+    from ..scene import read_asset
+
+    asset = read_asset(asset_path) if asset is None else asset
+    if asset is None or len(asset.objects) < 2:
+        return None
+    ans, sfk = _analyses(asset, os.fspath(asset_path), os.fspath(key_path), options)
+    return SceneAnalysis(asset, os.path.splitext(os.fspath(asset_path))[1].lower(), ans, sfk)
+
+
+def open_scene_registry(out_dir, sfk: SceneFingerprintKey) -> SceneRegistry:
+    """The scene registry in ``out_dir`` (checked against the key), or a new one."""
+    path = os.path.join(out_dir, REGISTRY_NAME)
+    sreg = read_scene_registry(path) if os.path.exists(path) else SceneRegistry.for_key(sfk)
+    sreg.check(sfk, path)
+    return sreg
+
+
+def scene_pending(sreg: SceneRegistry, out_dir, recipients, ext: str) -> list:
+    """The recipients whose copy is not registered with its files on disk intact."""
+    first = sreg.registries[0]
+    return [r for r in recipients if not (r in first.entries and r + ext in first.entries[r].files and all(
+        _on_disk(os.path.join(out_dir, f), sha) for f, sha in first.entries[r].files.items()))]
+
+
+def add_copy(sreg: SceneRegistry, recipient: str, codes: list, files: dict) -> None:
+    """Record a recipient's codewords (one per object, packed) and files in every object's registry."""
+    for reg, code in zip(sreg.registries, codes):
+        entry = reg.entries.get(recipient) or RegistryEntry(code)
+        entry.files.update(files)
+        reg.entries[recipient] = entry
+
+
+def fingerprint_scene(scene: SceneAnalysis, recipients, out_dir,
                       progress: Optional[Callable[[int, int], None]] = None) -> FingerprintRun:
-    """Fingerprint the scene ``asset`` (``pmwm.scene.read_asset(asset_path)``) for ``recipients`` into
-    ``out_dir``: ``<recipient><ext>`` per recipient (the scene's own format) and registry.json (see the
-    module docstring). ``progress(done, total)`` after each copy."""
+    """Write the analysed scene's copies for ``recipients`` into ``out_dir`` (created): ``<recipient><ext>``
+    each (the scene's own format) and registry.json (see the module docstring). ``progress(done, total)``
+    after each copy."""
     if not os.path.isdir(out_dir):
         try:
             os.makedirs(out_dir, exist_ok=True)
         except OSError as exc:
             raise PmwmError(f"cannot create {out_dir}: {exc.strerror or exc}") from None
-    t0 = time.perf_counter()
-    ans, sfk = _analyses(asset, os.fspath(asset_path), os.fspath(key_path), options)
-    path = os.path.join(out_dir, REGISTRY_NAME)
-    sreg = read_scene_registry(path) if os.path.exists(path) else SceneRegistry.for_key(sfk)
-    sreg.check(sfk, path)
     t1 = time.perf_counter()
-    ext = os.path.splitext(os.fspath(asset_path))[1].lower()
-    first = sreg.registries[0]
-    todo = [r for r in recipients if not (r in first.entries and r + ext in first.entries[r].files and all(
-        _on_disk(os.path.join(out_dir, f), sha) for f, sha in first.entries[r].files.items()))]
+    sreg = open_scene_registry(out_dir, scene.key)
+    path = os.path.join(out_dir, REGISTRY_NAME)
+    todo = scene_pending(sreg, out_dir, recipients, scene.ext)
     clean_temporaries(out_dir)
     last = time.perf_counter()
     for i, rid in enumerate(todo):
-        written = asset.write(os.path.join(out_dir, rid + ext), [an.marked(an.codeword(rid)) for an in ans],
-                              force=True)
-        files = {os.path.basename(p): file_sha256(p) for p in written}
-        for an, reg in zip(ans, sreg.registries):
-            register(reg, an, rid, files)
+        add_copy(sreg, rid, scene.codewords(rid), scene.write_copy(out_dir, rid))
         if time.perf_counter() - last > 2.0:
             atomic_write_bytes(path, sreg.to_json().encode(), force=True)
             last = time.perf_counter()
@@ -181,7 +231,7 @@ def fingerprint_scene(asset, asset_path, key_path, recipients, out_dir, options:
             progress(i + 1, len(todo))
     atomic_write_bytes(path, sreg.to_json().encode(), force=True)
     again = set(todo)
-    return FingerprintRun(todo, [r for r in recipients if r not in again], sreg, path, t1 - t0,
+    return FingerprintRun(todo, [r for r in recipients if r not in again], sreg, path, 0.0,
                           time.perf_counter() - t1)
 
 
