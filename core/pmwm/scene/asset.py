@@ -27,7 +27,7 @@ import numpy as np
 
 from ..api import embed, load_key_data, verify
 from ..base import EmbedOptions, EmbedResult, Progress, Verdict, VerdictDetail, no_progress
-from ..errors import KeyFileError, PayloadError, PmwmError
+from ..errors import KeyFileError, MeshError, PayloadError, PmwmError
 from ..key import (WatermarkKey, derive_seed, face_fingerprint, json_text, keyed_bits, make_secret, read_key_text,
                    write_key)
 
@@ -80,6 +80,8 @@ def embed_objects(objects: Sequence[Named], options: Optional[EmbedOptions] = No
     """Mark every object with the scheme of ``options``: one master secret (from ``options.seed`` or
     fresh) gives each object's seed; one payload (the options', or random bits drawn from the master
     secret) goes into every object. A PmwmError names the object that could not be marked."""
+    if not objects:
+        raise MeshError("no object to mark: give at least one mesh")
     opts = options or EmbedOptions()
     report = progress or no_progress
     master = make_secret(opts.seed)
@@ -93,7 +95,7 @@ def embed_objects(objects: Sequence[Named], options: Optional[EmbedOptions] = No
             report((i + f) / len(objects), f"{name}: {msg}")
 
         try:
-            res = embed(V, F, o, progress=part)
+            res = embed(V, F, o, progress=part if len(objects) > 1 else progress)
         except PmwmError as exc:
             if len(objects) == 1:
                 raise
