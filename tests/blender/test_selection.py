@@ -77,3 +77,26 @@ def test_watermark_selected_refuses_with_one_line_and_changes_nothing(scene, bl,
     with pytest.raises(RuntimeError, match="'Part' is in Edit Mode: switch to Object Mode first"):
         bpy.ops.pmwm.watermark_selected(payload=PAYLOAD, key_path=str(tmp_path / "k.json"))
     assert bl.snapshot(tmp_path) == snap
+
+
+def test_modal_run_writes_every_object_or_none(scene, bl, tmp_path, addon):
+    """In the interface (the core in a worker thread): a selected object edited meanwhile stops the whole
+    write-back: no object changed, no key written."""
+    import time
+
+    sel = addon.selection
+    a, b, _ = _asset(bl)
+    key = tmp_path / "k.json"
+    run = addon.operators.ModalRun(sel.WatermarkSelectedTask(bpy.context, payload=PAYLOAD, key_path=str(key),
+                                                             seed=1), lambda kind, msg: None)
+    run.start(bpy.context)
+    assert run.status_text.startswith("Watermarking '2 selected objects': ")
+    b.data.vertices[0].co.x += 0.5  # the user moves a vertex of the second object meanwhile
+    before_a, edited_b = bl.positions(a).copy(), bl.positions(b).copy()
+    deadline = time.monotonic() + 120
+    with pytest.raises(addon.operators._Failed, match="'Part' changed while it was being watermarked"):
+        while run.step(bpy.context, "TIMER") == {"RUNNING_MODAL"}:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+    assert np.array_equal(bl.positions(a), before_a) and np.array_equal(bl.positions(b), edited_b)
+    assert not key.exists()
