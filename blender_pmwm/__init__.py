@@ -29,7 +29,7 @@ the error message and leaves the scene unchanged. See examples/watermark_all.py.
 
 import bpy
 
-from . import operators, panel, prefs, props, session
+from . import operators, panel, prefs, props, selection, session
 
 
 @bpy.app.handlers.persistent
@@ -38,7 +38,7 @@ def _forget_session(_dummy=None) -> None:
     session.clear()
 
 
-_modules = (props, prefs, operators, panel)
+_modules = (props, prefs, operators, selection, panel)
 
 
 def register() -> None:

@@ -209,14 +209,19 @@ class _Task:
     def current_object(self):
         """The object this task read, if it still holds exactly the mesh that was read; else _Failed
         (the user may edit, undo or delete while the worker runs)."""
-        ob = bpy.data.objects.get(self.name)
-        same = (ob is not None and ob.as_pointer() == self.pointer and ob.type == "MESH" and ob.mode == "OBJECT"
-                and session.same_positions(self.positions32, meshdata.read_positions32(ob.data))
-                and np.array_equal(meshdata.read_triangles(ob.data), self.F))
-        if not same:
-            raise _Failed(f"'{self.name}' changed while it was being {self.verb}: nothing was written; "
-                          f"run it again")
-        return ob
+        return still_there(self.name, self.pointer, self.positions32, self.F, self.verb)
+
+
+def still_there(name: str, pointer: int, positions32: np.ndarray, F: np.ndarray, verb: str):
+    """The object ``name`` if it is the one read (``pointer``) and still holds exactly that mesh, its
+    positions (n, 3) float32 and triangles (m, 3); else _Failed saying nothing was written."""
+    ob = bpy.data.objects.get(name)
+    same = (ob is not None and ob.as_pointer() == pointer and ob.type == "MESH" and ob.mode == "OBJECT"
+            and session.same_positions(positions32, meshdata.read_positions32(ob.data))
+            and np.array_equal(meshdata.read_triangles(ob.data), F))
+    if not same:
+        raise _Failed(f"'{name}' changed while it was being {verb}: nothing was written; run it again")
+    return ob
 
 
 class WatermarkTask(_Task):
@@ -547,12 +552,9 @@ class _BackgroundOperator(_PmwmOperator):
         self._stop_timer(context)
 
 
-class PMWM_OT_watermark(_BackgroundOperator, Operator):
-    """Watermark the active mesh object and write its key file"""
-
-    bl_idname = "pmwm.watermark"
-    bl_label = "Watermark"
-    bl_options = {"REGISTER", "UNDO"}
+class WatermarkOptions:
+    """The options of Watermark (and Watermark Selected), its redo panel (a mixin: Blender registers the
+    properties of each operator class that inherits them)."""
 
     payload: StringProperty(name="Payload", description="Text to embed; empty: 64 random bits",
                             options={"SKIP_SAVE"})
@@ -576,17 +578,13 @@ class PMWM_OT_watermark(_BackgroundOperator, Operator):
     PASS_PHRASE = ("blind_margin",)  # only with the Blind scheme
 
     @classmethod
-    def poll(cls, context):
-        return _poll_mesh(cls, context)
-
-    @classmethod
     def options_for(cls, scheme: str) -> tuple:
         """The options a run with ``scheme`` reads (and its redo panel shows)."""
         return cls.SHARED + (cls.PASS_PHRASE if _uses_passphrase(scheme) else cls.KEY_FILE)
 
-    def make_task(self, context):
-        names = self.options_for(self.option(context, "scheme"))
-        return WatermarkTask(context, **{n: self.option(context, n) for n in names})
+    def run_options(self, context) -> dict:
+        """The options of this run (the operator's arguments, else the Scene's), by name."""
+        return {n: self.option(context, n) for n in self.options_for(self.option(context, "scheme"))}
 
     def draw(self, context):  # the redo panel: the options this run used, no key path for the Blind scheme
         layout = self.layout
@@ -596,16 +594,35 @@ class PMWM_OT_watermark(_BackgroundOperator, Operator):
             layout.prop(self, name)
 
 
-class PMWM_OT_verify(_BackgroundOperator, Operator):
+class PMWM_OT_watermark(WatermarkOptions, _BackgroundOperator, Operator):
+    """Watermark the active mesh object and write its key file"""
+
+    bl_idname = "pmwm.watermark"
+    bl_label = "Watermark"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return _poll_mesh(cls, context)
+
+    def make_task(self, context):
+        return WatermarkTask(context, **self.run_options(context))
+
+
+class VerifyOptions:
+    """The option of Verify (and Verify Selected), a mixin as ``WatermarkOptions``."""
+
+    key_path: StringProperty(name="Key File", description="Empty: the object's own key, <object name>"
+                             ".pmwm-key.json beside the .blend, or in the key folder of the preferences",
+                             subtype="FILE_PATH", options={"SKIP_SAVE"})
+
+
+class PMWM_OT_verify(VerifyOptions, _BackgroundOperator, Operator):
     """Verify whether the active mesh object carries the watermark of a key file"""
 
     bl_idname = "pmwm.verify"
     bl_label = "Verify"
     bl_options = {"REGISTER"}
-
-    key_path: StringProperty(name="Key File", description="Empty: the object's own key, <object name>"
-                             ".pmwm-key.json beside the .blend, or in the key folder of the preferences",
-                             subtype="FILE_PATH", options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context):

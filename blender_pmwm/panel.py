@@ -158,6 +158,7 @@ class VIEW3D_PT_pmwm_mark(_Sidebar, Panel):
             _key_field(col, room, context, s, "key_path")
             field(col, room, s, "overwrite_key")
         button(layout, room, "pmwm.watermark", "Watermark", "Mark", "LOCKED")
+        button(layout, room, "pmwm.watermark_selected", "Watermark Selected", "Mark All", "LOCKED")
 
         col = layout.column()
         field(col, room, s, "show_carriers")
@@ -260,6 +261,7 @@ class VIEW3D_PT_pmwm_verify(_Sidebar, Panel):
         else:
             _key_field(col, room, context, context.scene.pmwm, "verify_key_path")
         button(layout, room, "pmwm.verify", "Verify", "Verify", "VIEWZOOM")
+        button(layout, room, "pmwm.verify_selected", "Verify Selected", "Verify All", "VIEWZOOM")
         ob = _mesh(context)
         if ob is not None:
             verdict_box(layout, room, ob)

@@ -27,6 +27,8 @@ from .errors import OutputExistsError, PmwmError
 from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .progressive import read_pm, record_size, write_pm
+from .scene import (SceneDetail, embed_objects, read_asset, read_keys, read_objects, verify_objects, write_asset,
+                    write_keys)
 from .schemes import SCHEMES, keyed_by
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
@@ -130,21 +132,31 @@ def cmd_embed(a) -> int:
         raise UsageError(f"--passphrase-file is for {_schemes_keyed_by(PASS_PHRASE)}; the other schemes write a "
                          "key file")
     _check_outputs([a.output, a.key, a.pm], [a.input], a.force)
-    src = read_mesh(a.input)
+    asset = _scene(a.input, a.output)  # a scene is marked object by object and written back in place
+    if asset is not None and a.pm and len(asset.objects) > 1:
+        raise UsageError(f"--pm writes the progressive mesh of one mesh; {a.input} holds {len(asset.objects)} "
+                         "objects: omit --pm")
+    src = read_mesh(a.input) if asset is None else None
+    objects = [(a.input, src.vertices, src.faces)] if asset is None else \
+        [(o.name, o.vertices, o.faces) for o in asset.objects]
     # the progressive mesh only when it is written (--pm): without it the embed skips most of its work
     opts = EmbedOptions(payload=a.payload, bits=a.bits, n_bits=a.n_bits, strength=a.strength,
                         base_ratio=a.base_ratio, seed=a.seed, scheme=a.scheme, passphrase=passphrase,
                         progressive=a.pm is not None)
-    res = embed(src.vertices, src.faces, opts, progress=_progress(a.quiet))
+    marking = embed_objects(objects, opts, progress=_progress(a.quiet))
+    res = marking.results[0]
     written: list[str] = []
     try:
-        if res.key is not None:
-            write_key(a.key, res.key, overwrite=a.force)
+        if marking.key is not None:
+            write_keys(a.key, marking.key, overwrite=a.force)
             written.append(a.key)
         if a.pm:
             write_pm(a.pm, res.pm, force=a.force)
             written.append(a.pm)
-        write_marked(a.output, src, res.vertices, force=a.force)
+        if asset is None:
+            write_marked(a.output, src, res.vertices, force=a.force)
+        else:
+            write_asset(a.output, asset, marking.marked, force=a.force)
         written.append(a.output)
     except BaseException:
         for path in written:  # all or nothing: no key without its mesh
@@ -157,10 +169,15 @@ def cmd_embed(a) -> int:
         print(f"warning: {len(res.bits)} bits can never give p < 1e-6 (2^-{len(res.bits)} at best); "
               "use at least 20 bits for a 'marked' verdict", file=sys.stderr)
     if not a.quiet:
-        for w in src.warnings:
+        for w in (src or asset).warnings:
             print(f"warning: {w}", file=sys.stderr)
-        print(f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
-              f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}")
+        if asset is not None and len(objects) > 1:
+            print(f"marked {len(res.bits)} bits in each of the {len(objects)} objects of {a.input} ("
+                  + ", ".join(f"{n}: VSNR {r.vsnr_db:.1f} dB" for n, r in zip(marking.names, marking.results))
+                  + f") -> {a.output}")
+        else:
+            print(f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
+                  f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}")
         if res.key is None:
             print(f"payload bits: {''.join(map(str, res.bits.tolist()))} (no key file: the pass phrase reads it)")
         else:
@@ -171,9 +188,26 @@ def cmd_embed(a) -> int:
     return EXIT_OK
 
 
+def _scene(path: str, output: str):
+    """The scene read from ``path`` (``pmwm.scene.read_asset``), None for a file of one mesh or for one
+    object written to another format (then read as one mesh); a scene of several objects is written
+    back in its own format only."""
+    asset = read_asset(path)
+    same = os.path.splitext(path)[1].lower() == os.path.splitext(output)[1].lower()
+    if asset is None or (not same and len(asset.objects) == 1):
+        return None
+    if not same:
+        raise UsageError(f"{path} holds {len(asset.objects)} objects, written back in its own format only: "
+                         f"use -o NAME{os.path.splitext(path)[1]}")
+    return asset
+
+
 def _print_verdict(v: Verdict, as_json: bool) -> None:
     if as_json:
-        print(json.dumps(v.to_dict()))
+        doc = v.to_dict()
+        if isinstance(v.detail, SceneDetail):  # a verdict over objects: which were read
+            doc["objects"] = v.detail.to_dict()
+        print(json.dumps(doc))
         return
     for line in wording.lines(v):
         print(line)
@@ -193,18 +227,20 @@ def cmd_verify(a) -> int:
                          f"(--passphrase-file F or ${PASSPHRASE_ENV})")
     if passphrase is not None and a.report is not None:
         raise UsageError(f"--report needs a key file; a {phrase_schemes} mark has none")
-    key = read_key(a.key) if a.key is not None else None
+    keys = read_keys(a.key) if a.key is not None else None  # a scene's key: one per object
     if a.suspect.lower().endswith(".pmwm"):
         pm = read_pm(a.suspect)
         records = pm.records_for_vertices(a.vertices) if a.vertices is not None else a.level
-        V, F = pm.decode(records=records)
+        objects = [(a.suspect, *pm.decode(records=records))]
     else:
         if a.level is not None or a.vertices is not None:
             raise UsageError("--level/--vertices apply to a .pmwm progressive mesh only")
-        src = read_mesh(a.suspect)
-        V, F = src.vertices, src.faces
-    v = verify(V, F, key, p_threshold=a.p_threshold, passphrase=passphrase)
+        objects = read_objects(a.suspect)
+    if a.report is not None and (len(objects) > 1 or len(keys) > 1):
+        raise UsageError("--report reads one mesh with the key of one mesh; verify the scene without it")
+    v = verify_objects(objects, keys, p_threshold=a.p_threshold, passphrase=passphrase)
     if a.report is not None:
+        key, (_, V, F) = keys[0][1], objects[0]
         from .verify_report import write_report
 
         write_report(a.report, v, key, V, F, suspect_path=a.suspect, key_path=a.key, force=a.force)
@@ -346,6 +382,7 @@ def _fingerprint_options(a):
 
 def cmd_fingerprint(a) -> int:
     from .fingerprint import fingerprint_asset, read_recipients
+    from .fingerprint.scene import fingerprint_scene, prepare_scene
 
     _check_outputs([a.key if not os.path.exists(a.key) else None], [a.asset], False)
     if os.path.exists(a.out) and not os.path.isdir(a.out):
@@ -354,8 +391,17 @@ def cmd_fingerprint(a) -> int:
     new_key = not os.path.exists(a.key)
     if not new_key and a.seed is not None:
         print(f"warning: {a.key} exists: its secret and options are used, --seed is ignored", file=sys.stderr)
-    run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
-                            progress=_count_progress(a.quiet, "copies"))
+    asset = read_asset(a.asset)  # a scene of several objects: every object marked, copies in the scene's format
+    if asset is not None and len(asset.objects) > 1:
+        if a.pm:
+            raise UsageError(f"--pm writes progressive meshes of one mesh; {a.asset} is a scene: omit --pm")
+        t0 = time.perf_counter()
+        scene = prepare_scene(a.asset, a.key, _fingerprint_options(a), asset=asset)
+        run = fingerprint_scene(scene, recipients, a.out, progress=_count_progress(a.quiet, "copies"))
+        run.analysis_seconds = time.perf_counter() - t0 - run.copies_seconds
+    else:
+        run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
+                                progress=_count_progress(a.quiet, "copies"))
     if not a.quiet:
         per = run.copies_seconds / max(len(run.written), 1)
         print(f"fingerprinted {a.asset} for {len(recipients)} recipients: {len(run.written)} copies written "
@@ -367,17 +413,24 @@ def cmd_fingerprint(a) -> int:
 
 
 def cmd_trace(a) -> int:
-    from .fingerprint import read_fingerprint_key, read_registry, trace
+    from .fingerprint import read_registry, trace
+    from .fingerprint.scene import SceneFingerprintKey, read_any_fingerprint_key, read_scene_registry, trace_objects
 
-    fk = read_fingerprint_key(a.key)
-    reg = read_registry(a.registry)
+    fk = read_any_fingerprint_key(a.key)
+    scene = isinstance(fk, SceneFingerprintKey)  # a scene's key: its objects traced, the union bound paid
+    reg = read_scene_registry(a.registry) if scene else read_registry(a.registry)
     reg.check(fk, a.registry)
     if a.suspect.lower().endswith(".pmwm"):
-        V, F = read_pm(a.suspect).decode()
+        objects = [(a.suspect, *read_pm(a.suspect).decode())]
+    elif scene:
+        objects = read_objects(a.suspect)
     else:
         src = read_mesh(a.suspect)
-        V, F = src.vertices, src.faces
-    r = trace(V, F, fk, reg, p_threshold=a.p_threshold)
+        objects = [(a.suspect, src.vertices, src.faces)]
+    if scene:
+        r = trace_objects(objects, fk, reg, p_threshold=a.p_threshold)
+    else:
+        r = trace(objects[0][1], objects[0][2], fk, reg, p_threshold=a.p_threshold)
     if a.json:
         print(json.dumps(r.to_dict()))
     elif r.accused:

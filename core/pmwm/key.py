@@ -215,6 +215,12 @@ def mesh_sha256(vertices, faces, float_type: str = "<f4") -> str:
 def read_key_json(path) -> WatermarkKey:
     """Read a key file and check its generic part (``pmwm.read_key`` also reads the scheme's data);
     KeyFileError on anything wrong."""
+    return WatermarkKey.from_json(read_key_text(path), os.fspath(path))
+
+
+def read_key_text(path) -> str:
+    """The text of a key file (any pmwm key format), KeyFileError when it is missing, unreadable,
+    too large or not UTF-8."""
     path = os.fspath(path)
     if os.path.isdir(path):
         raise KeyFileError(f"{path} is a directory, not a key file")
@@ -228,7 +234,6 @@ def read_key_json(path) -> WatermarkKey:
     if len(data) > 16 * 1024 * 1024:
         raise KeyFileError(f"{path} is too large to be a pmwm key")
     try:
-        text = data.decode("utf-8")
+        return data.decode("utf-8")
     except UnicodeDecodeError:
         raise KeyFileError(f"{path} is not a pmwm key (not UTF-8 text)") from None
-    return WatermarkKey.from_json(text, path)

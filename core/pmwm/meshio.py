@@ -43,6 +43,7 @@ __all__ = [
     "write_mesh",
     "write_marked",
     "weld",
+    "canonical_mesh",
 ]
 
 
@@ -247,11 +248,36 @@ def _load_trimesh(path: str, ext: str) -> tuple["trimesh.Trimesh", list[str]]:
                     process=False,
                 )
                 warnings.append("scene materials could not be merged and were dropped")
-            warnings.append(f"scene of {len(meshes)} meshes concatenated")
+            warnings.append(f"scene of {len(meshes)} meshes concatenated (pmwm.scene reads them as objects)")
         return mesh, warnings
     if isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) > 0:
         return loaded, warnings
     raise MeshError(f"{path} holds no triangle mesh ({_describe_nonmesh(loaded)})")
+
+
+def canonical_mesh(v_src: np.ndarray, f_src: np.ndarray, where: str,
+                   warnings: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mesh the schemes see from a file's own vertices (n, 3) float64 and triangles (m, 3) int64:
+    exact duplicates welded (``weld``), degenerate faces dropped. Returns (vertices, faces, inverse),
+    inverse (n,) int64 file vertex -> canonical vertex; appends what it did to ``warnings``; MeshError
+    (naming ``where``) when no face is left."""
+    vertices, faces, inverse = weld(v_src, f_src)
+    if len(vertices) < len(v_src):
+        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices "
+                        "(UV seams, split normals or a triangle soup)")
+    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
+    n_bad = int(degenerate.sum())
+    if n_bad:
+        faces = faces[~degenerate]
+        warnings.append(f"dropped {n_bad} degenerate faces")
+        if len(faces) == 0:
+            raise MeshError(f"{where} holds no triangle mesh (all {n_bad} faces are degenerate)")
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.ravel()] = True
+    n_unused = int(len(vertices) - used.sum())
+    if n_unused:
+        warnings.append(f"{n_unused} vertices are not used by any face")
+    return vertices, np.ascontiguousarray(faces, dtype=np.int64), inverse
 
 
 def _is_float32(v: np.ndarray) -> bool:
@@ -260,7 +286,8 @@ def _is_float32(v: np.ndarray) -> bool:
 
 
 def read_mesh(path) -> SourceMesh:
-    """Read a mesh file into a welded, triangulated canonical mesh (MeshError on any problem)."""
+    """Read a mesh file into a welded, triangulated canonical mesh (MeshError on any problem). A file of
+    several objects is flattened into one mesh (a warning); ``pmwm.scene`` reads it as objects."""
     p = os.fspath(path)
     if os.path.isdir(p):
         raise MeshError(f"{p} is a directory; give a mesh file")
@@ -275,26 +302,10 @@ def read_mesh(path) -> SourceMesh:
     if len(f_src) and (f_src.min() < 0 or f_src.max() >= len(v_src)):
         raise MeshError(f"{p} has faces that reference missing vertices; repair the mesh")
 
-    vertices, faces, inverse = weld(v_src, f_src)
-    if len(vertices) < len(v_src):
-        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices "
-                        "(UV seams, split normals or a triangle soup)")
-    degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
-    n_bad = int(degenerate.sum())
-    if n_bad:
-        faces = faces[~degenerate]
-        warnings.append(f"dropped {n_bad} degenerate faces")
-        if len(faces) == 0:
-            raise MeshError(f"{p} holds no triangle mesh (all {n_bad} faces are degenerate)")
-    used = np.zeros(len(vertices), dtype=bool)
-    used[faces.ravel()] = True
-    n_unused = int(len(vertices) - used.sum())
-    if n_unused:
-        warnings.append(f"{n_unused} vertices are not used by any face")
-
+    vertices, faces, inverse = canonical_mesh(v_src, f_src, p, warnings)
     return SourceMesh(
         vertices=vertices,
-        faces=np.ascontiguousarray(faces, dtype=np.int64),
+        faces=faces,
         source=mesh,
         source_to_canonical=inverse,
         float32=_is_float32(v_src),

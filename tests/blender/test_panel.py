@@ -153,8 +153,8 @@ def test_advanced_options_are_in_the_advanced_sub_panel_with_a_line_each(scene, 
 def test_options_and_operators_without_a_mesh(scene, addon):
     log = draw(addon)
     ops = _names(log, "operator")
-    assert set(ops) == {"pmwm.watermark", "pmwm.export_pm", "pmwm.import_pm", "pmwm.verify", "pmwm.save_report",
-                        "pmwm.publish_web"}
+    assert set(ops) == {"pmwm.watermark", "pmwm.watermark_selected", "pmwm.export_pm", "pmwm.import_pm",
+                        "pmwm.verify", "pmwm.verify_selected", "pmwm.save_report", "pmwm.publish_web"}
     assert "Select a mesh object" in _labels(log)
     # greyed out, and saying why (no active object); import needs none
     for op in ("watermark", "verify", "export_pm", "save_report", "publish_web"):

@@ -7,6 +7,8 @@
 - ``registry``: the fingerprinting key file, the registry of recipients, the recipients' CSV.
 - ``asset``: ``fingerprint_asset`` (the files of one asset, resumable).
 - ``trace``: ``trace`` (who a suspect copy came from).
+- ``scene``: a scene of several objects (``pmwm.scene``): a key and a registry per object, copies in the
+  scene's own format, ``trace_objects`` over a scene or one object alone (imported by ``cli`` when needed).
 - ``catalogue``: many assets times many recipients on Dask (imported on its own: ``pmwm`` never
   imports dask; ``pip install 'pmwm[catalogue]'``).
 """

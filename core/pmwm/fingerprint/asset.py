@@ -32,7 +32,7 @@ REGISTRY_NAME = "registry.json"
 REGISTRY_EVERY = 2.0  # seconds between registry writes while copies are written (and at the end)
 
 
-_TEMPORARY = re.compile(r"\..+\.tmp-[^.]+\.(ply|pmwm|json)")  # pmwm.atomic's temporary names
+_TEMPORARY = re.compile(r"\..+\.tmp-[^.]+\.(ply|pmwm|json|glb|gltf|bin|obj)")  # pmwm.atomic's temporary names
 
 
 def clean_temporaries(folder) -> None:

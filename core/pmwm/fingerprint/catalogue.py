@@ -10,7 +10,8 @@ same bytes an uninterrupted run would. An asset that fails (unreadable, a key of
 is reported with its error; the others complete.
 
 Layout under ``out``: ``<name>/`` (the copies and ``registry.json``) and ``<name>.key.json`` (the
-asset's key, a secret: not in the folder delivered), ``<name>`` the asset file's stem.
+asset's key, a secret: not in the folder delivered), ``<name>`` the asset file's stem. A scene of several
+objects (``pmwm.fingerprint.scene``) gets copies in its own format and a key and a registry of its objects.
 
 The cluster: a ``LocalCluster`` of ``n_workers`` single-threaded worker processes (BLAS threads
 limited to one) on this machine by default, or an existing scheduler's address (its workers must
@@ -32,6 +33,7 @@ from .asset import REGISTRY_NAME, clean_temporaries, open_registry, pending, pre
 from .codes import pack_codeword
 from .copies import AssetAnalysis, FingerprintOptions
 from .registry import RegistryEntry, write_registry
+from .scene import SceneAnalysis, SceneRegistry, add_copy, open_scene_registry, prepare_scene, scene_pending
 
 __all__ = ["CatalogueResult", "run_catalogue", "asset_names", "connect"]
 
@@ -63,22 +65,32 @@ def asset_names(assets) -> list:
 # --------------------------------------------------------------------------- the tasks (run on workers)
 
 
-def _analyse(asset_path: str, key_path: str, options: FingerprintOptions, pm: bool) -> AssetAnalysis:
+def _analyse(asset_path: str, key_path: str, options: FingerprintOptions, pm: bool) -> "AssetAnalysis | SceneAnalysis":
+    scene = prepare_scene(asset_path, key_path, options)  # a scene of several objects: copies in its format
+    if scene is not None:
+        if pm:
+            raise PayloadError(f"{asset_path} is a scene: its copies have no progressive mesh (omit --pm)")
+        return scene
     return prepare_asset(asset_path, key_path, options, progressive=pm)[0]
 
 
-def _todo(an: AssetAnalysis, key_path: str, out_dir: str, recipients: list, pm: bool):
+def _todo(an: "AssetAnalysis | SceneAnalysis", key_path: str, out_dir: str, recipients: list, pm: bool):
     from .registry import read_fingerprint_key
 
-    fk = read_fingerprint_key(key_path)
     os.makedirs(out_dir, exist_ok=True)
-    reg = open_registry(out_dir, fk)
-    todo = pending(reg, out_dir, recipients, pm)
+    if isinstance(an, SceneAnalysis):
+        reg = open_scene_registry(out_dir, an.key)
+        todo = scene_pending(reg, out_dir, recipients, an.ext)
+    else:
+        reg = open_registry(out_dir, read_fingerprint_key(key_path))
+        todo = pending(reg, out_dir, recipients, pm)
     clean_temporaries(out_dir)
     return reg, todo
 
 
-def _copies(an: AssetAnalysis, out_dir: str, rids: list, pm: bool) -> list:
+def _copies(an: "AssetAnalysis | SceneAnalysis", out_dir: str, rids: list, pm: bool) -> list:
+    if isinstance(an, SceneAnalysis):
+        return [(rid, an.codewords(rid), an.write_copy(out_dir, rid)) for rid in rids]
     return [(rid, pack_codeword(an.codeword(rid)), an.write_copy(out_dir, rid, pm)) for rid in rids]
 
 
@@ -179,6 +191,9 @@ def run_catalogue(assets, recipients: list, out, *, pm: bool = False, options: O
             else:
                 reg = regs[name]
                 for rid, code, files in value:
+                    if isinstance(reg, SceneRegistry):  # (a scene: a codeword per object)
+                        add_copy(reg, rid, code, files)
+                        continue
                     entry = reg.entries.get(rid) or RegistryEntry(code)
                     entry.files.update(files)
                     reg.entries[rid] = entry
