@@ -25,7 +25,7 @@ from ...errors import PayloadError
 from ...key import derive_seed
 from .word import PAYLOAD_BITS
 
-__all__ = ["MAX_MRMS", "RAISE", "LIGHT_NOISE", "Mark", "light_copies", "failed_copy", "ensure"]
+__all__ = ["LIGHT_NOISE", "MAX_MRMS", "RAISE", "Mark", "ensure", "failed_copy", "light_copies"]
 
 MAX_MRMS = 0.03  # % of the bbox diagonal: the most a raised margin may cost (surface distance)
 RAISE = 1.3  # a margin that does not read back is multiplied by this, step by step
@@ -96,10 +96,8 @@ def ensure(m: Mark, marked: np.ndarray, margin: float, adjustable: bool) -> tupl
         raised = m.mark(tried)
         if metrics.displaced_surface_distance(m.vertices, raised, m.faces, MRMS_SAMPLES, seed=0)[0] > MAX_MRMS:
             continue
-        now = failed_copy(m, raised)
-        if now is None:
+        if failed_copy(m, raised) is None:
             return tried, raised
-        failed = now
-    raise PayloadError(f"the blind mark ({size}) does not read back from {failed} at any strength within the "
-                       f"distortion budget ({MAX_MRMS:g} % MRMS); nothing written. Try {shorter}another pass "
+    raise PayloadError(f"the blind mark ({size}) does not read back from {failed}, nor at a higher strength "
+                       f"within the distortion budget ({MAX_MRMS:g} % MRMS); nothing written. Try {shorter}another pass "
                        "phrase, or the keyed scheme (--scheme robust)")
