@@ -2,7 +2,7 @@
 
 Run: nice -n 10 python benchmarks/bench_heldout.py [--meshes report] [--per-family 1] [--vertices 0]
      [--fp-secrets 500] [--out benchmarks/results/heldout.json] [--md benchmarks/results/heldout.md]
-     python benchmarks/bench_heldout.py --markdown-only   (the fragment again from the JSON)
+     python benchmarks/bench_heldout.py --markdown-only [--also MORE.json ...]   (the fragment from the JSON)
 
 Meshes: the REPORT_ONLY meshes of ``pmwm_bench.split`` and shapes of every family of
 ``pmwm_bench.corpus`` from seeds drawn fresh at each run (recorded in the JSON with the attack seed and
@@ -171,16 +171,28 @@ def robust_false_positives(originals, keys, others_per_mesh: int = 2):
     return counts
 
 
+def merged(docs: list) -> dict:
+    """Several runs as one: their meshes side by side, their false-positive counts summed."""
+    doc = {"meshes": [m for d in docs for m in d["meshes"]], "runs": docs}
+    fps = [d["false_positives"] for d in docs if d.get("false_positives")]
+    if fps:
+        doc["false_positives"] = {k: {c: sum(f[k][c] for f in fps) for c in fps[0][k] if c != "command"}
+                                  for k in ("blind_unmarked", "blind_wrong_phrase", "robust")}
+    return doc
+
+
 def markdown(doc) -> str:
     groups = {"report-only data meshes": [m for m in doc["meshes"] if ":" not in m["mesh"]],
               "generated shapes": [m for m in doc["meshes"] if ":" in m["mesh"]]}
     lines = [f"Held-out robustness (`benchmarks/bench_heldout.py`): payload `{PAYLOAD}`, default settings; "
-             "a copy counts when the verdict is marked (p < 1e-6) with the whole payload.", "",
-             f"- command: `{doc['command']}`", f"- commit: {doc['commit']}", f"- machine: {doc['machine']}",
-             f"- run: {doc['started']} - {doc.get('finished', 'cut short')}",
-             "- generated shapes (family: seeds from os.urandom): "
-             + "; ".join(f"{f}: {', '.join(map(str, s))}" for f, s in doc["corpus_seeds"].items()),
-             f"- attack seed {doc['attack_seed']}; blind pass phrase `{doc['phrase']}`", ""]
+             "a copy counts when the verdict is marked (p < 1e-6) with the whole payload; a refused embed "
+             "counts as a copy not read.", ""]
+    for run in doc.get("runs", [doc]):
+        lines += [f"- run `{run['command']}` at commit {run['commit']}, {run['started']} - "
+                  f"{run.get('finished', 'cut short')}; attack seed {run['attack_seed']}, blind pass phrase "
+                  f"`{run['phrase']}`; generated shapes (family: seeds from os.urandom): "
+                  + ("; ".join(f"{f}: {', '.join(map(str, s))}" for f, s in run["corpus_seeds"].items()) or "none")]
+    lines += [f"- machine: {doc.get('runs', [doc])[0]['machine']}", ""]
     head = "| attack | " + " | ".join(f"{s} on {g} ({len(ms)})" for s in ("robust", "blind")
                                       for g, ms in groups.items()) + " |"
     lines += [head, "|" + "---|" * (1 + 2 * len(groups))]
@@ -231,13 +243,15 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(RESULTS / "heldout.json"))
     ap.add_argument("--md", default=str(RESULTS / "heldout.md"))
     ap.add_argument("--markdown-only", action="store_true")
+    ap.add_argument("--also", nargs="*", default=[], help="with --markdown-only: more results files to merge")
     ap.add_argument("--fp-only", action="store_true",
                     help="the false positives alone, on the shapes of the results file (a run cut short)")
     a = ap.parse_args(argv)
     if a.fp_only:
         return false_positives_again(a)
     if a.markdown_only:
-        Path(a.md).write_text(markdown(json.loads(Path(a.out).read_text())))
+        docs = [json.loads(Path(f).read_text()) for f in [a.out, *a.also]]
+        Path(a.md).write_text(markdown(merged(docs) if a.also else docs[0]))
         return 0
     names = list(split.REPORT_ONLY) if a.meshes == "report" else [] if a.meshes == "none" else a.meshes.split(",")
     fams = None if a.families == "all" else a.families.split(",")
