@@ -216,6 +216,13 @@ def markdown(doc) -> str:
             if mr:
                 lines.append(f"- {s} on {g}: marking MRMS (% of the bbox diagonal) median {np.median(mr):.4f}, "
                              f"max {max(mr):.4f}" + (f"; embed refused on {', '.join(refused)}" if refused else ""))
+    for s in ("robust", "blind"):
+        wrong = [f"{m['mesh']} / {a}" for m in doc["meshes"]
+                 for a, r in m["schemes"].get(s, {}).get("attacks", {}).items()
+                 if r.get("marked") and not r.get("read")]
+        if wrong:
+            lines.append(f"- {s}: marked (p < 1e-6) without the whole payload in {len(wrong)} copies: "
+                         + "; ".join(wrong))
     fp = doc.get("false_positives")
     if fp:
         b, bm, r = fp["blind_unmarked"], fp["blind_wrong_phrase"], fp["robust"]
