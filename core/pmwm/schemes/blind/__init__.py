@@ -6,6 +6,7 @@
   an edge-preserving push in each bin), and the frame refinement.
 - ``crop``: the frame of a plane-cropped copy; ``frames``: the frames the reader reads in.
 - ``keydata``: the record in the in-memory key (no key file is written; nothing from the mesh).
+- ``selfcheck``: the embed reads its own output and light copies of it before returning it.
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed
 bins. Reading computes the bins' statistics for every possible word length in up to two frames: the
