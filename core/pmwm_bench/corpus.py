@@ -189,9 +189,10 @@ def _surface(field: Field, lo, hi, target: int, rng: np.random.Generator, min_ce
              warp: float = 0.0, relax: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The closed level set of ``field`` inside the box lo..hi with about ``target`` vertices: a first
     grid sizes the second (vertices grow as the square of the resolution). ``min_cells``: at least so
-    many cells along the box's longest side (fine shapes keep their parts). ``warp``: the grid's points move by up to this fraction of
-    a cell along smooth waves, so the sampling density varies over the surface. The grid is shifted by a
-    random fraction of a cell so that no plane of the shape falls on grid points."""
+    many cells along the box's longest side (fine shapes keep their parts). ``warp``: the grid's points
+    move by up to this fraction of a cell along smooth waves, so the sampling density varies over the
+    surface. The grid is shifted by a random fraction of a cell so that no plane of the shape falls on
+    grid points."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     shift = rng.uniform(0.2, 0.8, 3)
     phase = rng.uniform(0, 2 * np.pi, 3)
@@ -454,7 +455,8 @@ def _bilateral(rng, target):
     R[n:2 * n] = R[:n]
     base = _metaballs(np.concatenate([C, C * [-1, 1, 1], mid]), R)
     bumps = _waves(rng, 10, (2.0, 6.0), 0.3)
-    f = lambda X: base(X) + 0.5 * (bumps(X) + bumps(X * [-1, 1, 1]))
+    def f(X):  # symmetric about x = 0
+        return base(X) + 0.5 * (bumps(X) + bumps(X * [-1, 1, 1]))
     return _surface(f, *_bounds(f, 4.0), target, rng)
 
 

@@ -99,5 +99,5 @@ def ensure(m: Mark, marked: np.ndarray, margin: float, adjustable: bool) -> tupl
         if failed_copy(m, raised) is None:
             return tried, raised
     raise PayloadError(f"the blind mark ({size}) does not read back from {failed}, nor at a higher strength "
-                       f"within the distortion budget ({MAX_MRMS:g} % MRMS); nothing written. Try {shorter}another pass "
-                       "phrase, or the keyed scheme (--scheme robust)")
+                       f"within the distortion budget ({MAX_MRMS:g} % MRMS); nothing written. Try {shorter}another "
+                       "pass phrase, or the keyed scheme (--scheme robust)")
