@@ -22,6 +22,8 @@ models, published, protocols, report -> pmwm; ``tests/test_layout.py`` checks it
 - ``cli``        ``main(argv)``: ``pmwm bench`` and ``pmwm bench --sweep``
 - ``browser``    headless chromium over its DevTools pipe, and a local web server (the web viewer's tests
   and benchmark; standard library only)
+- ``corpus``     generated shapes in families (organic, cad, scan, thin, open, near-symmetric ones)
+- ``split``      the data meshes a reader may be tuned on and those only reported on; fresh seeds
 """
 
 from .methods import SchemeMethod, default_methods

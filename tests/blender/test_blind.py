@@ -52,6 +52,18 @@ def test_blind_without_a_pass_phrase_is_a_clear_error(scene, addon, bl):
     assert bl.snapshot() == before
 
 
+def test_a_blind_mark_that_does_not_read_back_is_refused_and_changes_nothing(scene, addon, bl):
+    """The library checks that the mark reads back before anything is written; its one-line refusal
+    reaches the user as the operator's error, and the mesh is left as it was."""
+    bl.bunny()
+    scene.pmwm.scheme = "blind"
+    _secrets().passphrase = PHRASE
+    before = bl.snapshot()
+    with pytest.raises(RuntimeError, match="does not read back"):
+        bpy.ops.pmwm.watermark(payload="Acme", scheme="blind", seed=3, blind_margin=0.002)
+    assert bl.snapshot() == before
+
+
 def test_the_pass_phrase_is_never_saved_in_the_blend(scene, addon, bl, tmp_path):
     scene.pmwm.scheme = "blind"
     _secrets().passphrase = PHRASE

@@ -7,6 +7,7 @@
 - ``plan``: the reading's stages in order, each one's share of the p-value's budget, the union bound;
   ``config``: ``ReaderConfig``, the reader's settings and the stages it may read.
 - ``detail``: ``BlindDetail``, how a verdict was read. No key exists: ``pmwm.embed`` returns none.
+- ``selfcheck``: the embed reads its own output and light copies of it before returning it.
 
 Embedding writes word = payload + check, XOR a keyed scrambling, one bit per ``BINS_PER_BIT`` keyed bins, and
 checks that it reads back. Reading chooses frames, meshes and the word length without the pass phrase, then
@@ -30,7 +31,7 @@ from ...errors import KeyFileError, MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...validate import check_mesh
-from . import frames, plan, radial, word
+from . import frames, plan, radial, selfcheck, word
 from .config import READER, ReaderConfig
 from .detail import BlindDetail, mesh_read
 
@@ -86,6 +87,11 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
         marked = radial.embed_signs(V, F, signs, job.strength, host=host)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
             job.strength, marked = _calibrated(V, F, signs, job.strength, marked, host)
+        job.report(0.05, "checking that the mark reads back")  # (else a raised margin, or a PayloadError)
+        job.strength, marked = selfcheck.ensure(selfcheck.Mark(
+            V, F, lambda a: radial.embed_signs(V, F, signs, a, host=host), lambda V2, F2: read(V2, F2, secret),
+            "".join(map(str, payload.tolist())), word.text_of(payload) if kind == "text" else None, secret),
+            marked, job.strength, adjustable=opts.strength is None)
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key is made meanwhile
             pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
