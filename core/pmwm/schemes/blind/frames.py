@@ -22,6 +22,7 @@ import numpy as np
 
 from ...adjacency import edge_face_counts, unique_values
 from ...background import Background, beside, silent
+from ...base import Progress, no_progress
 from ...errors import MeshError
 from ...features import row_norms, vertex_areas
 from ...metrics import bbox_diagonal
@@ -79,7 +80,7 @@ class Frames:
     reserve: int = 0  # the last ``reserve`` frames are read with what the p-value's budget leaves (``_with_reserve``)
 
 
-def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
+def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, progress: Progress = None) -> Frames:
     """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it was subdivided
     from (``pmwm.subdivision.coarse_mesh``, up to MAX_UNDO steps, one at a time) when that shows COARSE_GAIN
     times the excess energy per vertex (any, when that is not positive); the coarse meshes are only looked for
@@ -97,7 +98,10 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     view, the suspect with its smoothing undone (``unsmoothing``), read when it shows COARSE_GAIN times the
     excess energy per vertex of the best so far; and the suspect smoothed a little, beside the reading kept,
     when that reading's bins show the blur of noise (``with_denoised``), or as reserve frames on a copy on a
-    coarse grid (``_with_reserve``), whose denoised frames a worker measures from the start."""
+    coarse grid (``_with_reserve``), whose denoised frames a worker measures from the start.
+    ``progress(fraction, message)`` before each of these stages (a stage not taken is skipped)."""
+    report = progress or no_progress
+    report(0.0, "measuring the suspect")
     area = vertex_areas(V, F)
     grid = on_grid(V)
     # a copy on a coarse grid is read in the denoised frames whatever else it shows (in full, or as reserve
@@ -106,15 +110,17 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts) -> Frames:
     counts0 = edge_face_counts(F, len(V)) if grid else None
     operator = mean_operator(F, len(V), counts0) if grid else None
     with beside(grid, silent(denoised_frames), V, F, bin_counts, operator) as early:
-        return _read_statistics(V, F, bin_counts, area, early, counts0, operator)
+        return _read_statistics(V, F, bin_counts, area, early, counts0, operator, report)
 
 
 def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray, early: Optional[Background],
-                     counts0: Optional[tuple[np.ndarray, np.ndarray]], operator) -> Frames:
+                     counts0: Optional[tuple[np.ndarray, np.ndarray]], operator,
+                     report: Callable[[float, str], None] = no_progress) -> Frames:
     """``read_statistics`` once the suspect's ``area`` is known; ``early``, the worker measuring the denoised
     frames of a copy on a coarse grid, ``counts0`` and ``operator`` its ``edge_face_counts`` and
     ``mean_operator`` (all None for another suspect)."""
     grid = early is not None
+    report(0.1, "reading the suspect's frames")
     got = read_statistics_frames(V, F, bin_counts, area)
     V0, F0 = V, F
     # the suspect's edges, for the coarse mesh's first look and the smoothing operator: both are looked for
@@ -123,6 +129,7 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
         counts0 = edge_face_counts(F0, len(V0))
     rules: list[str] = []
     while got.energy < FULL_VIEW and len(rules) < MAX_UNDO:
+        report(0.4 + 0.1 * len(rules), "looking for a mesh it was subdivided from")
         coarse = coarse_mesh(V, F, None if rules else counts0)
         if coarse is None:
             break
@@ -143,15 +150,18 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
         blurred = _blurred(got)
         with beside(blurred and early is None, silent(denoised_frames), V0, F0, bin_counts, operator) as late:
             measuring = early or late
+            report(0.7, "undoing a smoothing")
             steps = unsmoothing(V0, F0, bin_counts, COARSE_GAIN * max(got.energy, 0.0), area, operator)
             if steps is not None:
                 got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
                 blurred = _blurred(got)
+            report(0.85, "reading the suspect smoothed")
             if blurred:
                 got = with_denoised(got, V0, F0, bin_counts, operator, measuring)
             elif grid:
                 got = _with_reserve(got, V0, F0, bin_counts, operator, measuring)
     elif grid:
+        report(0.85, "reading the suspect smoothed")
         got = _with_reserve(got, V0, F0, bin_counts, operator, early)
     return dataclasses.replace(got, guess=functools.cache(
         lambda: guess_statistics(V0, F0, bin_counts, operator, area) if grid else None))
