@@ -121,7 +121,7 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
     ``mean_operator`` (all None for another suspect)."""
     grid = early is not None
     report(0.1, "reading the suspect's frames")
-    got = read_statistics_frames(V, F, bin_counts, area)
+    got = read_statistics_frames(V, F, bin_counts, area, progress=lambda f, m: report(0.1 + 0.3 * f, m))
     V0, F0 = V, F
     # the suspect's edges, for the coarse mesh's first look and the smoothing operator: both are looked for
     # when the mark is not in full view
@@ -129,8 +129,9 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
         counts0 = edge_face_counts(F0, len(V0))
     rules: list[str] = []
     while got.energy < FULL_VIEW and len(rules) < MAX_UNDO:
-        report(0.4 + 0.1 * len(rules), "looking for a mesh it was subdivided from")
-        coarse = coarse_mesh(V, F, None if rules else counts0)
+        step = 0.4 + 0.1 * len(rules)
+        report(step, "looking for a mesh it was subdivided from")
+        coarse = coarse_mesh(V, F, None if rules else counts0, progress=lambda f, m, s=step: report(s + 0.08 * f, m))
         if coarse is None:
             break
         tries = [(coarse.vertices, rules + [coarse.rule])]
@@ -364,11 +365,12 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, limi
 
 def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
                            area: Optional[np.ndarray] = None, crop: bool = True,
-                           refine_sample: int = REFINE_SAMPLE) -> Frames:
+                           refine_sample: int = REFINE_SAMPLE, progress: Progress = None) -> Frames:
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
     frames of the module docstring (with ``crop`` False, the own and refined frames only; the refined
     one searched on ``refine_sample`` vertices at most, ``radial.refine_frame``). ``area`` (n,): its
-    ``vertex_areas``, when the caller has them."""
+    ``vertex_areas``, when the caller has them; ``progress(fraction, message)`` during the crop search
+    (``crop_frames``)."""
     counts = list(bin_counts)
     area = vertex_areas(V, F) if area is None else area
     fr, a = frame_of_areas(V, area, 1)
@@ -385,7 +387,7 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
     planes = cut_planes(V, F, fr.centre) if crop and z < FULL_VIEW * total else []
     searched = [j for j, n in enumerate(counts) if n <= CROP_MAX_BINS] if planes else []
     if searched:
-        found = crop_frames(V, a, area, fr, planes, [counts[j] for j in searched])
+        found = crop_frames(V, a, area, fr, planes, [counts[j] for j in searched], progress)
         # every frame found serves every length: its lo and bin width, with that many bins
         read = [(excess_energy(*statistics_in(V, a, f, [counts[j]])[0], total), j, f)
                 for g in found for j in searched
