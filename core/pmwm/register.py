@@ -120,7 +120,7 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
 
     suspect_V : (n, 3) float64, suspect_F : (m, 3) int64; returns (n, 3) float64."""
     report = progress or no_progress
-    report(0.0, "aligning: from the pose it has and its principal axes")
+    report(0.0, "aligning: from the pose it has")
     ref_P, ref_N, ref_c, ref_A, ref_s = frame.points, frame.normals, frame.centroid, frame.axes, frame.scale
     V = np.asarray(suspect_V, np.float64)
     S, _ = sample_surface(V, suspect_F, SUSPECT_SAMPLES, seed)
@@ -137,6 +137,8 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
     index = PointIndex(ref_P)  # one tree over the key's samples for every ICP iteration of every start
     best = None
     for group in (inits[:1], inits[1:]):  # the identity first: it may make the PCA starts needless
+        if len(group) > 1:
+            report(0.1, "aligning: from its principal axes")
         fits = _icp(S, index, ref_N, [x[1:] for x in group], ref_s, COARSE_ITERATIONS)
         for (name, *_), (R, k, t, res) in zip(group, fits):
             if plausible(k) and (best is None or res < best[4]):

@@ -387,6 +387,7 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
     planes = cut_planes(V, F, fr.centre) if crop and z < FULL_VIEW * total else []
     searched = [j for j, n in enumerate(counts) if n <= CROP_MAX_BINS] if planes else []
     if searched:
+        (progress or no_progress)(0.0, "looking for a cropped copy's frame")
         found = crop_frames(V, a, area, fr, planes, [counts[j] for j in searched], progress)
         # every frame found serves every length: its lo and bin width, with that many bins
         read = [(excess_energy(*statistics_in(V, a, f, [counts[j]])[0], total), j, f)
