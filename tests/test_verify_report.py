@@ -135,7 +135,9 @@ def test_drawing_the_report_reports_progress_often_and_draws_the_same_pictures(m
     key = pmwm.read_key(marked / "owner.key.json")
     src = pmwm.read_mesh(marked / "marked.ply")
     v = pmwm.verify(src.vertices, src.faces, key)
-    whole = verify_report.render_views(src.vertices, src.faces, v.places)
+    colors = [verify_report.MATCH] * len(v.places)
+    assert v.marked and len(v.places) > 0
+    whole = verify_report.render_views(src.vertices, src.faces, v.places, colors)
     monkeypatch.setattr(verify_report, "CHUNK_SAMPLES", 20_000)
     seen = []
     html = verify_report.build_report(v, key, src.vertices, src.faces, progress=lambda f, m: seen.append((f, m)),
@@ -146,7 +148,7 @@ def test_drawing_the_report_reports_progress_often_and_draws_the_same_pictures(m
     for view in ("front", "side", "oblique"):
         assert sum(m == f"drawing the {view} view" for _, m in seen) >= 4
     assert len(set(fractions)) >= 15 and "MARKED" in html
-    chunked = verify_report.render_views(src.vertices, src.faces, v.places)
+    chunked = verify_report.render_views(src.vertices, src.faces, v.places, colors)
     assert all(np.array_equal(a[1], b[1]) and a[2] == b[2] for a, b in zip(whole, chunked))
     out = marked / "progress.html"
     written = []
