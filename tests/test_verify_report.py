@@ -126,7 +126,6 @@ def test_places_follow_the_suspect_when_it_is_moved(marked, tmp_path):
         assert np.all(d < 0.01 * size)
 
 
-@pytest.mark.slow
 def test_drawing_the_report_reports_progress_often_and_draws_the_same_pictures(marked, monkeypatch):
     """``build_report(progress=...)`` is called with fractions in [0, 1] that never go back and end at 1.0:
     at least once per view and several times within each view (the rasteriser's chunks; made small here so
@@ -157,6 +156,7 @@ def test_drawing_the_report_reports_progress_often_and_draws_the_same_pictures(m
     assert written[-1] == (1.0, True) and all(not there for f, there in written[:-1])
 
 
+@pytest.mark.slow
 def test_report_of_an_unmarked_mesh_says_so(marked):
     out, v = _report(marked, "original.ply", "original.html")
     html = out.read_text(encoding="utf-8")
