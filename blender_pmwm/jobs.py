@@ -1,10 +1,10 @@
 """A background job for the modal operators: the core runs in a worker thread, never touching bpy.
 
 ``BackgroundJob(work)`` runs ``work(progress)`` in a daemon thread; ``progress(fraction, message)`` is
-the callback handed to ``pmwm.embed``. ``cancel()`` makes the next progress call raise ``Cancelled``
-inside the worker, so the core unwinds (it writes nothing: the add-on writes back on the main thread
-only). A computation without progress calls (``pmwm.verify``) cannot be interrupted: it runs out and
-its result is dropped. No bpy here: the job is testable without Blender's window manager.
+the callback handed to ``pmwm.embed``, ``pmwm.verify`` or the report's ``build_report``. ``cancel()`` makes
+the next progress call raise ``Cancelled`` inside the worker, so the core unwinds (it writes nothing: the
+add-on writes back on the main thread only); a stage between two calls runs out first. No bpy here: the job
+is testable without Blender's window manager.
 """
 
 from __future__ import annotations

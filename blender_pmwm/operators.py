@@ -330,7 +330,7 @@ class VerifyTask(_Task):
     def compute(self, progress):
         import pmwm
 
-        return pmwm.verify(self.V, self.F, self.key, passphrase=self.passphrase)
+        return pmwm.verify(self.V, self.F, self.key, passphrase=self.passphrase, progress=progress)
 
     def finish(self, context, verdict, report):
         ob = self.current_object()
@@ -382,7 +382,7 @@ class ReportTask(_Task):
         progress(0.0, "drawing the pictures")
         rec = self.rec
         return build_report(rec.verdict, rec.key, rec.positions, rec.faces, key_path=rec.key_path,
-                            suspect_name=self.suspect)
+                            suspect_name=self.suspect, progress=progress)
 
     def finish(self, context, text, report):
         from pmwm.atomic import atomic_write_bytes
@@ -417,9 +417,10 @@ class ModalRun:
             workspace.status_text_set(text)
 
     def progress_text(self) -> str:
-        """What runs, its stage and the seconds it has run (these move even while a stage reports nothing)."""
+        """What runs: its percentage, stage and the seconds it has run (these move even while a stage reports
+        nothing)."""
         job = self.job
-        parts = [f"{int(100 * job.fraction)}%"] if isinstance(self.task, WatermarkTask) else []
+        parts = [f"{int(100 * job.fraction)}%"]
         parts += [job.message] if job.message else []
         parts.append(f"{job.elapsed:.0f} s")
         return ", ".join(parts)

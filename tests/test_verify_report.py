@@ -126,6 +126,36 @@ def test_places_follow_the_suspect_when_it_is_moved(marked, tmp_path):
         assert np.all(d < 0.01 * size)
 
 
+def test_drawing_the_report_reports_progress_often_and_draws_the_same_pictures(marked, monkeypatch):
+    """``build_report(progress=...)`` is called with fractions in [0, 1] that never go back and end at 1.0:
+    at least once per view and several times within each view (the rasteriser's chunks; made small here so
+    that the small test mesh has several); ``write_report`` ends at 1.0 once the file is written. The
+    pictures are those drawn without a callback and with one chunk."""
+    key = pmwm.read_key(marked / "owner.key.json")
+    src = pmwm.read_mesh(marked / "marked.ply")
+    v = pmwm.verify(src.vertices, src.faces, key)
+    colors = [verify_report.MATCH] * len(v.places)
+    assert v.marked and len(v.places) > 0
+    whole = verify_report.render_views(src.vertices, src.faces, v.places, colors)
+    monkeypatch.setattr(verify_report, "CHUNK_SAMPLES", 20_000)
+    seen = []
+    html = verify_report.build_report(v, key, src.vertices, src.faces, progress=lambda f, m: seen.append((f, m)),
+                                      when=None)
+    fractions = [f for f, _ in seen]
+    assert fractions[0] == 0.0 and fractions[-1] == 1.0 and fractions == sorted(fractions)
+    assert all(0.0 <= f <= 1.0 for f in fractions)
+    for view in ("front", "side", "oblique"):
+        assert sum(m == f"drawing the {view} view" for _, m in seen) >= 4
+    assert len(set(fractions)) >= 15 and "MARKED" in html
+    chunked = verify_report.render_views(src.vertices, src.faces, v.places, colors)
+    assert all(np.array_equal(a[1], b[1]) and a[2] == b[2] for a, b in zip(whole, chunked))
+    out = marked / "progress.html"
+    written = []
+    verify_report.write_report(out, v, key, src.vertices, src.faces, force=True,
+                               progress=lambda f, m: written.append((f, out.exists())))
+    assert written[-1] == (1.0, True) and all(not there for f, there in written[:-1])
+
+
 @pytest.mark.slow
 def test_report_of_an_unmarked_mesh_says_so(marked):
     out, v = _report(marked, "original.ply", "original.html")

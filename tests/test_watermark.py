@@ -265,14 +265,14 @@ def test_verify_dispatches_a_pass_phrase_through_the_registry(monkeypatch):
 
     calls = []
 
-    def read(vertices, faces, secret, p_threshold):
-        calls.append((secret, p_threshold))
+    def read(vertices, faces, secret, p_threshold, progress=None):
+        calls.append((secret, p_threshold, progress))
         return "a verdict"
 
     monkeypatch.setitem(SCHEMES, "blind", dataclasses.replace(SCHEMES["blind"], verify=read))
     V, F = meshes.blob()
     assert pmwm.verify(V, F, passphrase="a phrase", p_threshold=1e-9) == "a verdict"
-    assert calls == [("a phrase", 1e-9)]
+    assert calls == [("a phrase", 1e-9, None)]
 
 
 @pytest.mark.parametrize("scheme", ["robust", "paper", "cho1"])
@@ -288,3 +288,55 @@ def test_every_keyed_schemes_verdict_says_how_it_read_in_words_and_numbers(schem
     assert words and numbers
     for _, value in words:
         assert "_" not in value and ": none (" not in value and "fingerprint" not in value
+
+
+def _fractions(run) -> tuple[object, list[tuple[float, str]]]:
+    """(what ``run(progress)`` returns, the (fraction, message) of every progress call it made)."""
+    seen: list[tuple[float, str]] = []
+    out = run(lambda f, m: seen.append((f, m)))
+    return out, seen
+
+
+@pytest.mark.parametrize("scheme", ["robust", "paper", "cho1", "blind"])
+def test_verify_reports_its_stages_with_growing_fractions_ending_at_one(scheme):
+    """``pmwm.verify(progress=...)``: every scheme's reader calls it with fractions in [0, 1] that never go
+    back, the last one 1.0, on the marked mesh and on a moved and re-ordered copy (the robust reader then
+    registers it and says so); the verdict is the one read without a callback."""
+    V, F = meshes.cad_part() if scheme == "cho1" else meshes.blob()  # (Cho's bins: a mesh that fills them)
+    phrase = "a pass phrase" if scheme == "blind" else None
+    payload = {"bits": "01" * 12} if scheme == "cho1" else {"payload": "Acme"}
+    res = embed(V, F, EmbedOptions(**payload, seed=4, scheme=scheme, passphrase=phrase, progressive=False))
+    moved = attacks.reorder(*attacks.similarity(res.vertices, F, seed=5)[:2], seed=6)[:2]
+    for Vs, Fs in ((res.vertices, F), moved):
+        v, seen = _fractions(lambda p: verify(Vs, Fs, res.key, passphrase=phrase, progress=p))
+        fractions = [f for f, _ in seen]
+        assert len(seen) >= 2 and fractions[-1] == 1.0
+        assert all(0.0 <= f <= 1.0 for f in fractions) and fractions == sorted(fractions)
+        assert all(isinstance(m, str) and m for _, m in seen)
+        plain = verify(Vs, Fs, res.key, passphrase=phrase)
+        assert (v.marked, v.bits, v.p_value) == (plain.marked, plain.bits, plain.p_value)
+    if scheme == "robust":  # the copy was moved: the registration's stages are reported
+        assert any(m.startswith("aligning") for _, m in seen) and len({f for f, _ in seen}) >= 5
+
+
+@pytest.mark.parametrize("scheme", ["robust", "blind"])
+def test_a_progress_callback_that_raises_stops_the_reader(scheme):
+    """The add-on cancels a run by raising from the progress callback: the reader stops there and the
+    exception reaches the caller (nothing is returned)."""
+    V, F = meshes.blob()
+    phrase = "a pass phrase" if scheme == "blind" else None
+    res = embed(V, F, EmbedOptions(payload="Acme", seed=4, scheme=scheme, passphrase=phrase, progressive=False))
+
+    class Stop(Exception):
+        pass
+
+    calls = []
+
+    def stop_at_second(f, m):
+        calls.append(f)
+        if len(calls) == 2:
+            raise Stop()
+
+    with pytest.raises(Stop):
+        verify(res.vertices, F, res.key, passphrase=phrase, progress=stop_at_second)
+    assert len(calls) == 2

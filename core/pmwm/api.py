@@ -41,10 +41,11 @@ def read_key(path) -> WatermarkKey:
 
 
 def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: float = 1e-6, *,
-           passphrase: Optional[str] = None) -> Verdict:
+           passphrase: Optional[str] = None, progress: Progress = None) -> Verdict:
     """Read the mark from a suspect mesh (any order, possibly attacked) with the key's scheme, or,
     with ``passphrase`` instead of a key, with the scheme keyed by a pass phrase (the blind scheme:
-    the payload is read, not known)."""
+    the payload is read, not known). ``progress(fraction, message)`` is called at the reader's stages,
+    ending at 1.0."""
     if (key is None) == (passphrase is None):
         raise PayloadError(f"give a key or a pass phrase (the {passphrase_scheme().name} scheme), not both or neither")
     if key is None:
@@ -55,14 +56,14 @@ def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: flo
             raise KeyFileError(f"the {scheme.name} scheme reads with a pass phrase, not a key: "
                                "give passphrase= instead")
     reuse_freed_memory()
-    return scheme.verify(vertices, faces, secret, p_threshold)
+    return scheme.verify(vertices, faces, secret, p_threshold, progress=progress)
 
 
 def verify_pm(pm: ProgressiveMesh, key: Optional[WatermarkKey] = None, records: Optional[int] = None,
-              p_threshold: float = 1e-6, *, passphrase: Optional[str] = None) -> Verdict:
+              p_threshold: float = 1e-6, *, passphrase: Optional[str] = None, progress: Progress = None) -> Verdict:
     """Read the mark from a progressive mesh at a level of detail (default: full)."""
     V, F = pm.decode(records=records)
-    return verify(V, F, key, p_threshold, passphrase=passphrase)
+    return verify(V, F, key, p_threshold, passphrase=passphrase, progress=progress)
 
 
 def ber_per_level(pm: ProgressiveMesh, key: WatermarkKey) -> list[tuple[int, int, float]]:

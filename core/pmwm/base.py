@@ -370,8 +370,9 @@ class Scheme:
 
     keying: ``KEY_FILE`` or ``PASS_PHRASE``, what the reader needs. embed(vertices, faces, options,
     progress) -> EmbedResult (a pass-phrase scheme takes it in ``options.passphrase`` and returns no
-    key); verify(vertices, faces, secret, p_threshold) -> Verdict, ``secret`` the WatermarkKey of a
-    key-file scheme or the pass phrase (str) of a pass-phrase one; load_key_data(key) -> the scheme's
+    key); verify(vertices, faces, secret, p_threshold, progress=None) -> Verdict, ``secret`` the WatermarkKey
+    of a key-file scheme or the pass phrase (str) of a pass-phrase one, ``progress(fraction, message)``
+    called at the reader's stages and last with 1.0; load_key_data(key) -> the scheme's
     typed key data (validated; a KeyFileError when damaged, or for a scheme that has no key file),
     called when a key file is read, before any suspect is loaded.
     """

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .base import Progress, no_progress
 from .sampling import sample_surface
 from .spatial import MovingNearest, PointIndex, nearest
 
@@ -112,11 +113,14 @@ def surface_frame(vertices: np.ndarray, faces: np.ndarray, n_samples: int, seed:
                         scale=scale, floor=_self_floor(P, vertices, faces, seed) / scale)
 
 
-def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0
-             ) -> tuple[np.ndarray, RegistrationInfo]:
+def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0,
+             progress: Progress = None) -> tuple[np.ndarray, RegistrationInfo]:
     """The suspect's vertices mapped into the reference frame, and how (see the module docstring).
+    ``progress(fraction, message)`` before each of its stages and at the end.
 
     suspect_V : (n, 3) float64, suspect_F : (m, 3) int64; returns (n, 3) float64."""
+    report = progress or no_progress
+    report(0.0, "aligning: from the pose it has")
     ref_P, ref_N, ref_c, ref_A, ref_s = frame.points, frame.normals, frame.centroid, frame.axes, frame.scale
     V = np.asarray(suspect_V, np.float64)
     S, _ = sample_surface(V, suspect_F, SUSPECT_SAMPLES, seed)
@@ -133,6 +137,8 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
     index = PointIndex(ref_P)  # one tree over the key's samples for every ICP iteration of every start
     best = None
     for group in (inits[:1], inits[1:]):  # the identity first: it may make the PCA starts needless
+        if len(group) > 1:
+            report(0.1, "aligning: from its principal axes")
         fits = _icp(S, index, ref_N, [x[1:] for x in group], ref_s, COARSE_ITERATIONS)
         for (name, *_), (R, k, t, res) in zip(group, fits):
             if plausible(k) and (best is None or res < best[4]):
@@ -143,17 +149,20 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
         best = inits[1] + (np.inf,)
     finalists = [best]
     if not best[4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
+        report(0.3, "aligning: as a cropped copy")
         sub = slice(None, None, 3)
         cuts = _cut_starts(ref_P, S, c, A, s)
         fits = _icp(S[::SCREEN_STEP], PointIndex(ref_P[sub]), ref_N[sub], [x[1:] for x in cuts], ref_s,
                     COARSE_ITERATIONS)  # every cut start at once: one tree query per iteration
         screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
+    report(0.5, "aligning: refining")
     fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True,
                 abandon=(0.3 * k_pca, 3.0 * k_pca))
     refined = [(not (plausible(k) and res < np.inf), res, i, finalists[i][0], R, k, t)  # plausible fits first
                for i, (R, k, t, res) in enumerate(fits)]
     _, res, _, name, R, k, t = min(refined)
+    report(1.0, "aligned")
     return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
 
 

@@ -38,10 +38,12 @@ from typing import Optional
 import numpy as np
 
 from .adjacency import component_labels, edge_face_counts, flip_edges, numpy_sparse, twin_half_edges, unique_values
+from .base import Progress, no_progress
 from .metrics import bbox_diagonal, vertex_rmse
 
 LOOP_ODD = (0.375, 0.125)  # a Loop edge vertex: 3/8 of each end of its edge, 1/8 of each opposite vertex
 SOLVE_TOL = 1e-9  # the least-squares solve's relative residual (positions to about 1e-8 of the size)
+SOLVE_REPORT = 10  # the solve calls its progress callback every this many iterations
 KIND_ROUNDS = 4  # rounds of the neighbour rule that names a Catmull-Clark step's kinds of vertex
 CC_LOOSE = 0.02  # the share of a Catmull-Clark copy's triangles whose quads may be left out (turned ones)
 TURNED = 0.01  # a mesh with more vertices in an odd number of faces has no turned quads to put back
@@ -65,11 +67,13 @@ class Coarse:
 
 
 def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None,
-                untangle: bool = True) -> Optional[Coarse]:
+                untangle: bool = True, progress: Progress = None) -> Optional[Coarse]:
     """The coarse mesh the mesh V (n, 3) float64, F (m, 3) int64 is one step of subdivision of (module
     docstring), or None for a mesh that is not one (0.02-0.1 s on 29k-270k faces). ``edge_counts``: the
     mesh's ``adjacency.edge_face_counts``, when the caller has them. ``untangle``: when no step is found,
-    look again with the quads Blender's triangulation turned put back (``_unturned``)."""
+    look again with the quads Blender's triangulation turned put back (``_unturned``). ``progress(fraction,
+    message)``: after each coordinate of a least-squares solve (``_solve``), the longest steps."""
+    report = progress or no_progress
     n, m = len(V), len(F)
     kinds = [k for k in (("1-to-4", 3, 4), ("sqrt3", 2, 3)) if m % k[2] == 0]
     if m < 8 or not (kinds or m % 6 == 0):
@@ -78,7 +82,7 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.nda
     used = count > 0
     diag = bbox_diagonal(V) or 1.0
     if m % 6 == 0 and np.count_nonzero((count == 4) | (count == 2)) * 5 >= m:  # edge points, cheaply
-        c = _catmull_clark(V, F, count, diag)
+        c = _catmull_clark(V, F, count, diag, report)
         if c is not None:
             return c
     if kinds:  # a necessary count before the structure
@@ -94,11 +98,12 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.nda
         if old is None or not _counts_fit(F, used, old, kind):
             continue
         new = np.flatnonzero(used & ~old)
-        c = _one_to_four(V, F, old, new, diag) if kind == "1-to-4" else _sqrt3(V, F, old, new, y, ring, diag)
+        c = _one_to_four(V, F, old, new, diag, report) if kind == "1-to-4" else \
+            _sqrt3(V, F, old, new, y, ring, diag, report)
         if c is not None:
             return c
     turned = _unturned(F, count) if untangle else None
-    return None if turned is None else coarse_mesh(V, turned, untangle=False)
+    return None if turned is None else coarse_mesh(V, turned, untangle=False, progress=report)
 
 
 def _unturned(F: np.ndarray, count: np.ndarray) -> Optional[np.ndarray]:
@@ -146,7 +151,8 @@ def _fewest_sixes(F: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray,
     return {"1-to-4": 3 * m / 8 - boundary / 4 - extra, "sqrt3": m / 3 - boundary - extra}
 
 
-def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float) -> Optional[Coarse]:
+def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float, progress: Progress = None
+                   ) -> Optional[Coarse]:
     """The coarse mesh of a Catmull-Clark step of a triangle mesh (``attacks.subdivide``), or None when
     the structure does not hold. ``count`` (n,): faces per vertex.
 
@@ -252,13 +258,13 @@ def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float)
     weight = np.concatenate([np.full(len(fv), 1.0 / 3.0), np.where(inner, 0.25, 0.5)])
     psum = V[pts[ev, 0]] + np.where(inner[:, None], V[pts[ev, 1]], 0.0)
     rhs = np.concatenate([V[fv], V[ev] - np.where(inner[:, None], 0.25 * psum, 0.0)])
-    keep, x, fit = _solve_terms(terms, weight, rhs, n)
+    keep, x, fit = _solve_terms(terms, weight, rhs, n, progress)
     index = np.full(n, -1, np.int64)
     index[keep] = np.arange(len(keep))
     return Coarse("catmull-clark", x, index[tri_f], keep, vertex_rmse(fit, rhs) / diag)
 
 
-def _solve_terms(terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int
+def _solve_terms(terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int, progress: Progress = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares over the equations sum_k weight[r] x[terms[r, k]] = rhs[r] (terms (R, 3) vertex
     indices below n, -1 for none; weight (R,); rhs (R, 3)): the vertices solved for (K,) ascending, their
@@ -272,7 +278,7 @@ def _solve_terms(terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int
     r = np.broadcast_to(np.arange(len(terms))[:, None], terms.shape)[used]
     A = coo_matrix((np.broadcast_to(weight[:, None], terms.shape)[used], (r, index[terms[used]])),
                    shape=(len(terms), len(keep))).tocsr()
-    x = _solve(A, rhs)
+    x = _solve(A, rhs, progress)
     return keep, x, A @ x
 
 
@@ -389,9 +395,11 @@ def _distinct(a: np.ndarray, b: np.ndarray, new: np.ndarray, count: int, n: int)
     return of.reshape(-1, count)  # (grouped by a, ascending)
 
 
-def _solve(A, b: np.ndarray) -> np.ndarray:
+def _solve(A, b: np.ndarray, progress: Progress = None) -> np.ndarray:
     """Least squares A x = b, A sparse (r, c), b (r, 3): the normal equations by conjugate gradients
-    (Jacobi preconditioned; 50-120 iterations on the meshes tried)."""
+    (Jacobi preconditioned; 50-120 iterations on the meshes tried); ``progress(fraction, message)`` every
+    SOLVE_REPORT iterations and after each coordinate."""
+    report = progress or no_progress
     from scipy.sparse import diags
     from scipy.sparse.linalg import cg
 
@@ -401,11 +409,20 @@ def _solve(A, b: np.ndarray) -> np.ndarray:
     M = diags(1.0 / np.where(d > 0, d, 1.0))
     x = np.empty((A.shape[1], 3))
     for k in range(3):
-        x[:, k] = cg(N, rhs[:, k], rtol=SOLVE_TOL, maxiter=1000, M=M)[0]
+        done = [0]
+
+        def iteration(_, k: int = k) -> None:
+            done[0] += 1
+            if done[0] % SOLVE_REPORT == 0:  # (the iterations' count is not known: at most 0.9 of a coordinate)
+                report((k + min(0.9, done[0] / 150)) / 3, "solving for the mesh it was subdivided from")
+
+        x[:, k] = cg(N, rhs[:, k], rtol=SOLVE_TOL, maxiter=1000, M=M, callback=iteration)[0]
+        report((k + 1) / 3, "solving for the mesh it was subdivided from")
     return x
 
 
-def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, diag: float) -> Optional[Coarse]:
+def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, diag: float,
+                 progress: Progress = None) -> Optional[Coarse]:
     """The coarse mesh of a 1-to-4 step (midpoint, Loop), or None when the structure does not hold."""
     from scipy.sparse import coo_matrix
 
@@ -447,7 +464,7 @@ def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray,
     cols = np.concatenate([index[ends].ravel(), opp])
     vals = np.concatenate([np.repeat(w_end, 2), np.where(interior[odd], LOOP_ODD[1], 0.0)])
     A = coo_matrix((vals, (rows, cols)), shape=(len(new), len(keep))).tocsr()
-    loop = _solve(A, e)
+    loop = _solve(A, e, progress)
     res = vertex_rmse(A @ loop, e) / diag
     if res < mid:
         return Coarse("loop", loop, faces, keep, res)
@@ -455,7 +472,7 @@ def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray,
 
 
 def _sqrt3(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, y: np.ndarray, ring: np.ndarray,
-           diag: float) -> Optional[Coarse]:
+           diag: float, progress: Progress = None) -> Optional[Coarse]:
     """The coarse mesh of a sqrt(3) step, or None when the structure does not hold. The faces take the
     orientation of the face vertex's fan where it has valence 6 (all but the boundary's)."""
     from scipy.sparse import coo_matrix
@@ -481,5 +498,5 @@ def _sqrt3(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, y: np
     rows = np.repeat(np.arange(len(new)), 3)
     A = coo_matrix((np.full(len(rows), 1.0 / 3.0), (rows, faces.ravel())), shape=(len(new), len(keep))).tocsr()
     e = V[new]
-    x = _solve(A, e)
+    x = _solve(A, e, progress)
     return Coarse("sqrt3", x, faces, keep, vertex_rmse(A @ x, e) / diag)

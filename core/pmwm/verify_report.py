@@ -28,12 +28,14 @@ import numpy as np
 from . import __version__, wording
 from .adjacency import unique_values
 from .atomic import atomic_write_bytes, file_sha256
-from .base import Verdict
+from .base import Progress, Verdict, no_progress
 from .key import WatermarkKey, mesh_sha256
 
 __all__ = ["build_report", "write_report", "render_views", "png_bytes", "p_value_in_words"]
 
 VIEW_SIZE = 360  # pixels of each picture (rendered at twice that, then averaged 2x2)
+CHUNK_SAMPLES = 500_000  # triangle samples the rasteriser draws between two progress calls
+DRAWING = (0.05, 0.97)  # the share of build_report's progress the pictures take (the rest: hashes, PNG)
 MATCH, MISMATCH, ERASED = "#1a9850", "#d73027", "#9e9e9e"
 
 
@@ -75,36 +77,45 @@ def _view_rotations(V: np.ndarray) -> list[tuple[str, np.ndarray]]:
     return [("front", rot(c, a)), ("side", rot(b, a)), ("oblique", rot(oblique, a))]
 
 
-def _rasterise(P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+def _rasterise(P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int, progress: Progress = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """Z-buffer of triangles already in pixel space, P (n, 3) = (x, y, depth towards the viewer):
-    each triangle is sampled on a barycentric grid finer than a pixel, the nearest sample wins.
-    Returns (shade image (size, size), NaN = background; depth image, -inf = background)."""
+    each triangle is sampled on a barycentric grid finer than a pixel, the nearest sample wins (the
+    first one drawn among equals). Returns (shade image (size, size), NaN = background; depth image,
+    -inf = background).
+
+    The samples are drawn in chunks of about CHUNK_SAMPLES, each merged into the buffers at once, so
+    that memory stays bounded and ``progress(fraction, message)`` is called after every chunk (the
+    fraction of the samples drawn)."""
+    report = progress or no_progress
     T = P[F]  # (m, 3, 3)
     edge = np.max(np.linalg.norm(T[:, [1, 2, 0], :2] - T[:, :, :2], axis=2), axis=1)
     level = np.clip(2 ** np.ceil(np.log2(np.maximum(edge / 0.8, 1.0))), 1, 256).astype(np.int64)
-    pix_all, z_all, s_all = [], [], []
+    total = max(int(np.sum((level + 1) * (level + 2) // 2)), 1)  # samples of every triangle
+    img = np.full(size * size, np.nan)
+    depth = np.full(size * size, -np.inf)
+    drawn = 0
     for n in unique_values(level):
         i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
         keep = i + j <= n
         W = np.stack([i[keep], j[keep], n - i[keep] - j[keep]], axis=1) / n  # (k, 3)
         faces = np.flatnonzero(level == n)
-        step = max(1, 4_000_000 // len(W))
+        step = max(1, CHUNK_SAMPLES // len(W))
         for a in range(0, len(faces), step):
             f = faces[a:a + step]
             S = np.einsum("kc,fcd->fkd", W, T[f]).reshape(-1, 3)
             x, y = np.floor(S[:, 0]).astype(np.int64), np.floor(S[:, 1]).astype(np.int64)
             inside = (x >= 0) & (x < size) & (y >= 0) & (y < size)
-            pix_all.append((y * size + x)[inside])
-            z_all.append(S[inside, 2])
-            s_all.append(np.repeat(shade[f], len(W))[inside])
-    img = np.full(size * size, np.nan)
-    depth = np.full(size * size, -np.inf)
-    if pix_all:
-        pix, z, s = np.concatenate(pix_all), np.concatenate(z_all), np.concatenate(s_all)
-        order = np.lexsort((-z, pix))  # per pixel, nearest first
-        first = order[np.r_[True, pix[order][1:] != pix[order][:-1]]]
-        img[pix[first]] = s[first]
-        depth[pix[first]] = z[first]
+            pix, z = (y * size + x)[inside], S[inside, 2]
+            if len(pix):
+                order = np.lexsort((-z, pix))  # per pixel, nearest first
+                first = order[np.r_[True, pix[order][1:] != pix[order][:-1]]]
+                p, zf = pix[first], z[first]  # (each pixel once)
+                nearer = zf > depth[p]  # an earlier chunk keeps a pixel it drew as near
+                depth[p[nearer]] = zf[nearer]
+                img[p[nearer]] = np.repeat(shade[f], len(W))[inside][first[nearer]]
+            drawn += len(S)
+            report(drawn / total, "drawing")
     return img.reshape(size, size), depth.reshape(size, size)
 
 
@@ -135,11 +146,13 @@ def _draw_places(rgb: np.ndarray, depth: np.ndarray, Q: np.ndarray, colors: np.n
     return len(show)
 
 
-def render_views(vertices, faces, places=None, place_colors=None, size: int = VIEW_SIZE
+def render_views(vertices, faces, places=None, place_colors=None, size: int = VIEW_SIZE, progress: Progress = None
                  ) -> list[tuple[str, np.ndarray, int]]:
     """Pictures of a mesh from three views, (name, (size, size, 3) uint8 RGB, places shown): grey
     shaded surface on white, and each of ``places`` (k, 3) that is not hidden by the surface drawn
-    as a disc in its colour (``place_colors``: k "#rrggbb" strings)."""
+    as a disc in its colour (``place_colors``: k "#rrggbb" strings). ``progress(fraction, message)``
+    is called as each view is drawn (``_rasterise``'s chunks), ending at 1.0."""
+    report = progress or no_progress
     V = np.asarray(vertices, np.float64)
     F = np.asarray(faces, np.int64)
     places = np.zeros((0, 3)) if places is None else np.asarray(places, np.float64).reshape(-1, 3)
@@ -147,7 +160,12 @@ def render_views(vertices, faces, places=None, place_colors=None, size: int = VI
     big = 2 * size
     centre = (V.max(axis=0) + V.min(axis=0)) / 2
     out = []
-    for name, R in _view_rotations(V):
+    views = _view_rotations(V)
+    for v, (name, R) in enumerate(views):
+        def drawing(f: float, _: str, v: int = v, name: str = name) -> None:
+            report((v + f) / len(views), f"drawing the {name} view")
+
+        drawing(0.0, "")
         C = (V - centre) @ R.T
         scale = 0.9 * big / max(float(np.ptp(C[:, 0])), float(np.ptp(C[:, 1])), 1e-300)
         mid = (C.max(axis=0) + C.min(axis=0)) / 2
@@ -159,13 +177,14 @@ def render_views(vertices, faces, places=None, place_colors=None, size: int = VI
         P = to_pixels(V)
         n = np.cross(C[F[:, 1]] - C[F[:, 0]], C[F[:, 2]] - C[F[:, 0]])
         nz = np.abs(n[:, 2]) / np.maximum(np.linalg.norm(n, axis=1), 1e-300)  # two-sided headlight
-        img, depth = _rasterise(P, F, 0.25 + 0.7 * nz, big)
+        img, depth = _rasterise(P, F, 0.25 + 0.7 * nz, big, drawing)
         rgb = np.where(np.isnan(img)[..., None], 255.0, np.nan_to_num(img)[..., None] * np.array([205, 210, 220]))
         shown = 0
         if len(places):
             shown = _draw_places(rgb, depth, to_pixels(places), colors, radius=max(4.0, big / 110), tol=0.03 * big)
         small = rgb.reshape(size, 2, size, 2, 3).mean(axis=(1, 3))
         out.append((name, np.clip(np.round(small), 0, 255).astype(np.uint8), shown))
+    report(1.0, "views drawn")
     return out
 
 
@@ -266,9 +285,14 @@ footer{margin-top:2em;font-size:.8em;color:#666}
 
 
 def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspect_path=None, key_path=None,
-                 suspect_name: Optional[str] = None, when: Optional[_dt.datetime] = None) -> str:
+                 suspect_name: Optional[str] = None, when: Optional[_dt.datetime] = None,
+                 progress: Progress = None) -> str:
     """The report's HTML text (see the module docstring). suspect_path / key_path: the files read (their
-    SHA-256 is reported); without suspect_path, the SHA-256 of the mesh data (``mesh_sha256``)."""
+    SHA-256 is reported); without suspect_path, the SHA-256 of the mesh data (``mesh_sha256``).
+    ``progress(fraction, message)`` is called at each step and while the pictures are drawn (at least
+    every CHUNK_SAMPLES triangle samples), ending at 1.0."""
+    report = progress or no_progress
+    report(0.0, "hashing the suspect and the key")
     v = verdict
     when = when or _dt.datetime.now(_dt.timezone.utc)
     name = suspect_name or (os.path.basename(os.fspath(suspect_path)) if suspect_path else "suspect mesh")
@@ -284,7 +308,8 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
     places = np.zeros((0, 3)) if v.places is None else np.asarray(v.places)
     place_bits = np.zeros(0, np.int64) if v.place_bits is None else np.asarray(v.place_bits, np.int64)
     place_colors = [{"match": MATCH, "mismatch": MISMATCH, "erased": ERASED}[state[b]] for b in place_bits]
-    views = render_views(vertices, faces, places, place_colors)
+    views = render_views(vertices, faces, places, place_colors,
+                         progress=lambda f, m: report(DRAWING[0] + (DRAWING[1] - DRAWING[0]) * f, m))
 
     e = html.escape
     state_text = "MARKED" if v.marked else "NOT MARKED"
@@ -305,6 +330,7 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
     table = "".join(f"<tr><th>{k}</th><td>{val}</td></tr>" for k, val in rows)
     numbers = "".join(f"<tr><th>{e(k)}</th><td>{e(val)}</td></tr>" for k, val in wording.technical_rows(v))
 
+    report(DRAWING[1], "writing the pictures as PNG")
     n_read = int(np.sum(state != "erased"))
     figures = "".join(
         f'<figure><img alt="{e(nm)} view of the suspect" width="{img.shape[1]}" height="{img.shape[0]}" '
@@ -320,7 +346,7 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
         where = ("This scheme reads the mark from the whole surface at once (the distribution of vertex distances "
                  "from the centre), not at places: the pictures show the suspect alone.")
 
-    return f"""<!DOCTYPE html>
+    text = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>pmwm verification report: {e(name)}: {state_text}</title>
@@ -348,11 +374,16 @@ is secret and not part of this report; its SHA-256 above identifies it. Anyone h
 can repeat this check with <code>pmwm verify SUSPECT --key KEY</code>.</footer>
 </body></html>
 """
+    report(1.0, "report drawn")
+    return text
 
 
 def write_report(path, verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspect_path=None, key_path=None,
-                 suspect_name: Optional[str] = None, force: bool = False) -> None:
-    """Write ``build_report(...)`` to ``path`` atomically (an existing file only with ``force``)."""
+                 suspect_name: Optional[str] = None, force: bool = False, progress: Progress = None) -> None:
+    """Write ``build_report(...)`` to ``path`` atomically (an existing file only with ``force``);
+    ``progress(fraction, message)`` as in ``build_report``, reaching 1.0 once the file is written."""
+    report = progress or no_progress
     text = build_report(verdict, key, vertices, faces, suspect_path=suspect_path, key_path=key_path,
-                        suspect_name=suspect_name)
+                        suspect_name=suspect_name, progress=lambda f, m: report(0.99 * f, m))
     atomic_write_bytes(path, text.encode("utf-8"), force=force)
+    report(1.0, "report written")

@@ -242,11 +242,15 @@ def test_save_report_runs_in_the_background_with_moving_progress(scene, addon, b
     run.job.started_at -= 7.0  # the seconds shown move while the stage reports nothing
     assert run.step(bpy.context, "TIMER") == {"RUNNING_MODAL"}
     assert run.status_text.endswith(", 7 s (Esc to cancel)"), run.status_text
-    assert addon.session.progress(ob) == "drawing the pictures, 7 s"
-    assert _squeeze("Saving the report: drawing the pictures, 7 s") in _text(draw(addon, "VIEW3D_PT_pmwm"))
+    assert addon.session.progress(ob) == "0%, drawing the pictures, 7 s"
+    assert _squeeze("Saving the report: 0%, drawing the pictures, 7 s") in _text(draw(addon, "VIEW3D_PT_pmwm"))
     go.set()
-    status, _ = _run_to_end(run, bpy.context)
+    status, seen = _run_to_end(run, bpy.context)
     assert status == {"FINISHED"} and report.is_file() and "MARKED" in report.read_text()
+    # the percentage moves while the pictures are drawn, view by view, and never goes back
+    percents = [int(t.split(": ")[1].split("%")[0]) for t in seen]
+    assert percents == sorted(percents) and len(set(percents)) >= 4 and max(percents) > 50, seen
+    assert any("drawing the front view" in t for t in seen) and any("drawing the oblique view" in t for t in seen)
     assert f"Report on 'bunny' written to {report}" in reports.text()
     assert addon.session.busy(ob) is None and addon.session.progress(ob) == ""
     # Esc: nothing written

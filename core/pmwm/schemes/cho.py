@@ -35,7 +35,7 @@ import numpy as np
 
 from ..adjacency import build_adjacency
 from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, VerdictDetail, finish_embed, mesh_key,
-                   start_embed, verdict_from_scores)
+                   no_progress, start_embed, verdict_from_scores)
 from ..errors import KeyFileError, MeshError, PayloadError
 from ..key import WatermarkKey, keyed_bits
 from ..progressive import base_vertex_count, build_progressive_mesh
@@ -221,16 +221,21 @@ def _embed(method: str, name: str):
 
 
 def _verify(method: str):
-    def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
+    def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6, progress: Progress = None) -> Verdict:
         """Blind reading of Cho's method: every bin's statistic against its threshold, from the
-        suspect alone (any order, pose or scale); an empty bin is an erasure."""
+        suspect alone (any order, pose or scale); an empty bin is an erasure. ``progress(fraction,
+        message)`` at the start and the end (one short stage)."""
+        report = progress or no_progress
+        report(0.0, "reading the bins")
         V, _ = check_mesh(vertices, faces)
         if len(V) < 2:
             raise MeshError("the suspect has fewer than two vertices; Cho's method reads a distribution")
         stat = _statistics(V, key.n_bits, method)
         score = np.nan_to_num(stat - _THRESHOLD[method], nan=0.0)
         detail = ChoDetail(method, key.n_bits, int(np.isnan(stat).sum()))
-        return verdict_from_scores(score, key, "blind", p_threshold, detail)
+        verdict = verdict_from_scores(score, key, "blind", p_threshold, detail)
+        report(1.0, "read")
+        return verdict
 
     return verify
 

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..adjacency import Adjacency, build_adjacency, gather_rows, unique_values
 from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, VerdictDetail, finish_embed, mesh_key,
-                    start_embed, verdict_from_scores)
+                    no_progress, start_embed, verdict_from_scores)
 from ..carriers import eligible_carriers, select_carriers
 from ..errors import KeyFileError
 from ..key import WatermarkKey, derive_seed, face_fingerprint, keyed_bits
@@ -207,15 +207,20 @@ def carrier_scores(V: np.ndarray, F: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return score
 
 
-def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
-    """Read the paper's mark from a suspect mesh (module docstring) with the key.
+def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6, progress: Progress = None) -> Verdict:
+    """Read the paper's mark from a suspect mesh (module docstring) with the key; ``progress(fraction,
+    message)`` at its two stages (finding the carriers, reading them) and at the end.
 
     vertices : (n, 3) float64, faces : (m, 3) int64, any order and resolution."""
+    report = progress or no_progress
+    report(0.0, "finding the carriers")
     V, F = check_mesh(vertices, faces)
     idx, mode, how = locate_carriers(V, F, key)
+    report(0.5, "reading the carriers")
     verdict = verdict_from_scores(carrier_scores(V, F, idx), key, mode, p_threshold, PaperDetail(how))
     found = np.flatnonzero(idx >= 0)
     verdict.places, verdict.place_bits = V[idx[found]].copy(), found
+    report(1.0, "read")
     return verdict
 
 

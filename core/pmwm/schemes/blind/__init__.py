@@ -26,7 +26,8 @@ import numpy as np
 
 from ... import metrics
 from ...background import Background, beside, silent
-from ...base import PASS_PHRASE, EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, start_embed
+from ...base import (PASS_PHRASE, EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, no_progress,
+                     start_embed)
 from ...errors import KeyFileError, MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
@@ -163,15 +164,15 @@ class Statistics:
         return plan.candidates(self.frame_stages)
 
 
-def bin_statistics(vertices, faces, config: ReaderConfig = READER) -> Statistics:
+def bin_statistics(vertices, faces, config: ReaderConfig = READER, progress: Progress = None) -> Statistics:
     """The ``Statistics`` of a suspect, vertices (n, 3), faces (m, 3) (``frames.read_statistics``: its
     own, or those of the coarse mesh under it when it is a subdivided copy), read by the stages and settings
-    of ``config``."""
+    of ``config``; ``progress(fraction, message)`` at the frames' stages."""
     V, F = check_mesh(vertices, faces)
     if len(F) == 0:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
-    got = frames.read_statistics(V, F, [_n_bins(n) for n in words], config)
+    got = frames.read_statistics(V, F, [_n_bins(n) for n in words], config, progress=progress)
     return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
                       words[got.index], got.names, got.stages,
                       {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)},
@@ -279,14 +280,20 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6, config: Reader
     return decide(bin_statistics(vertices, faces, config), secret, p_threshold, config)
 
 
-def verify(vertices, faces, passphrase: str, p_threshold: float = 1e-6, config: ReaderConfig = READER) -> Verdict:
+def verify(vertices, faces, passphrase: str, p_threshold: float = 1e-6, config: ReaderConfig = READER,
+           progress: Progress = None) -> Verdict:
     """``read`` with the secret of ``passphrase``, derived in a worker thread beside the bins' statistics,
     which need none: hashlib's scrypt (``word.SCRYPT``) releases the GIL, so the derivation costs the
-    reading no time on two cores."""
+    reading no time on two cores. ``progress(fraction, message)`` at the frames read (``bin_statistics``)
+    and the word's decision, ending at 1.0."""
+    report = progress or no_progress
     word.check_passphrase(passphrase)
     with Background(silent(word.derive_secret), passphrase) as deriving:
-        stats = bin_statistics(vertices, faces, config)
-        return decide(stats, deriving.result(), p_threshold, config)
+        stats = bin_statistics(vertices, faces, config, lambda f, m: report(0.9 * f, m))
+        report(0.9, "reading the word")
+        verdict = decide(stats, deriving.result(), p_threshold, config)
+    report(1.0, "read")
+    return verdict
 
 
 def load_key_data(key: WatermarkKey) -> None:

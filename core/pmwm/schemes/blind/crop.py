@@ -10,10 +10,13 @@ measurements behind them: docs/decisions/081-blind-crop-frame-search.md."""
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from ...adjacency import boundary_edges, component_labels, unique_values
 from ...background import parallel_map
+from ...base import Progress, no_progress
 from ...features import row_norms
 from ...metrics import bbox_diagonal
 from ...spatial import pairs_within
@@ -167,7 +170,7 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
 
 
 def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, planes: list,
-                bin_counts, cfg: CropConfig = READER.crop) -> list[Frame]:
+                bin_counts, cfg: CropConfig = READER.crop, progress: Progress = None) -> list[Frame]:
     """For each count in ``bin_counts``, the frame of that many bins where a cropped copy shows the most
     mark energy (``excess_energy``) near the families of the cut ``planes`` (``cut_planes``, not empty).
     V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``; ``own`` the suspect's own
@@ -186,7 +189,17 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     area, so below own.hi + reach bin widths; its bins span at most screen_widths[1] = 1.6 ranges, and
     the phases and the refinement move them by a few bins. But its histograms would reach them: a stray
     part far from the model would make every candidate's counts and FFT as long as its distance. A model
-    has none there."""
+    has none there.
+
+    ``progress(fraction, message)`` is called after each of the 5 stages of each count, from the search
+    threads, one call at a time, the fractions growing."""
+    report, lock, done = progress or no_progress, threading.Lock(), [0]
+
+    def stage() -> None:
+        with lock:
+            done[0] += 1
+            report(done[0] / (5 * len(bin_counts)), "looking for a cropped copy's frame")
+
     dist = row_norms(V - own.centre)
     within = dist <= own.hi + (2.0 * cfg.reach / min(bin_counts) + cfg.beyond) * (own.hi - own.lo)
     by_rho = by_distance(V, a, own.centre)
@@ -210,15 +223,18 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         # screening: the candidates screen_lattice apart, then those a lattice apart near the best of them
         s = _spread(C - own.centre, cfg.screen_lattice * width)
         first = _screen(Pc, Cc[s], width, cfg)[0]
+        stage()
         top = C[s[np.argsort(-first, kind="stable")[:max(cfg.screen_min, int(cfg.screen_top * len(s)))]]]
         near = unique_values(pairs_within(top, C, cfg.expand * width)[1])
         second, at = _screen(Pc, Cc[near], width, cfg)
+        stage()
         keep = max(cfg.screen_min, int(cfg.screen_keep * len(C) / len(cfg.layers)))  # (a share of one layer's)
         best = np.argsort(-second, kind="stable")[:keep]
         kept = near[best]
         score, w_phase = np.full(len(C), -np.inf), np.zeros(len(C))
         w_phase[kept] = at[best]  # each one's in-phase width, around which the coarse stage tries widths
         score[kept] = _coarse(Pc, area_c, Cc[kept], L[kept], np.outer(at[best], around), n_bins, phases)
+        stage()
 
         def refined(fr: Frame, sample: tuple[np.ndarray, np.ndarray]) -> tuple[float, Frame]:
             fr = refine_frame_on(*sample, fr, n_bins)
@@ -233,12 +249,14 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
             best_off = off[int(np.argmax(e))]
             scaled.append((*_fit_scale(Pw, aw, area_w, own.centre + best_off, L[i], width, n_bins, cfg), L[i]))
         scaled.sort(key=lambda f: -f[0])
+        stage()
         fits = sorted(((*refined(fr, first_sample), lam) for _, fr, lam in scaled[:cfg.refined]),
                       key=lambda f: -f[0])
         # the ``final`` best, and each fitted again at its refined centre: the one of most energy
         finals = [f for z, fr, lam in fits[:cfg.final]
                   for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins, cfg)[1],
                                              (Pf, af)))]
+        stage()
         return max(finals, key=lambda f: f[0])[1]
 
     # the word lengths are searched independently, each in its own thread

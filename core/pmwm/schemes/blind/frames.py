@@ -23,6 +23,7 @@ import numpy as np
 
 from ...adjacency import edge_face_counts, unique_values
 from ...background import Background, beside, silent
+from ...base import Progress, no_progress
 from ...errors import MeshError
 from ...features import row_norms, vertex_areas
 from ...metrics import bbox_diagonal
@@ -58,7 +59,8 @@ class Frames:
     guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
 
 
-def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, config: ReaderConfig = READER) -> Frames:
+def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, config: ReaderConfig = READER,
+                    progress: Progress = None) -> Frames:
     """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it was subdivided
     from (``pmwm.subdivision.coarse_mesh``, up to ``config.max_undo`` steps, one at a time: the "coarse" stage)
     when that shows ``config.coarse_gain`` times the excess energy per vertex (any, when that is not positive);
@@ -79,7 +81,9 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, config: ReaderConf
     little, beside the reading kept, when that reading's bins show the blur of noise (``with_denoised``: the
     "denoised" stage), or as reserve frames on a copy on a coarse grid (``_with_reserve``: the "reserve"
     stage), whose denoised frames a worker measures from the start. A stage ``config.stages`` leaves out is
-    not looked for."""
+    not looked for. ``progress(fraction, message)`` before each stage taken."""
+    report = progress or no_progress
+    report(0.0, "measuring the suspect")
     area = vertex_areas(V, F)
     grid = on_grid(V, config.denoise.grid_values)
     # a copy on a coarse grid is read in the denoised frames whatever else it shows (in full, or as reserve
@@ -89,17 +93,20 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, config: ReaderConf
     operator = mean_operator(F, len(V), counts0) if grid else None
     early_denoised = grid and config.workers and (config.reads("denoised") or config.reads("reserve"))
     with beside(early_denoised, silent(denoised_frames), V, F, bin_counts, operator, config) as early:
-        return _read_statistics(V, F, bin_counts, area, grid, early, counts0, operator, config)
+        return _read_statistics(V, F, bin_counts, area, grid, early, counts0, operator, config, report)
 
 
 def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray, grid: bool,
                      early: Optional[Background], counts0: Optional[tuple[np.ndarray, np.ndarray]], operator,
-                     config: ReaderConfig) -> Frames:
+                     config: ReaderConfig, report: Callable[[float, str], None] = no_progress) -> Frames:
     """``read_statistics`` once the suspect's ``area`` is known; ``grid``, whether it lies on a coarse grid;
     ``early``, the worker measuring the denoised frames of a copy on a coarse grid (None when none does),
-    ``counts0`` and ``operator`` its ``edge_face_counts`` and ``mean_operator`` (None off a grid)."""
+    ``counts0`` and ``operator`` its ``edge_face_counts`` and ``mean_operator`` (None off a grid);
+    ``report(fraction, message)`` the progress."""
     full_view = config.full_view
-    got = read_statistics_frames(V, F, bin_counts, area, config=config)
+    report(0.1, "reading the suspect's frames")
+    got = read_statistics_frames(V, F, bin_counts, area, config=config,
+                                 progress=lambda f, m: report(0.1 + 0.3 * f, m))
     V0, F0 = V, F
     # the suspect's edges, for the coarse mesh's first look and the smoothing operator: both are looked for
     # when the mark is not in full view
@@ -107,7 +114,10 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
         counts0 = edge_face_counts(F0, len(V0))
     rules: list[str] = []
     while config.reads("coarse") and got.energy < full_view and len(rules) < config.max_undo:
-        coarse = coarse_mesh(V, F, None if rules else counts0)
+        step = 0.4 + 0.1 * len(rules)
+        report(step, "looking for a mesh it was subdivided from")
+        coarse = coarse_mesh(V, F, None if rules else counts0,
+                             progress=lambda f, m, s=step: report(s + 0.08 * f, m))
         if coarse is None:
             break
         tries = [(coarse.vertices, rules + [coarse.rule])]
@@ -128,6 +138,7 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
         late_denoised = blurred and early is None and config.workers
         with beside(late_denoised, silent(denoised_frames), V0, F0, bin_counts, operator, config) as late:
             measuring = early or late
+            report(0.7, "undoing a smoothing")
             steps = None
             if config.reads("unsmoothed"):
                 steps = unsmoothing(V0, F0, bin_counts, config.coarse_gain * max(got.energy, 0.0), area, operator,
@@ -135,11 +146,13 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
             if steps is not None:
                 got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
                 blurred = _blurred(got, config)
+            report(0.85, "reading the suspect smoothed")
             if blurred:
                 got = with_denoised(got, V0, F0, bin_counts, operator, measuring, config)
             elif grid:
                 got = _with_reserve(got, V0, F0, bin_counts, operator, measuring, config)
     elif grid:
+        report(0.85, "reading the suspect smoothed")
         got = _with_reserve(got, V0, F0, bin_counts, operator, early, config)
     return dataclasses.replace(got, guess=functools.cache(
         lambda: guess_statistics(V0, F0, bin_counts, operator, area, config.denoise) if grid else None))
@@ -350,11 +363,13 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, limi
 
 def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
                            area: Optional[np.ndarray] = None, crop: bool = True,
-                           refine_sample: int = REFINE_SAMPLE, config: ReaderConfig = READER) -> Frames:
+                           refine_sample: int = REFINE_SAMPLE, config: ReaderConfig = READER,
+                           progress: Progress = None) -> Frames:
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
     frames of the module docstring that ``config`` reads (the stages "own", "refined", "crop"; with ``crop``
     False, the own and refined frames only; the refined one searched on ``refine_sample`` vertices at most,
-    ``radial.refine_frame``). ``area`` (n,): its ``vertex_areas``, when the caller has them."""
+    ``radial.refine_frame``). ``area`` (n,): its ``vertex_areas``, when the caller has them; ``progress(fraction, message)`` during the crop
+    search (``crop_frames``)."""
     counts = list(bin_counts)
     area = vertex_areas(V, F) if area is None else area
     fr, a = frame_of_areas(V, area, 1)
@@ -373,7 +388,8 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
     planes = cut_planes(V, F, fr.centre, config.crop.cut) if search else []
     searched = [j for j, n in enumerate(counts) if n <= config.crop_max_bins] if planes else []
     if searched:
-        found = crop_frames(V, a, area, fr, planes, [counts[j] for j in searched], config.crop)
+        (progress or no_progress)(0.0, "looking for a cropped copy's frame")
+        found = crop_frames(V, a, area, fr, planes, [counts[j] for j in searched], config.crop, progress)
         zc, j, f = best_length(V, a, found, counts, searched)
         if zc > z:
             second, name, index, z = f, "crop", j, zc

@@ -9,7 +9,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ...base import Verdict, VerdictDetail, verdict_from_scores
+from ...base import Progress, Verdict, VerdictDetail, no_progress, verdict_from_scores
 from ...errors import KeyFileError
 from ...key import WatermarkKey
 from ...register import register, similarity_fit
@@ -198,9 +198,12 @@ def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, Ro
     return scores, mode, detail
 
 
-def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, RobustDetail, tuple[np.ndarray, np.ndarray]]:
+def _read(vertices, faces, key: WatermarkKey, progress: Progress = None
+          ) -> tuple[np.ndarray, str, RobustDetail, tuple[np.ndarray, np.ndarray]]:
     """read_scores, and where the mark was read: (places (k, 3) of the sites read, in the suspect's
-    coordinates; the bit of each)."""
+    coordinates; the bit of each). ``progress(fraction, message)`` at its stages (up to 0.9)."""
+    report = progress or no_progress
+    report(0.0, "loading the suspect")
     s = key_data(key)
     V, F = check_mesh(vertices, faces)
     aligned = _in_key_frame(V, s, key)
@@ -220,13 +223,14 @@ def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, RobustDe
         if by_index:
             registration = BY_INDEX
         else:
-            X, info = register(V, F, s.frame)
+            X, info = register(V, F, s.frame, progress=lambda f, m: report(0.1 + 0.6 * f, m))
             R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
             back = lambda P: (P - t) @ R / k  # noqa: E731
             registration, residual, scale = info.init, float(info.residual), float(info.scale)
             by_index = _same_vertices(X, s, key)
             if by_index:
                 X, back = _refined(X, s, back)
+    report(0.7, "reading the sites")
     soft, var = np.full(len(s.bit), np.nan), np.full(len(s.bit), VAR_FLOOR)
     full = (s.index_ok if by_index else s.usable).copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
@@ -250,11 +254,15 @@ def _identity(P: np.ndarray) -> np.ndarray:
     return P.copy()
 
 
-def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
-    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
-    scores, mode, detail, (places, place_bits) = _read(vertices, faces, key)
+def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6, progress: Progress = None) -> Verdict:
+    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key;
+    ``progress(fraction, message)`` at its stages (loading, registration, reading), ending at 1.0."""
+    report = progress or no_progress
+    scores, mode, detail, (places, place_bits) = _read(vertices, faces, key, report)
+    report(0.9, "deciding")
     verdict = verdict_from_scores(scores, key, mode, p_threshold, detail)
     verdict.places, verdict.place_bits = places, place_bits
+    report(1.0, "read")
     return verdict
 
 
