@@ -368,8 +368,8 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
     frames of the module docstring that ``config`` reads (the stages "own", "refined", "crop"; with ``crop``
     False, the own and refined frames only; the refined one searched on ``refine_sample`` vertices at most,
-    ``radial.refine_frame``). ``area`` (n,): its ``vertex_areas``, when the caller has them; ``progress(fraction, message)`` during the crop
-    search (``crop_frames``)."""
+    ``radial.refine_frame``). ``area`` (n,): its ``vertex_areas``, when the caller has them;
+    ``progress(fraction, message)`` during the crop search (``crop_frames``)."""
     counts = list(bin_counts)
     area = vertex_areas(V, F) if area is None else area
     fr, a = frame_of_areas(V, area, 1)
