@@ -94,8 +94,15 @@ def this_platform() -> str:
     plat = sysconfig.get_platform()
     machine = platform.machine().lower()
     arm = machine in ("arm64", "aarch64")
-    name = ("windows" if plat.startswith("win") else "macos" if plat.startswith("macosx") else
-            "linux" if plat.startswith("linux") else plat) + ("-arm64" if arm else "-x64")
+    name = (
+        "windows"
+        if plat.startswith("win")
+        else "macos"
+        if plat.startswith("macosx")
+        else "linux"
+        if plat.startswith("linux")
+        else plat
+    ) + ("-arm64" if arm else "-x64")
     if name not in PLATFORMS:
         raise SystemExit(f"no Blender extension build for this platform ({plat}, {machine})")
     return name
@@ -104,6 +111,7 @@ def this_platform() -> str:
 def targets(platforms: list[str], pythons: list[str]) -> list[Target]:
     """The (platform, Python) pairs to build from the command line's choices: a name, "this" (the
     machine at hand) or "all" (the default)."""
+
     def expand(values: list[str], known: list[str], this, what: str) -> list[str]:
         out: list[str] = []
         for v in values or ["all"]:
@@ -117,8 +125,11 @@ def targets(platforms: list[str], pythons: list[str]) -> list[Target]:
     def this_python() -> str:
         return f"{sys.version_info.major}.{sys.version_info.minor}"
 
-    return [Target(pl, PYTHONS[py]) for py in expand(pythons, list(PYTHONS), this_python, "Python")
-            for pl in expand(platforms, list(PLATFORMS), this_platform, "platform")]
+    return [
+        Target(pl, PYTHONS[py])
+        for py in expand(pythons, list(PYTHONS), this_python, "Python")
+        for pl in expand(platforms, list(PLATFORMS), this_platform, "platform")
+    ]
 
 
 def _run(cmd: list[str]) -> None:
@@ -203,10 +214,14 @@ def build_pmwm_wheel(dest: Path) -> Path:
         for name in ("README.md", "LICENSE", "LICENSE.txt", "COPYING"):
             if (ROOT / name).is_file():
                 shutil.copy2(ROOT / name, src / name)
-        (src / "pyproject.toml").write_text(library_pyproject((ROOT / "pyproject.toml").read_text(encoding="utf-8")),
-                                            encoding="utf-8")
-        shutil.copytree(ROOT / "core" / LIBRARY, src / "core" / LIBRARY,
-                        ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info"))
+        (src / "pyproject.toml").write_text(
+            library_pyproject((ROOT / "pyproject.toml").read_text(encoding="utf-8")), encoding="utf-8"
+        )
+        shutil.copytree(
+            ROOT / "core" / LIBRARY,
+            src / "core" / LIBRARY,
+            ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info"),
+        )
         _run([sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(dest), str(src)])
     wheel = _one(dest, "pmwm-*.whl")
     check_library_wheel(wheel)
@@ -215,18 +230,47 @@ def build_pmwm_wheel(dest: Path) -> Path:
 
 def download_trimesh_wheel(dest: Path, version: str) -> Path:
     """Fetch the pure-python trimesh wheel (no dependencies: Blender provides numpy)."""
-    _run([sys.executable, "-m", "pip", "download", "--quiet", "--no-deps", "--only-binary=:all:",
-          "-d", str(dest), f"trimesh=={version}"])
+    _run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "download",
+            "--quiet",
+            "--no-deps",
+            "--only-binary=:all:",
+            "-d",
+            str(dest),
+            f"trimesh=={version}",
+        ]
+    )
     return _one(dest, "trimesh-*.whl")
 
 
 def download_compiled_wheel(dest: Path, requirement: str, target: Target) -> Path:
     """Fetch the binary wheel of ``requirement`` for the target's platform and Python (no dependencies)."""
     py = target.python.version.replace(".", "")
-    _run([sys.executable, "-m", "pip", "download", "--quiet", "--no-deps", "--only-binary=:all:",
-          *[a for tag in PLATFORMS[target.platform] for a in ("--platform", tag)],
-          "--python-version", target.python.version,
-          "--implementation", "cp", "--abi", f"cp{py}", "-d", str(dest), requirement])
+    _run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "download",
+            "--quiet",
+            "--no-deps",
+            "--only-binary=:all:",
+            *[a for tag in PLATFORMS[target.platform] for a in ("--platform", tag)],
+            "--python-version",
+            target.python.version,
+            "--implementation",
+            "cp",
+            "--abi",
+            f"cp{py}",
+            "-d",
+            str(dest),
+            requirement,
+        ]
+    )
     return _one(dest, requirement.split("==")[0] + "-*.whl", pure=False)
 
 
@@ -246,7 +290,7 @@ def manifest_for(text: str, wheels: list[str], target: Target) -> str:
     new, n = re.subn(r"(?ms)^wheels\s*=\s*\[.*?\]", listing, text)
     if n != 1:
         raise SystemExit("blender_manifest.toml must hold exactly one 'wheels = [...]' list")
-    new, n = re.subn(r'(?m)^blender_version_min\s*=.*$', f'blender_version_min = "{target.python.blender_min}"', new)
+    new, n = re.subn(r"(?m)^blender_version_min\s*=.*$", f'blender_version_min = "{target.python.blender_min}"', new)
     if n != 1:
         raise SystemExit("blender_manifest.toml must hold exactly one blender_version_min")
     if re.search(r"(?m)^(blender_version_max|platforms)\s*=", new):
@@ -254,7 +298,7 @@ def manifest_for(text: str, wheels: list[str], target: Target) -> str:
     extra = f'platforms = ["{target.platform}"]\n'
     if target.python.blender_max:
         extra = f'blender_version_max = "{target.python.blender_max}"\n' + extra
-    return re.sub(r'(?m)^(blender_version_min = .*\n)', lambda m: m.group(1) + extra, new, count=1)
+    return re.sub(r"(?m)^(blender_version_min = .*\n)", lambda m: m.group(1) + extra, new, count=1)
 
 
 def addon_files() -> list[Path]:
@@ -270,6 +314,7 @@ def addon_files() -> list[Path]:
 
 def write_zip(out: Path, manifest: str, wheels: list[Path]) -> None:
     """Write the extension archive deterministically."""
+
     def add(zf: zipfile.ZipFile, name: str, data: bytes) -> None:
         info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
         info.external_attr = 0o644 << 16
@@ -306,8 +351,7 @@ def validate(zip_path: Path) -> None:
     _run([sys.executable, str(tool), "validate", str(zip_path)])
 
 
-def build(out_dir: Path, trimesh_version: str, check: bool = True,
-          which: Optional[list[Target]] = None) -> list[Path]:
+def build(out_dir: Path, trimesh_version: str, check: bool = True, which: Optional[list[Target]] = None) -> list[Path]:
     """Build, write and (optionally) validate one extension zip per target (default: every platform
     and Python); returns their paths."""
     manifest_text = (ADDON / "blender_manifest.toml").read_text(encoding="utf-8")
@@ -335,12 +379,23 @@ def build(out_dir: Path, trimesh_version: str, check: bool = True,
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out-dir", type=Path, default=ROOT / "dist", help="output folder (default: dist/)")
-    ap.add_argument("--trimesh", default=None,
-                    help=f"trimesh version to bundle (default: the installed one, else {DEFAULT_TRIMESH})")
-    ap.add_argument("--platform", action="append", default=[],
-                    help=f"a Blender platform ({', '.join(PLATFORMS)}), this, or all (default; repeatable)")
-    ap.add_argument("--python", action="append", default=[],
-                    help=f"a Blender Python ({', '.join(PYTHONS)}), this, or all (default; repeatable)")
+    ap.add_argument(
+        "--trimesh",
+        default=None,
+        help=f"trimesh version to bundle (default: the installed one, else {DEFAULT_TRIMESH})",
+    )
+    ap.add_argument(
+        "--platform",
+        action="append",
+        default=[],
+        help=f"a Blender platform ({', '.join(PLATFORMS)}), this, or all (default; repeatable)",
+    )
+    ap.add_argument(
+        "--python",
+        action="append",
+        default=[],
+        help=f"a Blender Python ({', '.join(PYTHONS)}), this, or all (default; repeatable)",
+    )
     ap.add_argument("--no-validate", action="store_true", help="skip Blender's validator")
     args = ap.parse_args(argv)
     version = args.trimesh

@@ -72,8 +72,9 @@ def byte_compiled(package: Path) -> None:
     compileall.compile_dir(str(package), quiet=1)
 
 
-def best_alternating(commands: list[list[str]], repeat: int, env: dict, exit_codes: tuple[int, ...] = (0,)
-                     ) -> list[tuple[float, float]]:
+def best_alternating(
+    commands: list[list[str]], repeat: int, env: dict, exit_codes: tuple[int, ...] = (0,)
+) -> list[tuple[float, float]]:
     """(best wall-clock time, best CPU time) of each command (a whole process, environment ``env``)
     run alternately ``repeat`` times each, their output discarded; an exit status outside ``exit_codes``
     raises. The CPU time is the child's user + system time: the embedders use a second thread, so it can

@@ -32,8 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def load_addon():
     folder = ROOT / "blender_pmwm"
-    spec = importlib.util.spec_from_file_location("blender_pmwm", folder / "__init__.py",
-                                                  submodule_search_locations=[str(folder)])
+    spec = importlib.util.spec_from_file_location(
+        "blender_pmwm", folder / "__init__.py", submodule_search_locations=[str(folder)]
+    )
     module = importlib.util.module_from_spec(spec)
     sys.modules["blender_pmwm"] = module
     spec.loader.exec_module(module)
@@ -118,19 +119,32 @@ def main(argv=None) -> int:
 
     out: list[str] = []
     out.append(f"## Blender add-on overhead ({len(V):,} vertices, {len(F):,} triangles, {res.bits.size} bits)\n")
-    out.append(f"Machine: {machine()}, bpy {bpy.app.version_string}; load average at the end {os.getloadavg()[0]:.1f}  ")
-    out.append(f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}` at commit {commit()}  ")
-    out.append(f"Mesh: {args.mesh.name}"
-          + (f" ({n_source:,} vertices) decimated with fast-simplification" if len(V) < n_source else "") + f"; best of {args.repeat} interleaved runs\n")
+    out.append(
+        f"Machine: {machine()}, bpy {bpy.app.version_string}; load average at the end {os.getloadavg()[0]:.1f}  "
+    )
+    out.append(
+        f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}` at commit {commit()}  "
+    )
+    out.append(
+        f"Mesh: {args.mesh.name}"
+        + (f" ({n_source:,} vertices) decimated with fast-simplification" if len(V) < n_source else "")
+        + f"; best of {args.repeat} interleaved runs\n"
+    )
     out.append("| step | wall ms | CPU ms | overhead vs core (wall / CPU) |")
     out.append("|---|---:|---:|---:|")
-    out.append(f"| core alone: `pmwm.embed` + `pmwm.write_key` | {bw['core']*1e3:.0f} | {bc['core']*1e3:.0f} | reference |")
-    for k, name in (("script", "`bpy.ops.pmwm.watermark` called from a script"),
-                    ("click", "`bpy.ops.pmwm.watermark` with an undo push (a panel click)")):
-        out.append(f"| {name} | {bw[k]*1e3:.0f} | {bc[k]*1e3:.0f} | {pct(bw, k)} / {pct(bc, k)} |")
-    for k, name in (("read", "of which mesh transfer in (foreach_get co, calc_loop_triangles)"),
-                    ("write", "of which write back (foreach_set co, mesh.update)")):
-        out.append(f"| {name} | {bw[k]*1e3:.0f} | {bc[k]*1e3:.0f} | {100*bw[k]/bw['core']:.1f} % of core |")
+    out.append(
+        f"| core alone: `pmwm.embed` + `pmwm.write_key` | {bw['core'] * 1e3:.0f} | {bc['core'] * 1e3:.0f} | reference |"
+    )
+    for k, name in (
+        ("script", "`bpy.ops.pmwm.watermark` called from a script"),
+        ("click", "`bpy.ops.pmwm.watermark` with an undo push (a panel click)"),
+    ):
+        out.append(f"| {name} | {bw[k] * 1e3:.0f} | {bc[k] * 1e3:.0f} | {pct(bw, k)} / {pct(bc, k)} |")
+    for k, name in (
+        ("read", "of which mesh transfer in (foreach_get co, calc_loop_triangles)"),
+        ("write", "of which write back (foreach_set co, mesh.update)"),
+    ):
+        out.append(f"| {name} | {bw[k] * 1e3:.0f} | {bc[k] * 1e3:.0f} | {100 * bw[k] / bw['core']:.1f} % of core |")
     write_section("addon", "\n".join(out))
     return 0
 

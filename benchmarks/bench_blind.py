@@ -53,8 +53,10 @@ def crop_posed(V, F, seed=None):
 WHOLE = [
     ("similarity", lambda V, F, seed: attacks.similarity(V, F, seed=seed)),
     ("reordering", lambda V, F, seed: attacks.reorder(V, F, seed=seed)),
-    *[(f"re-export {e[1:].upper()}", (lambda e: lambda V, F, seed: attacks.reexport(V, F, e))(e))
-      for e in (".obj", ".ply", ".stl", ".glb")],
+    *[
+        (f"re-export {e[1:].upper()}", (lambda e: lambda V, F, seed: attacks.reexport(V, F, e))(e))
+        for e in (".obj", ".ply", ".stl", ".glb")
+    ],
     ("quantization 8 bits", lambda V, F, seed: attacks.quantize(V, F, bits=8)),
     ("simplification 50 %", lambda V, F, seed: attacks.simplify(V, F, ratio=0.5, seed=seed)),
     ("subdivision midpoint", lambda V, F, seed: attacks.subdivide(V, F, "midpoint")),
@@ -119,8 +121,7 @@ def marked(V: np.ndarray, F: np.ndarray, seed: int):
     """The benchmark's blind-marked copy for key ``seed`` (its payload and pass phrase follow from it):
     (EmbedResult, payload (PAYLOAD_BITS,) uint8)."""
     payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
-                                             passphrase=phrase_of(seed)))
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed, passphrase=phrase_of(seed)))
     return res, payload
 
 
@@ -153,8 +154,9 @@ def procedural(n: int, seed: int):
     import trimesh
 
     if n % 5 == 4:
-        m = trimesh.creation.torus(major_radius=1.0, minor_radius=rng.uniform(0.2, 0.5),
-                                   major_sections=64, minor_sections=32)
+        m = trimesh.creation.torus(
+            major_radius=1.0, minor_radius=rng.uniform(0.2, 0.5), major_sections=64, minor_sections=32
+        )
         V = np.asarray(m.vertices) * rng.uniform(0.5, 2.0, 3)
         return V, np.asarray(m.faces)
     m = trimesh.creation.icosphere(subdivisions=int(rng.integers(4, 6)))
@@ -167,14 +169,16 @@ def procedural(n: int, seed: int):
 
 
 EQUAL_GRID = {"blind": (0.03, 0.05, 0.07, 0.1), "cho1": (0.01, 0.025, 0.05, 0.09), "cho2": (0.03, 0.05, 0.1, 0.18)}
-EQUAL_ATTACKS = [("noise 0.3 %", "noise_benchmark", {"amplitude": 0.003}),
-                 ("noise 0.5 %", "noise_benchmark", {"amplitude": 0.005}),
-                 ("smoothing 5 it.", "smooth_laplacian", {"lam": 0.1, "iterations": 5}),
-                 ("smoothing 10 it.", "smooth_laplacian", {"lam": 0.1, "iterations": 10}),
-                 ("quantization 8 bits", "quantize", {"bits": 8}),
-                 ("quantization 7 bits", "quantize", {"bits": 7}),
-                 ("simplification 50 %", "simplify", {"ratio": 0.5}),
-                 ("subdivision loop", "subdivide", {"scheme": "loop"})]
+EQUAL_ATTACKS = [
+    ("noise 0.3 %", "noise_benchmark", {"amplitude": 0.003}),
+    ("noise 0.5 %", "noise_benchmark", {"amplitude": 0.005}),
+    ("smoothing 5 it.", "smooth_laplacian", {"lam": 0.1, "iterations": 5}),
+    ("smoothing 10 it.", "smooth_laplacian", {"lam": 0.1, "iterations": 10}),
+    ("quantization 8 bits", "quantize", {"bits": 8}),
+    ("quantization 7 bits", "quantize", {"bits": 7}),
+    ("simplification 50 %", "simplify", {"ratio": 0.5}),
+    ("subdivision loop", "subdivide", {"scheme": "loop"}),
+]
 
 
 def equal_mrms(models: list[str], keys: int) -> str:
@@ -182,11 +186,15 @@ def equal_mrms(models: list[str], keys: int) -> str:
     (blind: the 64-bit word read; Cho: its 64 payload bits), so rows of equal MRMS can be compared."""
     from pmwm_bench.methods import SchemeMethod
 
-    out = ["## Blind scheme against Cho I and II at several strengths (equal MRMS)", "",
-           f"{keys} keys per row; 64 bits (blind: 32 payload + 32 check; the word read in the frame the verdict kept "
-           "when marked, else the reader's guess, as in section blind). BER per attack, mean over the keys.", "",
-           "| model | method | strength | MRMS % | " + " | ".join(lbl for lbl, _, _ in EQUAL_ATTACKS) + " |",
-           "|---|---|---|---|" + "---|" * len(EQUAL_ATTACKS)]
+    out = [
+        "## Blind scheme against Cho I and II at several strengths (equal MRMS)",
+        "",
+        f"{keys} keys per row; 64 bits (blind: 32 payload + 32 check; the word read in the frame the verdict kept "
+        "when marked, else the reader's guess, as in section blind). BER per attack, mean over the keys.",
+        "",
+        "| model | method | strength | MRMS % | " + " | ".join(lbl for lbl, _, _ in EQUAL_ATTACKS) + " |",
+        "|---|---|---|---|" + "---|" * len(EQUAL_ATTACKS),
+    ]
     for model in models:
         V, F = load(model)
         for scheme, grid in EQUAL_GRID.items():
@@ -196,9 +204,18 @@ def equal_mrms(models: list[str], keys: int) -> str:
                     seed = 2000 + k
                     if scheme == "blind":
                         payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
-                        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed,
-                                                                 strength=strength, passphrase=phrase_of(seed),
-                                                                 base_ratio=1.0))
+                        res = pmwm.embed(
+                            V,
+                            F,
+                            pmwm.EmbedOptions(
+                                scheme="blind",
+                                bits=payload,
+                                seed=seed,
+                                strength=strength,
+                                passphrase=phrase_of(seed),
+                                base_ratio=1.0,
+                            ),
+                        )
                         marked = res.vertices
                     else:
                         bits = np.random.default_rng(seed).integers(0, 2, 64)
@@ -212,8 +229,11 @@ def equal_mrms(models: list[str], keys: int) -> str:
                         else:
                             got = np.array(list(method.extract(Va, Fa, key)), dtype=int)
                             bers[lbl].append(float(np.mean(got != bits)))
-                out.append(f"| {model} | {scheme} | {strength:g} | {np.mean(mr):.4f} | "
-                           + " | ".join(f"{np.mean(bers[lbl]):.3f}" for lbl, _, _ in EQUAL_ATTACKS) + " |")
+                out.append(
+                    f"| {model} | {scheme} | {strength:g} | {np.mean(mr):.4f} | "
+                    + " | ".join(f"{np.mean(bers[lbl]):.3f}" for lbl, _, _ in EQUAL_ATTACKS)
+                    + " |"
+                )
                 print(out[-1], file=sys.stderr, flush=True)
     return "\n".join(out)
 
@@ -225,8 +245,11 @@ def main(argv=None) -> int:
     ap.add_argument("--fp", type=int, default=10000, help="verifications of unmarked meshes")
     ap.add_argument("--quick", action="store_true", help="the quick attack settings")
     ap.add_argument("--no-write", action="store_true", help="print only")
-    ap.add_argument("--equal", metavar="MODELS", help="only the equal-MRMS comparison with Cho I/II on these "
-                                                      "models (section blind-equal-mrms)")
+    ap.add_argument(
+        "--equal",
+        metavar="MODELS",
+        help="only the equal-MRMS comparison with Cho I/II on these models (section blind-equal-mrms)",
+    )
     ap.add_argument("--pm-levels", action="store_true", help="only the progressive-mesh rows (first 3 keys), printed")
     a = ap.parse_args(argv)
     if a.pm_levels:
@@ -241,8 +264,9 @@ def main(argv=None) -> int:
             print(f"| {model} | {'; '.join(cells)} ({len(res.pm.level_records)} levels) |", flush=True)
         return 0
     if a.equal:
-        body = f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.\n\n" + \
-            equal_mrms(a.equal.split(","), a.keys)
+        body = f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.\n\n" + equal_mrms(
+            a.equal.split(","), a.keys
+        )
         print(body) if a.no_write else write_section("blind-equal-mrms", body)
         return 0
     models = a.models.split(",")
@@ -280,13 +304,28 @@ def main(argv=None) -> int:
             if k < 3:
                 levels.append(pm_first_level(res.pm, secret, payload))
             print(f"{model} key {k}: MRMS {m:.4f} % ({time.time() - t_start:.0f} s)", file=sys.stderr, flush=True)
-        dist_rows.append(f"| {model} | {len(V):,} | {np.mean(margins):.3f} | {np.mean(mrms):.4f} | {np.mean(haus):.4f} |")
-        rows.append((model, {g: float(np.mean(v)) for g, v in ber.items()},
-                     {g: float(np.mean(v)) for g, v in ber_returned.items()}))
-        whole_rows.append((model, {g: (int(np.sum(v)), len(v), int(np.sum(whole_own[g]))) for g, v in whole.items()},
-                           float(np.mean(mrms))))
-        pm_rows.append(f"| {model} | " + ", ".join(
-            (f"{f:,} of {n:,} ({100 * f / n:.0f} %)" if f > 0 else f"none of {n:,}") for f, n in levels) + " |")
+        dist_rows.append(
+            f"| {model} | {len(V):,} | {np.mean(margins):.3f} | {np.mean(mrms):.4f} | {np.mean(haus):.4f} |"
+        )
+        rows.append(
+            (
+                model,
+                {g: float(np.mean(v)) for g, v in ber.items()},
+                {g: float(np.mean(v)) for g, v in ber_returned.items()},
+            )
+        )
+        whole_rows.append(
+            (
+                model,
+                {g: (int(np.sum(v)), len(v), int(np.sum(whole_own[g]))) for g, v in whole.items()},
+                float(np.mean(mrms)),
+            )
+        )
+        pm_rows.append(
+            f"| {model} | "
+            + ", ".join((f"{f:,} of {n:,} ({100 * f / n:.0f} %)" if f > 0 else f"none of {n:,}") for f, n in levels)
+            + " |"
+        )
 
     # ---- false positives
     fp_meshes = []
@@ -329,49 +368,86 @@ def main(argv=None) -> int:
 
     # ---- markdown
     groups = [(g, label) for g, items in settings.items() for (label, *_rest) in items]
-    out = ["## Blind scheme: read with a pass phrase alone", "",
-           f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. "
-           f"{a.keys} keys per model (one pass phrase and random 32-bit payload each; 64 bits embedded: "
-           f"32 payload + 32 check); default strength: the bin-mean margin calibrated per mesh to MRMS "
-           f"{blind.TARGET_MRMS} % (``blind.TARGET_MRMS``).", "",
-           "Embedding distortion (% of the bounding-box diagonal, mean over the keys):", "",
-           "| model | vertices | margin (mean) | MRMS % | Hausdorff % |", "|---|---|---|---|---|", *dist_rows, "",
-           "BER of the 64-bit word read (hard decisions in the frame the verdict kept when marked, else the reader's "
-           "guess: the suspect's own frame, or for a copy on a coarse grid the copy as it is or smoothed by 3 to 16 "
-           "steps, whichever shows the most mark energy, no pass phrase involved; mean over the keys), benchmark "
-           "protocol:", "",
-           "| attack | " + " | ".join(m for m, _, _ in rows) + " |", "|---|" + "---|" * len(rows)]
+    out = [
+        "## Blind scheme: read with a pass phrase alone",
+        "",
+        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. "
+        f"{a.keys} keys per model (one pass phrase and random 32-bit payload each; 64 bits embedded: "
+        f"32 payload + 32 check); default strength: the bin-mean margin calibrated per mesh to MRMS "
+        f"{blind.TARGET_MRMS} % (``blind.TARGET_MRMS``).",
+        "",
+        "Embedding distortion (% of the bounding-box diagonal, mean over the keys):",
+        "",
+        "| model | vertices | margin (mean) | MRMS % | Hausdorff % |",
+        "|---|---|---|---|---|",
+        *dist_rows,
+        "",
+        "BER of the 64-bit word read (hard decisions in the frame the verdict kept when marked, else the reader's "
+        "guess: the suspect's own frame, or for a copy on a coarse grid the copy as it is or smoothed by 3 to 16 "
+        "steps, whichever shows the most mark energy, no pass phrase involved; mean over the keys), benchmark "
+        "protocol:",
+        "",
+        "| attack | " + " | ".join(m for m, _, _ in rows) + " |",
+        "|---|" + "---|" * len(rows),
+    ]
     for g, label in groups:
         out.append(f"| {g} {label} | " + " | ".join(f"{r[(g, label)]:.3f}" for _, r, _ in rows) + " |")
-    out += ["", "BER of the word the reader returns (the word it decoded, payload and check bits, when the verdict "
-            "is marked: 0 when the whole payload is read; else the hard decisions above; mean over the keys), "
-            "benchmark protocol:", "",
-            "| attack | " + " | ".join(m for m, _, _ in rows) + " |", "|---|" + "---|" * len(rows)]
+    out += [
+        "",
+        "BER of the word the reader returns (the word it decoded, payload and check bits, when the verdict "
+        "is marked: 0 when the whole payload is read; else the hard decisions above; mean over the keys), "
+        "benchmark protocol:",
+        "",
+        "| attack | " + " | ".join(m for m, _, _ in rows) + " |",
+        "|---|" + "---|" * len(rows),
+    ]
     for g, label in groups:
         out.append(f"| {g} {label} | " + " | ".join(f"{r[(g, label)]:.3f}" for _, _, r in rows) + " |")
-    out += ["", "Whole payload read (marked, p < 1e-6, exact payload) / copies; in brackets, the same copies read "
-            "in the suspect's own frame alone (the reader without the frame refinement, measured in the same run):", "",
-            "| attack | " + " | ".join(m for m, _, _ in whole_rows) + " |", "|---|" + "---|" * len(whole_rows),
-            "| embedding MRMS % (mean) | " + " | ".join(f"{mr:.4f}" for _, _, mr in whole_rows) + " |"]
+    out += [
+        "",
+        "Whole payload read (marked, p < 1e-6, exact payload) / copies; in brackets, the same copies read "
+        "in the suspect's own frame alone (the reader without the frame refinement, measured in the same run):",
+        "",
+        "| attack | " + " | ".join(m for m, _, _ in whole_rows) + " |",
+        "|---|" + "---|" * len(whole_rows),
+        "| embedding MRMS % (mean) | " + " | ".join(f"{mr:.4f}" for _, _, mr in whole_rows) + " |",
+    ]
     labels = [label for label, _ in WHOLE] + [f"benchmark: {g} {label}" for g, label in groups]
     for label in labels:
-        out.append(f"| {label} | " + " | ".join(f"{w[label][0]}/{w[label][1]} ({w[label][2]})"
-                                                for _, w, _ in whole_rows) + " |")
-    out += ["", "Progressive mesh (first 3 keys; base ratio 0.03): the coarsest level from which every finer "
-            "level reads the whole payload:", "", "| model | vertices at that level, per key |", "|---|---|",
-            *pm_rows, "",
-            f"False positives: {len(ps):,} verifications of unmarked meshes ({len(stats)} shapes: every mesh of "
-            f"the data folder and 20 procedural ones; {per} random secrets each, then 20 real pass phrases "
-            f"through scrypt); decision time {t_fp:.1f} s for the random secrets.", "",
-            "| threshold | verdicts at or below | observed rate |", "|---|---|---|"]
+        out.append(
+            f"| {label} | "
+            + " | ".join(f"{w[label][0]}/{w[label][1]} ({w[label][2]})" for _, w, _ in whole_rows)
+            + " |"
+        )
+    out += [
+        "",
+        "Progressive mesh (first 3 keys; base ratio 0.03): the coarsest level from which every finer "
+        "level reads the whole payload:",
+        "",
+        "| model | vertices at that level, per key |",
+        "|---|---|",
+        *pm_rows,
+        "",
+        f"False positives: {len(ps):,} verifications of unmarked meshes ({len(stats)} shapes: every mesh of "
+        f"the data folder and 20 procedural ones; {per} random secrets each, then 20 real pass phrases "
+        f"through scrypt); decision time {t_fp:.1f} s for the random secrets.",
+        "",
+        "| threshold | verdicts at or below | observed rate |",
+        "|---|---|---|",
+    ]
     for alpha in (1e-2, 1e-3, 1e-6):
         n = int(np.sum(ps <= alpha))
         out.append(f"| p <= {alpha:g} | {n} | {n / len(ps):.2e} |")
     out += ["", f"Smallest p-value seen: {ps.min():.3g}.", ""]
     if speed:
-        out += ["Speed (OMP_NUM_THREADS as set; end to end from arrays: embed with the progressive mesh; "
-                "verify with the pass phrase, scrypt included, best of 3):", "",
-                "| model | vertices | embed | verify |", "|---|---|---|---|", *speed]
+        out += [
+            "Speed (OMP_NUM_THREADS as set; end to end from arrays: embed with the progressive mesh; "
+            "verify with the pass phrase, scrypt included, best of 3):",
+            "",
+            "| model | vertices | embed | verify |",
+            "|---|---|---|---|",
+            *speed,
+        ]
     body = "\n".join(out)
     if a.no_write:
         print(body)

@@ -28,22 +28,25 @@ from pmwm.progressive import to_bytes  # noqa: E402
 
 MODELS = ("bunny", "igea")  # names in the catalogue, pmwm_bench.models
 ROOT = Path(__file__).resolve().parents[1]
-ANCHOR = ("import sys, trimesh, fast_simplification; m = trimesh.load(sys.argv[1], process=False); "
-          "fast_simplification.simplify(m.vertices, m.faces, target_reduction=0.99)")
+ANCHOR = (
+    "import sys, trimesh, fast_simplification; m = trimesh.load(sys.argv[1], process=False); "
+    "fast_simplification.simplify(m.vertices, m.faces, target_reduction=0.99)"
+)
 
 
 def zip_sizes(tmp: str) -> list[tuple[str, float]]:
     """(file name, MiB) of every extension zip build_addon.py builds."""
     out = Path(tmp) / "dist"
-    subprocess.run([sys.executable, str(ROOT / "build_addon.py"), "--out-dir", str(out)], check=True,
-                   stdout=subprocess.DEVNULL)
+    subprocess.run(
+        [sys.executable, str(ROOT / "build_addon.py"), "--out-dir", str(out)], check=True, stdout=subprocess.DEVNULL
+    )
     return [(z.name, z.stat().st_size / 2**20) for z in sorted(out.glob("*.zip"))]
 
 
 def without_pm(cmd: list[str]) -> list[str]:
     """The command line ``cmd`` without its ``--pm FILE``."""
     i = cmd.index("--pm")
-    return cmd[:i] + cmd[i + 2:]
+    return cmd[:i] + cmd[i + 2 :]
 
 
 def best_of(fn, repeat: int = 3) -> float:
@@ -72,17 +75,51 @@ def main() -> None:
             out = os.path.join(tmp, f"{name}_marked.ply")
             key = os.path.join(tmp, f"{name}.key.json")
             pmf = os.path.join(tmp, f"{name}.pmwm")
-            cli = [sys.executable, "-m", "pmwm", "embed", src_path, "-o", out, "--key", key, "--pm", pmf,
-                   "--payload", "bench", "--seed", "1", "--force", "-q"]
-            blind = [sys.executable, "-m", "pmwm", "embed", src_path, "-o", os.path.join(tmp, f"{name}_blind.ply"),
-                     "--scheme", "blind", "--pm", os.path.join(tmp, f"{name}_blind.pmwm"), "--payload", "bench",
-                     "--seed", "1", "--force", "-q"]
+            cli = [
+                sys.executable,
+                "-m",
+                "pmwm",
+                "embed",
+                src_path,
+                "-o",
+                out,
+                "--key",
+                key,
+                "--pm",
+                pmf,
+                "--payload",
+                "bench",
+                "--seed",
+                "1",
+                "--force",
+                "-q",
+            ]
+            blind = [
+                sys.executable,
+                "-m",
+                "pmwm",
+                "embed",
+                src_path,
+                "-o",
+                os.path.join(tmp, f"{name}_blind.ply"),
+                "--scheme",
+                "blind",
+                "--pm",
+                os.path.join(tmp, f"{name}_blind.pmwm"),
+                "--payload",
+                "bench",
+                "--seed",
+                "1",
+                "--force",
+                "-q",
+            ]
             # without --pm: the same marked mesh (and key), no progressive mesh built
             cli_flat, blind_flat = without_pm(cli), without_pm(blind)
             # the commands and their anchor alternate, so that a slow spell of this shared machine hits all
             env = dict(os.environ, PMWM_PASSPHRASE="bench core pass phrase")
-            (t_cli, c_cli), (t_blind, c_blind), (t_flat, c_flat), (t_bflat, c_bflat), (t_anchor, c_anchor) = \
+            (t_cli, c_cli), (t_blind, c_blind), (t_flat, c_flat), (t_bflat, c_bflat), (t_anchor, c_anchor) = (
                 best_alternating([cli, blind, cli_flat, blind_flat, [sys.executable, "-c", ANCHOR, src_path]], 5, env)
+            )
             t_py0 = best_of(lambda: subprocess.run([sys.executable, "-c", "import pmwm.cli"], check=True), 2)
             src = pmwm.read_mesh(src_path)
             t_read = best_of(lambda: pmwm.read_mesh(src_path))
@@ -108,9 +145,27 @@ def main() -> None:
                 lod_bits = res.key.n_bits
             size = len(to_bytes(pm))
             head = size - pm.n_records * 24  # header, base mesh, level table, checksum
-            rows.append((name, len(src.vertices), t_cli, t_py0, t_read, t_embed, pm.n_records, t_decode,
-                         t_verify, t_verify_pos, size, len(pm.level_records), head, t_anchor))
-            cpu_rows.append((name, t_cli, c_cli, t_blind, c_blind, t_anchor, c_anchor, t_flat, c_flat, t_bflat, c_bflat))
+            rows.append(
+                (
+                    name,
+                    len(src.vertices),
+                    t_cli,
+                    t_py0,
+                    t_read,
+                    t_embed,
+                    pm.n_records,
+                    t_decode,
+                    t_verify,
+                    t_verify_pos,
+                    size,
+                    len(pm.level_records),
+                    head,
+                    t_anchor,
+                )
+            )
+            cpu_rows.append(
+                (name, t_cli, c_cli, t_blind, c_blind, t_anchor, c_anchor, t_flat, c_flat, t_bflat, c_bflat)
+            )
         demo = [sys.executable, "-m", "pmwm", "demo", os.path.join(tmp, "demo"), "--force"]
         t_demo = best_of(lambda: subprocess.run(demo, check=True, stdout=subprocess.DEVNULL), 3)
         demo_out = subprocess.run(demo, check=True, capture_output=True, text=True).stdout
@@ -124,7 +179,7 @@ def main() -> None:
         "| mesh | vertices | `pmwm embed` CLI end to end | anchor: fast-simplification to 1 %, whole process | ratio | of which Python start + import | read mesh | `pmwm.embed()` | records | full decode | records/s | verify (index) | verify (re-ordered copy) | .pmwm bytes | bytes/record |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for (name, n, t_cli, t_py0, t_read, t_embed, nrec, t_dec, t_ver, t_verp, size, _, head, t_anc) in rows:
+    for name, n, t_cli, t_py0, t_read, t_embed, nrec, t_dec, t_ver, t_verp, size, _, head, t_anc in rows:
         lines.append(
             f"| {name} | {n:,} | {t_cli:.2f} s | {t_anc:.2f} s | {t_cli / t_anc:.2f} | {t_py0:.2f} s | {t_read:.3f} s | {t_embed:.2f} s | {nrec:,} | "
             f"{t_dec * 1000:.0f} ms | {nrec / t_dec / 1e6:.2f} M | {t_ver * 1000:.1f} ms | {t_verp * 1000:.1f} ms | "
@@ -142,9 +197,11 @@ def main() -> None:
         "| mesh | robust --pm: wall / CPU | ratio to the anchor (wall) | blind --pm: wall / CPU | ratio (wall) | "
         "robust, no --pm | ratio | blind, no --pm | ratio | anchor: wall / CPU |",
         "|---|---|---|---|---|---|---|---|---|---|",
-        *[f"| {name} | {tc:.2f} / {cc:.2f} s | {tc / ta:.2f} | {tb:.2f} / {cb:.2f} s | {tb / ta:.2f} | "
-          f"{tf:.2f} / {cf:.2f} s | {tf / ta:.2f} | {tbf:.2f} / {cbf:.2f} s | {tbf / ta:.2f} | {ta:.2f} / {ca:.2f} s |"
-          for name, tc, cc, tb, cb, ta, ca, tf, cf, tbf, cbf in cpu_rows],
+        *[
+            f"| {name} | {tc:.2f} / {cc:.2f} s | {tc / ta:.2f} | {tb:.2f} / {cb:.2f} s | {tb / ta:.2f} | "
+            f"{tf:.2f} / {cf:.2f} s | {tf / ta:.2f} | {tbf:.2f} / {cbf:.2f} s | {tbf / ta:.2f} | {ta:.2f} / {ca:.2f} s |"
+            for name, tc, cc, tb, cb, ta, ca, tf, cf, tbf, cbf in cpu_rows
+        ],
     ]
     ig = [r for r in rows if r[0] == "igea"][0]
     igb = [r for r in cpu_rows if r[0] == "igea"][0]
@@ -171,7 +228,7 @@ def main() -> None:
     ]
     lines += [
         "",
-        "Watermark read from the progressive mesh of the bunny at every level of detail (payload \"bench\", "
+        'Watermark read from the progressive mesh of the bunny at every level of detail (payload "bench", '
         f"{lod_bits} bits, seed 1): BER per level, base mesh first.",
         "",
         "| vertices | " + " | ".join(f"{n:,}" for _, n, _ in lod_rows) + " |",

@@ -77,21 +77,26 @@ def pose_reorder(V, F, seed):
 
 ATTACKS = {
     "pose+reorder": pose_reorder,
-    **{f"re-export {e[1:].upper()}": (lambda e: lambda V, F, s: attacks.reexport(V, F, e))(e)
-       for e in (".obj", ".ply", ".stl", ".glb")},
+    **{
+        f"re-export {e[1:].upper()}": (lambda e: lambda V, F, s: attacks.reexport(V, F, e))(e)
+        for e in (".obj", ".ply", ".stl", ".glb")
+    },
     "quantization 8 bits": lambda V, F, s: attacks.quantize(V, F, bits=8),
     "noise 0.1 % diag": noise_diagonal,
     "Laplacian 5 x 0.5": lambda V, F, s: attacks.smooth_laplacian(V, F, lam=0.5, iterations=5),
-    "cotangent 5 (pymeshlab)": lambda V, F, s: _ml(V, F, lambda ms, ml: ms.apply_coord_laplacian_smoothing(
-        stepsmoothnum=5)),
+    "cotangent 5 (pymeshlab)": lambda V, F, s: _ml(
+        V, F, lambda ms, ml: ms.apply_coord_laplacian_smoothing(stepsmoothnum=5)
+    ),
     "simplify 50 % (fast-simplification)": lambda V, F, s: attacks.simplify(V, F, ratio=0.5),
     "simplify 50 % (pymeshlab quadric)": lambda V, F, s: _ml(
-        V, F, lambda ms, ml: ms.meshing_decimation_quadric_edge_collapse(targetfacenum=len(F) // 2)),
+        V, F, lambda ms, ml: ms.meshing_decimation_quadric_edge_collapse(targetfacenum=len(F) // 2)
+    ),
     "subdivision midpoint": lambda V, F, s: attacks.subdivide(V, F, "midpoint"),
     "subdivision Loop": lambda V, F, s: attacks.subdivide(V, F, "loop"),
     "crop 10 % plane": lambda V, F, s: attacks.crop_plane(V, F, fraction=0.1, seed=s),
-    "isotropic remesh (pymeshlab)": lambda V, F, s: _ml(V, F, lambda ms, ml: ms.meshing_isotropic_explicit_remeshing(
-        targetlen=ml.PureValue(mean_edge(V, F)))),
+    "isotropic remesh (pymeshlab)": lambda V, F, s: _ml(
+        V, F, lambda ms, ml: ms.meshing_isotropic_explicit_remeshing(targetlen=ml.PureValue(mean_edge(V, F)))
+    ),
 }
 
 
@@ -104,20 +109,27 @@ def run_mesh(name, V, F, phrase, attack_seed, doc, keys):
     entry = {"mesh": name, "vertices": len(V), "faces": len(F), "schemes": {}}
     for scheme in ("robust", "blind"):
         t0 = time.perf_counter()
-        opts = pmwm.EmbedOptions(scheme=scheme, payload=PAYLOAD, progressive=False,
-                                 passphrase=phrase if scheme == "blind" else None)
+        opts = pmwm.EmbedOptions(
+            scheme=scheme, payload=PAYLOAD, progressive=False, passphrase=phrase if scheme == "blind" else None
+        )
         try:
             res = pmwm.embed(V, F, opts)
         except PmwmError as exc:
             entry["schemes"][scheme] = {"refused": str(exc)}
             print(f"  {name} {scheme}: refused: {exc}", flush=True)
             continue
-        out = {"embed_s": time.perf_counter() - t0,
-               "mrms": metrics.surface_distance(V, F, res.vertices, res.faces, 20000, seed=1)[0], "attacks": {}}
+        out = {
+            "embed_s": time.perf_counter() - t0,
+            "mrms": metrics.surface_distance(V, F, res.vertices, res.faces, 20000, seed=1)[0],
+            "attacks": {},
+        }
         if scheme == "robust":
             keys.append((name, res.key))
-        verify = (lambda Va, Fa: pmwm.verify(Va, Fa, res.key)) if scheme == "robust" else \
-            (lambda Va, Fa: pmwm.verify(Va, Fa, passphrase=phrase))
+        verify = (
+            (lambda Va, Fa: pmwm.verify(Va, Fa, res.key))
+            if scheme == "robust"
+            else (lambda Va, Fa: pmwm.verify(Va, Fa, passphrase=phrase))
+        )
         for i, (label, fn) in enumerate(ATTACKS.items()):
             try:
                 Va, Fa = fn(res.vertices, res.faces, attack_seed + i)
@@ -176,37 +188,55 @@ def merged(docs: list) -> dict:
     doc = {"meshes": [m for d in docs for m in d["meshes"]], "runs": docs}
     fps = [d["false_positives"] for d in docs if d.get("false_positives")]
     if fps:
-        doc["false_positives"] = {k: {c: sum(f[k][c] for f in fps) for c in fps[0][k] if c != "command"}
-                                  for k in ("blind_unmarked", "blind_wrong_phrase", "robust")}
+        doc["false_positives"] = {
+            k: {c: sum(f[k][c] for f in fps) for c in fps[0][k] if c != "command"}
+            for k in ("blind_unmarked", "blind_wrong_phrase", "robust")
+        }
     return doc
 
 
 def markdown(doc) -> str:
-    groups = {"report-only data meshes": [m for m in doc["meshes"] if ":" not in m["mesh"]],
-              "generated shapes": [m for m in doc["meshes"] if ":" in m["mesh"]]}
-    lines = [f"Held-out robustness (`benchmarks/bench_heldout.py`): payload `{PAYLOAD}`, default settings; "
-             "a copy counts when the verdict is marked (p < 1e-6) with the whole payload; a refused embed "
-             "counts as a copy not read.", ""]
+    groups = {
+        "report-only data meshes": [m for m in doc["meshes"] if ":" not in m["mesh"]],
+        "generated shapes": [m for m in doc["meshes"] if ":" in m["mesh"]],
+    }
+    lines = [
+        f"Held-out robustness (`benchmarks/bench_heldout.py`): payload `{PAYLOAD}`, default settings; "
+        "a copy counts when the verdict is marked (p < 1e-6) with the whole payload; a refused embed "
+        "counts as a copy not read.",
+        "",
+    ]
     for run in doc.get("runs", [doc]):
-        lines += [f"- run `{run['command']}` at commit {run['commit']}, {run['started']} - "
-                  f"{run.get('finished', 'cut short')}; attack seed {run['attack_seed']}, blind pass phrase "
-                  f"`{run['phrase']}`; generated shapes (family: seeds from os.urandom): "
-                  + ("; ".join(f"{f}: {', '.join(map(str, s))}" for f, s in run["corpus_seeds"].items()) or "none")]
+        lines += [
+            f"- run `{run['command']}` at commit {run['commit']}, {run['started']} - "
+            f"{run.get('finished', 'cut short')}; attack seed {run['attack_seed']}, blind pass phrase "
+            f"`{run['phrase']}`; generated shapes (family: seeds from os.urandom): "
+            + ("; ".join(f"{f}: {', '.join(map(str, s))}" for f, s in run["corpus_seeds"].items()) or "none")
+        ]
     lines += [f"- machine: {doc.get('runs', [doc])[0]['machine']}", ""]
-    head = "| attack | " + " | ".join(f"{s} on {g} ({len(ms)})" for s in ("robust", "blind")
-                                      for g, ms in groups.items()) + " |"
+    head = (
+        "| attack | "
+        + " | ".join(f"{s} on {g} ({len(ms)})" for s in ("robust", "blind") for g, ms in groups.items())
+        + " |"
+    )
     lines += [head, "|" + "---|" * (1 + 2 * len(groups))]
 
     def cell(scheme, ms, label):
         got = [m["schemes"].get(scheme, {}) for m in ms]
-        rows = [g["attacks"][label] for g in got if "attacks" in g and label in g["attacks"]
-                and "attack_failed" not in g["attacks"][label]]
+        rows = [
+            g["attacks"][label]
+            for g in got
+            if "attacks" in g and label in g["attacks"] and "attack_failed" not in g["attacks"][label]
+        ]
         refused = sum("refused" in g for g in got)
         return f"{sum(r['read'] for r in rows)}/{len(rows) + refused}"
 
     for label in ATTACKS:
-        lines.append(f"| {label} | " + " | ".join(cell(s, ms, label) for s in ("robust", "blind")
-                                                   for ms in groups.values()) + " |")
+        lines.append(
+            f"| {label} | "
+            + " | ".join(cell(s, ms, label) for s in ("robust", "blind") for ms in groups.values())
+            + " |"
+        )
     lines.append("")
     for s in ("robust", "blind"):
         for g, ms in groups.items():
@@ -214,29 +244,51 @@ def markdown(doc) -> str:
             mr = [x["mrms"] for x in got if "mrms" in x]
             refused = [m["mesh"] for m in ms if "refused" in m["schemes"].get(s, {})]
             if mr:
-                lines.append(f"- {s} on {g}: marking MRMS (% of the bbox diagonal) median {np.median(mr):.4f}, "
-                             f"max {max(mr):.4f}" + (f"; embed refused on {', '.join(refused)}" if refused else ""))
+                lines.append(
+                    f"- {s} on {g}: marking MRMS (% of the bbox diagonal) median {np.median(mr):.4f}, "
+                    f"max {max(mr):.4f}" + (f"; embed refused on {', '.join(refused)}" if refused else "")
+                )
     for s in ("robust", "blind"):
-        wrong = [f"{m['mesh']} / {a}" for m in doc["meshes"]
-                 for a, r in m["schemes"].get(s, {}).get("attacks", {}).items()
-                 if r.get("marked") and not r.get("read")]
+        wrong = [
+            f"{m['mesh']} / {a}"
+            for m in doc["meshes"]
+            for a, r in m["schemes"].get(s, {}).get("attacks", {}).items()
+            if r.get("marked") and not r.get("read")
+        ]
         if wrong:
-            lines.append(f"- {s}: marked (p < 1e-6) without the whole payload in {len(wrong)} copies: "
-                         + "; ".join(wrong))
+            lines.append(
+                f"- {s}: marked (p < 1e-6) without the whole payload in {len(wrong)} copies: " + "; ".join(wrong)
+            )
     fp = doc.get("false_positives")
     if fp:
         b, bm, r = fp["blind_unmarked"], fp["blind_wrong_phrase"], fp["robust"]
-        lines += ["", "False positives (verdicts with p below each level):", "",
-                  "| reading | verifications | p < 1e-2 | p < 1e-3 | p < 1e-6 (marked) |", "|---|---|---|---|---|",
-                  *[f"| {lab} | {c['verifications']} | {c['p<1e-2']} | {c['p<1e-3']} | {c['p<1e-6']} |"
-                    for lab, c in (("blind, unmarked shapes x random phrases", b),
-                                   ("blind, marked copies x wrong phrases", bm),
-                                   ("robust, unmarked originals x own key and 2 others", r))]]
-    failed = [(m["mesh"], s, a, r["attack_failed"]) for m in doc["meshes"] for s, x in m["schemes"].items()
-              for a, r in x.get("attacks", {}).items() if "attack_failed" in r]
+        lines += [
+            "",
+            "False positives (verdicts with p below each level):",
+            "",
+            "| reading | verifications | p < 1e-2 | p < 1e-3 | p < 1e-6 (marked) |",
+            "|---|---|---|---|---|",
+            *[
+                f"| {lab} | {c['verifications']} | {c['p<1e-2']} | {c['p<1e-3']} | {c['p<1e-6']} |"
+                for lab, c in (
+                    ("blind, unmarked shapes x random phrases", b),
+                    ("blind, marked copies x wrong phrases", bm),
+                    ("robust, unmarked originals x own key and 2 others", r),
+                )
+            ],
+        ]
+    failed = [
+        (m["mesh"], s, a, r["attack_failed"])
+        for m in doc["meshes"]
+        for s, x in m["schemes"].items()
+        for a, r in x.get("attacks", {}).items()
+        if "attack_failed" in r
+    ]
     if failed:
-        lines += ["", "Attacks that could not run (not counted): "
-                  + "; ".join(f"{m} {s} {a}: {e}" for m, s, a, e in failed)]
+        lines += [
+            "",
+            "Attacks that could not run (not counted): " + "; ".join(f"{m} {s} {a}: {e}" for m, s, a, e in failed),
+        ]
     return "\n".join(lines) + "\n"
 
 
@@ -251,8 +303,11 @@ def main(argv=None) -> int:
     ap.add_argument("--md", default=str(RESULTS / "heldout.md"))
     ap.add_argument("--markdown-only", action="store_true")
     ap.add_argument("--also", nargs="*", default=[], help="with --markdown-only: more results files to merge")
-    ap.add_argument("--fp-only", action="store_true",
-                    help="the false positives alone, on the shapes of the results file (a run cut short)")
+    ap.add_argument(
+        "--fp-only",
+        action="store_true",
+        help="the false positives alone, on the shapes of the results file (a run cut short)",
+    )
     a = ap.parse_args(argv)
     if a.fp_only:
         return false_positives_again(a)
@@ -265,9 +320,17 @@ def main(argv=None) -> int:
     seeds = split.draw_corpus(a.per_family, fams) if a.per_family else {}
     attack_seed = split.fresh_seeds(1)[0] % 2**40
     phrase = f"heldout {split.fresh_seeds(1)[0]:x}"
-    doc = {"command": command(), "commit": commit(), "machine": machine(),
-           "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "corpus_seeds": seeds,
-           "vertices_aimed": a.vertices, "attack_seed": attack_seed, "phrase": phrase, "meshes": []}
+    doc = {
+        "command": command(),
+        "commit": commit(),
+        "machine": machine(),
+        "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+        "corpus_seeds": seeds,
+        "vertices_aimed": a.vertices,
+        "attack_seed": attack_seed,
+        "phrase": phrase,
+        "meshes": [],
+    }
 
     def save():
         clean = json.loads(json.dumps(doc, default=lambda o: None))
@@ -278,12 +341,15 @@ def main(argv=None) -> int:
         os.replace(tmp, a.out)
 
     generated = [(f, s) for f, ss in seeds.items() for s in ss]
-    order = [x for pair in zip(names, generated) for x in pair] + names[len(generated):] + generated[len(names):]
+    order = [x for pair in zip(names, generated) for x in pair] + names[len(generated) :] + generated[len(names) :]
     shapes = []
     keys, marked = [], []
     for item in order:  # data meshes and generated shapes in turn: a run cut short has some of each
-        name, V, F = (item, *pmwm_load(item)) if isinstance(item, str) else \
-            (f"{item[0]}:{item[1]}", *corpus.generate(item[0], item[1], a.vertices or None))
+        name, V, F = (
+            (item, *pmwm_load(item))
+            if isinstance(item, str)
+            else (f"{item[0]}:{item[1]}", *corpus.generate(item[0], item[1], a.vertices or None))
+        )
         shapes.append((name, V, F))
         print(name, len(V), flush=True)
         entry = run_mesh(name, V, F, phrase, attack_seed, doc, keys)
@@ -319,8 +385,16 @@ def false_positives_again(a) -> int:
         for scheme in ("robust", "blind"):
             if "refused" in m["schemes"].get(scheme, {"refused": 1}):
                 continue
-            res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme=scheme, payload=PAYLOAD, progressive=False,
-                                                     passphrase=doc["phrase"] if scheme == "blind" else None))
+            res = pmwm.embed(
+                V,
+                F,
+                pmwm.EmbedOptions(
+                    scheme=scheme,
+                    payload=PAYLOAD,
+                    progressive=False,
+                    passphrase=doc["phrase"] if scheme == "blind" else None,
+                ),
+            )
             (keys.append((name, res.key)) if scheme == "robust" else marked.append((res.vertices, F)))
         print(name, flush=True)
     rng = np.random.default_rng(doc["attack_seed"])

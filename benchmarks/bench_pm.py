@@ -42,7 +42,7 @@ from _report import ROOT, command, commit, load, machine, write_section  # noqa:
 
 BASE_RATIO = 0.03  # the embedders' default base ratio
 LOD_SAMPLES = 20000  # surface samples each way for the levels' distances
-NUMBA_PROBE = r'''
+NUMBA_PROBE = r"""
 import json, sys, time
 t0 = time.perf_counter()
 import numpy as np
@@ -97,7 +97,7 @@ for _ in range(5):
     runs.append(time.perf_counter() - s)
 print(json.dumps({"numba": numba.__version__, "numpy": np.__version__, "python": sys.version.split()[0],
                   "import_s": t1 - t0, "first_call_s": t3 - t2, "run_s": min(runs)}))
-'''
+"""
 NEW_CORE = ROOT / "core"
 OLD_CORE = ROOT.parent / "main" / "core"
 
@@ -138,9 +138,14 @@ def worker(mesh: str, repeat: int, kernels: bool, decode_repeat: int = 10, lod: 
     except ImportError:
         pass
     out = {
-        "build_s": min(build), "decode_s": min(dec), "records": pm.n_records, "levels": len(pm.level_records),
-        "fs_s": min(fs) if fs else None, "version": pmwm.__file__,
-        "peak_mb": peak_mb, "base_mb": base_mb,
+        "build_s": min(build),
+        "decode_s": min(dec),
+        "records": pm.n_records,
+        "levels": len(pm.level_records),
+        "fs_s": min(fs) if fs else None,
+        "version": pmwm.__file__,
+        "peak_mb": peak_mb,
+        "base_mb": base_mb,
     }
     out["kernels_s"] = numpy_kernels(V, F, adj) if kernels else None  # after the peak memory was read
     out["lod"] = lod_distances(V, F, pm) if lod else None
@@ -195,20 +200,19 @@ def numba_probe(py: str, mesh: str) -> list:
         Path(script).write_text(NUMBA_PROBE)
         env = dict(os.environ, NUMBA_CACHE_DIR=os.path.join(tmp, "cache"))
         for mode in ("nocache", "cache", "cache"):
-            res = subprocess.run([py, script, mesh, mode], env=env, check=True, capture_output=True,
-                                 text=True).stdout
+            res = subprocess.run([py, script, mesh, mode], env=env, check=True, capture_output=True, text=True).stdout
             out.append(json.loads(res.strip().splitlines()[-1]))
     return out
 
 
-def run_worker(core: Path, mesh: str, repeat: int, kernels: bool = False, decode_repeat: int = 10,
-               lod: bool = False) -> dict:
+def run_worker(
+    core: Path, mesh: str, repeat: int, kernels: bool = False, decode_repeat: int = 10, lod: bool = False
+) -> dict:
     env = dict(os.environ, PYTHONPATH=str(core))
     cmd = [sys.executable, __file__, "--worker", mesh, "--repeat", str(repeat), "--decode-repeat", str(decode_repeat)]
     cmd += ["--kernels"] if kernels else []
     cmd += ["--lod"] if lod else []
-    out = subprocess.run(cmd, env=env,
-                         check=True, capture_output=True, text=True).stdout
+    out = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
@@ -296,7 +300,8 @@ def main() -> None:
         lines.append(
             f"| {name} | {nv:,} | {nf:,} | {ms(new['build_s'])} | {ms(was['build_s'] if was else None)} | {sp} "
             f"| {ms(new['fs_s'])} | {anchor} | {new['levels']} ({lv_old}) | {dec_new:.2f} M/s | {dec_old} "
-            f"| +{new['peak_mb'] - new['base_mb']:,.0f} MB (+{mem_old} MB) |")
+            f"| +{new['peak_mb'] - new['base_mb']:,.0f} MB (+{mem_old} MB) |"
+        )
     lod_rows = [(name, new, was) for name, _, _, new, was in rows if new.get("lod")]
     if lod_rows:
         lines += [
@@ -314,8 +319,10 @@ def main() -> None:
 
         for name, new, was in lod_rows:
             old_lod = was.get("lod") if was else None
-            lines.append(f"| {name} | {dist(new['lod'][0])} | {dist(old_lod[0]) if old_lod else '–'} "
-                         f"| {dist(new['lod'][1])} | {dist(old_lod[1]) if old_lod else '–'} |")
+            lines.append(
+                f"| {name} | {dist(new['lod'][0])} | {dist(old_lod[0]) if old_lod else '–'} "
+                f"| {dist(new['lod'][1])} | {dist(old_lod[1]) if old_lod else '–'} |"
+            )
     if probe:
         cold, first, warm = probe
         igea_new = next(r[3] for r in rows if r[0] == "igea")
@@ -334,8 +341,13 @@ def main() -> None:
     if a.numba_wheels:
         wheels = sorted(Path(a.numba_wheels).rglob("*.whl"))
         total = sum(w.stat().st_size for w in wheels)
-        lines += ["", "Numba wheels per platform and Python (what the extension zip would carry):", "",
-                  "| wheel | MB |", "|---|---|"]
+        lines += [
+            "",
+            "Numba wheels per platform and Python (what the extension zip would carry):",
+            "",
+            "| wheel | MB |",
+            "|---|---|",
+        ]
         lines += [f"| {w.name} | {w.stat().st_size / 1e6:.1f} |" for w in wheels]
         lines.append(f"| total ({len(wheels)} wheels) | {total / 1e6:.0f} |")
     write_section("pm-speed", "\n".join(lines))

@@ -47,8 +47,9 @@ def main() -> None:
     src = pmwm.read_mesh(args.mesh)
     V, F = src.vertices, src.faces
     robust = pmwm.embed(V, F, pmwm.EmbedOptions(payload="OWNR", seed=1, progressive=False))
-    blind = pmwm.embed(V, F, pmwm.EmbedOptions(payload="OWNR", seed=1, scheme="blind", passphrase=PHRASE,
-                                               progressive=False))
+    blind = pmwm.embed(
+        V, F, pmwm.EmbedOptions(payload="OWNR", seed=1, scheme="blind", passphrase=PHRASE, progressive=False)
+    )
     copies = {
         "marked": lambda M: (M, F),
         "moved + simplified 50 %": lambda M: attacks.similarity(*attacks.simplify(M, F, 0.5, seed=2), seed=3),
@@ -58,27 +59,34 @@ def main() -> None:
     }
     runs = []
     verdict = pmwm.verify(robust.vertices, F, robust.key)
-    runs.append(("build_report", "robust, marked", lambda p: verify_report.build_report(
-        verdict, robust.key, robust.vertices, F, progress=p)))
+    runs.append(
+        (
+            "build_report",
+            "robust, marked",
+            lambda p: verify_report.build_report(verdict, robust.key, robust.vertices, F, progress=p),
+        )
+    )
     for name, attack in copies.items():
         Vr, Fr = attack(robust.vertices)[:2]
         Vb, Fb = attack(blind.vertices)[:2]
         runs.append(("verify robust", name, lambda p, Vr=Vr, Fr=Fr: pmwm.verify(Vr, Fr, robust.key, progress=p)))
-        runs.append(("verify blind", name, lambda p, Vb=Vb, Fb=Fb: pmwm.verify(Vb, Fb, passphrase=PHRASE,
-                                                                                 progress=p)))
+        runs.append(("verify blind", name, lambda p, Vb=Vb, Fb=Fb: pmwm.verify(Vb, Fb, passphrase=PHRASE, progress=p)))
     rows = []
     for what, name, fn in runs:
         best = min((timed(fn) for _ in range(args.repeat)), key=lambda r: r[2])
         total, n, gap, after = best
         rows.append(f"| {what} | {name} | {total:.2f} | {n} | {gap:.2f} | {after} |")
         print(rows[-1], flush=True)
-    body = "\n".join([
-        f"Mesh: {Path(args.mesh).name} ({len(V):,} vertices, {len(F):,} faces). Machine: {machine()}. "
-        f"Commit: {commit()}. Command: `{command()}`.",
-        "",
-        "| call | suspect | total (s) | progress calls | longest gap (s) | gap after |",
-        "|---|---|---|---|---|---|",
-        *rows])
+    body = "\n".join(
+        [
+            f"Mesh: {Path(args.mesh).name} ({len(V):,} vertices, {len(F):,} faces). Machine: {machine()}. "
+            f"Commit: {commit()}. Command: `{command()}`.",
+            "",
+            "| call | suspect | total (s) | progress calls | longest gap (s) | gap after |",
+            "|---|---|---|---|---|---|",
+            *rows,
+        ]
+    )
     write_section("progress-gaps", body)
 
 

@@ -93,29 +93,37 @@ def robustness(model: str, keys: int, out: list, keep: dict, attacks_too: bool =
             res = pmwm.embed(V, F, opts)
             t = time.perf_counter() - t
             mrms, haus = metrics.surface_distance(V, F, res.vertices, F, n_samples=20000, seed=k)
-            dist[scheme].append((100 * res.rmse / metrics.bbox_diagonal(V), mrms, haus, res.vsnr_db, t,
-                                 res.pm.n_base_vertices))
+            dist[scheme].append(
+                (100 * res.rmse / metrics.bbox_diagonal(V), mrms, haus, res.vsnr_db, t, res.pm.n_base_vertices)
+            )
             lod[scheme].append(lod_worst_ber(res))
             if scheme == "robust" and model == "bunny":
                 keep.setdefault("robust", []).append(res)
-            for name, attack in (ATTACKS if attacks_too else []):
+            for name, attack in ATTACKS if attacks_too else []:
                 Va, Fa = attack(res.vertices, res.faces, 1000 + k)
                 v = _verify(Va, Fa, res.key)
-                rows[name][scheme].append((1.0, 1.0, False) if v is None else
-                                          (v.bit_errors / v.carriers_total, v.p_value, v.marked))
+                rows[name][scheme].append(
+                    (1.0, 1.0, False) if v is None else (v.bit_errors / v.carriers_total, v.p_value, v.marked)
+                )
     out.append(f"\n### {model} ({len(V)} vertices), {keys} keys, 64-bit payloads, strength 2\n")
-    out.append("| scheme | vertex RMSE (% diag) | MRMS (% diag) | Hausdorff (% diag) | VSNR (dB) | embed (s) "
-               "| base mesh vertices | worst BER over all LoDs |")
+    out.append(
+        "| scheme | vertex RMSE (% diag) | MRMS (% diag) | Hausdorff (% diag) | VSNR (dB) | embed (s) "
+        "| base mesh vertices | worst BER over all LoDs |"
+    )
     out.append("|---|---|---|---|---|---|---|---|")
     for scheme in ("paper", "robust"):
         d = np.array(dist[scheme])
-        out.append(f"| {scheme} | {d[:, 0].mean():.4f} | {d[:, 1].mean():.4f} | {d[:, 2].mean():.3f} "
-                   f"| {d[:, 3].mean():.1f} | {d[:, 4].mean():.1f} | {d[:, 5].mean():.0f} "
-                   f"| {max(lod[scheme]):.3f} |")
+        out.append(
+            f"| {scheme} | {d[:, 0].mean():.4f} | {d[:, 1].mean():.4f} | {d[:, 2].mean():.3f} "
+            f"| {d[:, 3].mean():.1f} | {d[:, 4].mean():.1f} | {d[:, 5].mean():.0f} "
+            f"| {max(lod[scheme]):.3f} |"
+        )
     if not attacks_too:
         return
-    out.append("\n| attack | paper BER | paper max p | paper marked | robust BER | robust max p | robust marked "
-               "| robust payload exact |")
+    out.append(
+        "\n| attack | paper BER | paper max p | paper marked | robust BER | robust max p | robust marked "
+        "| robust payload exact |"
+    )
     out.append("|---|---|---|---|---|---|---|---|")
     for name, _ in ATTACKS:
         cells = []
@@ -170,8 +178,7 @@ def false_positives(n_wrong: int, n_noise: int, keep: dict, out: list) -> None:
             nd += 1
     where.append(("other unmarked models x keys", nd))
     ps = np.array(ps)
-    out.append(f"\n### False positives (robust scheme, threshold p < 1e-6): {len(ps)} verifications, "
-               f"{marked} marked\n")
+    out.append(f"\n### False positives (robust scheme, threshold p < 1e-6): {len(ps)} verifications, {marked} marked\n")
     out.append("| source | verifications |\n|---|---|")
     out += [f"| {w} | {n} |" for w, n in where]
     out.append("\n| alpha | observed share of p <= alpha | expected (at most) |\n|---|---|---|")
@@ -188,10 +195,13 @@ def main(argv=None) -> None:
     ap.add_argument("--noise-copies", type=int, default=100)
     ap.add_argument("--lod-only", action="store_true", help="distortion and levels of detail only")
     a = ap.parse_args(argv)
-    out = ["## Robust scheme vs paper scheme", "",
-           "BER averaged over keys; 'max p' is the worst (largest) p-value over the keys; 'marked' counts "
-           "p < 1e-6; 'payload exact' counts keys with no bit error. Distortion is measured against the "
-           "unmarked mesh (MRMS and Hausdorff from 20,000 surface samples each way)."]
+    out = [
+        "## Robust scheme vs paper scheme",
+        "",
+        "BER averaged over keys; 'max p' is the worst (largest) p-value over the keys; 'marked' counts "
+        "p < 1e-6; 'payload exact' counts keys with no bit error. Distortion is measured against the "
+        "unmarked mesh (MRMS and Hausdorff from 20,000 surface samples each way).",
+    ]
     keep: dict = {}
     t = time.perf_counter()
     for model in a.models.split(","):

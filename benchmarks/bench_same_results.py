@@ -35,8 +35,11 @@ def compare(old: dict, new: dict) -> dict:
     """Counts of identical and different trials, and of cells whose new mean leaves the old mean +- std."""
     old_t, new_t = _by_trial(old), _by_trial(new)
     missing = [k for k in new_t if k not in old_t]
-    differ = [k for k in new_t if k in old_t
-              and (old_t[k]["matches"], old_t[k]["failed"]) != (new_t[k]["matches"], new_t[k]["failed"])]
+    differ = [
+        k
+        for k in new_t
+        if k in old_t and (old_t[k]["matches"], old_t[k]["failed"]) != (new_t[k]["matches"], new_t[k]["failed"])
+    ]
     cells: dict = defaultdict(lambda: ([], []))
     for k, t in old_t.items():
         cells[k[:5]][0].append(t["ber"])
@@ -44,8 +47,15 @@ def compare(old: dict, new: dict) -> dict:
         cells[k[:5]][1].append(t["ber"])
     compared = [(c, o, n) for c, (o, n) in cells.items() if n and o]
     outside = [c for c, o, n in compared if abs(np.mean(n) - np.mean(o)) > np.std(o) + 1e-12]
-    return {"trials": len(new_t), "missing": len(missing), "differ": differ, "cells": len(compared),
-            "outside": outside, "methods": sorted({k[2] for k in new_t}), "models": sorted({k[1] for k in new_t})}
+    return {
+        "trials": len(new_t),
+        "missing": len(missing),
+        "differ": differ,
+        "cells": len(compared),
+        "outside": outside,
+        "methods": sorted({k[2] for k in new_t}),
+        "models": sorted({k[1] for k in new_t}),
+    }
 
 
 def main() -> None:
@@ -59,9 +69,26 @@ def main() -> None:
         trials = args.trials
         if trials is None:
             data = next((d for d in data_dirs() if d.is_dir()), None)
-            subprocess.run([sys.executable, "-m", "pmwm_bench.cli", *args.models.split(","), "--data", str(data),
-                            "--keys", str(args.keys), "--methods", args.methods, "--section", "same",
-                            "-o", str(Path(tmp) / "B.md"), "--no-plots"], check=True)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "pmwm_bench.cli",
+                    *args.models.split(","),
+                    "--data",
+                    str(data),
+                    "--keys",
+                    str(args.keys),
+                    "--methods",
+                    args.methods,
+                    "--section",
+                    "same",
+                    "-o",
+                    str(Path(tmp) / "B.md"),
+                    "--no-plots",
+                ],
+                check=True,
+            )
             trials = Path(tmp) / "B-same" / "trials.json"
         result = compare(json.loads(COMMITTED.read_text()), json.loads(trials.read_text()))
     committed_at = "the robustness section's commit (7bf4a85)"

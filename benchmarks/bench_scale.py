@@ -28,8 +28,10 @@ from pmwm.attacks import subdivide  # noqa: E402
 def _embed(cmd: list[str], core: str | None) -> tuple[float, float]:
     """(wall time s, peak RSS MB) of one run of ``cmd`` in a fresh process (PYTHONPATH=core if given)."""
     env = dict(os.environ, PYTHONPATH=core) if core else None
-    code = ("import resource, subprocess, sys, time; t = time.perf_counter(); subprocess.run(sys.argv[1:], check=True); "
-            "print(time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)")
+    code = (
+        "import resource, subprocess, sys, time; t = time.perf_counter(); subprocess.run(sys.argv[1:], check=True); "
+        "print(time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024)"
+    )
     out = subprocess.run([sys.executable, "-c", code, *cmd], check=True, env=env, capture_output=True, text=True)
     wall, peak = map(float, out.stdout.split())
     return wall, peak
@@ -47,38 +49,61 @@ def main() -> None:
         big = os.path.join(tmp, "igea_x4.ply")
         pmwm.write_mesh(big, V, F)
         out = os.path.join(tmp, "marked.ply")
-        cmd = [sys.executable, "-m", "pmwm", "embed", big, "-o", out, "--key", os.path.join(tmp, "k.json"),
-               "--pm", os.path.join(tmp, "big.pmwm"), "--seed", "1", "-q", "--force"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pmwm",
+            "embed",
+            big,
+            "-o",
+            out,
+            "--key",
+            os.path.join(tmp, "k.json"),
+            "--pm",
+            os.path.join(tmp, "big.pmwm"),
+            "--seed",
+            "1",
+            "-q",
+            "--force",
+        ]
         runs: dict[str, list[tuple[float, float]]] = {"this": [], "old": []}
         for _ in range(max(a.repeat, 1)):
             if a.old_core:
                 runs["old"].append(_embed(cmd, a.old_core))
             runs["this"].append(_embed(cmd, None))
         elapsed, peak_mb = min(runs["this"])[0], max(p for _, p in runs["this"])
-        verify = subprocess.run([sys.executable, "-m", "pmwm", "verify", out, "--key", os.path.join(tmp, "k.json")],
-                                capture_output=True, text=True)
+        verify = subprocess.run(
+            [sys.executable, "-m", "pmwm", "verify", out, "--key", os.path.join(tmp, "k.json")],
+            capture_output=True,
+            text=True,
+        )
         pm_size = os.path.getsize(os.path.join(tmp, "big.pmwm"))
-    body = "\n".join([
-        "## Scale: one million faces",
-        "",
-        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
-        "",
-        f"`pmwm embed` (read PLY, embed, write marked PLY, key and .pmwm) on igea after one midpoint subdivision: "
-        f"{len(V):,} vertices, {len(F):,} faces.",
-        "",
-        "| wall time | peak memory (max RSS of the process) | .pmwm size | verify of the written file |",
-        "|---|---|---|---|",
-        f"| {elapsed:.1f} s | {peak_mb:,.0f} MB | {pm_size / 2**20:.1f} MiB | {verify.stdout.splitlines()[0] if verify.stdout else verify.stderr.strip()} |",
-        "",
-        f"Targets: under 1 GB peak: {'met' if peak_mb < 1024 else 'NOT met'}; embed under 10 s: "
-        f"{'met' if elapsed < 10 else 'NOT met'} ({elapsed:.1f} s for the whole command"
-        + (f", fastest of {len(runs['this'])} runs" if len(runs["this"]) > 1 else "") + ").",
-    ])
+    body = "\n".join(
+        [
+            "## Scale: one million faces",
+            "",
+            f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
+            "",
+            f"`pmwm embed` (read PLY, embed, write marked PLY, key and .pmwm) on igea after one midpoint subdivision: "
+            f"{len(V):,} vertices, {len(F):,} faces.",
+            "",
+            "| wall time | peak memory (max RSS of the process) | .pmwm size | verify of the written file |",
+            "|---|---|---|---|",
+            f"| {elapsed:.1f} s | {peak_mb:,.0f} MB | {pm_size / 2**20:.1f} MiB | {verify.stdout.splitlines()[0] if verify.stdout else verify.stderr.strip()} |",
+            "",
+            f"Targets: under 1 GB peak: {'met' if peak_mb < 1024 else 'NOT met'}; embed under 10 s: "
+            f"{'met' if elapsed < 10 else 'NOT met'} ({elapsed:.1f} s for the whole command"
+            + (f", fastest of {len(runs['this'])} runs" if len(runs["this"]) > 1 else "")
+            + ").",
+        ]
+    )
     if runs["old"]:
         o_wall, o_peak = min(runs["old"])[0], max(p for _, p in runs["old"])
-        body += (f"\n\nIn the same run, alternating, the library {a.old_label or f'at `{a.old_core}`'}: {o_wall:.1f} s, {o_peak:,.0f} MB "
-                 f"(this checkout: {elapsed:.1f} s, {peak_mb:,.0f} MB; all runs, s: this "
-                 f"{', '.join(f'{w:.1f}' for w, _ in runs['this'])}; old {', '.join(f'{w:.1f}' for w, _ in runs['old'])}).")
+        body += (
+            f"\n\nIn the same run, alternating, the library {a.old_label or f'at `{a.old_core}`'}: {o_wall:.1f} s, {o_peak:,.0f} MB "
+            f"(this checkout: {elapsed:.1f} s, {peak_mb:,.0f} MB; all runs, s: this "
+            f"{', '.join(f'{w:.1f}' for w, _ in runs['this'])}; old {', '.join(f'{w:.1f}' for w, _ in runs['old'])})."
+        )
     if a.print_only:
         print(body)
     else:

@@ -42,8 +42,11 @@ def one(path: str, payload: str, phrase: str) -> dict:
     src = pmwm.read_mesh(path)
     t0 = time.perf_counter()
     try:
-        res = pmwm.embed(src.vertices, src.faces, pmwm.EmbedOptions(scheme="blind", payload=payload,
-                                                                     passphrase=phrase, progressive=False))
+        res = pmwm.embed(
+            src.vertices,
+            src.faces,
+            pmwm.EmbedOptions(scheme="blind", payload=payload, passphrase=phrase, progressive=False),
+        )
     except PmwmError as exc:
         return {"outcome": "refused", "message": str(exc), "embed_s": time.perf_counter() - t0}
     embed_s = time.perf_counter() - t0
@@ -53,8 +56,14 @@ def one(path: str, payload: str, phrase: str) -> dict:
         back = pmwm.read_mesh(out)
     v = pmwm.verify(back.vertices, back.faces, passphrase=phrase)
     ok = bool(v.marked and v.payload == payload)
-    return {"outcome": "read" if ok else "silent", "embed_s": embed_s, "p_value": v.p_value,
-            "marked": bool(v.marked), "payload_read": v.payload, "strength": float(res.key.strength)}
+    return {
+        "outcome": "read" if ok else "silent",
+        "embed_s": embed_s,
+        "p_value": v.p_value,
+        "marked": bool(v.marked),
+        "payload_read": v.payload,
+        "strength": float(res.key.strength),
+    }
 
 
 def main(argv=None) -> int:
@@ -70,11 +79,21 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     lengths = [int(x) for x in a.lengths.split(",")]
     phrases = PHRASES[: a.phrases]
-    names = (list(split.TUNING) + list(split.REPORT_ONLY)) if a.meshes == "all" else \
-        ([] if a.meshes == "none" else a.meshes.split(","))
+    names = (
+        (list(split.TUNING) + list(split.REPORT_ONLY))
+        if a.meshes == "all"
+        else ([] if a.meshes == "none" else a.meshes.split(","))
+    )
     seeds = split.read_seeds(a.seeds) if a.seeds else split.draw_corpus(a.corpus) if a.corpus else {}
-    doc = {"label": a.label, "command": command(), "commit": commit(), "machine": machine(),
-           "corpus_seeds": seeds, "corpus_vertices": a.corpus_vertices, "runs": []}
+    doc = {
+        "label": a.label,
+        "command": command(),
+        "commit": commit(),
+        "machine": machine(),
+        "corpus_seeds": seeds,
+        "corpus_vertices": a.corpus_vertices,
+        "runs": [],
+    }
 
     def save():
         tmp = a.out + ".tmp"

@@ -48,8 +48,14 @@ def subsurf(V: np.ndarray, F: np.ndarray, limit: bool, ply: Path) -> tuple[tuple
     mod.levels, mod.use_limit_surface = 1, limit
     bpy.ops.object.modifier_apply(modifier=mod.name)
     as_object = (meshdata.read_positions(ob.data), meshdata.read_triangles(ob.data))
-    bpy.ops.wm.ply_export(filepath=str(ply), export_selected_objects=True, export_normals=False,
-                          export_uv=False, export_colors="NONE", apply_modifiers=False)
+    bpy.ops.wm.ply_export(
+        filepath=str(ply),
+        export_selected_objects=True,
+        export_normals=False,
+        export_uv=False,
+        export_colors="NONE",
+        apply_modifiers=False,
+    )
     src = pmwm.read_mesh(str(ply))
     return as_object, (src.vertices, src.faces)
 
@@ -80,8 +86,11 @@ def main(argv=None) -> int:
                 phrase = f"pmwm-bench:{seed}"
                 phrases.append(phrase)
                 payload = np.random.default_rng(seed).integers(0, 2, PAYLOAD_BITS).astype(np.uint8)
-                res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed, passphrase=phrase,
-                                                         progressive=False))
+                res = pmwm.embed(
+                    V,
+                    F,
+                    pmwm.EmbedOptions(scheme="blind", bits=payload, seed=seed, passphrase=phrase, progressive=False),
+                )
                 for limit in (True, False):
                     for route, (Vs, Fs) in zip(("object", "PLY"), subsurf(res.vertices, F, limit, ply)):
                         t = time.perf_counter()
@@ -92,42 +101,66 @@ def main(argv=None) -> int:
                         ok = bool(v.marked and v.bits == want)
                         v0 = as_it_is(Vs, Fs, phrase)
                         got.setdefault((limit, route), []).append(
-                            (ok, v.detail.mesh, c.residual if c is not None else np.nan, dt, len(Vs),
-                             bool(v0.marked and v0.bits == want)))
-                print(f"{model} key {k}: " + ", ".join(f"{'limit' if lim else 'plain'} {r} {sum(x[0] for x in g)}"
-                                                       for (lim, r), g in got.items()), file=sys.stderr, flush=True)
+                            (
+                                ok,
+                                v.detail.mesh,
+                                c.residual if c is not None else np.nan,
+                                dt,
+                                len(Vs),
+                                bool(v0.marked and v0.bits == want),
+                            )
+                        )
+                print(
+                    f"{model} key {k}: "
+                    + ", ".join(
+                        f"{'limit' if lim else 'plain'} {r} {sum(x[0] for x in g)}" for (lim, r), g in got.items()
+                    ),
+                    file=sys.stderr,
+                    flush=True,
+                )
             for (limit, route), g in got.items():
                 meshes = sorted({x[1] for x in g})
-                rows.append(f"| {model} | {g[0][4]:,} | {'on (default)' if limit else 'off'} | {route} | "
-                            f"{sum(x[0] for x in g)}/{len(g)} ({sum(x[5] for x in g)}) | {', '.join(meshes)} | "
-                            f"{np.nanmax([x[2] for x in g]):.1e} | {np.median([x[3] for x in g]):.2f} s |")
+                rows.append(
+                    f"| {model} | {g[0][4]:,} | {'on (default)' if limit else 'off'} | {route} | "
+                    f"{sum(x[0] for x in g)}/{len(g)} ({sum(x[5] for x in g)}) | {', '.join(meshes)} | "
+                    f"{np.nanmax([x[2] for x in g]):.1e} | {np.median([x[3] for x in g]):.2f} s |"
+                )
             # the unmarked model, subdivided, read with every key's phrase: no "marked"
             for limit in (True, False):
                 Vs, Fs = subsurf(V, F, limit, ply)[0]
                 verdicts = [pmwm.verify(Vs, Fs, passphrase=p) for p in phrases]
-                fp_rows.append(f"| {model} | {'on (default)' if limit else 'off'} | "
-                               f"{sum(v.marked for v in verdicts)} of {len(verdicts)} | "
-                               f"{min(v.p_value for v in verdicts):.2e} | {verdicts[0].detail.mesh} |")
-    body = "\n".join([
-        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. Blender {bpy.app.version_string} "
-        "(the `bpy` module), headless.", "",
-        f"{a.keys} keys per model (one pass phrase and random {PAYLOAD_BITS}-bit payload each, default strength). "
-        "Each marked mesh is given Blender's Subdivision Surface modifier (Catmull-Clark, 1 level), applied, "
-        "with the modifier's limit surface (its default) and without; the copy is read as the add-on reads "
-        "the object (its positions and Blender's triangulation of the quads) and as `pmwm.read_mesh` reads "
-        "Blender's PLY export of it. Whole payload: marked (p < 1e-6) with the exact payload; in brackets, "
-        "the same copies read as they are (no subdivision step undone, no smoothing taken back: the reader "
-        "before d46800f). Mesh read: the "
-        "verdict's `mesh`. Residual: `pmwm.subdivision.coarse_mesh`'s RMS residual, a share of the "
-        "bounding-box diagonal (largest over the keys). Verify: `pmwm.verify` alone, median.", "",
-        "| model | vertices after | limit surface | read from | whole payload | mesh read | residual | verify |",
-        "|---|---|---|---|---|---|---|---|",
-        *rows, "",
-        "The unmarked models with the same modifier, read with the same pass phrases (false positives; "
-        "smallest p-value; the mesh read):", "",
-        "| model | limit surface | marked | smallest p | mesh read |",
-        "|---|---|---|---|---|",
-        *fp_rows])
+                fp_rows.append(
+                    f"| {model} | {'on (default)' if limit else 'off'} | "
+                    f"{sum(v.marked for v in verdicts)} of {len(verdicts)} | "
+                    f"{min(v.p_value for v in verdicts):.2e} | {verdicts[0].detail.mesh} |"
+                )
+    body = "\n".join(
+        [
+            f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. Blender {bpy.app.version_string} "
+            "(the `bpy` module), headless.",
+            "",
+            f"{a.keys} keys per model (one pass phrase and random {PAYLOAD_BITS}-bit payload each, default strength). "
+            "Each marked mesh is given Blender's Subdivision Surface modifier (Catmull-Clark, 1 level), applied, "
+            "with the modifier's limit surface (its default) and without; the copy is read as the add-on reads "
+            "the object (its positions and Blender's triangulation of the quads) and as `pmwm.read_mesh` reads "
+            "Blender's PLY export of it. Whole payload: marked (p < 1e-6) with the exact payload; in brackets, "
+            "the same copies read as they are (no subdivision step undone, no smoothing taken back: the reader "
+            "before d46800f). Mesh read: the "
+            "verdict's `mesh`. Residual: `pmwm.subdivision.coarse_mesh`'s RMS residual, a share of the "
+            "bounding-box diagonal (largest over the keys). Verify: `pmwm.verify` alone, median.",
+            "",
+            "| model | vertices after | limit surface | read from | whole payload | mesh read | residual | verify |",
+            "|---|---|---|---|---|---|---|---|",
+            *rows,
+            "",
+            "The unmarked models with the same modifier, read with the same pass phrases (false positives; "
+            "smallest p-value; the mesh read):",
+            "",
+            "| model | limit surface | marked | smallest p | mesh read |",
+            "|---|---|---|---|---|",
+            *fp_rows,
+        ]
+    )
     print(body) if a.no_write else write_section("blind-subsurf", body)
     return 0
 

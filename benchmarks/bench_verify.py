@@ -55,31 +55,52 @@ from _report import ROOT, best_alternating, byte_compiled, command, commit, load
 
 MODELS = ("bunny", "igea")  # names in the catalogue, pmwm_bench.models
 BASELINE = "88eb246"  # the last commit with brute-force spatial search
-CASES = ("marked", "re-ordered", "cut in half, posed", "simplified 50 %", "unmarked, other mesh's key",
-         "unmarked, other secret", "paper: re-ordered", "cho1: marked")
-BLIND_CASES = ("marked", "re-ordered", "cut in half, posed", "cut 10 %", "simplified 50 %",
-               "unmarked, the phrase", "marked, another phrase", "unmarked, cut in half", "cut flat, then marked",
-               "Loop-subdivided", "Catmull-Clark-subdivided", "quantized to 8 bits")
+CASES = (
+    "marked",
+    "re-ordered",
+    "cut in half, posed",
+    "simplified 50 %",
+    "unmarked, other mesh's key",
+    "unmarked, other secret",
+    "paper: re-ordered",
+    "cho1: marked",
+)
+BLIND_CASES = (
+    "marked",
+    "re-ordered",
+    "cut in half, posed",
+    "cut 10 %",
+    "simplified 50 %",
+    "unmarked, the phrase",
+    "marked, another phrase",
+    "unmarked, cut in half",
+    "cut flat, then marked",
+    "Loop-subdivided",
+    "Catmull-Clark-subdivided",
+    "quantized to 8 bits",
+)
 BLIND_BASELINE = "8ddfaa7"  # the crop search screening every candidate 0.3 bin widths apart
-BASELINES = {BASELINE: "brute-force nearest-point and radius queries, one start at a time",
-             "c28a68c": "the crop search scoring every candidate centre over 23 widths x 5 phases",
-             BLIND_BASELINE: "the crop search screening every candidate centre 0.3 bin widths apart",
-             "70ca2f2": "the allocator left to its defaults; the crop search on the family's plane alone, "
-                        "its width fit on 20,000 vertices",
-             "4a70b94": "the crop search's word lengths one after the other, in one thread",
-             "ccfa066": "the screening's cell tables reaching as far again as the farthest vertex; Chase over "
-                        "the 10 least reliable bits and the Viterbi equalizer",
-             "90f8c1e": "the crop search's lattice cells kept by np.unique over rows of three integers; the crop "
-                        "search on every suspect with a planar cut",
-             "d959176": "no coarse mesh looked for under a subdivided suspect",
-             "ad122bd": "no Catmull-Clark step undone",
-             "c64bf81": "no suspect read after smoothing steps against noise",
-             "fb3c27f": "np.unique (numpy 2 finds the values with a hash set) for the subdivision's and the "
-                        "crop search's keys; the equalizer's Viterbi costs computed a bin at a time; the "
-                        "check bits hashed one candidate at a time",
-             "12131df": "every frame's upper end (the 98 % area quantile of the distances) from a sort of all "
-                        "the distances; np.linalg.norm for the rows' norms, axis-0 reductions for the "
-                        "bounding box, the bin statistics on compressed arrays"}
+BASELINES = {
+    BASELINE: "brute-force nearest-point and radius queries, one start at a time",
+    "c28a68c": "the crop search scoring every candidate centre over 23 widths x 5 phases",
+    BLIND_BASELINE: "the crop search screening every candidate centre 0.3 bin widths apart",
+    "70ca2f2": "the allocator left to its defaults; the crop search on the family's plane alone, "
+    "its width fit on 20,000 vertices",
+    "4a70b94": "the crop search's word lengths one after the other, in one thread",
+    "ccfa066": "the screening's cell tables reaching as far again as the farthest vertex; Chase over "
+    "the 10 least reliable bits and the Viterbi equalizer",
+    "90f8c1e": "the crop search's lattice cells kept by np.unique over rows of three integers; the crop "
+    "search on every suspect with a planar cut",
+    "d959176": "no coarse mesh looked for under a subdivided suspect",
+    "ad122bd": "no Catmull-Clark step undone",
+    "c64bf81": "no suspect read after smoothing steps against noise",
+    "fb3c27f": "np.unique (numpy 2 finds the values with a hash set) for the subdivision's and the "
+    "crop search's keys; the equalizer's Viterbi costs computed a bin at a time; the "
+    "check bits hashed one candidate at a time",
+    "12131df": "every frame's upper end (the 98 % area quantile of the distances) from a sort of all "
+    "the distances; np.linalg.norm for the rows' norms, axis-0 reductions for the "
+    "bounding box, the bin statistics on compressed arrays",
+}
 TARGET = 0.5  # seconds, issue 13
 
 
@@ -100,8 +121,7 @@ def build_cases(path: Path) -> None:
         cases[m] = {
             "marked": (MV, MF, res.key),
             "re-ordered": (*attacks.reorder(MV, MF, seed=1), res.key),
-            "cut in half, posed": (*attacks.similarity(*attacks.crop_plane(MV, MF, 0.5, seed=2), seed=2),
-                                   res.key),
+            "cut in half, posed": (*attacks.similarity(*attacks.crop_plane(MV, MF, 0.5, seed=2), seed=2), res.key),
             "simplified 50 %": (*attacks.simplify(MV, MF, ratio=0.5), res.key),
             "unmarked, other secret": (V, F, other),
             "paper: re-ordered": (*attacks.reorder(paper.vertices, paper.faces, seed=1), paper.key),
@@ -130,8 +150,9 @@ def flat_marked(V, F):
     from pmwm import attacks
 
     Vc, Fc = attacks.crop_plane(V, F, 0.1, seed=7)
-    res = pmwm.embed(Vc, Fc, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=BENCH_PHRASE,
-                                               progressive=False))
+    res = pmwm.embed(
+        Vc, Fc, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=BENCH_PHRASE, progressive=False)
+    )
     return res.vertices, res.faces
 
 
@@ -179,10 +200,10 @@ def child(cases_path: str, out_path: str, repeat: int, only: Optional[int] = Non
     with open(cases_path, "rb") as f:
         rows = pickle.load(f)
     if only is not None:
-        rows = rows[only:only + 1]
+        rows = rows[only : only + 1]
     out = []
     for m, case, V, F, key_json in rows:  # a key file's text, or "passphrase:" and a pass phrase
-        phrase = key_json[len("passphrase:"):] if key_json.startswith("passphrase:") else None
+        phrase = key_json[len("passphrase:") :] if key_json.startswith("passphrase:") else None
         key = None if phrase is not None else pmwm.WatermarkKey.from_json(key_json)
         times, cpu = [], []
         for _ in range(repeat):
@@ -192,20 +213,42 @@ def child(cases_path: str, out_path: str, repeat: int, only: Optional[int] = Non
             cpu.append(time.process_time() - c)
         detail = getattr(v, "detail", None)  # (a baseline commit has a dict "extra" instead)
         extra = {**vars(detail)} if detail is not None else (v.extra if isinstance(v.extra, dict) else {})
-        out.append(dict(model=m, case=case, times=times, cpu=cpu, marked=bool(v.marked),
-                        bit_errors=int(v.bit_errors), p_value=float(v.p_value), mode=v.mode,
-                        n_vertices=int(len(V)),
-                        registration=str(extra.get("registration", extra.get("frame", ""))),
-                        pmwm=str(Path(pmwm.__file__).parent), numpy=np.__version__))
+        out.append(
+            dict(
+                model=m,
+                case=case,
+                times=times,
+                cpu=cpu,
+                marked=bool(v.marked),
+                bit_errors=int(v.bit_errors),
+                p_value=float(v.p_value),
+                mode=v.mode,
+                n_vertices=int(len(V)),
+                registration=str(extra.get("registration", extra.get("frame", ""))),
+                pmwm=str(Path(pmwm.__file__).parent),
+                numpy=np.__version__,
+            )
+        )
     with open(out_path, "w") as f:
         json.dump(out, f)
 
 
-def run_child(core: Path, cases_path: Path, out_path: Path, repeat: int, only: Optional[int] = None
-              ) -> list[dict]:
+def run_child(core: Path, cases_path: Path, out_path: Path, repeat: int, only: Optional[int] = None) -> list[dict]:
     env = dict(os.environ, PYTHONPATH=str(core), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    subprocess.run([sys.executable, __file__, "--child", str(cases_path), str(out_path), str(repeat),
-                    *([] if only is None else [str(only)])], check=True, env=env, cwd=str(ROOT))
+    subprocess.run(
+        [
+            sys.executable,
+            __file__,
+            "--child",
+            str(cases_path),
+            str(out_path),
+            str(repeat),
+            *([] if only is None else [str(only)]),
+        ],
+        check=True,
+        env=env,
+        cwd=str(ROOT),
+    )
     with open(out_path) as f:
         return json.load(f)
 
@@ -214,18 +257,31 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3, help="calls per case per round (default 3)")
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds new/old (default 2)")
-    ap.add_argument("--scheme", choices=("robust", "blind"), default="robust",
-                    help="the cases of the robust scheme (and paper, cho1), or of the blind scheme")
-    ap.add_argument("--baseline", default=None,
-                    help=f"commit to compare with (default {BASELINE}, with --scheme blind {BLIND_BASELINE}); "
-                         "'' for none")
-    ap.add_argument("--fresh", action="store_true",
-                    help="time each case's first call in a process of its own (section ...-fresh)")
-    ap.add_argument("--cli", action="store_true",
-                    help="time `pmwm verify` as whole processes beside reading the files alone (section ...-cli)")
-    ap.add_argument("--threads-as-set", action="store_true",
-                    help="with --cli: leave OMP_NUM_THREADS and OPENBLAS_NUM_THREADS as set here (a user's "
-                         "default: unset) instead of 1 (section ...-cli-threads)")
+    ap.add_argument(
+        "--scheme",
+        choices=("robust", "blind"),
+        default="robust",
+        help="the cases of the robust scheme (and paper, cho1), or of the blind scheme",
+    )
+    ap.add_argument(
+        "--baseline",
+        default=None,
+        help=f"commit to compare with (default {BASELINE}, with --scheme blind {BLIND_BASELINE}); '' for none",
+    )
+    ap.add_argument(
+        "--fresh", action="store_true", help="time each case's first call in a process of its own (section ...-fresh)"
+    )
+    ap.add_argument(
+        "--cli",
+        action="store_true",
+        help="time `pmwm verify` as whole processes beside reading the files alone (section ...-cli)",
+    )
+    ap.add_argument(
+        "--threads-as-set",
+        action="store_true",
+        help="with --cli: leave OMP_NUM_THREADS and OPENBLAS_NUM_THREADS as set here (a user's "
+        "default: unset) instead of 1 (section ...-cli-threads)",
+    )
     ap.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -243,8 +299,9 @@ def main() -> None:
         (build_blind_cases if a.scheme == "blind" else build_cases)(tmp / "cases.pkl")
         cores = {"new": ROOT / "core"}
         if a.baseline:
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.baseline, "core"], check=True,
-                                     capture_output=True).stdout
+            archive = subprocess.run(
+                ["git", "-C", str(ROOT), "archive", a.baseline, "core"], check=True, capture_output=True
+            ).stdout
             subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive, check=True)
             (tmp / "old").mkdir()
             (tmp / "core").rename(tmp / "old" / "core")
@@ -318,38 +375,51 @@ def cli(a) -> None:
                 raise SystemExit(f"{m} / {case}: pmwm verify failed: {verdict.stderr.strip()}")
             marked = json.loads(verdict.stdout)["marked"]
             (tv, cv), (tr, cr) = best_alternating(
-                [verify_cmd, [sys.executable, "-c", READ_ONLY, str(suspect), str(key)]], a.repeat, env, (0, 1))
-            lines.append(f"| {m} | {case} | {len(V):,} | {'marked' if marked else 'not marked'} | "
-                         f"{tv:.2f} / {cv:.2f} s | {tr:.2f} / {cr:.2f} s | {tv - tr:.2f} / {cv - cr:.2f} s |")
+                [verify_cmd, [sys.executable, "-c", READ_ONLY, str(suspect), str(key)]], a.repeat, env, (0, 1)
+            )
+            lines.append(
+                f"| {m} | {case} | {len(V):,} | {'marked' if marked else 'not marked'} | "
+                f"{tv:.2f} / {cv:.2f} s | {tr:.2f} / {cr:.2f} s | {tv - tr:.2f} / {cv - cr:.2f} s |"
+            )
             print(lines[-1], flush=True)
             if tv - tr >= TARGET:
                 over_wall.append(f"{m} / {case} ({tv - tr:.2f} s)")
             if cv - cr >= TARGET:
                 over_cpu.append(f"{m} / {case} ({cv - cr:.2f} s)")
-    body = "\n".join([
-        ("## Verify speed: the blind scheme" if blind else "## Verify speed")
-        + ", `pmwm verify` as the user runs it" + (" (the thread variables as set)" if a.threads_as_set else ""),
-        "",
-        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
-        "Each case's suspect written to a PLY file (float32 coordinates), "
-        + ("its pass phrase to a file; " if blind else "its key to a JSON file; ")
-        + "`python -m pmwm verify` as a whole process (Python start-up, imports, reading the files, the "
-        f"verdict printed) and a process that only reads the two files as it does (the same imports), alternating, "
-        f"best of {a.repeat} each; {threads}. Wall-clock and CPU time (user + system) of each process; "
-        "their difference is what `pmwm verify` takes beyond reading the two files"
-        + (" (deriving the secret from the pass phrase, scrypt, included: it runs in a thread beside the reading)" if blind else "") + ".",
-        "",
-        "| mesh | case | suspect vertices | verdict | `pmwm verify`: wall / CPU | reading the files: wall / CPU | "
-        "beyond reading: wall / CPU |",
-        "|---|---|---|---|---|---|---|",
-        *lines,
-        "",
-        f"Target of issue 13, every case under {TARGET} s beyond reading the two files: in CPU time "
-        + ("met" if not over_cpu else "not met for " + "; ".join(over_cpu))
-        + "; in wall-clock time " + ("met." if not over_wall else "not met for " + "; ".join(over_wall) + "."),
-    ])
-    write_section(("verify-speed-blind" if blind else "verify-speed") + "-cli"
-                  + ("-threads" if a.threads_as_set else ""), body)
+    body = "\n".join(
+        [
+            ("## Verify speed: the blind scheme" if blind else "## Verify speed")
+            + ", `pmwm verify` as the user runs it"
+            + (" (the thread variables as set)" if a.threads_as_set else ""),
+            "",
+            f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
+            "Each case's suspect written to a PLY file (float32 coordinates), "
+            + ("its pass phrase to a file; " if blind else "its key to a JSON file; ")
+            + "`python -m pmwm verify` as a whole process (Python start-up, imports, reading the files, the "
+            f"verdict printed) and a process that only reads the two files as it does (the same imports), alternating, "
+            f"best of {a.repeat} each; {threads}. Wall-clock and CPU time (user + system) of each process; "
+            "their difference is what `pmwm verify` takes beyond reading the two files"
+            + (
+                " (deriving the secret from the pass phrase, scrypt, included: it runs in a thread beside the reading)"
+                if blind
+                else ""
+            )
+            + ".",
+            "",
+            "| mesh | case | suspect vertices | verdict | `pmwm verify`: wall / CPU | reading the files: wall / CPU | "
+            "beyond reading: wall / CPU |",
+            "|---|---|---|---|---|---|---|",
+            *lines,
+            "",
+            f"Target of issue 13, every case under {TARGET} s beyond reading the two files: in CPU time "
+            + ("met" if not over_cpu else "not met for " + "; ".join(over_cpu))
+            + "; in wall-clock time "
+            + ("met." if not over_wall else "not met for " + "; ".join(over_wall) + "."),
+        ]
+    )
+    write_section(
+        ("verify-speed-blind" if blind else "verify-speed") + "-cli" + ("-threads" if a.threads_as_set else ""), body
+    )
 
 
 def report(runs: dict[str, list[list[dict]]], a) -> None:
@@ -367,18 +437,27 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
     n_calls = a.repeat * a.rounds
     blind = a.scheme == "blind"
     lines = [
-        ("## Verify speed: the blind scheme" if blind else
-         "## Verify speed: spatial search by KD-tree")
+        ("## Verify speed: the blind scheme" if blind else "## Verify speed: spatial search by KD-tree")
         + (", the first call in a fresh process" if a.fresh else ""),
         "",
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
-        (f"`pmwm.verify` alone (the meshes and keys already in memory), each case's first call in a process "
-         f"of its own (as `pmwm verify` reads one suspect), median of {a.rounds} processes that alternate "
-         "with the baseline's" if a.fresh else
-         f"`pmwm.verify` alone (the meshes and keys already in memory), median of {n_calls} calls in "
-         f"{a.rounds} rounds that alternate with the baseline")
-        + ((f" (commit {a.baseline}: {BASELINES[a.baseline]})" if a.baseline in BASELINES
-            else f" (commit {a.baseline})") if old else "")
+        (
+            f"`pmwm.verify` alone (the meshes and keys already in memory), each case's first call in a process "
+            f"of its own (as `pmwm verify` reads one suspect), median of {a.rounds} processes that alternate "
+            "with the baseline's"
+            if a.fresh
+            else f"`pmwm.verify` alone (the meshes and keys already in memory), median of {n_calls} calls in "
+            f"{a.rounds} rounds that alternate with the baseline"
+        )
+        + (
+            (
+                f" (commit {a.baseline}: {BASELINES[a.baseline]})"
+                if a.baseline in BASELINES
+                else f" (commit {a.baseline})"
+            )
+            if old
+            else ""
+        )
         + "; OMP_NUM_THREADS=1. Wall-clock time and CPU time of the "
         "process: the machine is shared (2 cores, other jobs running), so the wall-clock figures include "
         "waiting for a core. The blind reader searches a cropped copy's word lengths in parallel threads "
@@ -386,7 +465,8 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
         "wall-clock time is what the user waits.",
         "",
         "| mesh | case | suspect vertices | verdict | bit errors | read | "
-        + ("baseline wall / CPU | " if old else "") + "now wall / CPU | "
+        + ("baseline wall / CPU | " if old else "")
+        + "now wall / CPU | "
         + ("speed-up wall / CPU |" if old else ""),
         "|---|---|---|---|---|---|---|" + ("---|---|" if old else ""),
     ]
@@ -394,8 +474,10 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
     for (m, case), x in new.items():
         t, c = statistics.median(x["times"]), statistics.median(x["cpu"])
         how = x["mode"] + (f", {x['registration']}" if x["registration"] else "")
-        row = (f"| {m} | {case} | {x['n_vertices']:,} | {'marked' if x['marked'] else 'not marked'} | "
-               f"{x['bit_errors']} | {how} | ")
+        row = (
+            f"| {m} | {case} | {x['n_vertices']:,} | {'marked' if x['marked'] else 'not marked'} | "
+            f"{x['bit_errors']} | {how} | "
+        )
         if old:
             o = old[(m, case)]
             to, co = statistics.median(o["times"]), statistics.median(o["cpu"])
@@ -406,9 +488,13 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
             row += f"{t:.3f} / {c:.3f} s |"
         lines.append(row)
     robust = [x for (m, c), x in new.items() if blind or not c.startswith(("paper", "cho"))]
+
     def over(key):
-        return [f"{x['model']} / {x['case']} ({statistics.median(x[key]):.2f} s)" for x in robust
-                if statistics.median(x[key]) >= TARGET]
+        return [
+            f"{x['model']} / {x['case']} ({statistics.median(x[key]):.2f} s)"
+            for x in robust
+            if statistics.median(x[key]) >= TARGET
+        ]
 
     lines += [
         "",
@@ -417,11 +503,15 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
         + "; in wall-clock time on the loaded machine "
         + ("met." if not over("times") else "not met for " + "; ".join(over("times")) + "."),
         "Verdicts and bit errors "
-        + ("identical to the baseline's in every case." if old and not changed else
-           ("changed: " + "; ".join(changed) + ".") if changed else "(no baseline run)."),
+        + (
+            "identical to the baseline's in every case."
+            if old and not changed
+            else ("changed: " + "; ".join(changed) + ".")
+            if changed
+            else "(no baseline run)."
+        ),
     ]
-    write_section(("verify-speed-blind" if blind else "verify-speed") + ("-fresh" if a.fresh else ""),
-                  "\n".join(lines))
+    write_section(("verify-speed-blind" if blind else "verify-speed") + ("-fresh" if a.fresh else ""), "\n".join(lines))
 
 
 if __name__ == "__main__":

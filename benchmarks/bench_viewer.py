@@ -75,8 +75,13 @@ def main() -> None:
             V, F = _mesh(name)
             pm, _ = pmwm.build_progressive_mesh(V, F, base_vertices=max(4, int(0.03 * len(V))))
             write_site(pm, root / name, title=name)
-            sizes[name] = (len(V), len(F), (root / name / "model.pmwm").stat().st_size, pm.n_records,
-                           len(pm.level_records))
+            sizes[name] = (
+                len(V),
+                len(F),
+                (root / name / "model.pmwm").stat().st_size,
+                pm.n_records,
+                len(pm.level_records),
+            )
         script_kb = (root / a.meshes[0] / "viewer.js").stat().st_size / 1000
         with Browser() as browser:
             page = browser.page()
@@ -91,35 +96,56 @@ def main() -> None:
                         t = page.eval("JSON.stringify(pmwmViewer.timing)")
                         t = json.loads(t)
                         assert st["state"] == "done", st
-                        runs.append({"after_last_byte_ms": float(st["decodeMs"]), "records_ms": float(st["recordsMs"]),
-                                     "draw_ms": t["draw"], "total_ms": t["done"] - t["start"]})
+                        runs.append(
+                            {
+                                "after_last_byte_ms": float(st["decodeMs"]),
+                                "records_ms": float(st["recordsMs"]),
+                                "draw_ms": t["draw"],
+                                "total_ms": t["done"] - t["start"],
+                            }
+                        )
                     again = page.eval(AGAIN)
                     raw.append({"mesh": name, "delivery": delivery, "runs": runs, "decode_again_ms": again})
                     med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
                     worst = max(r["after_last_byte_ms"] for r in runs)
                     n, m, size, nr, nl = sizes[name]
-                    rows.append(f"| {name} | {n:,} | {m:,} | {size / 1e6:.2f} MB | {nr:,} / {nl} | {delivery} | "
-                                f"{med['after_last_byte_ms']:.0f} (max {worst:.0f}) | {med['records_ms']:.0f} | "
-                                f"{med['draw_ms']:.0f} | {med['total_ms']:.0f} | {min(again):.0f} |")
-    body = "\n".join([
-        "## viewer: decoding in the browser",
-        "",
-        f"Command: `{_report.command()}`; commit {_report.commit()}; machine: {_report.machine()}; "
-        f"Debian chromium, headless, SwiftShader GL. Page script (viewer.js): {script_kb:.1f} KB. "
-        f"Median of {a.repeat} page loads (ms).",
-        "",
-        "| mesh | vertices | faces | .pmwm | records / levels | delivery | last byte -> decoded | "
-        "records applied | uploading and drawing | request -> decoded | all records again, best of 7 |",
-        "|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|",
-        *rows,
-        "",
-        "Targets: the bunny decoded within 500 ms of its last byte, Igea within 2000 ms.",
-    ])
+                    rows.append(
+                        f"| {name} | {n:,} | {m:,} | {size / 1e6:.2f} MB | {nr:,} / {nl} | {delivery} | "
+                        f"{med['after_last_byte_ms']:.0f} (max {worst:.0f}) | {med['records_ms']:.0f} | "
+                        f"{med['draw_ms']:.0f} | {med['total_ms']:.0f} | {min(again):.0f} |"
+                    )
+    body = "\n".join(
+        [
+            "## viewer: decoding in the browser",
+            "",
+            f"Command: `{_report.command()}`; commit {_report.commit()}; machine: {_report.machine()}; "
+            f"Debian chromium, headless, SwiftShader GL. Page script (viewer.js): {script_kb:.1f} KB. "
+            f"Median of {a.repeat} page loads (ms).",
+            "",
+            "| mesh | vertices | faces | .pmwm | records / levels | delivery | last byte -> decoded | "
+            "records applied | uploading and drawing | request -> decoded | all records again, best of 7 |",
+            "|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|",
+            *rows,
+            "",
+            "Targets: the bunny decoded within 500 ms of its last byte, Igea within 2000 ms.",
+        ]
+    )
     print(body)
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"command": _report.command(), "commit": _report.commit(), "machine": _report.machine(),
-                               "script_kb": script_kb, "results": raw}, indent=1) + "\n")
+    out.write_text(
+        json.dumps(
+            {
+                "command": _report.command(),
+                "commit": _report.commit(),
+                "machine": _report.machine(),
+                "script_kb": script_kb,
+                "results": raw,
+            },
+            indent=1,
+        )
+        + "\n"
+    )
 
 
 if __name__ == "__main__":

@@ -50,7 +50,11 @@ def mutate_pm(data: bytes, rng: np.random.Generator) -> bytes:
         if kind == 4:
             field = rng.integers(2, 8)
             vals = list(HEADER.unpack_from(body, 0))
-            vals[field] = int(rng.choice([0, 1, vals[field] + rng.integers(-3, 4), 2**32 - 1, rng.integers(0, 2**32)])) % 2**32 if field >= 3 else int(rng.integers(0, 2**16))
+            vals[field] = (
+                int(rng.choice([0, 1, vals[field] + rng.integers(-3, 4), 2**32 - 1, rng.integers(0, 2**32)])) % 2**32
+                if field >= 3
+                else int(rng.integers(0, 2**16))
+            )
             HEADER.pack_into(body, 0, *vals)
         else:
             i = rng.integers(HEADER.size, len(body))
@@ -69,7 +73,7 @@ def mutate_key(text: str, rng: np.random.Generator) -> str:
         return "".join(chars)
     if kind == 1:
         return text[: rng.integers(0, len(text))]
-    junk = [None, -1, 0, 1e400, "x", [], {}, 2**70, -2**70, 1.5, "0" * 64, [[0, 0, 0, 0, 0]]]
+    junk = [None, -1, 0, 1e400, "x", [], {}, 2**70, -(2**70), 1.5, "0" * 64, [[0, 0, 0, 0, 0]]]
     if kind == 2:
         key = str(rng.choice(list(doc.keys())))
         doc[key] = junk[rng.integers(0, len(junk))]
@@ -126,7 +130,9 @@ def main() -> None:
         "|---|---|---|---|---|",
     ]
     for name, (tried, rejected, failed) in counts.items():
-        lines.append(f"| {'.pmwm' if name == 'pm' else 'key'} | {tried:,} | {rejected:,} | {tried - rejected - failed:,} | {failed} |")
+        lines.append(
+            f"| {'.pmwm' if name == 'pm' else 'key'} | {tried:,} | {rejected:,} | {tried - rejected - failed:,} | {failed} |"
+        )
     if failures:
         lines += ["", "Failures (first 10):", *[f"- `{f}`" for f in failures[:10]]]
     write_section("fuzz", "\n".join(lines))

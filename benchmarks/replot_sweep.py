@@ -17,10 +17,15 @@ from pmwm_bench.records import EqualMrms, SweepPoint, SweepResults
 
 def main(folder: Path) -> list[Path]:
     raw = json.loads((folder / "sweep.json").read_text())
-    comparisons = [EqualMrms(**{**c, "overlap": tuple(c["overlap"]) if c["overlap"] else None})
-                   for c in raw["comparisons"]]
-    res = SweepResults(settings=raw["settings"], models=raw["models"],
-                       points=[SweepPoint(**p) for p in raw["points"]], comparisons=comparisons)
+    comparisons = [
+        EqualMrms(**{**c, "overlap": tuple(c["overlap"]) if c["overlap"] else None}) for c in raw["comparisons"]
+    ]
+    res = SweepResults(
+        settings=raw["settings"],
+        models=raw["models"],
+        points=[SweepPoint(**p) for p in raw["points"]],
+        comparisons=comparisons,
+    )
     return write_sweep_plots(res, folder)
 
 

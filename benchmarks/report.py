@@ -49,26 +49,48 @@ class Section:
     plots: tuple[str, ...] = ()
 
 
-TUNING = ("Tuning meshes: the figures below are measured on the meshes the methods were tuned on (bunny, dragon, "
-          "Venus head, Igea); they are not held-out figures.")
+TUNING = (
+    "Tuning meshes: the figures below are measured on the meshes the methods were tuned on (bunny, dragon, "
+    "Venus head, Igea); they are not held-out figures."
+)
 
 #: the report's order; the fragments' own figures, as the scripts wrote them
 SECTIONS: tuple[Section, ...] = (
     Section("heldout", "Held out: meshes no method was tuned on"),
-    Section("robustness", "Robustness: both protocols, pmwm against Cho et al. 2007",
-            keep=("Models", "Benchmark protocol", "Distortion of the 64-bit", "BER — bunny"), note=TUNING,
-            plots=("correlation_bunny_benchmark.png",)),
-    Section("equal-distortion", "Equal distortion: BER against embedding MRMS",
-            keep=("Which method",), note=TUNING, plots=("ber_vs_mrms_noise.png",)),
-    Section("equal-distortion-paper-noise", "Equal distortion under the paper's heavy noise", keep=("Which method",),
-            note=TUNING),
-    Section("robust", "The keyed schemes under each attack, every level of detail, false positives",
-            keep=("bunny", "False positives"), note=TUNING),
-    Section("blind", "Blind scheme: read with a pass phrase alone", note=TUNING,
-            paras=("Command:", "Embedding distortion", "Whole payload read", "False positives")),
+    Section(
+        "robustness",
+        "Robustness: both protocols, pmwm against Cho et al. 2007",
+        keep=("Models", "Benchmark protocol", "Distortion of the 64-bit", "BER — bunny"),
+        note=TUNING,
+        plots=("correlation_bunny_benchmark.png",),
+    ),
+    Section(
+        "equal-distortion",
+        "Equal distortion: BER against embedding MRMS",
+        keep=("Which method",),
+        note=TUNING,
+        plots=("ber_vs_mrms_noise.png",),
+    ),
+    Section(
+        "equal-distortion-paper-noise",
+        "Equal distortion under the paper's heavy noise",
+        keep=("Which method",),
+        note=TUNING,
+    ),
+    Section(
+        "robust",
+        "The keyed schemes under each attack, every level of detail, false positives",
+        keep=("bunny", "False positives"),
+        note=TUNING,
+    ),
+    Section(
+        "blind",
+        "Blind scheme: read with a pass phrase alone",
+        note=TUNING,
+        paras=("Command:", "Embedding distortion", "Whole payload read", "False positives"),
+    ),
     Section("blind-equal-mrms", "Blind scheme against Cho I and II at equal MRMS", note=TUNING),
-    Section("fingerprint", "Fingerprinting: tracing and collusion",
-            keep=("Per-copy cost", "Averaging collusion")),
+    Section("fingerprint", "Fingerprinting: tracing and collusion", keep=("Per-copy cost", "Averaging collusion")),
     Section("core", "Speed and size"),
     Section("scale", "One million faces"),
     Section("pm-speed", "Progressive mesh speed", cap=30),
@@ -238,8 +260,11 @@ def main(argv: list[str] | None = None) -> int:
     if a.check:
         current = REPORT.read_text(encoding="utf-8") if REPORT.exists() else ""
         if current != text:
-            print(f"{REPORT.relative_to(ROOT)} is not up to date with benchmarks/results/: "
-                  "run python benchmarks/report.py", file=sys.stderr)
+            print(
+                f"{REPORT.relative_to(ROOT)} is not up to date with benchmarks/results/: "
+                "run python benchmarks/report.py",
+                file=sys.stderr,
+            )
             return 1
         return 0
     atomic_write_bytes(REPORT, text.encode("utf-8"), force=True)

@@ -42,16 +42,37 @@ def run(meshes: list[str], schemes: list[str]) -> dict:
             for scheme in schemes:
                 stem = f"{Path(mesh).stem}-{scheme}"
                 marked, pm, key = t / f"{stem}.ply", t / f"{stem}.pmwm", t / f"{stem}.json"
-                cmd = [sys.executable, "-m", "pmwm", "embed", str(data / mesh), "-o", str(marked), "--pm", str(pm),
-                       "--seed", "7", "--payload", "OWNR", "--scheme", scheme, "-q"]
+                cmd = [
+                    sys.executable,
+                    "-m",
+                    "pmwm",
+                    "embed",
+                    str(data / mesh),
+                    "-o",
+                    str(marked),
+                    "--pm",
+                    str(pm),
+                    "--seed",
+                    "7",
+                    "--payload",
+                    "OWNR",
+                    "--scheme",
+                    scheme,
+                    "-q",
+                ]
                 cmd += ["--passphrase-file", str(phrase)] if scheme == "blind" else ["--key", str(key)]
                 e = subprocess.run(cmd, capture_output=True, text=True)
                 vcmd = [sys.executable, "-m", "pmwm", "verify", str(marked), "--json"]
                 vcmd += ["--passphrase-file", str(phrase)] if scheme == "blind" else ["--key", str(key)]
                 v = subprocess.run(vcmd, capture_output=True, text=True)
-                out[stem] = {"embed_exit": e.returncode, "marked": _sha(marked), "pmwm": _sha(pm),
-                             "key": _sha(key) if scheme != "blind" else "none",
-                             "verify": hashlib.sha256(v.stdout.encode()).hexdigest(), "verify_exit": v.returncode}
+                out[stem] = {
+                    "embed_exit": e.returncode,
+                    "marked": _sha(marked),
+                    "pmwm": _sha(pm),
+                    "key": _sha(key) if scheme != "blind" else "none",
+                    "verify": hashlib.sha256(v.stdout.encode()).hexdigest(),
+                    "verify_exit": v.returncode,
+                }
                 print(stem, out[stem], flush=True)
     return out
 

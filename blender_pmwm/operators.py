@@ -91,8 +91,9 @@ def _poll_mesh(cls, context) -> bool:
 
 NOT_WATERMARKED = "'{}' was not watermarked in this session: watermark this object first"
 NOT_VERIFIED = "'{}' was not verified in this session: verify this object first"
-NOT_REPORTABLE = ("'{}' was read with the pass phrase: a report needs a key file to cite; verify it with "
-                  "a Robust or Paper key")
+NOT_REPORTABLE = (
+    "'{}' was read with the pass phrase: a report needs a key file to cite; verify it with a Robust or Paper key"
+)
 CHANGED_SINCE_VERIFIED = "'{}' changed since it was verified: verify it again"
 
 
@@ -175,12 +176,18 @@ def default_file(context, ob, suffix: str) -> str:
 def _check_new(path: str, overwrite: bool) -> None:
     """_Failed when ``path`` exists and Replace Existing is off."""
     if os.path.exists(path) and not overwrite:
-        raise _Failed(f"{path} exists: tick Replace Existing in the file browser (overwrite=True in scripts), "
-                      "or choose another name")
+        raise _Failed(
+            f"{path} exists: tick Replace Existing in the file browser (overwrite=True in scripts), "
+            "or choose another name"
+        )
 
 
-REPLACE = dict(name="Replace Existing", description="Replace the file if it exists (its name shows red in "
-               "the file browser)", default=False, options={"SKIP_SAVE"})
+REPLACE = dict(
+    name="Replace Existing",
+    description="Replace the file if it exists (its name shows red in the file browser)",
+    default=False,
+    options={"SKIP_SAVE"},
+)
 
 
 # ----------------------------------------------------------------------------- tasks
@@ -216,9 +223,14 @@ def still_there(name: str, pointer: int, positions32: np.ndarray, F: np.ndarray,
     """The object ``name`` if it is the one read (``pointer``) and still holds exactly that mesh, its
     positions (n, 3) float32 and triangles (m, 3); else _Failed saying nothing was written."""
     ob = bpy.data.objects.get(name)
-    same = (ob is not None and ob.as_pointer() == pointer and ob.type == "MESH" and ob.mode == "OBJECT"
-            and session.same_positions(positions32, meshdata.read_positions32(ob.data))
-            and np.array_equal(meshdata.read_triangles(ob.data), F))
+    same = (
+        ob is not None
+        and ob.as_pointer() == pointer
+        and ob.type == "MESH"
+        and ob.mode == "OBJECT"
+        and session.same_positions(positions32, meshdata.read_positions32(ob.data))
+        and np.array_equal(meshdata.read_triangles(ob.data), F)
+    )
     if not same:
         raise _Failed(f"'{name}' changed while it was being {verb}: nothing was written; run it again")
     return ob
@@ -229,9 +241,19 @@ class WatermarkTask(_Task):
 
     verb, doing = "watermarked", "watermarking"
 
-    def __init__(self, context, payload: str = "", key_path: str = "", scheme: str = "robust",
-                 strength: float = 2.0, base_ratio: float = 0.03, seed: int = -1, overwrite_key: bool = False,
-                 blind_margin: float = 0.0, progressive: bool = True):
+    def __init__(
+        self,
+        context,
+        payload: str = "",
+        key_path: str = "",
+        scheme: str = "robust",
+        strength: float = 2.0,
+        base_ratio: float = 0.03,
+        seed: int = -1,
+        overwrite_key: bool = False,
+        blind_margin: float = 0.0,
+        progressive: bool = True,
+    ):
         import pmwm
 
         ob = _active_mesh(context)
@@ -243,10 +265,15 @@ class WatermarkTask(_Task):
             self._remember_mesh(ob)
             self.key_path = ""
             margin = round(float(blind_margin), 6) or None  # 0: chosen per mesh
-            self.opts = pmwm.EmbedOptions(payload=payload or None, strength=margin,
-                                          base_ratio=float(base_ratio),
-                                          seed=None if seed < 0 else int(seed), scheme=scheme, passphrase=phrase,
-                                          progressive=bool(progressive))
+            self.opts = pmwm.EmbedOptions(
+                payload=payload or None,
+                strength=margin,
+                base_ratio=float(base_ratio),
+                seed=None if seed < 0 else int(seed),
+                scheme=scheme,
+                passphrase=phrase,
+                progressive=bool(progressive),
+            )
             return
         self.key_path, self.make_folder = _key_path(context, ob, key_path)
         self.overwrite = bool(overwrite_key)
@@ -260,9 +287,14 @@ class WatermarkTask(_Task):
         if self.make_folder and os.path.exists(folder) and not os.path.isdir(folder):
             raise _Failed(f"the key folder {folder} is a file: set another Key Folder in the add-on's preferences")
         self._remember_mesh(ob)
-        self.opts = pmwm.EmbedOptions(payload=payload or None, strength=float(strength),
-                                      base_ratio=float(base_ratio), seed=None if seed < 0 else int(seed),
-                                      scheme=scheme, progressive=bool(progressive))
+        self.opts = pmwm.EmbedOptions(
+            payload=payload or None,
+            strength=float(strength),
+            base_ratio=float(base_ratio),
+            seed=None if seed < 0 else int(seed),
+            scheme=scheme,
+            progressive=bool(progressive),
+        )
 
     def compute(self, progress):
         import pmwm
@@ -281,20 +313,32 @@ class WatermarkTask(_Task):
         # Success: write back (nothing before this touched the scene).
         mesh = ob.data
         meshdata.write_base_positions(mesh, res.vertices)
-        session.remember(ob, session.Marked(
-            name=ob.name, pm=res.pm, carriers=res.carriers, positions=meshdata.read_positions32(mesh),
-            n_bits=len(res.bits), vsnr_db=float(res.vsnr_db)))
+        session.remember(
+            ob,
+            session.Marked(
+                name=ob.name,
+                pm=res.pm,
+                carriers=res.carriers,
+                positions=meshdata.read_positions32(mesh),
+                n_bits=len(res.bits),
+                vsnr_db=float(res.vsnr_db),
+            ),
+        )
         if ob.modifiers or mesh.shape_keys is not None:
-            report({"WARNING"}, f"'{ob.name}' has modifiers or shape keys: the base mesh was watermarked; "
-                                "apply topology-changing modifiers before watermarking to mark what you ship")
+            report(
+                {"WARNING"},
+                f"'{ob.name}' has modifiers or shape keys: the base mesh was watermarked; "
+                "apply topology-changing modifiers before watermarking to mark what you ship",
+            )
         if context.scene.pmwm.show_carriers:
             meshdata.mark_carriers(ob, res.carriers)
-            report({"WARNING"}, "carriers are in vertex group 'pmwm_carriers': "
-                                "turn Show Carriers off before sharing the .blend")
+            report(
+                {"WARNING"},
+                "carriers are in vertex group 'pmwm_carriers': turn Show Carriers off before sharing the .blend",
+            )
         where = "no key file (the pass phrase reads it)" if self.blind else f"key written to {self.key_path}"
         carriers = f"{len(res.carriers)} carriers, " if len(res.carriers) else ""
-        report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {carriers}"
-                         f"VSNR {res.vsnr_db:.1f} dB; {where}")
+        report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {carriers}VSNR {res.vsnr_db:.1f} dB; {where}")
 
 
 class VerifyTask(_Task):
@@ -319,8 +363,10 @@ class VerifyTask(_Task):
             return
         self.key_path, _ = _key_path(context, ob, key_path)
         if not os.path.isfile(self.key_path):
-            raise _Failed(f"key file not found: {self.key_path}: set Key File (Verification) to the key "
-                          "written when this object was watermarked")
+            raise _Failed(
+                f"key file not found: {self.key_path}: set Key File (Verification) to the key "
+                "written when this object was watermarked"
+            )
         from pmwm.atomic import file_sha256
 
         self.key = pmwm.read_key(self.key_path)
@@ -334,9 +380,18 @@ class VerifyTask(_Task):
 
     def finish(self, context, verdict, report):
         ob = self.current_object()
-        session.remember_verified(ob, session.Verified(
-            name=ob.name, verdict=verdict, key=self.key, key_path=self.key_path, key_sha256=self.key_sha256,
-            positions=self.positions32, faces=self.F))
+        session.remember_verified(
+            ob,
+            session.Verified(
+                name=ob.name,
+                verdict=verdict,
+                key=self.key,
+                key_path=self.key_path,
+                key_sha256=self.key_sha256,
+                positions=self.positions32,
+                faces=self.F,
+            ),
+        )
         record = ob.pmwm_verdict
         record.verified, record.marked = True, bool(verdict.marked)
         record.p_value = min(max(float(verdict.p_value), 0.0), 1.0)
@@ -357,8 +412,10 @@ class ReportTask(_Task):
         rec = _remembered(ob, session.lookup_verified, NOT_VERIFIED)
         if not rec.reportable:
             raise _Failed(NOT_REPORTABLE.format(ob.name))
-        if not (session.same_positions(rec.positions, meshdata.read_positions32(ob.data))
-                and np.array_equal(meshdata.read_triangles(ob.data), rec.faces)):
+        if not (
+            session.same_positions(rec.positions, meshdata.read_positions32(ob.data))
+            and np.array_equal(meshdata.read_triangles(ob.data), rec.faces)
+        ):
             raise _Failed(CHANGED_SINCE_VERIFIED.format(ob.name))
         if not os.path.isfile(rec.key_path) or file_sha256(rec.key_path) != rec.key_sha256:
             raise _Failed(f"the key file {rec.key_path} changed or went away since the verification: verify again")
@@ -381,8 +438,15 @@ class ReportTask(_Task):
 
         progress(0.0, "drawing the pictures")
         rec = self.rec
-        return build_report(rec.verdict, rec.key, rec.positions, rec.faces, key_path=rec.key_path,
-                            suspect_name=self.suspect, progress=progress)
+        return build_report(
+            rec.verdict,
+            rec.key,
+            rec.positions,
+            rec.faces,
+            key_path=rec.key_path,
+            suspect_name=self.suspect,
+            progress=progress,
+        )
 
     def finish(self, context, text, report):
         from pmwm.atomic import atomic_write_bytes
@@ -427,8 +491,9 @@ class ModalRun:
 
     def _show(self, context) -> None:
         session.set_progress(self.task.pointer, self.progress_text())
-        self._status(context, f"{self.task.doing.capitalize()} '{self.task.name}': {self.progress_text()} "
-                              "(Esc to cancel)")
+        self._status(
+            context, f"{self.task.doing.capitalize()} '{self.task.name}': {self.progress_text()} (Esc to cancel)"
+        )
 
     def _end(self, context) -> None:
         session.set_busy(self.task.pointer, None)
@@ -442,8 +507,9 @@ class ModalRun:
     def step(self, context, event_type: str) -> set:
         if event_type == "ESC":
             self.cancel(context)
-            self.report({"WARNING"}, f"{self.task.doing.capitalize()} '{self.task.name}' cancelled: "
-                                     "nothing was changed")
+            self.report(
+                {"WARNING"}, f"{self.task.doing.capitalize()} '{self.task.name}' cancelled: nothing was changed"
+            )
             return {"CANCELLED"}
         if not self.job.done:
             if event_type == "TIMER":
@@ -557,22 +623,33 @@ class WatermarkOptions:
     """The options of Watermark (and Watermark Selected), its redo panel (a mixin: Blender registers the
     properties of each operator class that inherits them)."""
 
-    payload: StringProperty(name="Payload", description="Text to embed; empty: 64 random bits",
-                            options={"SKIP_SAVE"})
-    key_path: StringProperty(name="Key File", description="Empty: <object name>.pmwm-key.json beside the "
-                             ".blend, or in the key folder of the preferences", subtype="FILE_PATH",
-                             options={"SKIP_SAVE"})
+    payload: StringProperty(name="Payload", description="Text to embed; empty: 64 random bits", options={"SKIP_SAVE"})
+    key_path: StringProperty(
+        name="Key File",
+        description="Empty: <object name>.pmwm-key.json beside the .blend, or in the key folder of the preferences",
+        subtype="FILE_PATH",
+        options={"SKIP_SAVE"},
+    )
     scheme: EnumProperty(name="Scheme", items=SCHEME_ITEMS, default="robust", options={"SKIP_SAVE"})
     strength: FloatProperty(name="Strength", default=2.0, min=0.01, max=100.0, options={"SKIP_SAVE"})
     base_ratio: FloatProperty(name="Base Ratio", default=0.03, min=0.0001, max=1.0, options={"SKIP_SAVE"})
-    seed: IntProperty(name="Seed", description="-1: a fresh random secret", default=-1, min=-1,
-                      options={"SKIP_SAVE"})
+    seed: IntProperty(name="Seed", description="-1: a fresh random secret", default=-1, min=-1, options={"SKIP_SAVE"})
     overwrite_key: BoolProperty(name="Overwrite Key", default=False, options={"SKIP_SAVE"})
-    blind_margin: FloatProperty(name="Margin", description="The Blind scheme's strength (Cho's alpha); "
-                                "0: chosen per mesh for a distortion of 0.019 % of the size",
-                                default=0.0, min=0.0, max=0.45, options={"SKIP_SAVE"})
-    progressive: BoolProperty(name="Progressive Mesh", description="Build the progressive mesh (Export "
-                              "Progressive Mesh needs it)", default=True, options={"SKIP_SAVE"})
+    blind_margin: FloatProperty(
+        name="Margin",
+        description="The Blind scheme's strength (Cho's alpha); "
+        "0: chosen per mesh for a distortion of 0.019 % of the size",
+        default=0.0,
+        min=0.0,
+        max=0.45,
+        options={"SKIP_SAVE"},
+    )
+    progressive: BoolProperty(
+        name="Progressive Mesh",
+        description="Build the progressive mesh (Export Progressive Mesh needs it)",
+        default=True,
+        options={"SKIP_SAVE"},
+    )
 
     SHARED = ("payload", "scheme", "base_ratio", "seed", "progressive")
     KEY_FILE = ("key_path", "overwrite_key", "strength")  # only with a scheme that writes a key file
@@ -613,9 +690,13 @@ class PMWM_OT_watermark(WatermarkOptions, _BackgroundOperator, Operator):
 class VerifyOptions:
     """The option of Verify (and Verify Selected), a mixin as ``WatermarkOptions``."""
 
-    key_path: StringProperty(name="Key File", description="Empty: the object's own key, <object name>"
-                             ".pmwm-key.json beside the .blend, or in the key folder of the preferences",
-                             subtype="FILE_PATH", options={"SKIP_SAVE"})
+    key_path: StringProperty(
+        name="Key File",
+        description="Empty: the object's own key, <object name>"
+        ".pmwm-key.json beside the .blend, or in the key folder of the preferences",
+        subtype="FILE_PATH",
+        options={"SKIP_SAVE"},
+    )
 
 
 class PMWM_OT_verify(VerifyOptions, _BackgroundOperator, Operator):
@@ -673,8 +754,11 @@ class PMWM_OT_export_pm(_FileOperator, Operator, ExportHelper):
         path = _file_path(self.filepath, "progressive mesh")
         _check_new(path, self.overwrite)
         pmwm.write_pm(path, pm, force=self.overwrite)
-        self.report({"INFO"}, f"Wrote progressive mesh of '{ob.name}' to {path}: {pm.n_base_vertices} base "
-                              f"vertices, {pm.n_records} vertex splits in {len(pm.level_records)} levels")
+        self.report(
+            {"INFO"},
+            f"Wrote progressive mesh of '{ob.name}' to {path}: {pm.n_base_vertices} base "
+            f"vertices, {pm.n_records} vertex splits in {len(pm.level_records)} levels",
+        )
         return {"FINISHED"}
 
 
@@ -685,8 +769,10 @@ def _marked_pm(context):
     if not session.same_positions(marked.positions, meshdata.read_positions32(ob.data)):
         raise _Failed(f"'{ob.name}' changed since it was watermarked (edit or undo): watermark this object first")
     if marked.pm is None:
-        raise _Failed(f"'{ob.name}' was watermarked without its progressive mesh: undo the watermark, turn on "
-                      "Progressive Mesh (Advanced) and watermark it again")
+        raise _Failed(
+            f"'{ob.name}' was watermarked without its progressive mesh: undo the watermark, turn on "
+            "Progressive Mesh (Advanced) and watermark it again"
+        )
     return ob, marked.pm
 
 
@@ -699,8 +785,13 @@ class PMWM_OT_import_pm(_PmwmOperator, Operator, ImportHelper):
 
     filename_ext = ".pmwm"
     filter_glob: StringProperty(default="*.pmwm", options={"HIDDEN"})
-    level: IntProperty(name="Level of Detail", description="0: base mesh; -1: full resolution",
-                       default=-1, min=-1, options={"SKIP_SAVE"})
+    level: IntProperty(
+        name="Level of Detail",
+        description="0: base mesh; -1: full resolution",
+        default=-1,
+        min=-1,
+        options={"SKIP_SAVE"},
+    )
 
     def run(self, context):
         if context.mode != "OBJECT":
@@ -729,8 +820,7 @@ class PMWM_OT_import_pm(_PmwmOperator, Operator, ImportHelper):
         lod.level = level  # no decode yet: pm_path is still empty
         lod["detail"] = 100.0 * level / n_levels if n_levels else 100.0  # (an item write: no decode either)
         lod.pm_path = path
-        self.report({"INFO"}, f"Imported '{ob.name}' at level {level}/{n_levels}: {len(V)} of "
-                              f"{pm.n_vertices} vertices")
+        self.report({"INFO"}, f"Imported '{ob.name}' at level {level}/{n_levels}: {len(V)} of {pm.n_vertices} vertices")
         return {"FINISHED"}
 
 
@@ -777,10 +867,15 @@ index.html, its script and model.pmwm)"""
     filename_ext = ""
     suffix = "-web"
     filter_glob: StringProperty(default="", options={"HIDDEN"})
-    filepath: StringProperty(name="Folder", subtype="FILE_PATH", options={"SKIP_SAVE"},
-                             description="The folder to write (created)")
-    overwrite: BoolProperty(name="Replace Existing", description="Replace the folder's web page if the "
-                            "folder exists and is not empty", default=False, options={"SKIP_SAVE"})
+    filepath: StringProperty(
+        name="Folder", subtype="FILE_PATH", options={"SKIP_SAVE"}, description="The folder to write (created)"
+    )
+    overwrite: BoolProperty(
+        name="Replace Existing",
+        description="Replace the folder's web page if the folder exists and is not empty",
+        default=False,
+        options={"SKIP_SAVE"},
+    )
 
     @classmethod
     def poll(cls, context):
@@ -795,8 +890,10 @@ index.html, its script and model.pmwm)"""
         if os.path.exists(folder) and not os.path.isdir(folder):
             raise _Failed(f"{folder} is a file: choose a name for a new folder")
         if os.path.isdir(folder) and os.listdir(folder) and not self.overwrite:
-            raise _Failed(f"{folder} exists and is not empty: tick Replace Existing in the file browser "
-                          "(overwrite=True in scripts), or choose another name")
+            raise _Failed(
+                f"{folder} exists and is not empty: tick Replace Existing in the file browser "
+                "(overwrite=True in scripts), or choose another name"
+            )
         try:
             from pmwm import viewer
         except ImportError:
@@ -806,8 +903,14 @@ index.html, its script and model.pmwm)"""
         return {"FINISHED"}
 
 
-classes = (PMWM_OT_watermark, PMWM_OT_export_pm, PMWM_OT_import_pm, PMWM_OT_verify, PMWM_OT_save_report,
-           PMWM_OT_publish_web)
+classes = (
+    PMWM_OT_watermark,
+    PMWM_OT_export_pm,
+    PMWM_OT_import_pm,
+    PMWM_OT_verify,
+    PMWM_OT_save_report,
+    PMWM_OT_publish_web,
+)
 
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -132,8 +132,12 @@ class VIEW3D_PT_pmwm(_Sidebar, Panel):
             if what:
                 doing = {"watermarked": "Watermarking", "verified": "Verifying", "reported": "Saving the report"}
                 progress = session.progress(ob)
-                label(layout, room, f"{doing.get(what, what)}: {progress}" if progress else doing.get(what, what),
-                      icon="TIME")
+                label(
+                    layout,
+                    room,
+                    f"{doing.get(what, what)}: {progress}" if progress else doing.get(what, what),
+                    icon="TIME",
+                )
                 label(layout, room, "Esc cancels")
 
 
@@ -232,8 +236,9 @@ def verdict_box(layout, room: textfit.Room, ob) -> None:
     v = rec.verdict
     box = layout.box()
     inner = room.boxed()
-    label(box, inner, f"{ob.name}: {'MARKED' if v.marked else 'not marked'}",
-          icon="CHECKMARK" if v.marked else "CANCEL")
+    label(
+        box, inner, f"{ob.name}: {'MARKED' if v.marked else 'not marked'}", icon="CHECKMARK" if v.marked else "CANCEL"
+    )
     if not session.looks_unchanged(ob.data, rec.positions):
         label(box, inner, "Changed since this verdict: verify again", icon="ERROR")
     for name, value in verdictwords.box_rows(v):

@@ -26,7 +26,7 @@ class PMWM_Preferences(AddonPreferences):
     key_folder: StringProperty(
         name="Key Folder",
         description="Folder for the key files of objects in unsaved .blend files (a saved .blend keeps each "
-                    "key beside it); empty: ~/pmwm-keys",
+        "key beside it); empty: ~/pmwm-keys",
         subtype="DIR_PATH",
         default="",
     )

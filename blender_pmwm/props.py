@@ -13,11 +13,19 @@ from bpy.types import PropertyGroup
 from . import meshdata, session
 
 SCHEME_ITEMS = [
-    ("robust", "Robust", "Bumps spread over the surface, read after registration: survives noise, smoothing, "
-                         "cropping, simplification, re-export and posing (the default)"),
+    (
+        "robust",
+        "Robust",
+        "Bumps spread over the surface, read after registration: survives noise, smoothing, "
+        "cropping, simplification, re-export and posing (the default)",
+    ),
     ("paper", "Paper", "The paper's scheme: one carrier vertex per bit against its 1-ring (for comparison)"),
-    ("blind", "Blind", "Read with the Pass Phrase alone: no key file, the payload is read, not known "
-                       "(the distribution of vertex norms)"),
+    (
+        "blind",
+        "Blind",
+        "Read with the Pass Phrase alone: no key file, the payload is read, not known "
+        "(the distribution of vertex norms)",
+    ),
 ]
 
 
@@ -33,8 +41,10 @@ def _show_carriers_update(self, context) -> None:
         marked = session.lookup(ob) if ob is not None and ob.type == "MESH" else None
         if marked is not None and ob.mode == "OBJECT":
             meshdata.mark_carriers(ob, marked.carriers)
-            print("pmwm: WARNING: the 'pmwm_carriers' vertex group reveals the carriers; "
-                  "turn 'Show carriers' off before sharing the .blend")
+            print(
+                "pmwm: WARNING: the 'pmwm_carriers' vertex group reveals the carriers; "
+                "turn 'Show carriers' off before sharing the .blend"
+            )
     else:
         for ob in bpy.data.objects:
             if ob.type == "MESH" and ob.mode == "OBJECT":
@@ -83,14 +93,14 @@ class PMWM_SceneSettings(PropertyGroup):
     key_path: StringProperty(
         name="Key File",
         description="Where Watermark writes the key file; keep it secret. Empty: <object name>.pmwm-key.json "
-                    "beside the saved .blend, or in the key folder of the add-on's preferences",
+        "beside the saved .blend, or in the key folder of the add-on's preferences",
         subtype="FILE_PATH",
         default="",
     )
     verify_key_path: StringProperty(
         name="Key File",
         description="The key file Verify reads (not the one Watermark writes). Empty: the active object's "
-                    "own key, <object name>.pmwm-key.json beside the saved .blend or in the key folder",
+        "own key, <object name>.pmwm-key.json beside the saved .blend or in the key folder",
         subtype="FILE_PATH",
         default="",
     )
@@ -103,32 +113,45 @@ class PMWM_SceneSettings(PropertyGroup):
     strength: FloatProperty(
         name="Strength",
         description="How far the mark moves the surface: bump height (robust) or carrier displacement in "
-                    "neighbour standard deviations (paper). Higher survives more damage and shows more; 2 is "
-                    "the default",
-        default=2.0, min=0.01, max=100.0, soft_min=0.5, soft_max=5.0,
+        "neighbour standard deviations (paper). Higher survives more damage and shows more; 2 is "
+        "the default",
+        default=2.0,
+        min=0.01,
+        max=100.0,
+        soft_min=0.5,
+        soft_max=5.0,
     )
     blind_margin: FloatProperty(
         name="Margin",
         description="The Blind scheme's strength: how far each bin of vertex distances is pushed from its "
-                    "middle (Cho's alpha, a fraction of the bin). Higher survives more damage and shows "
-                    "more; 0 (the default): chosen per mesh to spend a distortion of 0.019 % of the size",
-        default=0.0, min=0.0, max=0.45, soft_max=0.2, precision=3,
+        "middle (Cho's alpha, a fraction of the bin). Higher survives more damage and shows "
+        "more; 0 (the default): chosen per mesh to spend a distortion of 0.019 % of the size",
+        default=0.0,
+        min=0.0,
+        max=0.45,
+        soft_max=0.2,
+        precision=3,
     )
     base_ratio: FloatProperty(
         name="Base Ratio",
         description="Vertices of the progressive mesh's base mesh (its coarsest level, streamed first) "
-                    "as a fraction of the input",
-        default=0.03, min=0.0001, max=1.0, soft_max=0.5, precision=3,
+        "as a fraction of the input",
+        default=0.03,
+        min=0.0001,
+        max=1.0,
+        soft_max=0.5,
+        precision=3,
     )
     seed: IntProperty(
         name="Seed",
         description="Secret seed for the carrier choice; -1 draws a fresh random one (recorded in the key)",
-        default=-1, min=-1,
+        default=-1,
+        min=-1,
     )
     progressive: BoolProperty(
         name="Progressive Mesh",
         description="Build the progressive mesh while watermarking (Export Progressive Mesh needs it); off: "
-                    "the same watermark in a fraction of the time, without one",
+        "the same watermark in a fraction of the time, without one",
         default=True,
     )
     overwrite_key: BoolProperty(
@@ -139,7 +162,7 @@ class PMWM_SceneSettings(PropertyGroup):
     show_carriers: BoolProperty(
         name="Show Carriers",
         description="Mark the carriers of the active object in a temporary vertex group 'pmwm_carriers'. "
-                    "A .blend saved with it on reveals them",
+        "A .blend saved with it on reveals them",
         default=False,
         update=_show_carriers_update,
     )
@@ -153,14 +176,19 @@ class PMWM_ObjectLoD(PropertyGroup):
     level: IntProperty(
         name="Level",
         description="0 is the base mesh, the highest level the full mesh: refines or coarsens in place",
-        default=0, min=0,
+        default=0,
+        min=0,
         update=_lod_update,
     )
     detail: FloatProperty(
         name="Detail",
         description="The level of detail from the base mesh (0 %) to the full mesh (100 %): refines or "
-                    "coarsens in place, to the nearest level",
-        default=100.0, min=0.0, max=100.0, precision=0, subtype="PERCENTAGE",
+        "coarsens in place, to the nearest level",
+        default=100.0,
+        min=0.0,
+        max=100.0,
+        precision=0,
+        subtype="PERCENTAGE",
         update=_detail_update,
     )
     status: StringProperty(name="Status", default="")
@@ -173,8 +201,9 @@ class PMWM_ObjectVerdict(PropertyGroup):
     verified: BoolProperty(name="Verified", description="Verify ran on this object", default=False)
     marked: BoolProperty(name="Marked", default=False)
     p_value: FloatProperty(name="p-value", default=1.0, min=0.0, max=1.0)
-    payload: StringProperty(name="Payload", description="The payload read, only when the verdict confirms it",
-                            default="")
+    payload: StringProperty(
+        name="Payload", description="The payload read, only when the verdict confirms it", default=""
+    )
 
 
 class PMWM_Secrets(PropertyGroup):
@@ -185,8 +214,10 @@ class PMWM_Secrets(PropertyGroup):
     passphrase: StringProperty(
         name="Pass Phrase",
         description="Blind scheme: the secret that marks and reads; the same phrase may mark many meshes. "
-                    "Never saved in the .blend",
-        subtype="PASSWORD", default="", options={"SKIP_SAVE"},
+        "Never saved in the .blend",
+        subtype="PASSWORD",
+        default="",
+        options={"SKIP_SAVE"},
     )
 
 
@@ -228,8 +259,10 @@ def register() -> None:
 
 
 def unregister() -> None:
-    for handlers, fn in ((bpy.app.handlers.save_pre, _forget_on_save),
-                         (bpy.app.handlers.save_post, _restore_after_save)):
+    for handlers, fn in (
+        (bpy.app.handlers.save_pre, _forget_on_save),
+        (bpy.app.handlers.save_post, _restore_after_save),
+    ):
         if fn in handlers:
             handlers.remove(fn)
     del bpy.types.WindowManager.pmwm_secrets

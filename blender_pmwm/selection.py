@@ -16,8 +16,20 @@ import bpy
 from bpy.types import Operator
 
 from . import meshdata, props, session, verdictwords
-from .operators import (VerifyOptions, VerifyTask, WatermarkOptions, WatermarkTask, _BackgroundOperator, _Failed,
-                        _key_path, _mesh_problem, _poll_mesh, _read_mesh, _uses_passphrase, still_there)
+from .operators import (
+    VerifyOptions,
+    VerifyTask,
+    WatermarkOptions,
+    WatermarkTask,
+    _BackgroundOperator,
+    _Failed,
+    _key_path,
+    _mesh_problem,
+    _poll_mesh,
+    _read_mesh,
+    _uses_passphrase,
+    still_there,
+)
 
 
 def _selected_meshes(context) -> tuple[list, dict]:
@@ -79,13 +91,24 @@ class WatermarkSelectedTask(_Selection, WatermarkTask):
             write_keys(self.key_path, marking.key, overwrite=self.overwrite)
         for ob, res in zip(obs, marking.results):
             meshdata.write_base_positions(ob.data, res.vertices)
-            session.remember(ob, session.Marked(name=ob.name, pm=res.pm, carriers=res.carriers,
-                                                positions=meshdata.read_positions32(ob.data),
-                                                n_bits=len(res.bits), vsnr_db=float(res.vsnr_db)))
+            session.remember(
+                ob,
+                session.Marked(
+                    name=ob.name,
+                    pm=res.pm,
+                    carriers=res.carriers,
+                    positions=meshdata.read_positions32(ob.data),
+                    n_bits=len(res.bits),
+                    vsnr_db=float(res.vsnr_db),
+                ),
+            )
         where = "no key file (the pass phrase reads it)" if self.blind else f"key written to {self.key_path}"
         vsnr = ", ".join(f"{ob.name} {res.vsnr_db:.1f} dB" for ob, res in zip(obs, marking.results))
-        report({"INFO"}, f"Watermarked {len(obs)} objects as one asset: {len(marking.results[0].bits)} bits in "
-                         f"each (VSNR {vsnr}); {where}")
+        report(
+            {"INFO"},
+            f"Watermarked {len(obs)} objects as one asset: {len(marking.results[0].bits)} bits in "
+            f"each (VSNR {vsnr}); {where}",
+        )
 
 
 class VerifySelectedTask(_Selection, VerifyTask):
@@ -105,8 +128,10 @@ class VerifySelectedTask(_Selection, VerifyTask):
             active = context.active_object
             self.key_path, _ = _key_path(context, active, key_path)
             if not os.path.isfile(self.key_path):
-                raise _Failed(f"key file not found: {self.key_path}: set Key File (Verification) to the key "
-                              "written when the objects were watermarked")
+                raise _Failed(
+                    f"key file not found: {self.key_path}: set Key File (Verification) to the key "
+                    "written when the objects were watermarked"
+                )
             self.keys = read_keys(self.key_path)
             self.key_sha256 = file_sha256(self.key_path)
         self._remember_selection(context)
@@ -125,9 +150,18 @@ class VerifySelectedTask(_Selection, VerifyTask):
         for first, (_, _, _, F, p32) in zip(obs, self.items):
             mine = first.name in read if read else verdict.marked
             for ob in [first, *(bpy.data.objects[n] for n in self.sharing[first.name])]:  # (one mesh)
-                session.remember_verified(ob, session.Verified(name=ob.name, verdict=verdict, key=key,
-                                                               key_path=self.key_path, key_sha256=self.key_sha256,
-                                                               positions=p32, faces=F))
+                session.remember_verified(
+                    ob,
+                    session.Verified(
+                        name=ob.name,
+                        verdict=verdict,
+                        key=key,
+                        key_path=self.key_path,
+                        key_sha256=self.key_sha256,
+                        positions=p32,
+                        faces=F,
+                    ),
+                )
                 record = ob.pmwm_verdict
                 record.verified, record.marked = True, bool(mine)
                 record.p_value = min(max(float(read.get(first.name, verdict.p_value)), 0.0), 1.0)

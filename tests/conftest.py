@@ -70,8 +70,9 @@ def extension_zip(build_addon, tmp_path_factory) -> Path:
     import importlib.metadata
 
     out = tmp_path_factory.mktemp("dist")
-    (built,) = build_addon.build(out, importlib.metadata.version("trimesh"), check=False,
-                                 which=build_addon.targets(["this"], ["this"]))
+    (built,) = build_addon.build(
+        out, importlib.metadata.version("trimesh"), check=False, which=build_addon.targets(["this"], ["this"])
+    )
     return built
 
 
@@ -86,13 +87,18 @@ SLOW_HINT = "run them with `pytest --all` (tests/run_all.py, which CI runs, does
 
 
 def pytest_addoption(parser):
-    parser.addoption("--all", action="store_true", dest="run_all",
-                     help="run the slow tests too (deselected by default); tests/run_all.py and CI pass it")
+    parser.addoption(
+        "--all",
+        action="store_true",
+        dest="run_all",
+        help="run the slow tests too (deselected by default); tests/run_all.py and CI pass it",
+    )
 
 
 def _runs_everything(config) -> bool:
-    return bool(config.getoption("run_all") or config.getoption("markexpr")
-                or any("::" in str(arg) for arg in config.args))
+    return bool(
+        config.getoption("run_all") or config.getoption("markexpr") or any("::" in str(arg) for arg in config.args)
+    )
 
 
 def pytest_report_header(config):

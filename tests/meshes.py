@@ -104,11 +104,23 @@ def mesh_file(name: str) -> Path:
     return path
 
 
-def write_off(path: Path, V: np.ndarray, F: np.ndarray, *, newline: str = "\n", edges: bool = False,
-              vertex_end: str = "", face_sep: str = " ", face_end: str = "") -> Path:
+def write_off(
+    path: Path,
+    V: np.ndarray,
+    F: np.ndarray,
+    *,
+    newline: str = "\n",
+    edges: bool = False,
+    vertex_end: str = "",
+    face_sep: str = " ",
+    face_end: str = "",
+) -> Path:
     """Write an OFF file; ``repr``-style shortest digits keep the float64 values exactly."""
-    n_edges = len(np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)) \
-        if edges else 0
+    n_edges = (
+        len(np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0))
+        if edges
+        else 0
+    )
     lines = ["OFF", f"{len(V)} {len(F)} {n_edges}"]
     lines += [f"{x!r} {y!r} {z!r}{vertex_end}" for x, y, z in V.tolist()]
     lines += [f"3{face_sep}{a} {b} {c}{face_end}" for a, b, c in F.tolist()]

@@ -50,8 +50,10 @@ def ensure_tools() -> None:
             if subprocess.run(cmd, env=env, stdin=subprocess.DEVNULL).returncode:
                 sys.exit(f"tests/run_all.py: {' '.join(cmd)} failed")
         return
-    sys.exit(f"tests/run_all.py: the browser tests need {' '.join(missing)}; install them first "
-             f"(Debian: sudo apt-get install {' '.join(missing)})")
+    sys.exit(
+        f"tests/run_all.py: the browser tests need {' '.join(missing)}; install them first "
+        f"(Debian: sudo apt-get install {' '.join(missing)})"
+    )
 
 
 def python313() -> str:
@@ -66,8 +68,9 @@ def python313() -> str:
     on_path = shutil.which("python3.13")
     if on_path:
         return on_path
-    sys.exit("tests/run_all.py: Python 3.13 not found (pyenv install 3.13, or a python3.13 on PATH): "
-             "needed for Blender 5.2")
+    sys.exit(
+        "tests/run_all.py: Python 3.13 not found (pyenv install 3.13, or a python3.13 on PATH): needed for Blender 5.2"
+    )
 
 
 def main(argv: list[str]) -> int:
@@ -86,6 +89,7 @@ def main(argv: list[str]) -> int:
 
 if __name__ == "__main__":
     if sys.version_info[:2] != (3, 11):
-        sys.exit("tests/run_all.py: run it with Python 3.11 (python3.11 tests/run_all.py); "
-                 f"this is {sys.version.split()[0]}")
+        sys.exit(
+            f"tests/run_all.py: run it with Python 3.11 (python3.11 tests/run_all.py); this is {sys.version.split()[0]}"
+        )
     sys.exit(main(sys.argv[1:]))

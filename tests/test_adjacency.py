@@ -18,12 +18,18 @@ def test_stable_order_is_the_stable_argsort(case, own):
     """Every path: one and two 16-bit radix passes (ties across the 2^16 boundary), the packed sort,
     the plain stable argsort (keys too wide, or negative)."""
     rng = np.random.default_rng(3)
-    keys = {"ties": rng.integers(0, 50, 5000), "16-bit": rng.integers(0, 2**16, 5000),
-            "32-bit": np.concatenate([rng.integers(0, 2**32, 3000), rng.integers(2**16 - 40, 2**16 + 40, 2000),
-                                      [2**32 - 1, 0, 2**16]]),
-            "packed": rng.integers(0, 2**40, 5000) // 7, "wide": rng.integers(0, 2**62, 5000),
-            "negative": rng.integers(-20, 20, 5000), "empty": np.zeros(0, np.int64),
-            "one": np.array([7])}[case].astype(np.int64)
+    keys = {
+        "ties": rng.integers(0, 50, 5000),
+        "16-bit": rng.integers(0, 2**16, 5000),
+        "32-bit": np.concatenate(
+            [rng.integers(0, 2**32, 3000), rng.integers(2**16 - 40, 2**16 + 40, 2000), [2**32 - 1, 0, 2**16]]
+        ),
+        "packed": rng.integers(0, 2**40, 5000) // 7,
+        "wide": rng.integers(0, 2**62, 5000),
+        "negative": rng.integers(-20, 20, 5000),
+        "empty": np.zeros(0, np.int64),
+        "one": np.array([7]),
+    }[case].astype(np.int64)
     expected = np.argsort(keys, kind="stable")
     want = keys[expected]
     order, sorted_keys = adjacency._stable_order(keys.copy(), own) if own else stable_order(keys)
@@ -112,6 +118,7 @@ def test_boundary_edges_are_the_edges_of_one_face(name):
     order: closed and open meshes, a mesh cut by a plane, one with a face flipped (its edges then have
     two faces that disagree), with a degenerate face, and random soups with repeated corners and edges of
     one, two, three or more faces."""
+
     def expected(F, n):
         edges, count = adjacency.edge_face_counts(F, n)
         return edges[count == 1]
@@ -153,8 +160,15 @@ def test_unique_values_are_those_of_np_unique():
     """``unique_values`` (a sort, not numpy 2's hash set) gives np.unique's values: integers with many
     repeats or none, any shape, floats, one value, none."""
     rng = np.random.default_rng(3)
-    cases = [rng.integers(0, 50, 1000), rng.integers(-2**40, 2**40, 5000), rng.integers(0, 9, (30, 4)),
-             rng.normal(size=200).round(1), np.array([7]), np.zeros(0, np.int64), np.arange(10)[::-1]]
+    cases = [
+        rng.integers(0, 50, 1000),
+        rng.integers(-(2**40), 2**40, 5000),
+        rng.integers(0, 9, (30, 4)),
+        rng.normal(size=200).round(1),
+        np.array([7]),
+        np.zeros(0, np.int64),
+        np.arange(10)[::-1],
+    ]
     for x in cases:
         got = adjacency.unique_values(x)
         assert got.dtype == x.dtype and np.array_equal(got, np.unique(x))
@@ -171,14 +185,16 @@ def test_component_labels_are_scipys_components_named_by_their_least_vertex(seed
     ids = rng.permutation(5000)
     parts, at = [], 0
     for length in rng.integers(2, 300, 12):
-        p = ids[at:at + length]
+        p = ids[at : at + length]
         at += length
-        parts.append(np.stack([p, np.roll(p, -1)], 1) if length > 2 and rng.random() < 0.7
-                     else np.stack([p[:-1], p[1:]], 1))
+        parts.append(
+            np.stack([p, np.roll(p, -1)], 1) if length > 2 and rng.random() < 0.7 else np.stack([p[:-1], p[1:]], 1)
+        )
     E = np.concatenate(parts)[rng.permutation(sum(len(q) for q in parts))]
     got = adjacency.component_labels(E)
-    _, comp = connected_components(coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(5000, 5000)),
-                                   directed=False)
+    _, comp = connected_components(
+        coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(5000, 5000)), directed=False
+    )
     least = np.full(comp.max() + 1, 1 << 40)
     np.minimum.at(least, comp[E.ravel()], E.ravel())
     np.testing.assert_array_equal(got, least[comp[E[:, 0]]])

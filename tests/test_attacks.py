@@ -346,6 +346,7 @@ def test_retriangulate_flips_diagonals_and_keeps_the_surface(bunny):
     assert changed > 0.5  # most faces were re-triangulated
     adj = build_adjacency(F2, len(V))
     assert not adj.nonmanifold_vertex.any()  # no duplicated edge
+
     # orientation and enclosed volume are kept (a flip inside a planar-ish quad)
     def vol(F_):
         return np.einsum("ij,ij->", np.cross(V[F_[:, 1]], V[F_[:, 2]]), V[F_[:, 0]])

@@ -146,9 +146,14 @@ def test_the_embedders_progressive_mesh_decodes_to_the_marked_mesh_and_reports_o
         threads.add(threading.get_ident())
         messages.append(message)
 
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme=scheme, payload="pm", seed=3,
-                                             passphrase="beside the mark" if scheme == "blind" else None),
-                     progress=progress)
+    res = pmwm.embed(
+        V,
+        F,
+        pmwm.EmbedOptions(
+            scheme=scheme, payload="pm", seed=3, passphrase="beside the mark" if scheme == "blind" else None
+        ),
+        progress=progress,
+    )
     assert threads == {threading.get_ident()}
     assert any(m.startswith("progressive mesh") for m in messages)  # the worker's reports were relayed
     Vd, Fd = res.pm.decode()
@@ -211,8 +216,9 @@ def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma
 
     V, F = meshes.bunny()
     res = pmwm.embed(V, F, pmwm.EmbedOptions(payload="fresh", seed=4, progressive=False))
-    write_mesh(tmp_path / "cut.ply", *attacks.similarity(*attacks.crop_plane(res.vertices, res.faces, 0.5, seed=2),
-                                                          seed=2))
+    write_mesh(
+        tmp_path / "cut.ply", *attacks.similarity(*attacks.crop_plane(res.vertices, res.faces, 0.5, seed=2), seed=2)
+    )
     write_key(tmp_path / "key.json", res.key)
     code = (
         "import sys\n"
@@ -223,7 +229,8 @@ def test_a_fresh_process_verifies_a_cut_and_posed_copy_without_scipy_or_numpy_ma
         "assert v.marked and v.payload == 'fresh' and v.detail.heights.startswith('by position'), v.detail\n"
         "loaded = sorted(m for m in sys.modules if m.split('.')[0] == 'scipy' or m.startswith(('numpy.ma.',))\n"
         "                or m == 'numpy.ma')\n"
-        "assert not loaded, loaded\n")
+        "assert not loaded, loaded\n"
+    )
     _fresh_process(code)
 
 
@@ -237,13 +244,18 @@ def test_a_fresh_process_embeds_with_its_kdtree_and_no_thread_left_behind(engine
     the call."""
     import hashlib
 
-    block = ("class NoPykdtree:\n"
-             "    def find_spec(self, name, path=None, target=None):\n"
-             "        if name.split('.')[0] == 'pykdtree': raise ImportError(name)\n"
-             "sys.meta_path.insert(0, NoPykdtree())\n") if engine == "scipy" else ""
+    block = (
+        (
+            "class NoPykdtree:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name.split('.')[0] == 'pykdtree': raise ImportError(name)\n"
+            "sys.meta_path.insert(0, NoPykdtree())\n"
+        )
+        if engine == "scipy"
+        else ""
+    )
     code = (
-        "import sys, threading, hashlib, numpy as np\n" + block +
-        "import pmwm\n"
+        "import sys, threading, hashlib, numpy as np\n" + block + "import pmwm\n"
         "from pmwm import spatial\n"
         "sys.path.insert(0, 'tests'); import meshes\n"
         "V, F = meshes.blob()\n"
@@ -254,7 +266,8 @@ def test_a_fresh_process_embeds_with_its_kdtree_and_no_thread_left_behind(engine
         "assert [t.name for t in threading.enumerate()] == ['MainThread'], threading.enumerate()\n"
         "b = pmwm.embed(V, F, pmwm.EmbedOptions(payload='fresh', seed=4)).vertices\n"
         "assert np.array_equal(a, b)\n"
-        "print(hashlib.sha256(a.tobytes()).hexdigest())\n")
+        "print(hashlib.sha256(a.tobytes()).hexdigest())\n"
+    )
     out = _fresh_process(code)
     V, F = meshes.blob()
     with spatial.using_engine("scipy" if engine == "pykdtree" else "pykdtree"):  # the other engine, here

@@ -83,7 +83,8 @@ def test_quick_sweep_writes_tables_verdicts_and_one_plot_per_attack(tmp_path):
         assert f"### {labels[key]}: BER against MRMS" in text
         assert (tmp_path / "B-equal-distortion" / f"ber_vs_mrms_{key}.png").stat().st_size > 0
     assert sorted(p.name for p in (tmp_path / "B-equal-distortion").glob("*.png")) == sorted(
-        f"ber_vs_mrms_{k}.png" for k in QUICK_ATTACKS)
+        f"ber_vs_mrms_{k}.png" for k in QUICK_ATTACKS
+    )
     # the table: every method at both of its strengths, MRMS and BER per model
     for method in ("pmwm", "pmwm-paper", "Cho I", "Cho II", "pmwm-blind"):  # every scheme, the blind one too
         assert sum(1 for ln in text.splitlines() if ln.startswith(f"| {method} |")) == 2 * len(QUICK_ATTACKS)

@@ -38,8 +38,12 @@ def test_the_report_is_what_its_fragments_give():
 
 def test_the_check_refuses_long_reports_and_work_log_headings():
     gen = generator()
-    for bad in ("## Blind scheme (issue 14)", "## The crop search (twenty-sixth session)", "### session-31",
-                "## blind-s18 figures"):
+    for bad in (
+        "## Blind scheme (issue 14)",
+        "## The crop search (twenty-sixth session)",
+        "### session-31",
+        "## blind-s18 figures",
+    ):
         with pytest.raises(ValueError, match="work-log"):
             gen.check(f"# Benchmarks\n\n{bad}\n")
     with pytest.raises(ValueError, match="lines"):

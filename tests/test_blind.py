@@ -90,8 +90,11 @@ def test_a_verdict_that_reads_no_mark_carries_neither_the_payload_nor_its_bits(b
     stats = blind.bin_statistics(marked.vertices, marked.faces)
     high = blind.decide(stats, SECRET, p_threshold=1e-30)  # the marked copy, read against a threshold it misses
     assert not high.marked and high.p_value < 1e-6
-    for v in (high, pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE + "!"),
-              pmwm.verify(*bunny, passphrase=PHRASE)):
+    for v in (
+        high,
+        pmwm.verify(marked.vertices, marked.faces, passphrase=PHRASE + "!"),
+        pmwm.verify(*bunny, passphrase=PHRASE),
+    ):
         assert (v.payload, v.bits, v.payload_confirmed) == (None, "", False)
         assert v.detail.word is v.detail.word_read is v.detail.payload_kind is None
         d = v.to_dict()
@@ -130,21 +133,29 @@ def test_a_bad_suspect_read_with_the_pass_phrase_raises_and_leaves_no_thread(mar
     assert not [t for t in threading.enumerate() if t.name.startswith("pmwm-background")]
 
 
-@pytest.mark.parametrize("attack", [
-    lambda v, f: A.similarity(v, f, seed=4),
-    lambda v, f: A.reorder(v, f, seed=5),
-    lambda v, f: A.quantize(v, f, bits=10),
-    lambda v, f: A.noise_benchmark(v, f, 0.003, seed=6),
-], ids=["similarity", "reorder", "quantize10", "noise0.3%"])
+@pytest.mark.parametrize(
+    "attack",
+    [
+        lambda v, f: A.similarity(v, f, seed=4),
+        lambda v, f: A.reorder(v, f, seed=5),
+        lambda v, f: A.quantize(v, f, bits=10),
+        lambda v, f: A.noise_benchmark(v, f, 0.003, seed=6),
+    ],
+    ids=["similarity", "reorder", "quantize10", "noise0.3%"],
+)
 def test_whole_payload_survives(marked, attack):
     v = pmwm.verify(*attack(marked.vertices, marked.faces), passphrase=PHRASE)
     assert v.marked and v.payload == "Acme"
 
 
-@pytest.mark.parametrize("attack", [
-    lambda v, f: A.smooth_laplacian(v, f, lam=0.1, iterations=8, seed=0),
-    lambda v, f: A.noise_benchmark(v, f, 0.01, seed=2),
-], ids=["smoothing8", "noise1%"])
+@pytest.mark.parametrize(
+    "attack",
+    [
+        lambda v, f: A.smooth_laplacian(v, f, lam=0.1, iterations=8, seed=0),
+        lambda v, f: A.noise_benchmark(v, f, 0.01, seed=2),
+    ],
+    ids=["smoothing8", "noise1%"],
+)
 def test_refined_frame_reads_what_the_own_frame_loses(marked, attack):
     """These attacks move the suspect's frame by a fraction of a bin; read in its own frame alone the
     payload is lost, the key-free frame refinement finds it, with p still below 1e-6 (the smoothed copy
@@ -208,7 +219,7 @@ def test_the_most_likely_flips_are_the_lightest_sets_of_bits():
         assert np.all(np.diff(cost) >= -1e-12)  # lightest first
         if N <= 12:  # against every subset
             every = np.sort([w[list(c)].sum() for k in range(N + 1) for c in itertools.combinations(range(N), k)])
-            assert np.allclose(cost, every[:len(cost)])
+            assert np.allclose(cost, every[: len(cost)])
     # a bit read with certainty (infinite reliability) is never flipped before the others
     got = word.likely_flips(np.array([0.3, np.inf, 0.1, 0.2]), 8)
     assert not got[:, 1].any() and len({row.tobytes() for row in got}) == 8
@@ -295,9 +306,12 @@ def test_every_reading_the_plan_allows_keeps_all_check_bits_right_below_1e_6():
 def test_a_verdicts_p_value_is_the_union_bound_over_the_stages_it_read(marked, copy):
     """Whatever stages a reading takes, its frames are the ones their stages declare and the verdict's
     p-value is ``plan.p_value`` over those stages: the union bound times the best candidate's tail."""
-    V, F = {"marked": lambda v, f: (v, f), "8-bit": lambda v, f: A.quantize(v, f, bits=8),
-            "crop": lambda v, f: A.crop_plane(v, f, fraction=0.1, seed=1),
-            "noise 0.95 %": lambda v, f: A.noise_benchmark(v, f, 0.0095, seed=0)}[copy](marked.vertices, marked.faces)
+    V, F = {
+        "marked": lambda v, f: (v, f),
+        "8-bit": lambda v, f: A.quantize(v, f, bits=8),
+        "crop": lambda v, f: A.crop_plane(v, f, fraction=0.1, seed=1),
+        "noise 0.95 %": lambda v, f: A.noise_benchmark(v, f, 0.0095, seed=0),
+    }[copy](marked.vertices, marked.faces)
     stats = blind.bin_statistics(V, F)
     assert all(name in plan.stage(stage).frames for name, stage in zip(stats.frame_names, stats.frame_stages))
     order = [s.name for s in plan.STAGES]
@@ -307,8 +321,7 @@ def test_a_verdicts_p_value_is_the_union_bound_over_the_stages_it_read(marked, c
     assert v.p_value == plan.p_value(pmwm.metrics.binomial_tail(v.matches, word.CHECK_BITS), stats.frame_stages)
     assert v.detail.frames == len(stats.frame_stages) and v.detail.reserve_frames == stats.frame_stages.count("reserve")
     wrong = blind.decide(stats, word.derive_secret(PHRASE + "!"))
-    assert wrong.p_value == plan.p_value(pmwm.metrics.binomial_tail(wrong.matches, word.CHECK_BITS),
-                                         stats.frame_stages)
+    assert wrong.p_value == plan.p_value(pmwm.metrics.binomial_tail(wrong.matches, word.CHECK_BITS), stats.frame_stages)
 
 
 def test_a_stage_the_configuration_leaves_out_is_not_read(marked):
@@ -353,10 +366,14 @@ def test_bin_margins_give_every_bin_the_same_signal_to_noise():
     assert m.tolist() == [1.0, 1.0, 2.0, 0.5, radial.MARGIN_SPREAD[1], radial.MARGIN_SPREAD[1]]
 
 
-@pytest.mark.parametrize("attack", [
-    lambda v, f: A.subdivide(v, f, "sqrt3"),
-    lambda v, f: A.simplify(v, f, ratio=0.7, seed=1),
-], ids=["sqrt3", "simplify70%"])
+@pytest.mark.parametrize(
+    "attack",
+    [
+        lambda v, f: A.subdivide(v, f, "sqrt3"),
+        lambda v, f: A.simplify(v, f, ratio=0.7, seed=1),
+    ],
+    ids=["sqrt3", "simplify70%"],
+)
 @pytest.mark.slow
 def test_margins_by_bin_count_read_what_equal_margins_lost(marked, attack):
     """The bunny's bins hold 70 to 950 vertices; with the margin spread by count (at the same
@@ -494,11 +511,15 @@ def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny)
     second otherwise), at the p-value of a suspect without a cut. Its crops are still searched (the test
     above)."""
     V, F = A.crop_plane(*bunny, fraction=0.1, seed=7)
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Flat", passphrase=PHRASE, seed=5,
-                                             progressive=False))
+    res = pmwm.embed(
+        V, F, pmwm.EmbedOptions(scheme="blind", payload="Flat", passphrase=PHRASE, seed=5, progressive=False)
+    )
     assert crop.cut_planes(res.vertices, F, res.vertices.mean(0))  # the asset has a planar cut
-    for X, G in [(res.vertices, F), A.reorder(res.vertices, F, seed=1),
-                 A.noise_benchmark(res.vertices, F, amplitude=0.003, seed=2)]:
+    for X, G in [
+        (res.vertices, F),
+        A.reorder(res.vertices, F, seed=1),
+        A.noise_benchmark(res.vertices, F, amplitude=0.003, seed=2),
+    ]:
         with calls_of(crop.crop_frames) as searched:
             v = pmwm.verify(X, G, passphrase=PHRASE)
         assert not searched  # the crop search did not run
@@ -517,7 +538,7 @@ def test_a_crop_whose_lost_centre_lies_off_the_familys_plane_is_read(marked):
     crops = [A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=seed) for seed in (71, 78)]
     for V, F in crops:
         fr, _ = radial.frame_of(V, F, 64)
-        (h, n), = crop.cut_planes(V, F, fr.centre)
+        ((h, n),) = crop.cut_planes(V, F, fr.centre)
         normal = np.cross(h - fr.centre, n)  # of the family's plane (through the centroid, h and n)
         assert abs((fr0.centre - fr.centre) @ normal) / np.linalg.norm(normal) > width
         v = pmwm.verify(V, F, passphrase=PHRASE)
@@ -538,7 +559,7 @@ def test_a_30_percent_crop_whose_lost_centre_lies_far_off_the_familys_plane_is_r
         fr0, _ = radial.frame_of(Vs, Fs, 64)  # the marked mesh's frame, posed
         V, F = A.crop_plane(Vs, Fs, fraction=0.3, seed=seed)
         fr, _ = radial.frame_of(V, F, 64)
-        (h, n), = crop.cut_planes(V, F, fr.centre)
+        ((h, n),) = crop.cut_planes(V, F, fr.centre)
         normal = np.cross(h - fr.centre, n)
         off = abs((fr0.centre - fr.centre) @ normal) / np.linalg.norm(normal)
         assert off > 1.8 * (fr.hi - fr.lo) / 64
@@ -564,8 +585,10 @@ def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marke
     counts = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
     g = crop.crop_frames(V, a, area, own, crop.cut_planes(V, F, own.centre), [64, 96])[0]  # the 64-bin mark's
     assert g.n_bins == 64
-    swapped = [radial.Frame(own.centre + 40 * g.width, own.lo, own.hi, 64),
-               radial.Frame(g.centre, g.lo, g.lo + 96 * g.width, 96)]
+    swapped = [
+        radial.Frame(own.centre + 40 * g.width, own.lo, own.hi, 64),
+        radial.Frame(g.centre, g.lo, g.lo + 96 * g.width, 96),
+    ]
     _, j, f = frames.best_length(V, a, swapped, counts, [0, 1])
     assert counts[j] == 64 and f.n_bins == 64
     stat, share = radial.statistics_in(V, a, f, [64])[0]
@@ -577,8 +600,9 @@ def test_a_frame_found_for_one_length_is_read_at_the_length_of_most_energy(marke
 def small_marked(bunny):
     """The bunny simplified to 13,935 vertices (about the Venus head's count), marked."""
     V, F = A.simplify(*bunny, ratio=0.6)
-    return pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3,
-                                              progressive=False))
+    return pmwm.embed(
+        V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False)
+    )
 
 
 @pytest.mark.parametrize("scheme", ["loop", "sqrt3", "catmull-clark"])
@@ -628,8 +652,9 @@ def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, schem
     from the factor ``ReaderConfig.coarse_gain`` that a subdivided copy's shows; the suspect is read, as it is or a few
     steps smoothed)."""
     V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), scheme)
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4,
-                                             progressive=False))
+    res = pmwm.embed(
+        V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4, progressive=False)
+    )
     S = (res.vertices, res.faces) if attack is None else attack(res.vertices, res.faces)
     own = frames.read_statistics_frames(*S, [L + word.CHECK_BITS for L in word.PAYLOAD_BITS])
     assert (own.energy >= READER.full_view) == (attack is None)
@@ -665,8 +690,9 @@ def test_weighted_quantiles_of_many_rows():
     assert radial.weighted_quantiles(rho[:1], w, [[0.0, 1.0]])[0].tolist() == [rho[0].min(), rho[0].max()]
 
 
-@pytest.mark.parametrize("end, quantiles, seed", [("low", (0.0, 0.01, 0.02, 0.05, 0.3), 2),
-                                                    ("high", (1.0, 0.99, 0.98, 0.95, 0.7), 3)])
+@pytest.mark.parametrize(
+    "end, quantiles, seed", [("low", (0.0, 0.01, 0.02, 0.05, 0.3), 2), ("high", (1.0, 0.99, 0.98, 0.95, 0.7), 3)]
+)
 @pytest.mark.slow
 def test_a_quantile_from_the_values_at_one_end_equals_the_one_from_all(end, quantiles, seed):
     """``low_quantile`` sorts only the smallest values, ``high_quantile`` only the largest (a frame's ends,
@@ -682,7 +708,7 @@ def test_a_quantile_from_the_values_at_one_end_equals_the_one_from_all(end, quan
             x = np.round(x * rng.integers(1, 300))  # many ties
         w = rng.random(n) * (rng.random(n) < 0.8)
         if trial % 7 == 0:  # the half at that end weighs nothing: the full sort is needed
-            w[np.argsort(x)[: n // 2] if end == "low" else np.argsort(x)[n // 2:]] = 0.0
+            w[np.argsort(x)[: n // 2] if end == "low" else np.argsort(x)[n // 2 :]] = 0.0
         if not w.sum() > 0:
             continue
         q = float(rng.choice(quantiles))
@@ -769,9 +795,13 @@ def test_crop_search_scores_are_the_energy_of_the_best_frame():
         rho = np.linalg.norm(P - C[b], axis=1)
         q = radial.weighted_quantiles(rho[None], area, [[radial.QUANTILES[0] / (1 - lam[b])]])[0, 0]
         lo = rho.min() + np.floor((q - rho.min()) / cell) * cell
-        want = max(radial.energies(P, np.ones(3000), C[b][None], np.array([lo + p * w]),
-                                   np.array([lo + (p + n_bins) * w]), n_bins)[0]
-                   for w in widths[b] for p in phases)
+        want = max(
+            radial.energies(
+                P, np.ones(3000), C[b][None], np.array([lo + p * w]), np.array([lo + (p + n_bins) * w]), n_bins
+            )[0]
+            for w in widths[b]
+            for p in phases
+        )
         assert got[b] == pytest.approx(want, rel=1e-9)
 
 
@@ -855,8 +885,9 @@ def run(*args, env=None, cwd=None):
     full = dict(os.environ, PYTHONPATH=str(Path(pmwm.__file__).parent.parent))
     full.pop("PMWM_PASSPHRASE", None)
     full.update(env or {})
-    return subprocess.run([sys.executable, "-m", "pmwm", *map(str, args)], capture_output=True, text=True,
-                          env=full, cwd=cwd, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "pmwm", *map(str, args)], capture_output=True, text=True, env=full, cwd=cwd, timeout=300
+    )
 
 
 @pytest.mark.slow
@@ -866,8 +897,20 @@ def test_cli_embed_and_verify_with_a_pass_phrase_file_write_no_key(tmp_path):
     phrase = tmp_path / "phrase.txt"
     phrase.write_text("a long secret phrase\n")
     out = tmp_path / "marked.ply"
-    p = run("embed", src, "-o", out, "--scheme", "blind", "--passphrase-file", phrase, "--payload", "Studio X",
-            "--pm", tmp_path / "m.pmwm")
+    p = run(
+        "embed",
+        src,
+        "-o",
+        out,
+        "--scheme",
+        "blind",
+        "--passphrase-file",
+        phrase,
+        "--payload",
+        "Studio X",
+        "--pm",
+        tmp_path / "m.pmwm",
+    )
     assert p.returncode == 0, p.stderr
     assert sorted(x.name for x in tmp_path.iterdir()) == ["cap.off", "m.pmwm", "marked.ply", "phrase.txt"]
     assert "a long secret phrase" not in p.stdout + p.stderr
@@ -886,8 +929,17 @@ def test_cli_errors(tmp_path):
     meshes.write_off(src, *meshes.blob())
     p = run("embed", src, "-o", tmp_path / "m.ply", "--scheme", "blind")
     assert p.returncode == 2 and "pass phrase" in p.stderr and "Traceback" not in p.stderr
-    p = run("embed", src, "-o", tmp_path / "m.ply", "--scheme", "blind", "--key", tmp_path / "k.json",
-            env={"PMWM_PASSPHRASE": "x"})
+    p = run(
+        "embed",
+        src,
+        "-o",
+        tmp_path / "m.ply",
+        "--scheme",
+        "blind",
+        "--key",
+        tmp_path / "k.json",
+        env={"PMWM_PASSPHRASE": "x"},
+    )
     assert p.returncode == 2 and "omit --key" in p.stderr
     p = run("embed", src, "-o", tmp_path / "m.ply")
     assert p.returncode == 2 and "--key" in p.stderr
@@ -933,7 +985,7 @@ def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marke
     assert v.detail.mesh == f"smoothing:-{READER.denoise.steps}"
     assert blind.mesh_read(v.detail.mesh) == "read after 3 steps of Laplacian smoothing (0.1 each) against noise"
     assert v.detail.frames in (2, 3, 4) and v.detail.chase_bits == plan.chase_bits(v.detail.frames)
-    assert v.p_value == pytest.approx(v.detail.frames * 2 * 2.0 ** v.detail.chase_bits * 2.0**-32)
+    assert v.p_value == pytest.approx(v.detail.frames * 2 * 2.0**v.detail.chase_bits * 2.0**-32)
     assert v.p_value < 1e-6
     plain = blind.verify(V, F, PHRASE, config=READER.without("denoised", "reserve"))  # (the same frames)
     assert not (plain.marked and plain.payload == "Acme")
@@ -949,13 +1001,24 @@ def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny
     frame off the mark."""
     v, f = bunny
     phrase = f"case {case}"
-    res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", passphrase=phrase, payload="studio", seed=case,
-                                             strength=blind.DEFAULT_ALPHA, progressive=False))
+    res = pmwm.embed(
+        v,
+        f,
+        pmwm.EmbedOptions(
+            scheme="blind",
+            passphrase=phrase,
+            payload="studio",
+            seed=case,
+            strength=blind.DEFAULT_ALPHA,
+            progressive=False,
+        ),
+    )
     V, F = A.noise_benchmark(res.vertices, f, amplitude=0.005, seed=case)
     got = pmwm.verify(V, F, passphrase=phrase)
     assert got.marked and got.payload == "studio" and got.detail.frame == "denoised-refined"
-    sampled = blind.verify(V, F, phrase, config=replace(READER, denoise=replace(READER.denoise,
-                                                                                 refine_sample=radial.REFINE_SAMPLE)))
+    sampled = blind.verify(
+        V, F, phrase, config=replace(READER, denoise=replace(READER.denoise, refine_sample=radial.REFINE_SAMPLE))
+    )
     assert not (sampled.marked and sampled.payload == "studio")
 
 
@@ -974,8 +1037,18 @@ def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny)
     smoothed_errors, plain_errors = 0, 0
     for case in (3, 5, 6):
         phrase = f"guess test {case}"
-        res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=phrase, seed=case,
-                                                 strength=blind.DEFAULT_ALPHA, progressive=False))
+        res = pmwm.embed(
+            v,
+            f,
+            pmwm.EmbedOptions(
+                scheme="blind",
+                payload="Acme",
+                passphrase=phrase,
+                seed=case,
+                strength=blind.DEFAULT_ALPHA,
+                progressive=False,
+            ),
+        )
         secret = word.derive_secret(phrase)
         want = word.word_of(secret, "text", word.payload_of("Acme", None, 0, None)[0])
         V, F = A.quantize(res.vertices, f, bits=7)
@@ -996,8 +1069,18 @@ def test_cli_prints_no_payload_bits_when_it_reads_no_mark(bunny, tmp_path):
     """``pmwm verify`` of a copy on a coarse grid that it cannot read: not marked (exit 1), "no payload read",
     and no payload bits at all (neither a candidate the check bits chose nor a guess), in words or in JSON."""
     v, f = bunny
-    res = pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase="guess test 3", seed=3,
-                                             strength=blind.DEFAULT_ALPHA, progressive=False))
+    res = pmwm.embed(
+        v,
+        f,
+        pmwm.EmbedOptions(
+            scheme="blind",
+            payload="Acme",
+            passphrase="guess test 3",
+            seed=3,
+            strength=blind.DEFAULT_ALPHA,
+            progressive=False,
+        ),
+    )
     path = meshes.write_off(tmp_path / "q7.off", *A.quantize(res.vertices, f, bits=7))
     got = run("verify", path, env={"PMWM_PASSPHRASE": "guess test 3"})
     assert got.returncode == 1 and got.stdout.splitlines()[0].startswith("not marked: ")
@@ -1016,8 +1099,7 @@ def test_the_guess_is_the_own_frames_hard_decisions_and_never_in_a_verdict(bunny
     v = blind.decide(stats, SECRET)
     assert not v.marked and v.bits == "" and v.detail.word is None
     guess, mesh = blind.guess_word(stats, SECRET)
-    own, _ = blind.word_read(stats.words[stats.n_word][0], SECRET, stats.n_word,
-                             stats.shares[stats.n_word][0])
+    own, _ = blind.word_read(stats.words[stats.n_word][0], SECRET, stats.n_word, stats.shares[stats.n_word][0])
     assert mesh == stats.mesh and np.array_equal(guess, own)
 
 
@@ -1122,14 +1204,16 @@ def test_the_check_is_the_keyed_hash_a_marked_mesh_was_written_with():
         many = word.check_bits(secret, "bits", P)
         assert many.shape == (7, word.CHECK_BITS) and many.dtype == np.uint8
         for row, got in zip(P, many):
-            tag = hashlib.sha256(f"{secret}:blind-check:bits:".encode() + np.packbits(row).tobytes()
-                                 + L.to_bytes(2, "little")).digest()
+            tag = hashlib.sha256(
+                f"{secret}:blind-check:bits:".encode() + np.packbits(row).tobytes() + L.to_bytes(2, "little")
+            ).digest()
             want = np.unpackbits(np.frombuffer(tag[:4], np.uint8))
             assert np.array_equal(got, want) and np.array_equal(word.check_bits(secret, "bits", row), want)
         assert not np.array_equal(word.check_bits(secret, "text", P), many)
         assert not np.array_equal(word.check_bits(word.derive_secret(PHRASE + "!"), "bits", P), many)
-    assert not np.array_equal(word.check_bits(secret, "bits", np.zeros(32, np.uint8)),
-                              word.check_bits(secret, "bits", np.zeros(64, np.uint8)))
+    assert not np.array_equal(
+        word.check_bits(secret, "bits", np.zeros(32, np.uint8)), word.check_bits(secret, "bits", np.zeros(64, np.uint8))
+    )
 
 
 def test_the_equalizer_finds_the_most_likely_signs():
@@ -1140,9 +1224,11 @@ def test_the_equalizer_finds_the_most_likely_signs():
         for _ in range(20):
             x, g = rng.normal(size=M), rng.uniform(0.1, 1.0)
             c = -rng.uniform(0.0, 0.5) * g
+
             def cost(s):
                 s = np.array(s)
                 return np.sum((x - g * s - c * (np.r_[0.0, s[:-1]] + np.r_[s[1:], 0.0])) ** 2)
+
             best = min(itertools.product([-1.0, 1.0], repeat=M), key=cost)
             assert np.array_equal(radial._most_likely_signs(x, g, c), np.array(best))
 
@@ -1151,8 +1237,9 @@ def test_a_blind_embedding_keeps_nothing_of_the_mesh_but_the_pass_phrase_reads_i
     """No key at all: two different meshes marked with the same pass phrase and payload (one with its
     progressive mesh) return no key, and the pass phrase alone reads both marks."""
     for (V, F), pm in ((meshes.blob(), True), (meshes.cad_part(), False)):
-        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", passphrase=PHRASE, payload="Acme", strength=0.1,
-                                                 progressive=pm))
+        res = pmwm.embed(
+            V, F, pmwm.EmbedOptions(scheme="blind", passphrase=PHRASE, payload="Acme", strength=0.1, progressive=pm)
+        )
         assert (res.pm is not None) == pm and res.key is None and res.strength == 0.1
         assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "Acme"
 
@@ -1176,8 +1263,14 @@ def test_the_marking_search_finds_the_same_steps_whatever_its_guess():
     want = radial._least_step(reached, j_max)
     plain = len(reads)
     assert np.array_equal(want, np.minimum(least, j_max))
-    for guess in (np.minimum(least, j_max), least + rng.integers(1, 50, M), least - rng.integers(1, 50, M),
-                  rng.integers(-100, 4000, M), np.zeros(M, np.int64), j_max):
+    for guess in (
+        np.minimum(least, j_max),
+        least + rng.integers(1, 50, M),
+        least - rng.integers(1, 50, M),
+        rng.integers(-100, 4000, M),
+        np.zeros(M, np.int64),
+        j_max,
+    ):
         assert np.array_equal(radial._least_step(reached, j_max, guess), want)
     reads.clear()
     radial._least_step(reached, j_max, np.minimum(least, j_max))
@@ -1200,8 +1293,9 @@ def test_the_exponent_search_finds_the_exponents_of_the_plain_bisection():
     gap = rng.uniform(0.02, 0.7, M)  # up to 0.7 from the middle: some targets outside (0, 1)
     targets = np.where(one, 0.5 + gap, 0.5 - gap)
     got = radial._solve_k(r, b, a, M, one, targets)
-    j_max = np.where(one, int(np.floor((1.0 - radial.K_GRID) / radial.K_GRID)),
-                     int(round(50.0 / radial.K_GRID))).astype(np.int64)
+    j_max = np.where(
+        one, int(np.floor((1.0 - radial.K_GRID) / radial.K_GRID)), int(round(50.0 / radial.K_GRID))
+    ).astype(np.int64)
     bb = np.maximum(b, 0)
     means = radial.BinMeans(b, a, M)
 
@@ -1239,8 +1333,9 @@ def test_the_equalizer_reads_each_sign_with_its_neighbours_summed_out():
             assert np.allclose(radial._posterior_odds(x, empty, g, c, var), want, atol=1e-9)
     # without interference the equalizer's output is the statistic itself
     x = np.array([0.1, -0.05, 0.2, np.nan, -0.3])
-    assert np.allclose(radial._posterior_odds(np.nan_to_num(x), np.isnan(x), 0.7, 0.0, 0.04) * 0.04 / 1.4,
-                       np.nan_to_num(x))
+    assert np.allclose(
+        radial._posterior_odds(np.nan_to_num(x), np.isnan(x), 0.7, 0.0, 0.04) * 0.04 / 1.4, np.nan_to_num(x)
+    )
 
 
 def test_crop_candidates_keep_the_first_point_of_each_lattice_cell():
@@ -1265,13 +1360,17 @@ def test_cli_says_when_it_read_the_mesh_under_a_subdivided_copy(small_marked, tm
     v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
     assert v.returncode == 0 and "MARKED" in v.stdout and "'Acme'" in v.stdout
     assert "read on the mesh it was subdivided from: loop undone" in v.stdout
-    plain = run("verify", meshes.write_off(tmp_path / "m.off", small_marked.vertices, small_marked.faces),
-                env={"PMWM_PASSPHRASE": PHRASE})
+    plain = run(
+        "verify",
+        meshes.write_off(tmp_path / "m.off", small_marked.vertices, small_marked.faces),
+        env={"PMWM_PASSPHRASE": PHRASE},
+    )
     assert plain.returncode == 0 and "'Acme'" in plain.stdout and "subdivision" not in plain.stdout
 
 
-@pytest.mark.parametrize("lam,iterations", [(0.1, 30), (0.1, 50), (0.25, 6)],
-                         ids=["30x0.1", "50x0.1", "Blender-Smooth-0.5x6"])
+@pytest.mark.parametrize(
+    "lam,iterations", [(0.1, 30), (0.1, 50), (0.25, 6)], ids=["30x0.1", "50x0.1", "Blender-Smooth-0.5x6"]
+)
 @pytest.mark.slow
 def test_a_smoothed_copy_is_read_with_its_smoothing_undone(marked, lam, iterations):
     """Uniform Laplacian smoothing (the benchmark's, lambda 0.1, and Blender's Smooth modifier, lambda =
@@ -1294,8 +1393,9 @@ def test_an_unmarked_smoothed_mesh_stays_unmarked(bunny):
 
 @pytest.mark.slow
 def test_cli_says_when_it_read_a_smoothed_copy_with_its_smoothing_undone(marked, tmp_path):
-    path = meshes.write_off(tmp_path / "smooth.off", *A.smooth_laplacian(marked.vertices, marked.faces, lam=0.1,
-                                                                         iterations=30))
+    path = meshes.write_off(
+        tmp_path / "smooth.off", *A.smooth_laplacian(marked.vertices, marked.faces, lam=0.1, iterations=30)
+    )
     v = run("verify", path, env={"PMWM_PASSPHRASE": PHRASE})
     assert v.returncode == 0 and "MARKED" in v.stdout and "'Acme'" in v.stdout
     assert "steps of Laplacian smoothing (0.1 each) undone" in v.stdout
@@ -1309,12 +1409,14 @@ def test_a_fresh_process_reads_a_cropped_copy_without_scipys_graph_module(marked
     from test_background import _fresh_process
 
     write_mesh(tmp_path / "cut.ply", *A.crop_plane(marked.vertices, marked.faces, fraction=0.1, seed=1))
-    code = ("import sys, pmwm\n"
-            "from pmwm.meshio import read_mesh\n"
-            f"m = read_mesh({str(tmp_path / 'cut.ply')!r})\n"
-            f"v = pmwm.verify(m.vertices, m.faces, passphrase={PHRASE!r})\n"
-            "assert v.marked and v.payload == 'Acme' and v.detail.frame.startswith('crop'), v.detail\n"
-            "assert 'scipy.sparse.csgraph' not in sys.modules\n")
+    code = (
+        "import sys, pmwm\n"
+        "from pmwm.meshio import read_mesh\n"
+        f"m = read_mesh({str(tmp_path / 'cut.ply')!r})\n"
+        f"v = pmwm.verify(m.vertices, m.faces, passphrase={PHRASE!r})\n"
+        "assert v.marked and v.payload == 'Acme' and v.detail.frame.startswith('crop'), v.detail\n"
+        "assert 'scipy.sparse.csgraph' not in sys.modules\n"
+    )
     _fresh_process(code)
 
 
@@ -1327,12 +1429,14 @@ def test_a_small_cut_suspect_is_read_without_importing_scipy_sparse(tmp_path):
     from test_background import _fresh_process
 
     write_mesh(tmp_path / "half.ply", *A.crop_plane(*meshes.bunny(), 0.5, seed=2))
-    code = ("import sys, pmwm\n"
-            "from pmwm.meshio import read_mesh\n"
-            f"m = read_mesh({str(tmp_path / 'half.ply')!r})\n"
-            "v = pmwm.verify(m.vertices, m.faces, passphrase='a phrase')\n"
-            "assert not v.marked and v.detail.frame.startswith('crop'), v.detail\n"
-            "assert 'scipy.sparse' not in sys.modules\n")
+    code = (
+        "import sys, pmwm\n"
+        "from pmwm.meshio import read_mesh\n"
+        f"m = read_mesh({str(tmp_path / 'half.ply')!r})\n"
+        "v = pmwm.verify(m.vertices, m.faces, passphrase='a phrase')\n"
+        "assert not v.marked and v.detail.frame.startswith('crop'), v.detail\n"
+        "assert 'scipy.sparse' not in sys.modules\n"
+    )
     _fresh_process(code)
 
 
@@ -1343,10 +1447,12 @@ def test_an_unmarked_small_mesh_is_cleared_without_importing_scipy_sparse(tmp_pa
     that never imports scipy.sparse (its first import costs 0.11-0.17 s)."""
     from test_background import _fresh_process
 
-    code = ("import sys, pmwm\n"
-            "from pmwm.meshio import read_mesh\n"
-            f"m = read_mesh({str(BUNNY)!r})\n"
-            "v = pmwm.verify(m.vertices, m.faces, passphrase='a phrase')\n"
-            "assert not v.marked and v.detail.frame in ('own', 'refined'), v.detail\n"
-            "assert 'scipy.sparse' not in sys.modules\n")
+    code = (
+        "import sys, pmwm\n"
+        "from pmwm.meshio import read_mesh\n"
+        f"m = read_mesh({str(BUNNY)!r})\n"
+        "v = pmwm.verify(m.vertices, m.faces, passphrase='a phrase')\n"
+        "assert not v.marked and v.detail.frame in ('own', 'refined'), v.detail\n"
+        "assert 'scipy.sparse' not in sys.modules\n"
+    )
     _fresh_process(code)

@@ -142,8 +142,9 @@ def test_vertex_areas_and_row_norms_are_bit_for_bit_those_of_np_linalg_norm():
     rows = v.reshape(20, 25, 3)  # any leading shape (the registration's rows of moving points)
     np.testing.assert_array_equal(row_norms(rows), np.linalg.norm(rows, axis=-1))
     third = 0.5 * np.linalg.norm(face_cross(v, f), axis=1) / 3.0
-    np.testing.assert_array_equal(vertex_areas(v, f), np.bincount(f.ravel(), weights=np.repeat(third, 3),
-                                                                   minlength=len(v)))
+    np.testing.assert_array_equal(
+        vertex_areas(v, f), np.bincount(f.ravel(), weights=np.repeat(third, 3), minlength=len(v))
+    )
 
 
 # ---------------------------------------------------------------- SOM
@@ -295,8 +296,9 @@ def test_select_carriers_matches_the_plain_farthest_point_choice(mesh):
     eligible = eligible_carriers(v, adj, seed=3)
     for seed in (1, 2):
         n = min(300, int(eligible.sum()) // 40)
-        assert np.array_equal(select_carriers(v, adj, eligible, n, seed=seed),
-                              _select_reference(v, adj, eligible, n, seed))
+        assert np.array_equal(
+            select_carriers(v, adj, eligible, n, seed=seed), _select_reference(v, adj, eligible, n, seed)
+        )
 
 
 def test_select_carriers_matches_the_plain_choice_on_a_regular_grid():

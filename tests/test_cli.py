@@ -26,7 +26,15 @@ from pmwm import cli
 COW = meshes.mesh_file("blob.off")  # a small closed organic mesh (2.9k vertices), generated
 PAYLOAD = "test"
 VERDICT_FIELDS = {
-    "marked", "p_value", "bits", "payload", "matches", "bit_errors", "correlation", "carriers_found", "carriers_total",
+    "marked",
+    "p_value",
+    "bits",
+    "payload",
+    "matches",
+    "bit_errors",
+    "correlation",
+    "carriers_found",
+    "carriers_total",
     "payload_confirmed",
 }
 
@@ -97,8 +105,7 @@ def sample(tmp_path_factory) -> SimpleNamespace:
     """The small mesh COW (2.9k vertices) marked once with --seed 1 --payload test, under a permissive umask."""
     d = tmp_path_factory.mktemp("sample")
     s = SimpleNamespace(dir=d, mesh=d / "cow_marked.ply", key=d / "cow.key.json", pm=d / "cow.pmwm")
-    s.proc = run("embed", COW, "-o", s.mesh, "--key", s.key, "--pm", s.pm, "--seed", 1, "--payload", PAYLOAD,
-                 umask=0)
+    s.proc = run("embed", COW, "-o", s.mesh, "--key", s.key, "--pm", s.pm, "--seed", 1, "--payload", PAYLOAD, umask=0)
     assert s.proc.returncode == 0, s.proc.stderr
     return s
 
@@ -107,8 +114,9 @@ def sample(tmp_path_factory) -> SimpleNamespace:
 def other_key(tmp_path_factory) -> Path:
     """The key of the same mesh marked with another seed."""
     d = tmp_path_factory.mktemp("other")
-    proc = run("embed", COW, "-o", d / "cow2.ply", "--key", d / "cow2.key.json", "--seed", 2, "--payload", PAYLOAD,
-               "-q")
+    proc = run(
+        "embed", COW, "-o", d / "cow2.ply", "--key", d / "cow2.key.json", "--seed", 2, "--payload", PAYLOAD, "-q"
+    )
     assert proc.returncode == 0, proc.stderr
     return d / "cow2.key.json"
 
@@ -194,8 +202,24 @@ def test_embed_writes_the_mesh_the_private_key_and_the_progressive_mesh(sample):
 
 
 def test_embed_is_reproducible_from_the_seed(sample, out):
-    assert cli.main(["embed", str(COW), "-o", str(out / "again.ply"), "--key", str(out / "again.key.json"),
-                     "--seed", "1", "--payload", PAYLOAD, "-q"]) == 0
+    assert (
+        cli.main(
+            [
+                "embed",
+                str(COW),
+                "-o",
+                str(out / "again.ply"),
+                "--key",
+                str(out / "again.key.json"),
+                "--seed",
+                "1",
+                "--payload",
+                PAYLOAD,
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert (out / "again.ply").read_bytes() == sample.mesh.read_bytes()
     assert pmwm.read_key(out / "again.key.json").secret == pmwm.read_key(sample.key).secret
 
@@ -203,8 +227,28 @@ def test_embed_is_reproducible_from_the_seed(sample, out):
 def test_strength_and_base_ratio_are_applied(sample, out):
     """Same seed and payload: a larger --strength moves the carriers further, a larger --base-ratio
     keeps a larger base mesh, and the mark still verifies."""
-    assert call("embed", COW, "-o", out / "s.ply", "--key", out / "s.key.json", "--pm", out / "s.pmwm", "--seed", 1,
-                "--payload", PAYLOAD, "--strength", 4, "--base-ratio", 0.2, "-q").returncode == 0
+    assert (
+        call(
+            "embed",
+            COW,
+            "-o",
+            out / "s.ply",
+            "--key",
+            out / "s.key.json",
+            "--pm",
+            out / "s.pmwm",
+            "--seed",
+            1,
+            "--payload",
+            PAYLOAD,
+            "--strength",
+            4,
+            "--base-ratio",
+            0.2,
+            "-q",
+        ).returncode
+        == 0
+    )
     src = pmwm.read_mesh(COW).vertices
     moved_default = np.linalg.norm(pmwm.read_mesh(sample.mesh).vertices - src, axis=1)
     moved_strong = np.linalg.norm(pmwm.read_mesh(out / "s.ply").vertices - src, axis=1)
@@ -323,8 +367,12 @@ def test_version_and_console_script(sample):
     assert proc.returncode == 0 and pmwm.__version__ in proc.stdout
     script = Path(sys.executable).parent / "pmwm"
     assert script.exists(), "the console script `pmwm` is not installed"
-    proc = subprocess.run([str(script), "verify", str(sample.mesh), "--key", str(sample.key), "--json"],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [str(script), "verify", str(sample.mesh), "--key", str(sample.key), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0 and json.loads(proc.stdout)["payload"] == PAYLOAD
 
 
@@ -476,8 +524,9 @@ def test_embed_refuses_an_existing_output_and_writes_nothing(out, which):
 def test_embed_writes_all_outputs_or_none(out):
     """The mesh is written last; when writing it fails, the key and .pmwm already written are removed."""
     long_name = "m" * 300 + ".ply"  # too long for the file system: only the final write fails
-    fails_cleanly(out, "embed", COW, "-o", out / long_name, "--key", out / "m.key.json", "--pm", out / "m.pmwm",
-                  "--seed", "1")
+    fails_cleanly(
+        out, "embed", COW, "-o", out / long_name, "--key", out / "m.key.json", "--pm", out / "m.pmwm", "--seed", "1"
+    )
 
 
 def test_embed_force_overwrites_every_output(out):
@@ -546,8 +595,11 @@ def test_verify_level_applies_to_progressive_meshes_only(sample):
 @pytest.mark.parametrize("command", ["info", "decode", "verify"])
 def test_damaged_progressive_mesh_files_are_refused(sample, bad, out, damage, command):
     path = getattr(bad, damage)
-    args = {"info": ["info", path], "decode": ["decode", path, "-o", out / "lod.ply"],
-            "verify": ["verify", path, "--key", sample.key]}[command]
+    args = {
+        "info": ["info", path],
+        "decode": ["decode", path, "-o", out / "lod.ply"],
+        "verify": ["verify", path, "--key", sample.key],
+    }[command]
     fails_cleanly(out, *args, mentions=(path.name,))
 
 
@@ -620,8 +672,9 @@ def test_attack_writes_the_attacked_copy_and_the_mark_survives_reordering(sample
 
 
 def test_attack_bad_parameter_is_a_one_line_error(sample, out):
-    fails_cleanly(out, "attack", "crop_plane", sample.mesh, "-o", out / "c.ply", "--fraction", "1.5",
-                  mentions=("fraction",))
+    fails_cleanly(
+        out, "attack", "crop_plane", sample.mesh, "-o", out / "c.ply", "--fraction", "1.5", mentions=("fraction",)
+    )
     fails_cleanly(out, "attack", "noise_paper", sample.mesh, "-o", out / "n.ply", "--amplitude", "x")
 
 
@@ -633,8 +686,12 @@ def test_cho_schemes_behind_the_same_commands(tmp_path, scheme):
     bunny = Path(pmwm.__file__).parent / "data" / "bunny.off"
     bits = "".join(map(str, np.random.default_rng(3).integers(0, 2, 64)))
     marked, key = tmp_path / "m.ply", tmp_path / "m.key.json"
-    assert call("embed", bunny, "-o", marked, "--key", key, "--bits", bits, "--scheme", scheme, "--seed", 5,
-                "-q").returncode == 0
+    assert (
+        call(
+            "embed", bunny, "-o", marked, "--key", key, "--bits", bits, "--scheme", scheme, "--seed", 5, "-q"
+        ).returncode
+        == 0
+    )
     assert json.loads(key.read_text())["scheme"] == scheme
     src = pmwm.read_mesh(marked)
     from pmwm import attacks
@@ -646,8 +703,18 @@ def test_cho_schemes_behind_the_same_commands(tmp_path, scheme):
 
 
 def test_unknown_scheme_is_refused_with_the_list(tmp_path):
-    fails_cleanly(tmp_path, "embed", COW, "-o", tmp_path / "m.ply", "--key", tmp_path / "k.json",
-                  "--scheme", "cho3", mentions=("cho1", "robust"))
+    fails_cleanly(
+        tmp_path,
+        "embed",
+        COW,
+        "-o",
+        tmp_path / "m.ply",
+        "--key",
+        tmp_path / "k.json",
+        "--scheme",
+        "cho3",
+        mentions=("cho1", "robust"),
+    )
 
 
 @pytest.mark.parametrize("scheme", ["robust", "blind"])
@@ -670,8 +737,9 @@ def test_embed_builds_the_progressive_mesh_only_for_pm(tmp_path, monkeypatch, sc
     if scheme == "blind":  # (a mesh the blind scheme can mark: the blob is too small for its 64 bins)
         src = tmp_path / "cap.off"
         meshes.write_off(src, *meshes.open_cap())
-    common = ["--payload", PAYLOAD, "--seed", 2, "-q"] + (["--scheme", "blind"] if scheme == "blind"
-                                                          else ["--key", tmp_path / "k.json"])
+    common = ["--payload", PAYLOAD, "--seed", 2, "-q"] + (
+        ["--scheme", "blind"] if scheme == "blind" else ["--key", tmp_path / "k.json"]
+    )
     assert call("embed", src, "-o", tmp_path / "m.ply", *common).returncode == 0
     assert not list(tmp_path.glob("*.pmwm"))
     key = ["--key", tmp_path / "k.json"] if scheme == "robust" else []

@@ -25,6 +25,7 @@ def shapes():
         if (family, seed, vertices) not in cache:
             cache[family, seed, vertices] = corpus.generate(family, seed, vertices)
         return cache[family, seed, vertices]
+
     return get
 
 

@@ -57,7 +57,7 @@ def test_duplicate_and_loose_vertices_survive_unchanged(fandisk):
     extra = np.vstack([V[:50], rng.random((30, 3))])  # duplicates of used vertices, and loose points
     V2 = np.vstack([V, extra])
     res = _embed_ok(V2, F)
-    assert np.array_equal(res.vertices[len(V):], extra.astype(np.float32).astype(np.float64))
+    assert np.array_equal(res.vertices[len(V) :], extra.astype(np.float32).astype(np.float64))
 
 
 @pytest.mark.slow
@@ -103,8 +103,25 @@ def test_verify_never_modifies_its_inputs_and_outputs_hold_no_key(tmp_path):
     mesh.write_bytes(meshes.mesh_file("blob.off").read_bytes())
     out, key, pmf = tmp_path / "m.ply", tmp_path / "k.json", tmp_path / "m.pmwm"
     run = [sys.executable, "-m", "pmwm"]
-    subprocess.run(run + ["embed", str(mesh), "-o", str(out), "--key", str(key), "--pm", str(pmf),
-                          "--bits", "1" * 16 + "0" * 16, "--seed", "9", "-q"], check=True)
+    subprocess.run(
+        run
+        + [
+            "embed",
+            str(mesh),
+            "-o",
+            str(out),
+            "--key",
+            str(key),
+            "--pm",
+            str(pmf),
+            "--bits",
+            "1" * 16 + "0" * 16,
+            "--seed",
+            "9",
+            "-q",
+        ],
+        check=True,
+    )
     assert (os.stat(key).st_mode & 0o777) == 0o600
     before = {p: (_sha(p), os.stat(p).st_mode, os.stat(p).st_mtime_ns) for p in (out, key, pmf, mesh)}
     for suspect in (out, pmf, mesh):

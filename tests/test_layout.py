@@ -60,7 +60,7 @@ def cycles(g: dict[str, set[str]]) -> list[list[str]]:
             if n not in g:
                 continue
             if state.get(n) == 1:
-                found.append(stack[stack.index(n):] + [n])
+                found.append(stack[stack.index(n) :] + [n])
             elif n not in state:
                 visit(n)
         stack.pop()
@@ -91,9 +91,14 @@ def test_no_import_cycle_inside_pmwm_bench():
 
 def test_shared_layers_import_no_scheme_and_no_entry_point():
     g = graph()
-    above = ("pmwm.schemes", "pmwm.api", "pmwm.cli", "pmwm.__main__",
-             "pmwm.fingerprint",  # fingerprinting sits on the robust scheme
-             "pmwm.scene")  # scenes sit on the entry points (pmwm.api), object by object
+    above = (
+        "pmwm.schemes",
+        "pmwm.api",
+        "pmwm.cli",
+        "pmwm.__main__",
+        "pmwm.fingerprint",  # fingerprinting sits on the robust scheme
+        "pmwm.scene",
+    )  # scenes sit on the entry points (pmwm.api), object by object
     below = [m for m in g if not m.startswith(above) and m != "pmwm"]
     assert "pmwm.base" in below and "pmwm.key" in below
     for m in below:
@@ -127,9 +132,11 @@ def test_dask_is_imported_by_the_catalogue_only():
     for m, deps in graph().items():
         if m != "pmwm.fingerprint.catalogue":
             assert not {d for d in deps if d.split(".")[0] in ("dask", "distributed")}, m
-    code = ("import sys, pmwm, pmwm.cli, pmwm.fingerprint, pmwm.fingerprint.trace, pmwm.fingerprint.asset; "
-            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
-            "assert not bad, bad")
+    code = (
+        "import sys, pmwm, pmwm.cli, pmwm.fingerprint, pmwm.fingerprint.trace, pmwm.fingerprint.asset; "
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')); "
+        "assert not bad, bad"
+    )
     subprocess.run([sys.executable, "-c", code], check=True, env={**os.environ, "PYTHONPATH": str(PKG.parent)})
 
 
@@ -144,6 +151,11 @@ def test_front_ends_reach_the_schemes_through_the_registry_only():
     assert addon.is_dir(), addon
     for path in sorted(addon.rglob("*.py")):
         for node in ast.walk(ast.parse(path.read_text())):
-            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
-                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             assert not any(n.startswith("pmwm.schemes.") for n in names), f"{path.name} imports {names}"

@@ -46,9 +46,13 @@ def _imported_modules(tree: ast.AST) -> list[str]:
             names += [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             names.append(node.module)
-        elif (isinstance(node, ast.Call) and node.args and isinstance(node.args[0], ast.Constant)
-              and isinstance(node.args[0].value, str)
-              and getattr(node.func, "attr", getattr(node.func, "id", "")) in ("import_module", "__import__")):
+        elif (
+            isinstance(node, ast.Call)
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+            and getattr(node.func, "attr", getattr(node.func, "id", "")) in ("import_module", "__import__")
+        ):
             names.append(node.args[0].value)
     return names
 
@@ -67,8 +71,9 @@ def test_bundled_pmwm_wheel_holds_the_library_only(bundled_wheel):
             text = bundled_wheel.read(name).decode("utf-8")
             assert not [m for m in EVAL_MARKERS if m in text], (name, [m for m in EVAL_MARKERS if m in text])
             assert not [m for m in _imported_modules(ast.parse(text)) if m.startswith("pmwm_bench")], name
-    entry_points = next((bundled_wheel.read(n).decode() for n in names
-                         if n.endswith(".dist-info/entry_points.txt")), "")
+    entry_points = next(
+        (bundled_wheel.read(n).decode() for n in names if n.endswith(".dist-info/entry_points.txt")), ""
+    )
     assert "pmwm.commands" not in entry_points and "pmwm_bench" not in entry_points
     metadata = next(bundled_wheel.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
     assert "Provides-Extra: bench" not in metadata
@@ -90,8 +95,10 @@ def test_no_pmwm_module_imports_the_evaluation():
 
 
 def test_importing_pmwm_loads_neither_the_evaluation_nor_matplotlib():
-    code = ("import sys, pmwm, pmwm.cli, pmwm.attacks, pmwm.metrics; "
-            "bad = sorted(m for m in sys.modules if m.startswith(('pmwm_bench', 'matplotlib'))); "
-            "print(bad); sys.exit(1 if bad else 0)")
+    code = (
+        "import sys, pmwm, pmwm.cli, pmwm.attacks, pmwm.metrics; "
+        "bad = sorted(m for m in sys.modules if m.startswith(('pmwm_bench', 'matplotlib'))); "
+        "print(bad); sys.exit(1 if bad else 0)"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr

@@ -35,8 +35,9 @@ def test_temporaries_freed_by_numpy_are_reused_once_the_allocator_is_set_up():
     # glibc's defaults: without the settings a host may have fixed (dask's LocalCluster, run by an
     # earlier test, sets MALLOC_TRIM_THRESHOLD_ in this process's environment)
     env = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
-    out = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, check=True, timeout=120,
-                         env=env)
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT], capture_output=True, text=True, check=True, timeout=120, env=env
+    )
     before, after = map(int, out.stdout.split())
     assert before > 20 * 1000  # each round faulted its 12 MiB in again (3,072 pages)
     assert after < 100

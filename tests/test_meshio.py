@@ -101,10 +101,7 @@ def test_stl_soup_is_welded_with_a_warning(tmp_path):
 
 def test_obj_quads_and_ngons_are_triangulated(tmp_path):
     path = tmp_path / "quads.obj"
-    path.write_text(
-        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nv 3 0.5 0\n"
-        "f 1 2 3 4\nf 2 5 6 3\nf 5 7 6\n"
-    )
+    path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nv 3 0.5 0\nf 1 2 3 4\nf 2 5 6 3\nf 5 7 6\n")
     src = read_mesh(path)
     assert src.faces.shape == (5, 3)
     assert len(src.vertices) == 7
@@ -252,8 +249,19 @@ def _error_cases(tmp_path: Path):
 
 
 ERROR_CASES = [
-    "point cloud", "empty", "lines only", "nan", "inf", "directory", "missing", "unknown extension",
-    "garbage .ply", "garbage .obj", "garbage .stl", "garbage .off", "garbage .glb",
+    "point cloud",
+    "empty",
+    "lines only",
+    "nan",
+    "inf",
+    "directory",
+    "missing",
+    "unknown extension",
+    "garbage .ply",
+    "garbage .obj",
+    "garbage .stl",
+    "garbage .off",
+    "garbage .glb",
 ]
 
 
@@ -398,25 +406,32 @@ def _plain_variants(tmp_path):
             paths.append(tmp_path / f"{name}{ext}")
             write_mesh(paths[-1], V, F)
     text = (tmp_path / "f64.off").read_text()
-    for name, body in {"crlf": text.replace("\n", "\r\n"), "tabs": text.replace(" ", "\t"),
-                       "blank": text.replace("\n", "\n\n"), "comment": "# c\n" + text,
-                       "quad": text.replace("\n3 ", "\n4 0 ", 1), "coff": "C" + text}.items():
+    for name, body in {
+        "crlf": text.replace("\n", "\r\n"),
+        "tabs": text.replace(" ", "\t"),
+        "blank": text.replace("\n", "\n\n"),
+        "comment": "# c\n" + text,
+        "quad": text.replace("\n3 ", "\n4 0 ", 1),
+        "coff": "C" + text,
+    }.items():
         paths.append(tmp_path / f"{name}.off")
         paths[-1].write_text(body)
     ply = (tmp_path / "blob.ply").read_bytes()
-    for name, body in {"double": ply, "colour": ply.replace(b"property float z\n",
-                                                           b"property float z\nproperty uchar red\n")}.items():
+    for name, body in {
+        "double": ply,
+        "colour": ply.replace(b"property float z\n", b"property float z\nproperty uchar red\n"),
+    }.items():
         paths.append(tmp_path / f"{name}.ply")
         if name == "double":
             head, rest = ply.split(b"end_header\n")
             vb = np.frombuffer(rest, "<f4", 3 * len(v)).astype("<f8").tobytes()
-            body = head.replace(b"float", b"double") + b"end_header\n" + vb + rest[12 * len(v):]
+            body = head.replace(b"float", b"double") + b"end_header\n" + vb + rest[12 * len(v) :]
         else:
             head, rest = body.split(b"end_header\n")
             vb = np.frombuffer(rest, "<f4", 3 * len(v)).reshape(-1, 3)
             rec = np.zeros(len(v), [("p", "<f4", (3,)), ("r", "u1")])
             rec["p"] = vb
-            body = head + b"end_header\n" + rec.tobytes() + rest[12 * len(v):]
+            body = head + b"end_header\n" + rec.tobytes() + rest[12 * len(v) :]
         paths[-1].write_bytes(body)
     return paths
 
@@ -445,6 +460,7 @@ def test_plain_files_read_and_write_exactly_as_through_trimesh(tmp_path, monkeyp
 def test_write_mesh_ply_bytes_are_trimeshs(tmp_path):
     v, f = _mesh(4)
     write_mesh(tmp_path / "a.ply", v, f)
-    expected = trimesh.exchange.ply.export_ply(trimesh.Trimesh(v, f, process=False), encoding="binary",
-                                               vertex_normal=False)
+    expected = trimesh.exchange.ply.export_ply(
+        trimesh.Trimesh(v, f, process=False), encoding="binary", vertex_normal=False
+    )
     assert (tmp_path / "a.ply").read_bytes() == expected

@@ -206,8 +206,10 @@ def test_a_face_of_no_area_leaves_the_distances_finite(recwarn):
     v[f[100, 1]] = v[f[100, 0]]
     diag = float(np.linalg.norm(v.max(0) - v.min(0)))
     moved = v + 2e-4 * diag * np.sin(40 * v[:, [1, 2, 0]] / diag)
-    for got in (M.surface_distance(v, f, moved, f, n_samples=3000, seed=4),
-                M.displaced_surface_distance(v, moved, f, n_samples=3000, seed=4)):
+    for got in (
+        M.surface_distance(v, f, moved, f, n_samples=3000, seed=4),
+        M.displaced_surface_distance(v, moved, f, n_samples=3000, seed=4),
+    ):
         assert np.all(np.isfinite(got)) and got[0] > 0.005
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
 

@@ -29,8 +29,9 @@ def _euler(F: np.ndarray, n: int) -> int:
 
 def _check_every_level(V, F, base_ratio=0.03, protected=None, forced=None, **kw):
     trace: list = []
-    pm, done = build_progressive_mesh(V, F, base_vertices=int(base_ratio * len(V)), protected=protected,
-                                      forced=forced, trace=trace, **kw)
+    pm, done = build_progressive_mesh(
+        V, F, base_vertices=int(base_ratio * len(V)), protected=protected, forced=forced, trace=trace, **kw
+    )
     if forced is not None:
         # every applied forced collapse happened: its u is a record that splits from its v
         rec_of = np.full(len(V), -1)
@@ -117,12 +118,19 @@ def _thin_tube(per_ring: int, rings: int, seed: int) -> tuple[np.ndarray, np.nda
     a, b = r * per_ring + i, r * per_ring + (i + 1) % per_ring
     c, d = a + per_ring, b + per_ring
     one = rng.random(len(a)) < 0.5  # the diagonal a-d, else b-c
-    quads = np.where(one[:, None, None], np.stack([np.stack([a, b, d], 1), np.stack([a, d, c], 1)], 1),
-                     np.stack([np.stack([a, b, c], 1), np.stack([b, d, c], 1)], 1)).reshape(-1, 3)
+    quads = np.where(
+        one[:, None, None],
+        np.stack([np.stack([a, b, d], 1), np.stack([a, d, c], 1)], 1),
+        np.stack([np.stack([a, b, c], 1), np.stack([b, d, c], 1)], 1),
+    ).reshape(-1, 3)
     i = np.arange(per_ring)
     n, top = len(V) - 2, (rings - 1) * per_ring
-    caps = np.concatenate([np.stack([np.full(per_ring, n), (i + 1) % per_ring, i], 1),
-                           np.stack([np.full(per_ring, n + 1), top + i, top + (i + 1) % per_ring], 1)])
+    caps = np.concatenate(
+        [
+            np.stack([np.full(per_ring, n), (i + 1) % per_ring, i], 1),
+            np.stack([np.full(per_ring, n + 1), top + i, top + (i + 1) % per_ring], 1),
+        ]
+    )
     return V, np.concatenate([quads, caps])
 
 

@@ -88,8 +88,10 @@ def uv_sphere(nu: int = 48, nv: int = 12) -> tuple[np.ndarray, np.ndarray]:
     j = np.arange(nu)
     F = [np.stack([np.zeros(nu, int), at(0, j), at(0, j + 1)], axis=1)]
     for i in range(nv - 2):
-        F += [np.stack([at(i, j), at(i + 1, j), at(i, j + 1)], axis=1),
-              np.stack([at(i, j + 1), at(i + 1, j), at(i + 1, j + 1)], axis=1)]
+        F += [
+            np.stack([at(i, j), at(i + 1, j), at(i, j + 1)], axis=1),
+            np.stack([at(i, j + 1), at(i + 1, j), at(i + 1, j + 1)], axis=1),
+        ]
     F.append(np.stack([at(nv - 2, j), np.full(nu, len(V) - 1), at(nv - 2, j + 1)], axis=1))
     return V, np.concatenate(F)
 

@@ -50,8 +50,7 @@ def scene_glb(path, extra_node: bool = True) -> None:
     from PIL import Image
 
     image = Image.fromarray((np.arange(16 * 16 * 3) % 251).astype(np.uint8).reshape(16, 16, 3))
-    horse = trimesh.Trimesh(V1, F1, process=False,
-                            visual=trimesh.visual.TextureVisuals(uv=uv, image=image))
+    horse = trimesh.Trimesh(V1, F1, process=False, visual=trimesh.visual.TextureVisuals(uv=uv, image=image))
     colours = np.tile(np.array([[200, 30, 40, 255]], np.uint8), (len(V2), 1))
     part = trimesh.Trimesh(V2, F2, process=False, vertex_colors=colours)
     scene = trimesh.Scene()
@@ -107,8 +106,21 @@ def _without_minmax(doc: dict) -> dict:
 def marked_glb(tmp_path_factory):
     d = tmp_path_factory.mktemp("glb")
     scene_glb(d / "scene.glb")
-    rc = main(["embed", str(d / "scene.glb"), "-o", str(d / "marked.glb"), "--key", str(d / "k.json"),
-               "--payload", PAYLOAD, "--seed", "5", "-q"])
+    rc = main(
+        [
+            "embed",
+            str(d / "scene.glb"),
+            "-o",
+            str(d / "marked.glb"),
+            "--key",
+            str(d / "k.json"),
+            "--payload",
+            PAYLOAD,
+            "--seed",
+            "5",
+            "-q",
+        ]
+    )
     assert rc == 0
     return d
 
@@ -186,7 +198,7 @@ def test_a_key_of_one_mesh_reads_as_before(tmp_path):
     V, F = cad_part()
     res = pmwm.embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=1, progressive=False))
     pmwm.write_key(tmp_path / "k.json", res.key)
-    (name, key), = read_keys(tmp_path / "k.json")
+    ((name, key),) = read_keys(tmp_path / "k.json")
     assert name == "" and key.to_json() == res.key.to_json()
     v = verify_objects([("part", res.vertices, F)], [(name, key)])
     assert v.to_dict() == pmwm.verify(res.vertices, F, key).to_dict() and v.payload == PAYLOAD
@@ -203,8 +215,24 @@ def test_a_pass_phrase_marks_every_object(tmp_path, capsys):
     s.export(path)
     pp = tmp_path / "pp"
     pp.write_text("a pass phrase for the scene\n")
-    assert main(["embed", str(path), "-o", str(tmp_path / "m.glb"), "--scheme", "blind", "--passphrase-file",
-                 str(pp), "--payload", PAYLOAD, "-q"]) == 0
+    assert (
+        main(
+            [
+                "embed",
+                str(path),
+                "-o",
+                str(tmp_path / "m.glb"),
+                "--scheme",
+                "blind",
+                "--passphrase-file",
+                str(pp),
+                "--payload",
+                PAYLOAD,
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert not any(p.name.endswith(".json") for p in tmp_path.iterdir())  # no key file
     capsys.readouterr()
     assert main(["verify", str(tmp_path / "m.glb"), "--passphrase-file", str(pp)]) == 0
@@ -234,14 +262,25 @@ def scene_obj(path) -> None:
     uv = (V1[:, :2] - V1[:, :2].min(0)) / np.ptp(V1[:, :2], axis=0)
     k1 = len(V1)
     colours = np.tile([0.8, 0.1, 0.2], (k1, 1))
-    text = ["# two objects\n", "mtllib scene.mtl\n", "o Horse\n",
-            _rows("v %r %r %r %.3f %.3f %.3f\n", np.hstack([V1, colours])), _rows("vt %.6f %.6f\n", uv),
-            _rows("vn %.6f %.6f %.6f\n", n1), "usemtl skin\n", "s 1\n",
-            _rows("f %d/%d/%d %d/%d/%d %d/%d/%d\n", np.repeat(F1 + 1, 3, axis=1)),
-            "o Part\n", "g part_group\n", _rows("v %r %r %r\n", V2), _rows("vn %.6f %.6f %.6f\n", n2),
-            "usemtl metal\n", "s off\n",
-            _rows("f %d//%d %d//%d %d//%d\n", np.repeat(F2[:-10] + 1 + k1, 2, axis=1)),
-            _rows("f %d//%d %d//%d %d//%d\n", np.repeat(F2[-10:] - len(V2), 2, axis=1))]
+    text = [
+        "# two objects\n",
+        "mtllib scene.mtl\n",
+        "o Horse\n",
+        _rows("v %r %r %r %.3f %.3f %.3f\n", np.hstack([V1, colours])),
+        _rows("vt %.6f %.6f\n", uv),
+        _rows("vn %.6f %.6f %.6f\n", n1),
+        "usemtl skin\n",
+        "s 1\n",
+        _rows("f %d/%d/%d %d/%d/%d %d/%d/%d\n", np.repeat(F1 + 1, 3, axis=1)),
+        "o Part\n",
+        "g part_group\n",
+        _rows("v %r %r %r\n", V2),
+        _rows("vn %.6f %.6f %.6f\n", n2),
+        "usemtl metal\n",
+        "s off\n",
+        _rows("f %d//%d %d//%d %d//%d\n", np.repeat(F2[:-10] + 1 + k1, 2, axis=1)),
+        _rows("f %d//%d %d//%d %d//%d\n", np.repeat(F2[-10:] - len(V2), 2, axis=1)),
+    ]
     path.write_text("".join(text))
     (path.parent / "scene.mtl").write_text("newmtl skin\nKd 0.8 0.6 0.5\nnewmtl metal\nKd 0.5 0.5 0.5\n")
 
@@ -250,8 +289,24 @@ def test_obj_keeps_objects_groups_materials_and_uvs(tmp_path, capsys):
     scene_obj(tmp_path / "scene.obj")
     out = tmp_path / "out"
     out.mkdir()
-    assert main(["embed", str(tmp_path / "scene.obj"), "-o", str(out / "m.obj"), "--key", str(out / "k.json"),
-                 "--payload", PAYLOAD, "--seed", "2", "-q"]) == 0
+    assert (
+        main(
+            [
+                "embed",
+                str(tmp_path / "scene.obj"),
+                "-o",
+                str(out / "m.obj"),
+                "--key",
+                str(out / "k.json"),
+                "--payload",
+                PAYLOAD,
+                "--seed",
+                "2",
+                "-q",
+            ]
+        )
+        == 0
+    )
     before = (tmp_path / "scene.obj").read_bytes().splitlines()
     after = (out / "m.obj").read_bytes().splitlines()
     assert len(before) == len(after)
@@ -277,11 +332,16 @@ def test_obj_of_groups_sharing_vertices_is_one_mesh(tmp_path):
     file is read as one mesh, as before."""
     V, F = cad_part()
     half = len(F) // 2
-    text = (_rows("v %r %r %r\n", V) + "g top\n" + _rows("f %d %d %d\n", F[:half] + 1) + "g bottom\n"
-            + _rows("f %d %d %d\n", F[half:] + 1))
+    text = (
+        _rows("v %r %r %r\n", V)
+        + "g top\n"
+        + _rows("f %d %d %d\n", F[:half] + 1)
+        + "g bottom\n"
+        + _rows("f %d %d %d\n", F[half:] + 1)
+    )
     (tmp_path / "one.obj").write_text(text)
     assert read_asset(tmp_path / "one.obj") is None
-    (name, V2, F2), = read_objects(tmp_path / "one.obj")
+    ((name, V2, F2),) = read_objects(tmp_path / "one.obj")
     assert len(V2) == len(V) and len(F2) == len(F)
 
 
@@ -359,8 +419,22 @@ def test_gltf_with_external_buffer_is_written_with_its_own(tmp_path, capsys):
     (tmp_path / "scene.gltf").write_text(json.dumps(doc))
     out = tmp_path / "out"
     out.mkdir()
-    assert main(["embed", str(tmp_path / "scene.gltf"), "-o", str(out / "m.gltf"), "--key",
-                 str(out / "k.json"), "--payload", PAYLOAD, "-q"]) == 0
+    assert (
+        main(
+            [
+                "embed",
+                str(tmp_path / "scene.gltf"),
+                "-o",
+                str(out / "m.gltf"),
+                "--key",
+                str(out / "k.json"),
+                "--payload",
+                PAYLOAD,
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert sorted(p.name for p in out.iterdir()) == ["k.json", "m.bin", "m.gltf"]
     assert (tmp_path / "scene.bin").read_bytes() == body  # the input untouched
     assert json.loads((out / "m.gltf").read_text())["buffers"][0]["uri"] == "m.bin"
@@ -371,22 +445,32 @@ def test_gltf_with_external_buffer_is_written_with_its_own(tmp_path, capsys):
 def test_a_scene_goes_back_to_its_own_format(tmp_path, capsys):
     scene_glb(tmp_path / "s.glb", extra_node=False)
     capsys.readouterr()
-    assert main(["embed", str(tmp_path / "s.glb"), "-o", str(tmp_path / "m.ply"), "--key",
-                 str(tmp_path / "k.json")]) == 2
+    assert (
+        main(["embed", str(tmp_path / "s.glb"), "-o", str(tmp_path / "m.ply"), "--key", str(tmp_path / "k.json")]) == 2
+    )
     assert "use -o NAME.glb" in capsys.readouterr().err
     assert not (tmp_path / "m.ply").exists() and not (tmp_path / "k.json").exists()
 
 
 def test_morph_targets_are_kept_and_the_mesh_marked_at_rest(tmp_path, capsys):
     """A mesh with a morph target: marked in its rest positions, the target's deltas and weights kept."""
+
     def morph(doc, body):
         prim = doc["meshes"][0]["primitives"][0]
         count = doc["accessors"][prim["attributes"]["POSITION"]]["count"]
         delta = np.tile(np.float32([0.0, 0.01, 0.0]), (count, 1)).tobytes()
         body = body + b"\0" * (-len(body) % 4)
         doc["bufferViews"].append({"buffer": 0, "byteOffset": len(body), "byteLength": len(delta)})
-        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5126, "count": count,
-                                 "type": "VEC3", "min": [0, 0.01, 0], "max": [0, 0.01, 0]})
+        doc["accessors"].append(
+            {
+                "bufferView": len(doc["bufferViews"]) - 1,
+                "componentType": 5126,
+                "count": count,
+                "type": "VEC3",
+                "min": [0, 0.01, 0],
+                "max": [0, 0.01, 0],
+            }
+        )
         prim["targets"] = [{"POSITION": len(doc["accessors"]) - 1}]
         doc["meshes"][0]["weights"] = [0.5]
         doc["buffers"][0]["byteLength"] = len(body) + len(delta)
@@ -394,8 +478,12 @@ def test_morph_targets_are_kept_and_the_mesh_marked_at_rest(tmp_path, capsys):
 
     path = _edited(tmp_path, "morph.glb", morph)
     capsys.readouterr()
-    assert main(["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
-                 "--payload", PAYLOAD]) == 0
+    assert (
+        main(
+            ["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--payload", PAYLOAD]
+        )
+        == 0
+    )
     assert "marked at rest" in capsys.readouterr().err
     doc0, bin0 = _glb_parts(path.read_bytes())
     doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
@@ -416,8 +504,10 @@ def test_obj_empty_object_is_refused(tmp_path, capsys):
 def test_obj_polygons_are_fans_and_kept_as_written(tmp_path):
     """Quads and negative indices: the canonical mesh takes each polygon as a triangle fan, the file keeps
     the polygon line as written."""
-    text = ("o A\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
-            "o B\nv 5 0 0\nv 6 0 0\nv 6 1 0\nv 5 1 0\nv 5.5 0.5 1\nf -5 -4 -3 -2\nf -5 -4 -1\n")
+    text = (
+        "o A\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
+        "o B\nv 5 0 0\nv 6 0 0\nv 6 1 0\nv 5 1 0\nv 5.5 0.5 1\nf -5 -4 -3 -2\nf -5 -4 -1\n"
+    )
     (tmp_path / "q.obj").write_text(text)
     a, b = read_asset(tmp_path / "q.obj").objects
     assert a.faces.tolist() == [[0, 1, 2], [0, 2, 3]]
@@ -436,13 +526,15 @@ def _interleaved_glb(path) -> None:
     def view(data: bytes, stride=None) -> int:
         offset = sum(len(p) for p in parts)
         parts.append(data + b"\0" * (-len(data) % 4))
-        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(data)} | (
-            {"byteStride": stride} if stride else {}))
+        views.append(
+            {"buffer": 0, "byteOffset": offset, "byteLength": len(data)} | ({"byteStride": stride} if stride else {})
+        )
         return len(views) - 1
 
     def accessor(v, offset, ctype, count, kind, **more) -> int:
-        accessors.append({"bufferView": v, "byteOffset": offset, "componentType": ctype, "count": count,
-                          "type": kind} | more)
+        accessors.append(
+            {"bufferView": v, "byteOffset": offset, "componentType": ctype, "count": count, "type": kind} | more
+        )
         return len(accessors) - 1
 
     for name, (V, F), itype in (("Part", cad_part(), ("<u4", 5125)), ("Torus", pinched_torus(), ("<u2", 5123))):
@@ -456,19 +548,42 @@ def _interleaved_glb(path) -> None:
             pos = accessor(view(P.tobytes()), 0, 5126, len(V), "VEC3", min=P.min(0).tolist(), max=P.max(0).tolist())
             nrm = accessor(view(N.tobytes()), 0, 5126, len(V), "VEC3")
         ind = accessor(view(F.astype(itype[0]).tobytes()), 0, itype[1], F.size, "SCALAR")
-        meshes.append({"name": name + "Mesh", "primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm},
-                                                             "indices": ind}]})
+        meshes.append(
+            {"name": name + "Mesh", "primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm}, "indices": ind}]}
+        )
         nodes.append({"name": name, "mesh": len(meshes) - 1})
     body = b"".join(parts)
-    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}], "nodes": nodes,
-           "meshes": meshes, "accessors": accessors, "bufferViews": views, "buffers": [{"byteLength": len(body)}]}
+    doc = {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": len(body)}],
+    }
     path.write_bytes(_glb(doc, body))
 
 
 def test_interleaved_buffers_are_patched_in_place(tmp_path, capsys):
     _interleaved_glb(tmp_path / "i.glb")
-    assert main(["embed", str(tmp_path / "i.glb"), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
-                 "--payload", PAYLOAD, "-q"]) == 0
+    assert (
+        main(
+            [
+                "embed",
+                str(tmp_path / "i.glb"),
+                "-o",
+                str(tmp_path / "m.glb"),
+                "--key",
+                str(tmp_path / "k.json"),
+                "--payload",
+                PAYLOAD,
+                "-q",
+            ]
+        )
+        == 0
+    )
     doc0, bin0 = _glb_parts((tmp_path / "i.glb").read_bytes())
     doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
     assert _without_minmax(doc0) == _without_minmax(doc1)
@@ -487,8 +602,22 @@ def test_gltf_with_embedded_buffers(tmp_path, capsys):
     s.add_geometry(trimesh.Trimesh(*cad_part(), process=False), node_name="A", geom_name="A")
     s.add_geometry(trimesh.Trimesh(*pinched_torus(), process=False), node_name="B", geom_name="B")
     (tmp_path / "s.gltf").write_bytes(trimesh.exchange.gltf.export_gltf(s, embed_buffers=True)["model.gltf"])
-    assert main(["embed", str(tmp_path / "s.gltf"), "-o", str(tmp_path / "m.gltf"), "--key", str(tmp_path / "k.json"),
-                 "--payload", PAYLOAD, "-q"]) == 0
+    assert (
+        main(
+            [
+                "embed",
+                str(tmp_path / "s.gltf"),
+                "-o",
+                str(tmp_path / "m.gltf"),
+                "--key",
+                str(tmp_path / "k.json"),
+                "--payload",
+                PAYLOAD,
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k.json", "m.gltf", "s.gltf"]
     assert json.loads((tmp_path / "m.gltf").read_text())["buffers"][0]["uri"].startswith("data:")
     capsys.readouterr()
@@ -516,8 +645,9 @@ def test_skinned_mesh_is_marked_in_its_bind_pose(tmp_path, capsys):
         mat = np.eye(4, dtype="<f4").tobytes()
         body = body + b"\0" * (-len(body) % 4)
         doc["bufferViews"].append({"buffer": 0, "byteOffset": len(body), "byteLength": len(mat)})
-        doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5126, "count": 1,
-                                 "type": "MAT4"})
+        doc["accessors"].append(
+            {"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5126, "count": 1, "type": "MAT4"}
+        )
         doc["nodes"].append({"name": "Bone"})
         horse = next(n for n in doc["nodes"] if n.get("name") == "Horse")
         horse["skin"] = 0
@@ -527,11 +657,16 @@ def test_skinned_mesh_is_marked_in_its_bind_pose(tmp_path, capsys):
 
     path = _edited(tmp_path, "skin.glb", skin)
     capsys.readouterr()
-    assert main(["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
-                 "--payload", PAYLOAD]) == 0
+    assert (
+        main(
+            ["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--payload", PAYLOAD]
+        )
+        == 0
+    )
     assert "Horse: skinned; marked in its bind pose" in capsys.readouterr().err
-    assert _without_minmax(_glb_parts(path.read_bytes())[0]) == \
-        _without_minmax(_glb_parts((tmp_path / "m.glb").read_bytes())[0])
+    assert _without_minmax(_glb_parts(path.read_bytes())[0]) == _without_minmax(
+        _glb_parts((tmp_path / "m.glb").read_bytes())[0]
+    )
 
 
 @pytest.mark.slow
@@ -549,8 +684,22 @@ def test_a_glb_of_one_mesh_is_marked_in_place_with_a_key_of_one_mesh(tmp_path, c
     V, F = blob()
     uv = (V[:, :2] - V[:, :2].min(0)) / np.ptp(V[:, :2], axis=0)
     trimesh.Trimesh(V, F, process=False, visual=trimesh.visual.TextureVisuals(uv=uv)).export(tmp_path / "one.glb")
-    assert main(["embed", str(tmp_path / "one.glb"), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"),
-                 "--payload", PAYLOAD, "-q"]) == 0
+    assert (
+        main(
+            [
+                "embed",
+                str(tmp_path / "one.glb"),
+                "-o",
+                str(tmp_path / "m.glb"),
+                "--key",
+                str(tmp_path / "k.json"),
+                "--payload",
+                PAYLOAD,
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert json.loads((tmp_path / "k.json").read_text())["format"] == "pmwm-key"
     doc0, bin0 = _glb_parts((tmp_path / "one.glb").read_bytes())
     doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
@@ -558,17 +707,44 @@ def test_a_glb_of_one_mesh_is_marked_in_place_with_a_key_of_one_mesh(tmp_path, c
     assert _without_minmax(doc0) == _without_minmax(doc1)
     assert np.array_equal(np.frombuffer(bin0, np.uint8)[~moved], np.frombuffer(bin1, np.uint8)[~moved])
     capsys.readouterr()
-    assert main(["verify", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--report",
-                 str(tmp_path / "r.html")]) == 0  # one mesh, one key: the report as before
+    assert (
+        main(
+            ["verify", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--report", str(tmp_path / "r.html")]
+        )
+        == 0
+    )  # one mesh, one key: the report as before
     assert f"payload: '{PAYLOAD}'" in capsys.readouterr().out and (tmp_path / "r.html").is_file()
-    assert main(["embed", str(tmp_path / "one.glb"), "-o", str(tmp_path / "m.ply"), "--key",
-                 str(tmp_path / "k2.json"), "-q"]) == 0
+    assert (
+        main(
+            [
+                "embed",
+                str(tmp_path / "one.glb"),
+                "-o",
+                str(tmp_path / "m.ply"),
+                "--key",
+                str(tmp_path / "k2.json"),
+                "-q",
+            ]
+        )
+        == 0
+    )
 
 
 def test_a_report_reads_one_mesh_with_one_key(marked_glb, tmp_path, capsys):
     capsys.readouterr()
-    assert main(["verify", str(marked_glb / "marked.glb"), "--key", str(marked_glb / "k.json"), "--report",
-                 str(tmp_path / "r.html")]) == 2
+    assert (
+        main(
+            [
+                "verify",
+                str(marked_glb / "marked.glb"),
+                "--key",
+                str(marked_glb / "k.json"),
+                "--report",
+                str(tmp_path / "r.html"),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.startswith("pmwm: error: --report reads one mesh") and not (tmp_path / "r.html").exists()
 
@@ -583,8 +759,19 @@ def test_a_scene_is_fingerprinted_and_traced_from_the_scene_or_one_object(tmp_pa
     scene_glb(tmp_path / "s.glb", extra_node=False)
     (tmp_path / "r.csv").write_text("id\nalice\nbob\ncarol\n")
     out, key = tmp_path / "out", tmp_path / "fp.key.json"
-    args = ["fingerprint", str(tmp_path / "s.glb"), "--key", str(key), "--recipients", str(tmp_path / "r.csv"),
-            "--out", str(out), "--seed", "3", "-q"]
+    args = [
+        "fingerprint",
+        str(tmp_path / "s.glb"),
+        "--key",
+        str(key),
+        "--recipients",
+        str(tmp_path / "r.csv"),
+        "--out",
+        str(out),
+        "--seed",
+        "3",
+        "-q",
+    ]
     assert main(args) == 0
     assert sorted(p.name for p in out.iterdir()) == ["alice.glb", "bob.glb", "carol.glb", "registry.json"]
     doc0, bin0 = _glb_parts((tmp_path / "s.glb").read_bytes())

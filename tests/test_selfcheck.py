@@ -25,8 +25,7 @@ def bunny():
 
 def test_a_default_embed_reads_back_from_every_light_copy(bunny):
     V, F = bunny
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="ACME-2026", passphrase=PHRASE,
-                                             progressive=False))
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="ACME-2026", passphrase=PHRASE, progressive=False))
     secret = word.derive_secret(PHRASE)
     names = []
     for name, Vc, Fc in selfcheck.light_copies(res.vertices, res.faces, secret):
@@ -39,8 +38,11 @@ def test_a_default_embed_reads_back_from_every_light_copy(bunny):
 def test_a_mark_too_weak_to_read_back_is_refused_in_one_line(bunny):
     V, F = bunny
     with pytest.raises(PayloadError) as err:
-        pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="OWNR", passphrase=PHRASE, strength=0.002,
-                                           progressive=False))
+        pmwm.embed(
+            V,
+            F,
+            pmwm.EmbedOptions(scheme="blind", payload="OWNR", passphrase=PHRASE, strength=0.002, progressive=False),
+        )
     msg = str(err.value)
     assert "\n" not in msg and "does not read back" in msg and "--strength" in msg and "nothing written" in msg
 
@@ -59,9 +61,27 @@ def test_cli_refuses_a_mark_that_does_not_read_back_and_writes_nothing(tmp_path)
     meshes.write_off(src, *meshes.open_cap())
     out = tmp_path / "marked.ply"
     env = dict(os.environ, PYTHONPATH=str(Path(pmwm.__file__).parent.parent), PMWM_PASSPHRASE=PHRASE)
-    p = subprocess.run([sys.executable, "-m", "pmwm", "embed", str(src), "-o", str(out), "--scheme", "blind",
-                        "--payload", "OWNR", "--strength", "0.002"], capture_output=True, text=True, env=env,
-                       timeout=300)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pmwm",
+            "embed",
+            str(src),
+            "-o",
+            str(out),
+            "--scheme",
+            "blind",
+            "--payload",
+            "OWNR",
+            "--strength",
+            "0.002",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and "does not read back" in p.stderr
     assert sorted(x.name for x in tmp_path.iterdir()) == ["cap.off"]

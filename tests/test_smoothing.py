@@ -79,16 +79,17 @@ def test_steps_back_restore_what_the_steps_forward_smoothed(steps):
     back = list(itertools.islice(smoothing.unsmoothing_steps(smooth, M, 0.1), steps + 3))
     moved = metrics.vertex_rmse(smooth, V)
     left = [metrics.vertex_rmse(X, V) / moved for X in back]
-    assert min(left[steps - 1:]) < 0.13
-    assert left[steps // 2 - 1] > 0.3 and left[steps // 2 - 1] > min(left[steps - 1:]) * 2
+    assert min(left[steps - 1 :]) < 0.13
+    assert left[steps // 2 - 1] > 0.3 and left[steps // 2 - 1] > min(left[steps - 1 :]) * 2
 
 
 def _pairs_by_hand(F, n):
     """The neighbour pairs from their definition, edge by edge (a small mesh: a loop is fine here)."""
     from collections import Counter
 
-    faces_of_edge = Counter(tuple(sorted((int(f[i]), int(f[(i + 1) % 3])))) for f in F for i in range(3)
-                            if f[i] != f[(i + 1) % 3])
+    faces_of_edge = Counter(
+        tuple(sorted((int(f[i]), int(f[(i + 1) % 3])))) for f in F for i in range(3) if f[i] != f[(i + 1) % 3]
+    )
     boundary = {v for e, c in faces_of_edge.items() if c == 1 for v in e}
     want = set()
     for (a, b), c in faces_of_edge.items():

@@ -52,7 +52,7 @@ def _points(n: int, seed: int, offset: float = 0.0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     P = rng.normal(size=(n, 3))
     P[: n // 5] = P[rng.integers(n // 5, n, n // 5)]
-    P[n // 5: n // 3] = np.round(P[n // 5: n // 3], 1)
+    P[n // 5 : n // 3] = np.round(P[n // 5 : n // 3], 1)
     return P + offset
 
 
@@ -111,7 +111,7 @@ def test_moving_nearest_answers_as_a_search_of_every_point(offset):
         scale = 1e-3 if step % 4 else 0.3  # mostly small moves, now and then a jump
         X[ids] += rng.normal(scale=scale, size=(len(ids), len(S), 3))
         if step in (5, 9):  # points with none within the bound land next to targets
-            X[ids, 20:40] = T[40 + step:60 + step] + rng.normal(scale=1e-4, size=(len(ids), 20, 3))
+            X[ids, 20:40] = T[40 + step : 60 + step] + rng.normal(scale=1e-4, size=(len(ids), 20, 3))
         bound = np.array([np.inf, 0.4, 0.05, 2.0])[ids] if step else np.full(len(ids), np.inf)
         j, d2 = tracker.nearest(ids, X[ids], bound)
         for r, b in enumerate(ids):
@@ -141,8 +141,11 @@ def _pairs_brute(P, Q, radius):
 def test_pairs_within_are_the_brute_force_pairs_in_order(n_p, n_q, kind):
     P, Q = _points(n_p, 4), _points(n_q, 5)
     rng = np.random.default_rng(6)
-    radius = {"scalar": 0.7, "per point": rng.uniform(0.2, 0.9, n_p),
-              "spread": np.where(rng.random(n_p) < 0.05, 3.0, rng.uniform(0.0, 0.3, n_p))}[kind]
+    radius = {
+        "scalar": 0.7,
+        "per point": rng.uniform(0.2, 0.9, n_p),
+        "spread": np.where(rng.random(n_p) < 0.05, 3.0, rng.uniform(0.0, 0.3, n_p)),
+    }[kind]
     i, j, d = spatial.pairs_within(P, Q, radius)
     bi, bj, bd = _pairs_brute(P, Q, radius)
     assert len(i) > 0
@@ -205,8 +208,12 @@ def test_the_closest_point_of_a_triangle_of_no_area_is_on_the_segment_it_spans(s
     a, c, P = rng.normal(size=(300, 3)), rng.normal(size=(300, 3)), 2 * rng.normal(size=(300, 3))
     if shape == "all equal":
         c = a.copy()
-    b = {"two corners equal": a.copy(), "last two equal": c.copy(), "in a line": 0.3 * a + 0.7 * c,
-         "all equal": a.copy()}[shape]
+    b = {
+        "two corners equal": a.copy(),
+        "last two equal": c.copy(),
+        "in a line": 0.3 * a + 0.7 * c,
+        "all equal": a.copy(),
+    }[shape]
     if shape == "last two equal":
         b, c = c, c.copy()
     with np.errstate(all="raise"):

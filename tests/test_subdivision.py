@@ -154,8 +154,9 @@ def test_the_components_in_numpy_and_in_scipy_undo_the_same_steps(mesh, monkeypa
     from pmwm import subdivision
 
     V, F = getattr(meshes, mesh)()
-    copies = [(V, F)] + [reordered(*A.subdivide(V, F, s), seed=2)[:2] for s in ("midpoint", "loop", "sqrt3",
-                                                                                "catmull-clark")]
+    copies = [(V, F)] + [
+        reordered(*A.subdivide(V, F, s), seed=2)[:2] for s in ("midpoint", "loop", "sqrt3", "catmull-clark")
+    ]
     for S, SF in copies:
         got = []
         for small in (True, False):

@@ -48,8 +48,16 @@ def _report(folder: Path, suspect: str, name: str) -> tuple[Path, pmwm.Verdict]:
     src = pmwm.read_mesh(folder / suspect)
     v = pmwm.verify(src.vertices, src.faces, key)
     out = folder / name
-    verify_report.write_report(out, v, key, src.vertices, src.faces, suspect_path=folder / suspect,
-                               key_path=folder / "owner.key.json", force=True)
+    verify_report.write_report(
+        out,
+        v,
+        key,
+        src.vertices,
+        src.faces,
+        suspect_path=folder / suspect,
+        key_path=folder / "owner.key.json",
+        force=True,
+    )
     return out, v
 
 
@@ -62,8 +70,10 @@ def _decode_rgb_png(data: bytes) -> np.ndarray:
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     w, h, depth, color = struct.unpack(">IIBB", data[16:26])
     assert (depth, color) == (8, 2)
-    idat = b"".join(data[p + 8:p + 8 + struct.unpack(">I", data[p:p + 4])[0]]
-                    for p in [m.start() - 4 for m in re.finditer(b"IDAT", data)])
+    idat = b"".join(
+        data[p + 8 : p + 8 + struct.unpack(">I", data[p : p + 4])[0]]
+        for p in [m.start() - 4 for m in re.finditer(b"IDAT", data)]
+    )
     raw = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + 3 * w)
     assert not raw[:, 0].any()
     return raw[:, 1:].reshape(h, w, 3)
@@ -139,8 +149,9 @@ def test_drawing_the_report_reports_progress_often_and_draws_the_same_pictures(m
     whole = verify_report.render_views(src.vertices, src.faces, v.places, colors)
     monkeypatch.setattr(verify_report, "CHUNK_SAMPLES", 20_000)
     seen = []
-    html = verify_report.build_report(v, key, src.vertices, src.faces, progress=lambda f, m: seen.append((f, m)),
-                                      when=None)
+    html = verify_report.build_report(
+        v, key, src.vertices, src.faces, progress=lambda f, m: seen.append((f, m)), when=None
+    )
     fractions = [f for f, _ in seen]
     assert fractions[0] == 0.0 and fractions[-1] == 1.0 and fractions == sorted(fractions)
     assert all(0.0 <= f <= 1.0 for f in fractions)
@@ -151,8 +162,9 @@ def test_drawing_the_report_reports_progress_often_and_draws_the_same_pictures(m
     assert all(np.array_equal(a[1], b[1]) and a[2] == b[2] for a, b in zip(whole, chunked))
     out = marked / "progress.html"
     written = []
-    verify_report.write_report(out, v, key, src.vertices, src.faces, force=True,
-                               progress=lambda f, m: written.append((f, out.exists())))
+    verify_report.write_report(
+        out, v, key, src.vertices, src.faces, force=True, progress=lambda f, m: written.append((f, out.exists()))
+    )
     assert written[-1] == (1.0, True) and all(not there for f, there in written[:-1])
 
 
@@ -197,8 +209,9 @@ def test_paper_and_cho_keys_give_a_report(tmp_path):
 @pytest.mark.slow
 def test_cli_verify_writes_the_report_and_keeps_existing_files(marked, tmp_path):
     def run(*args):
-        return subprocess.run([sys.executable, "-m", "pmwm", "verify", *map(str, args)], capture_output=True,
-                              text=True, timeout=300)
+        return subprocess.run(
+            [sys.executable, "-m", "pmwm", "verify", *map(str, args)], capture_output=True, text=True, timeout=300
+        )
 
     report = tmp_path / "r.html"
     proc = run(marked / "marked.ply", "--key", marked / "owner.key.json", "--report", report)
@@ -210,8 +223,10 @@ def test_cli_verify_writes_the_report_and_keeps_existing_files(marked, tmp_path)
     assert report.read_text() == "keep me"
     proc = run(marked / "original.ply", "--key", marked / "owner.key.json", "--report", report, "--force")
     assert proc.returncode == 1 and "NOT MARKED" in report.read_text()
-    for bad, says in ((marked / "owner.key.json", "give an .html file name"),
-                      (tmp_path / "no" / "r.html", "does not exist")):
+    for bad, says in (
+        (marked / "owner.key.json", "give an .html file name"),
+        (tmp_path / "no" / "r.html", "does not exist"),
+    ):
         proc = run(marked / "marked.ply", "--key", marked / "owner.key.json", "--report", bad)
         assert proc.returncode == 2 and says in proc.stderr
 
@@ -227,9 +242,21 @@ def _chromium() -> str:
 
 def _browse(page: Path, tmp_path: Path, *mode: str) -> subprocess.CompletedProcess:
     profile = tmp_path / f"profile-{len(list(tmp_path.iterdir()))}"
-    cmd = [_chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--mute-audio",
-           "--enable-logging=stderr", "--v=0", f"--user-data-dir={profile}", "--window-size=1000,1500",
-           "--hide-scrollbars", *mode, page.as_uri()]
+    cmd = [
+        _chromium(),
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--no-first-run",
+        "--mute-audio",
+        "--enable-logging=stderr",
+        "--v=0",
+        f"--user-data-dir={profile}",
+        "--window-size=1000,1500",
+        "--hide-scrollbars",
+        *mode,
+        page.as_uri(),
+    ]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=180, stdin=subprocess.DEVNULL)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return proc
@@ -263,23 +290,27 @@ def _ocr(img: np.ndarray, tmp_path: Path) -> str:
 
 
 def _colour_mask(img: np.ndarray, hex_colour: str, tol: int = 6) -> np.ndarray:
-    rgb = np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)])
+    rgb = np.array([int(hex_colour[i : i + 2], 16) for i in (1, 3, 5)])
     return np.all(np.abs(img - rgb) <= tol, axis=2)
 
 
 @pytest.mark.slow
 def test_the_console_check_catches_an_error(tmp_path):
     page = tmp_path / "control.html"
-    page.write_text("<!DOCTYPE html><html><body><p>x</p><script>console.error('control-error-42')</script>"
-                    "</body></html>")
+    page.write_text(
+        "<!DOCTYPE html><html><body><p>x</p><script>console.error('control-error-42')</script></body></html>"
+    )
     proc = _browse(page, tmp_path, "--dump-dom")
     assert any("control-error-42" in ln for ln in _console_lines(proc.stderr)), proc.stderr[-2000:]
 
 
-@pytest.mark.parametrize("suspect,verdict,box,text,other", [
-    ("marked.ply", "MARKED", "#e3f4e8", "#12602f", "#fbe9e7"),
-    ("original.ply", "NOT MARKED", "#fbe9e7", "#8c1d12", "#e3f4e8"),
-])
+@pytest.mark.parametrize(
+    "suspect,verdict,box,text,other",
+    [
+        ("marked.ply", "MARKED", "#e3f4e8", "#12602f", "#fbe9e7"),
+        ("original.ply", "NOT MARKED", "#fbe9e7", "#8c1d12", "#e3f4e8"),
+    ],
+)
 @pytest.mark.slow
 def test_chromium_renders_the_report_with_its_verdict(marked, tmp_path, suspect, verdict, box, text, other):
     page, _ = _report(marked, suspect, f"browser-{suspect}.html")
@@ -297,11 +328,12 @@ def test_chromium_renders_the_report_with_its_verdict(marked, tmp_path, suspect,
     rows = np.flatnonzero(inside.sum(axis=1) > 100)
     assert len(rows) > 20 and not np.any(_colour_mask(img, other).sum(axis=1) > 100)
     y0, y1 = rows.min(), rows.max()
-    cols = np.flatnonzero(inside[y0:y1 + 1].sum(axis=0) > 0.5 * (y1 - y0))
+    cols = np.flatnonzero(inside[y0 : y1 + 1].sum(axis=0) > 0.5 * (y1 - y0))
     x0, x1 = cols.min(), cols.max()
     assert y1 < 0.3 * img.shape[0] and x1 - x0 > 100  # near the top: the first thing a reader sees
     assert _colour_mask(img[y0:y1, x0:x1], text, tol=40).sum() > 100  # the verdict's letters in the box
     # and the letters read as the verdict: OCR (Debian's tesseract) of the box on the screenshot
-    assert _ocr(img[y0:y1 + 1, x0:x1 + 1], tmp_path) == verdict
-    assert _colour_mask(img, verify_report.MATCH if verdict == "MARKED" else verify_report.MISMATCH,
-                        tol=3).sum() > 200  # the chart's bars and the pictures' discs
+    assert _ocr(img[y0 : y1 + 1, x0 : x1 + 1], tmp_path) == verdict
+    assert (
+        _colour_mask(img, verify_report.MATCH if verdict == "MARKED" else verify_report.MISMATCH, tol=3).sum() > 200
+    )  # the chart's bars and the pictures' discs

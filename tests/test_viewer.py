@@ -111,7 +111,7 @@ def test_write_site_writes_the_page_and_refuses_a_folder_in_use(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == ["index.html", "model.pmwm", "viewer.css", "viewer.js"]
     assert (out / "model.pmwm").read_bytes() == to_bytes(pm)
     page = (out / "index.html").read_text(encoding="utf-8")
-    assert "<title>Blob &lt;&quot;demo&quot;&gt;</title>" in page and "<\"demo\">" not in page
+    assert "<title>Blob &lt;&quot;demo&quot;&gt;</title>" in page and '<"demo">' not in page
     assert (out / "viewer.js").stat().st_size <= 100_000  # the page's whole script
     assert "http://" not in page + (out / "viewer.js").read_text() and "https://" not in page  # nothing fetched
     (out / "notes.txt").write_text("mine")
@@ -178,7 +178,8 @@ CASES = {
     "pinched_torus": lambda: _pm("pinched_torus"),  # a vertex of 60 faces: ranks past 52 and 32 bits
     "blob_version1": lambda: dataclasses.replace(_pm("blob"), end_ranks=False),  # a .pmwm version 1 file
     "blob_float32": lambda: pmwm.progressive.with_positions(  # float32 positions: 24-byte records
-        _pm("blob"), meshes.blob()[0].astype(np.float32).astype(np.float64)),
+        _pm("blob"), meshes.blob()[0].astype(np.float32).astype(np.float64)
+    ),
 }
 
 
@@ -187,7 +188,7 @@ def test_the_page_shows_what_pmwm_decode_gives_at_every_level(page, served, name
     pm = CASES[name]()
     path = _site(served, name, pm)
     site = served[0] / name
-    head = (site / "model.pmwm").read_bytes()[:HEADER.size]
+    head = (site / "model.pmwm").read_bytes()[: HEADER.size]
     assert head[8] == (1 if name == "blob_version1" else 2) and (head[10] == 0) == (name == "blob_float32")
     for k in _levels_to_check(pm) + [pm.n_records + 5]:
         st = _open(page, served, f"{path}?level={k}")
@@ -202,9 +203,22 @@ def test_cli_decode_counts_levels_as_the_page(page, served, tmp_path):
     pm = _pm("open_cap")
     path = _site(served, "open_cap_cli", pm)
     k = int(pm.level_records[1]) + 3
-    res = subprocess.run([sys.executable, "-m", "pmwm", "decode", str(served[0] / "open_cap_cli" / "model.pmwm"),
-                          "-o", str(tmp_path / "k.ply"), "--level", str(k)], capture_output=True, text=True,
-                         env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)))
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pmwm",
+            "decode",
+            str(served[0] / "open_cap_cli" / "model.pmwm"),
+            "-o",
+            str(tmp_path / "k.ply"),
+            "--level",
+            str(k),
+        ],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)),
+    )
     assert res.returncode == 0, res.stderr
     st = _open(page, served, f"{path}?level={k}")
     assert res.stdout.strip().endswith(f"{st['vertices']} vertices, {st['faces']} faces")
@@ -236,8 +250,10 @@ def test_a_slow_stream_shows_the_base_then_level_after_level(page, served):
     # every level of the file is a stop of the slider; back to the third one, then forward again
     assert int(page.eval("document.getElementById('pmwm-slider').max")) == len(pm.level_records)
     for stop in (3, len(pm.level_records) // 2, len(pm.level_records)):
-        page.eval(f"(s => {{ s.value = {stop}; s.dispatchEvent(new Event('input')); }})"
-                  f"(document.getElementById('pmwm-slider'))")
+        page.eval(
+            f"(s => {{ s.value = {stop}; s.dispatchEvent(new Event('input')); }})"
+            f"(document.getElementById('pmwm-slider'))"
+        )
         k = 0 if stop == 0 else int(pm.level_records[stop - 1])
         st = _status(page)
         n, m, digest = _python_hash(served[0] / "slow_bunny", k)
@@ -270,8 +286,10 @@ def test_the_page_draws_the_mesh_and_turns_it_with_the_mouse(page, served):
     cover, shades, before = page.eval(_PIXELS)
     assert 0.05 < cover < 0.9 and shades > 20  # a shaded surface, not a flat shape or an empty canvas
     for kind, x in (("mousePressed", 400), ("mouseMoved", 470), ("mouseMoved", 540), ("mouseReleased", 540)):
-        page.send("Input.dispatchMouseEvent", {"type": kind, "x": x, "y": 500, "button": "left", "buttons": 1,
-                                               "clickCount": 1})
+        page.send(
+            "Input.dispatchMouseEvent",
+            {"type": kind, "x": x, "y": 500, "button": "left", "buttons": 1, "clickCount": 1},
+        )
     cover2, _, after = page.eval(_PIXELS)
     assert after != before and 0.05 < cover2 < 0.9
 
@@ -324,7 +342,7 @@ def test_a_corrupted_file_shows_a_message_and_no_mesh(page, served):
     data = bytearray(to_bytes(pm))
     r = int(pm.level_records[-2]) + 10
     at = len(data) - 32 - (pm.n_records - r) * 36 + 24
-    data[at:at + 4] = (pm.n_vertices - 1).to_bytes(4, "little")
+    data[at : at + 4] = (pm.n_vertices - 1).to_bytes(4, "little")
     path = _site(served, "corrupted_record", pm, bytes(data))
     st = _open(page, served, path)
     assert st["state"] == "error" and st["error"] == "corrupted" and f"record {r}" in _message(page)
@@ -347,16 +365,20 @@ def test_a_corrupted_file_shows_a_message_and_no_mesh(page, served):
 
 def _embedded(scheme: str):
     V, F = meshes.bunny()
-    opts = pmwm.EmbedOptions(payload="ACME", seed=11, scheme=scheme,
-                             passphrase=PASSPHRASE if scheme == "blind" else None)
+    opts = pmwm.EmbedOptions(
+        payload="ACME", seed=11, scheme=scheme, passphrase=PASSPHRASE if scheme == "blind" else None
+    )
     return pmwm.embed(V, F, opts)
 
 
-@pytest.mark.parametrize("scheme, fraction", [
-    ("robust", 0.0),  # README: every level, from the base mesh up, reads the full payload
-    ("blind", 0.2),  # README: blind and paper from a level of 20 % of the vertices
-    ("paper", 0.2),
-])
+@pytest.mark.parametrize(
+    "scheme, fraction",
+    [
+        ("robust", 0.0),  # README: every level, from the base mesh up, reads the full payload
+        ("blind", 0.2),  # README: blind and paper from a level of 20 % of the vertices
+        ("paper", 0.2),
+    ],
+)
 def test_the_downloaded_level_is_read_by_pmwm_verify(page, served, downloads, tmp_path, scheme, fraction):
     res = _embedded(scheme)
     pm = res.pm

@@ -107,8 +107,13 @@ def test_too_many_bits_for_a_small_mesh():
 
 @pytest.mark.parametrize(
     "opts",
-    [EmbedOptions(payload="x", bits="01"), EmbedOptions(bits="01a"), EmbedOptions(payload=""),
-     EmbedOptions(strength=-1), EmbedOptions(base_ratio=0)],
+    [
+        EmbedOptions(payload="x", bits="01"),
+        EmbedOptions(bits="01a"),
+        EmbedOptions(payload=""),
+        EmbedOptions(strength=-1),
+        EmbedOptions(base_ratio=0),
+    ],
 )
 def test_bad_options(opts):
     V, F = meshes.blob()
@@ -188,7 +193,7 @@ def test_the_faces_fingerprint_is_its_documented_hash():
     for n, top in ((0, 5), (1, 3), (400, 6), (3000, 1 << 23)):
         F = rng.integers(0, top, (n, 3))
         F[: n // 8, 1] = F[: n // 8, 0]  # rows with a repeated index
-        F[n // 8: n // 4, 2] = F[n // 8: n // 4, 1]
+        F[n // 8 : n // 4, 2] = F[n // 8 : n // 4, 1]
         assert face_fingerprint(F) == plain(F)
         E = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])]  # (a triangle's own rotations)
         shuffled = np.roll(E[rng.permutation(len(E))], rng.integers(0, 3), axis=1)
@@ -204,8 +209,10 @@ def test_without_a_progressive_mesh_the_same_mesh_is_marked_and_read(scheme, tmp
     it, and the key (its progressive numbering the mesh's own) reads the mark, through a key file too."""
     V, F = meshes.open_cap()
     phrase = "a pass phrase" if scheme == "blind" else None
-    runs = {p: embed(V, F, EmbedOptions(payload="Acme", seed=4, scheme=scheme, passphrase=phrase, progressive=p))
-            for p in (True, False)}
+    runs = {
+        p: embed(V, F, EmbedOptions(payload="Acme", seed=4, scheme=scheme, passphrase=phrase, progressive=p))
+        for p in (True, False)
+    }
     assert runs[True].pm is not None and runs[False].pm is None
     assert np.array_equal(runs[True].vertices, runs[False].vertices)
     key = runs[False].key

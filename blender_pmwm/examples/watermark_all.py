@@ -22,7 +22,7 @@ import bpy
 
 def parse_args(argv: list[str]) -> argparse.Namespace:
     """Parse the arguments after ``--`` (Blender keeps the ones before it)."""
-    argv = argv[argv.index("--") + 1:] if "--" in argv else []
+    argv = argv[argv.index("--") + 1 :] if "--" in argv else []
     ap = argparse.ArgumentParser(prog="watermark_all.py", description="Watermark every mesh object.")
     ap.add_argument("--key-dir", required=True, help="folder for the key files (created if needed)")
     ap.add_argument("--payload", required=True, help="text to embed, e.g. an owner id")
@@ -38,8 +38,14 @@ def _file_stem(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "object"
 
 
-def watermark_all(key_dir: str, payload: str, strength: float = 2.0, base_ratio: float = 0.03,
-                  export_pm: bool = False, overwrite: bool = False) -> list[tuple[str, str]]:
+def watermark_all(
+    key_dir: str,
+    payload: str,
+    strength: float = 2.0,
+    base_ratio: float = 0.03,
+    export_pm: bool = False,
+    overwrite: bool = False,
+) -> list[tuple[str, str]]:
     """Watermark each mesh object of the view layer; returns (object name, outcome) pairs."""
     os.makedirs(key_dir, exist_ok=True)
     if bpy.context.object is not None and bpy.context.object.mode != "OBJECT":
@@ -54,8 +60,13 @@ def watermark_all(key_dir: str, payload: str, strength: float = 2.0, base_ratio:
         view_layer.objects.active = ob
         stem = os.path.join(key_dir, _file_stem(ob.name))
         try:
-            bpy.ops.pmwm.watermark(payload=payload, key_path=stem + ".key.json", strength=strength,
-                                   base_ratio=base_ratio, overwrite_key=overwrite)
+            bpy.ops.pmwm.watermark(
+                payload=payload,
+                key_path=stem + ".key.json",
+                strength=strength,
+                base_ratio=base_ratio,
+                overwrite_key=overwrite,
+            )
             if export_pm:
                 bpy.ops.pmwm.export_pm(filepath=stem + ".pmwm")
         except RuntimeError as exc:  # the operator's ERROR report
@@ -73,8 +84,7 @@ def main(argv: list[str]) -> int:
     except KeyError:
         print("watermark_all.py: the PM Watermark extension is not enabled in this Blender", file=sys.stderr)
         return 2
-    results = watermark_all(args.key_dir, args.payload, args.strength, args.base_ratio,
-                            args.export_pm, args.overwrite)
+    results = watermark_all(args.key_dir, args.payload, args.strength, args.base_ratio, args.export_pm, args.overwrite)
     for name, outcome in results:
         print(f"{name}: {outcome}")
     if args.save and bpy.data.filepath:

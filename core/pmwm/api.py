@@ -40,8 +40,15 @@ def read_key(path) -> WatermarkKey:
     return load_key_data(read_key_json(path))
 
 
-def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: float = 1e-6, *,
-           passphrase: Optional[str] = None, progress: Progress = None) -> Verdict:
+def verify(
+    vertices,
+    faces,
+    key: Optional[WatermarkKey] = None,
+    p_threshold: float = 1e-6,
+    *,
+    passphrase: Optional[str] = None,
+    progress: Progress = None,
+) -> Verdict:
     """Read the mark from a suspect mesh (any order, possibly attacked) with the key's scheme, or,
     with ``passphrase`` instead of a key, with the scheme keyed by a pass phrase (the blind scheme:
     the payload is read, not known). ``progress(fraction, message)`` is called at the reader's stages,
@@ -53,14 +60,22 @@ def verify(vertices, faces, key: Optional[WatermarkKey] = None, p_threshold: flo
     else:
         scheme, secret = get_scheme(key.scheme, KeyFileError), key
         if scheme.keying != KEY_FILE:
-            raise KeyFileError(f"the {scheme.name} scheme reads with a pass phrase, not a key: "
-                               "give passphrase= instead")
+            raise KeyFileError(
+                f"the {scheme.name} scheme reads with a pass phrase, not a key: give passphrase= instead"
+            )
     reuse_freed_memory()
     return scheme.verify(vertices, faces, secret, p_threshold, progress=progress)
 
 
-def verify_pm(pm: ProgressiveMesh, key: Optional[WatermarkKey] = None, records: Optional[int] = None,
-              p_threshold: float = 1e-6, *, passphrase: Optional[str] = None, progress: Progress = None) -> Verdict:
+def verify_pm(
+    pm: ProgressiveMesh,
+    key: Optional[WatermarkKey] = None,
+    records: Optional[int] = None,
+    p_threshold: float = 1e-6,
+    *,
+    passphrase: Optional[str] = None,
+    progress: Progress = None,
+) -> Verdict:
     """Read the mark from a progressive mesh at a level of detail (default: full)."""
     V, F = pm.decode(records=records)
     return verify(V, F, key, p_threshold, passphrase=passphrase, progress=progress)

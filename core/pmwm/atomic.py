@@ -25,7 +25,6 @@ def file_sha256(path) -> str:
     return h.hexdigest()
 
 
-
 def _fsync_path(path: str) -> None:
     fd = os.open(path, os.O_RDWR)
     try:

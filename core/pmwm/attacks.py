@@ -115,9 +115,7 @@ def noise_paper(vertices, faces, amplitude: float = 0.005, seed: int | None = No
     return _uniform_noise(vertices, faces, amplitude, seed, np.max)
 
 
-def smooth_laplacian(
-    vertices, faces, lam: float = 0.03, iterations: int = 5, seed: int | None = None
-) -> MeshArrays:
+def smooth_laplacian(vertices, faces, lam: float = 0.03, iterations: int = 5, seed: int | None = None) -> MeshArrays:
     """Uniform-weight Laplacian smoothing: v <- v + lam * (mean(neighbours) - v), all at once.
 
     All vertices are updated simultaneously from the previous iterate. Boundary vertices (on an edge
@@ -298,9 +296,7 @@ def simplify(vertices, faces, ratio: float = 0.5, seed: int | None = None) -> Me
     try:
         import fast_simplification
     except ImportError as exc:  # optional dependency
-        raise ImportError(
-            "the simplify attack needs fast-simplification: pip install fast-simplification"
-        ) from exc
+        raise ImportError("the simplify attack needs fast-simplification: pip install fast-simplification") from exc
     v2, f2 = fast_simplification.simplify(v, f.astype(np.int32), target_reduction=ratio)
     return np.asarray(v2, dtype=np.float64), np.asarray(f2, dtype=np.int64)
 
@@ -402,10 +398,10 @@ def _subdivide_catmull_clark(v: np.ndarray, f: np.ndarray) -> MeshArrays:
     k_faces = np.bincount(he_from, minlength=n).astype(np.float64)
     safe = np.maximum(k_edges, 1.0)
     Q = np.stack([np.bincount(he_from, weights=np.repeat(fp[:, k], 3), minlength=n) for k in range(3)], 1)
-    R = np.stack([np.bincount(ends, weights=np.concatenate([mid[:, k], mid[:, k]]), minlength=n)
-                  for k in range(3)], 1)
-    inner = (Q / np.maximum(k_faces, 1.0)[:, None] + 2.0 * R / safe[:, None]
-             + (safe - 3.0)[:, None] * v) / safe[:, None]
+    R = np.stack([np.bincount(ends, weights=np.concatenate([mid[:, k], mid[:, k]]), minlength=n) for k in range(3)], 1)
+    inner = (Q / np.maximum(k_faces, 1.0)[:, None] + 2.0 * R / safe[:, None] + (safe - 3.0)[:, None] * v) / safe[
+        :, None
+    ]
     bnd = faces_of == 1
     b_ends = np.concatenate([e0[bnd], e1[bnd]])
     b_count = np.bincount(b_ends, minlength=n)  # boundary edges per vertex
@@ -460,6 +456,7 @@ def retriangulate(vertices, faces, fraction: float = 1.0, seed: int | None = Non
         flip_edges(f, h1[go], h2[go])
         free[fa[go]] = free[fb[go]] = False
     return v, f
+
 
 # ----------------------------------------------------------------------------------------------
 # registry

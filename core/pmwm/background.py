@@ -118,6 +118,7 @@ class Background:
 def silent(fn: Callable[..., Any]) -> Callable[..., Any]:
     """``fn`` as a ``Background`` worker that reports no progress: the wrapper takes the ``progress`` keyword
     and drops it (such a worker cannot be stopped early: the caller's leaving waits for it to end)."""
+
     def worker(*args: Any, progress: Callable[[float, str], None], **kwargs: Any) -> Any:
         return fn(*args, **kwargs)
 

@@ -33,9 +33,27 @@ from .key import WatermarkKey, derive_seed, face_fingerprint, make_secret
 from .progressive import ProgressiveMesh
 from .validate import MAX_COORDINATE, check_mesh, parse_bits
 
-__all__ = ["Progress", "DEFAULT_BITS", "KEY_FILE", "PASS_PHRASE", "EmbedOptions", "EmbedResult", "Verdict",
-           "VerdictDetail", "payload_bits", "decode_text", "check_options", "confirm_payload", "verdict_from_scores",
-           "no_progress", "Scheme", "EmbedJob", "start_embed", "finish_embed", "mesh_key"]
+__all__ = [
+    "Progress",
+    "DEFAULT_BITS",
+    "KEY_FILE",
+    "PASS_PHRASE",
+    "EmbedOptions",
+    "EmbedResult",
+    "Verdict",
+    "VerdictDetail",
+    "payload_bits",
+    "decode_text",
+    "check_options",
+    "confirm_payload",
+    "verdict_from_scores",
+    "no_progress",
+    "Scheme",
+    "EmbedJob",
+    "start_embed",
+    "finish_embed",
+    "mesh_key",
+]
 
 Progress = Optional[Callable[[float, str], None]]
 DEFAULT_BITS = 64
@@ -109,8 +127,7 @@ class VerdictDetail:
     def headline_note(self, verdict: "Verdict") -> str:
         """The end of the verdict's first line (after the p-value): how much of the mark was read."""
         v = verdict
-        return (f"correlation {v.correlation:.3f}, {v.carriers_found}/{v.carriers_total} carriers read "
-                f"({v.mode})")
+        return f"correlation {v.correlation:.3f}, {v.carriers_found}/{v.carriers_total} carriers read ({v.mode})"
 
     def notes(self) -> list[str]:
         """Sentences a reader of the verdict must see beside it (the command line prints them under its
@@ -240,8 +257,9 @@ class EmbedJob:
     report: Callable[[float, str], None]
 
 
-def start_embed(vertices, faces, options: Optional[EmbedOptions], progress: Progress, scheme: str,
-                default_strength: float) -> EmbedJob:
+def start_embed(
+    vertices, faces, options: Optional[EmbedOptions], progress: Progress, scheme: str, default_strength: float
+) -> EmbedJob:
     """Check the options and the mesh, draw the secret and the payload: the first steps of every
     scheme's embedder (a PayloadError or MeshError naming what is wrong)."""
     opts = options or EmbedOptions(scheme=scheme)
@@ -252,26 +270,47 @@ def start_embed(vertices, faces, options: Optional[EmbedOptions], progress: Prog
     return EmbedJob(opts, strength, V, F, secret, bits, kind, progress or no_progress)
 
 
-def make_key(secret: str, bits: np.ndarray, payload_kind: str, strength: float, vertices: np.ndarray,
-             faces: np.ndarray, marked: np.ndarray, adj: Adjacency, pm: Optional[ProgressiveMesh],
-             key_carriers: np.ndarray, scheme: str, data: object = None) -> WatermarkKey:
+def make_key(
+    secret: str,
+    bits: np.ndarray,
+    payload_kind: str,
+    strength: float,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    marked: np.ndarray,
+    adj: Adjacency,
+    pm: Optional[ProgressiveMesh],
+    key_carriers: np.ndarray,
+    scheme: str,
+    data: object = None,
+) -> WatermarkKey:
     """The key of a marked mesh: vertices (n, 3) the input, faces (m, 3), marked (n, 3) the marked
     positions, ``key_carriers`` (k,) int64 the vertices the key records (index, progressive-mesh
     index and marked place), the mesh's size and the faces fingerprints in both numberings, and the
     scheme's typed data (written to the key file's ``extra`` by its ``to_extra``)."""
-    return WatermarkKey(**_key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, adj,
-                                      key_carriers, scheme, data),
-                        **_pm_fields(pm, faces, key_carriers))
+    return WatermarkKey(
+        **_key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, adj, key_carriers, scheme, data),
+        **_pm_fields(pm, faces, key_carriers),
+    )
 
 
-def _key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, adj, key_carriers, scheme,
-                data) -> dict:
+def _key_fields(secret, bits, payload_kind, strength, vertices, faces, marked, adj, key_carriers, scheme, data) -> dict:
     """``make_key``'s fields but those of the progressive mesh's numbering (``_pm_fields``)."""
-    return dict(secret=secret, bits=bits, payload_kind=payload_kind, strength=strength,
-                carrier_index=key_carriers, carrier_position=marked[key_carriers].copy(),
-                n_vertices=len(vertices), n_faces=len(faces), mean_edge=mean_edge_length(marked, adj),
-                bbox_diagonal=metrics.bbox_diagonal(vertices), scheme=scheme,
-                data=data, faces_fingerprint=face_fingerprint(faces))
+    return dict(
+        secret=secret,
+        bits=bits,
+        payload_kind=payload_kind,
+        strength=strength,
+        carrier_index=key_carriers,
+        carrier_position=marked[key_carriers].copy(),
+        n_vertices=len(vertices),
+        n_faces=len(faces),
+        mean_edge=mean_edge_length(marked, adj),
+        bbox_diagonal=metrics.bbox_diagonal(vertices),
+        scheme=scheme,
+        data=data,
+        faces_fingerprint=face_fingerprint(faces),
+    )
 
 
 def _pm_fields(pm: Optional[ProgressiveMesh], faces: np.ndarray, key_carriers: np.ndarray) -> dict:
@@ -287,20 +326,27 @@ def _pm_fields(pm: Optional[ProgressiveMesh], faces: np.ndarray, key_carriers: n
 KeyOf = Callable[[Optional[ProgressiveMesh]], WatermarkKey]  # a key made from the progressive mesh (None: none)
 
 
-def mesh_key(job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, key_carriers: np.ndarray,
-             data: object = None) -> KeyOf:
+def mesh_key(
+    job: EmbedJob, scheme: str, marked: np.ndarray, adj: Adjacency, key_carriers: np.ndarray, data: object = None
+) -> KeyOf:
     """The key of a scheme whose key records the mesh (robust, paper, Cho: ``make_key``), as a function of
     the progressive mesh: the fields of the mesh made now (while a build may still run), those of the
     progressive mesh's numbering when it is given. marked : (n, 3) float64 the marked mesh; key_carriers
     : (k,) int64 the vertices the key records (k = 0 or one per bit); data: the scheme's typed key data."""
     F = job.faces
-    fields = _key_fields(job.secret, job.bits, job.payload_kind, job.strength, job.vertices, F, marked, adj,
-                         key_carriers, scheme, data)
+    fields = _key_fields(
+        job.secret, job.bits, job.payload_kind, job.strength, job.vertices, F, marked, adj, key_carriers, scheme, data
+    )
     return lambda pm: WatermarkKey(**fields, **_pm_fields(pm, F, key_carriers))
 
 
-def finish_embed(job: EmbedJob, marked: np.ndarray, pm: Union[None, ProgressiveMesh, Callable[[], ProgressiveMesh]],
-                 carriers: np.ndarray, key: Union[None, WatermarkKey, KeyOf]) -> EmbedResult:
+def finish_embed(
+    job: EmbedJob,
+    marked: np.ndarray,
+    pm: Union[None, ProgressiveMesh, Callable[[], ProgressiveMesh]],
+    carriers: np.ndarray,
+    key: Union[None, WatermarkKey, KeyOf],
+) -> EmbedResult:
     """The result, the last step of every embedder. marked : (n, 3) float64 the marked mesh; carriers :
     the vertices reported as carrying the mark; ``pm``: the progressive mesh, None when none was built,
     or a callable giving it (a build still running in another thread: everything else is done before
@@ -311,8 +357,17 @@ def finish_embed(job: EmbedJob, marked: np.ndarray, pm: Union[None, ProgressiveM
     pm = pm() if callable(pm) else pm
     key = key(pm) if callable(key) else key
     job.report(1.0, "done")
-    return EmbedResult(vertices=marked, faces=job.faces, pm=pm, key=key, carriers=carriers, bits=job.bits,
-                       vsnr_db=vsnr_db, rmse=rmse, strength=float(job.strength))
+    return EmbedResult(
+        vertices=marked,
+        faces=job.faces,
+        pm=pm,
+        key=key,
+        carriers=carriers,
+        bits=job.bits,
+        vsnr_db=vsnr_db,
+        rmse=rmse,
+        strength=float(job.strength),
+    )
 
 
 # --------------------------------------------------------------------------- the decision
@@ -325,9 +380,14 @@ def confirm_payload(marked: bool, bits: np.ndarray, key: WatermarkKey) -> bool:
     return bool(marked and len(bits) == key.n_bits and np.array_equal(bits, key.bits))
 
 
-def verdict_from_scores(score: np.ndarray, key: WatermarkKey, mode: str, p_threshold: float,
-                        detail: Optional[VerdictDetail] = None,
-                        confirm: Callable[[bool, np.ndarray, WatermarkKey], bool] = confirm_payload) -> Verdict:
+def verdict_from_scores(
+    score: np.ndarray,
+    key: WatermarkKey,
+    mode: str,
+    p_threshold: float,
+    detail: Optional[VerdictDetail] = None,
+    confirm: Callable[[bool, np.ndarray, WatermarkKey], bool] = confirm_payload,
+) -> Verdict:
     """The verdict from one score per bit, score : (N,) float64 (sign = scrambled bit, 0 = erasure); the
     payload text only when ``confirm(marked, bits read, key)`` holds; ``detail``: how the scheme read it."""
     n = key.n_bits

@@ -24,8 +24,7 @@ from .som import SUITABLE, classify_smoothness
 JITTER_MIN = 0.75
 
 
-def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int,
-                      cross: np.ndarray | None = None) -> np.ndarray:
+def eligible_carriers(vertices: np.ndarray, adj: Adjacency, seed: int, cross: np.ndarray | None = None) -> np.ndarray:
     """Bool mask (n,): SOM-suitable, manifold interior, valence >= 4. ``cross``: the faces'
     ``features.face_cross`` (m, 3) when the caller has it already.
 
@@ -49,9 +48,7 @@ def two_ring(adj: Adjacency, c: int) -> np.ndarray:
     return np.concatenate([[c], ring, gather_rows(adj.ring_ptr, adj.ring_idx, ring)])
 
 
-def select_carriers(
-    vertices: np.ndarray, adj: Adjacency, eligible: np.ndarray, n: int, seed: int
-) -> np.ndarray:
+def select_carriers(vertices: np.ndarray, adj: Adjacency, eligible: np.ndarray, n: int, seed: int) -> np.ndarray:
     """Pick n carrier vertex indices (n,) int64, in pick order, from the ``eligible`` mask.
 
     Boundary, non-manifold and isolated vertices are never picked, whatever the mask
@@ -94,8 +91,11 @@ def select_carriers(
         # every live candidate has dist2 <= score / weight <= score[pick] / w_min
         x = float(pos[axis, pick])
         reach = float(np.sqrt(score[pick] / w_min)) * (1.0 + 1e-6) + abs(x) * 1e-12
-        lo, hi = (0, len(cand)) if not np.isfinite(reach) else (
-            int(np.searchsorted(pos[axis], x - reach)), int(np.searchsorted(pos[axis], x + reach, "right")))
+        lo, hi = (
+            (0, len(cand))
+            if not np.isfinite(reach)
+            else (int(np.searchsorted(pos[axis], x - reach)), int(np.searchsorted(pos[axis], x + reach, "right")))
+        )
         # d2 = ((x - x0)^2 + (y - y0)^2) + (z - z0)^2, in two reused buffers
         t, d2 = buf[: hi - lo], d2_buf[: hi - lo]
         np.subtract(pos[0, lo:hi], pos[0, pick], out=t)

@@ -27,8 +27,16 @@ from .errors import OutputExistsError, PmwmError
 from .key import write_key
 from .meshio import SUPPORTED_EXTENSIONS, read_mesh, write_marked, write_mesh
 from .progressive import read_pm, record_size, write_pm
-from .scene import (SceneDetail, embed_objects, read_asset, read_keys, read_objects, verify_objects, write_asset,
-                    write_keys)
+from .scene import (
+    SceneDetail,
+    embed_objects,
+    read_asset,
+    read_keys,
+    read_objects,
+    verify_objects,
+    write_asset,
+    write_keys,
+)
 from .schemes import SCHEMES, keyed_by
 
 EXIT_OK, EXIT_NOT_MARKED, EXIT_ERROR = 0, 1, 2
@@ -126,23 +134,37 @@ def cmd_embed(a) -> int:
     if by_phrase and passphrase is None:
         raise UsageError(f"the {a.scheme} scheme needs a pass phrase: --passphrase-file F or ${PASSPHRASE_ENV}")
     if not by_phrase and a.key is None:
-        raise UsageError(f"the key file to write is missing: --key KEY.json (only {_schemes_keyed_by(PASS_PHRASE)} "
-                         "needs none)")
+        raise UsageError(
+            f"the key file to write is missing: --key KEY.json (only {_schemes_keyed_by(PASS_PHRASE)} needs none)"
+        )
     if not by_phrase and a.passphrase_file is not None:
-        raise UsageError(f"--passphrase-file is for {_schemes_keyed_by(PASS_PHRASE)}; the other schemes write a "
-                         "key file")
+        raise UsageError(
+            f"--passphrase-file is for {_schemes_keyed_by(PASS_PHRASE)}; the other schemes write a key file"
+        )
     _check_outputs([a.output, a.key, a.pm], [a.input], a.force)
     asset = _scene(a.input, a.output)  # a scene is marked object by object and written back in place
     if asset is not None and a.pm and len(asset.objects) > 1:
-        raise UsageError(f"--pm writes the progressive mesh of one mesh; {a.input} holds {len(asset.objects)} "
-                         "objects: omit --pm")
+        raise UsageError(
+            f"--pm writes the progressive mesh of one mesh; {a.input} holds {len(asset.objects)} objects: omit --pm"
+        )
     src = read_mesh(a.input) if asset is None else None
-    objects = [(a.input, src.vertices, src.faces)] if asset is None else \
-        [(o.name, o.vertices, o.faces) for o in asset.objects]
+    objects = (
+        [(a.input, src.vertices, src.faces)]
+        if asset is None
+        else [(o.name, o.vertices, o.faces) for o in asset.objects]
+    )
     # the progressive mesh only when it is written (--pm): without it the embed skips most of its work
-    opts = EmbedOptions(payload=a.payload, bits=a.bits, n_bits=a.n_bits, strength=a.strength,
-                        base_ratio=a.base_ratio, seed=a.seed, scheme=a.scheme, passphrase=passphrase,
-                        progressive=a.pm is not None)
+    opts = EmbedOptions(
+        payload=a.payload,
+        bits=a.bits,
+        n_bits=a.n_bits,
+        strength=a.strength,
+        base_ratio=a.base_ratio,
+        seed=a.seed,
+        scheme=a.scheme,
+        passphrase=passphrase,
+        progressive=a.pm is not None,
+    )
     marking = embed_objects(objects, opts, progress=_progress(a.quiet))
     res = marking.results[0]
     written: list[str] = []
@@ -166,25 +188,34 @@ def cmd_embed(a) -> int:
                 pass
         raise
     if len(res.bits) < 20:
-        print(f"warning: {len(res.bits)} bits can never give p < 1e-6 (2^-{len(res.bits)} at best); "
-              "use at least 20 bits for a 'marked' verdict", file=sys.stderr)
+        print(
+            f"warning: {len(res.bits)} bits can never give p < 1e-6 (2^-{len(res.bits)} at best); "
+            "use at least 20 bits for a 'marked' verdict",
+            file=sys.stderr,
+        )
     if not a.quiet:
         for w in (src or asset).warnings:
             print(f"warning: {w}", file=sys.stderr)
         if asset is not None and len(objects) > 1:
-            print(f"marked {len(res.bits)} bits in each of the {len(objects)} objects of {a.input} ("
-                  + ", ".join(f"{n}: VSNR {r.vsnr_db:.1f} dB" for n, r in zip(marking.names, marking.results))
-                  + f") -> {a.output}")
+            print(
+                f"marked {len(res.bits)} bits in each of the {len(objects)} objects of {a.input} ("
+                + ", ".join(f"{n}: VSNR {r.vsnr_db:.1f} dB" for n, r in zip(marking.names, marking.results))
+                + f") -> {a.output}"
+            )
         else:
-            print(f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
-                  f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}")
+            print(
+                f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
+                f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}"
+            )
         if res.key is None:
             print(f"payload bits: {''.join(map(str, res.bits.tolist()))} (no key file: the pass phrase reads it)")
         else:
             print(f"key -> {a.key} (keep it secret: it reveals where the mark is)")
         if a.pm:
-            print(f"progressive mesh -> {a.pm} ({res.pm.n_base_vertices} base vertices, "
-                  f"{res.pm.n_records} records, {len(res.pm.level_records)} levels)")
+            print(
+                f"progressive mesh -> {a.pm} ({res.pm.n_base_vertices} base vertices, "
+                f"{res.pm.n_records} records, {len(res.pm.level_records)} levels)"
+            )
     return EXIT_OK
 
 
@@ -197,8 +228,10 @@ def _scene(path: str, output: str):
     if asset is None or (not same and len(asset.objects) == 1):
         return None
     if not same:
-        raise UsageError(f"{path} holds {len(asset.objects)} objects, written back in its own format only: "
-                         f"use -o NAME{os.path.splitext(path)[1]}")
+        raise UsageError(
+            f"{path} holds {len(asset.objects)} objects, written back in its own format only: "
+            f"use -o NAME{os.path.splitext(path)[1]}"
+        )
     return asset
 
 
@@ -223,8 +256,10 @@ def cmd_verify(a) -> int:
     if a.key is not None and a.passphrase_file is not None:
         raise UsageError("give --key or --passphrase-file, not both")
     if a.key is None and passphrase is None:
-        raise UsageError(f"give --key KEY.json, or a pass phrase for a {phrase_schemes} mark "
-                         f"(--passphrase-file F or ${PASSPHRASE_ENV})")
+        raise UsageError(
+            f"give --key KEY.json, or a pass phrase for a {phrase_schemes} mark "
+            f"(--passphrase-file F or ${PASSPHRASE_ENV})"
+        )
     if passphrase is not None and a.report is not None:
         raise UsageError(f"--report needs a key file; a {phrase_schemes} mark has none")
     keys = read_keys(a.key) if a.key is not None else None  # a scene's key: one per object
@@ -290,11 +325,14 @@ def cmd_info(a) -> int:
 def cmd_viewer(a) -> int:
     from .viewer import write_site
 
-    out = write_site(read_pm(a.input), a.output, title=a.title or os.path.splitext(os.path.basename(a.input))[0],
-                     force=a.force)
+    out = write_site(
+        read_pm(a.input), a.output, title=a.title or os.path.splitext(os.path.basename(a.input))[0], force=a.force
+    )
     if not a.quiet:
-        print(f"{out}: a web page streaming {os.path.basename(a.input)}; try it: python -m http.server -d {out}, "
-              "then open http://localhost:8000")
+        print(
+            f"{out}: a web page streaming {os.path.basename(a.input)}; try it: python -m http.server -d {out}, "
+            "then open http://localhost:8000"
+        )
     return EXIT_OK
 
 
@@ -318,8 +356,10 @@ def cmd_demo(a) -> int:
     if os.path.exists(out) and not os.path.isdir(out):
         raise UsageError(f"{out} exists and is not a folder")
     os.makedirs(out, exist_ok=True)
-    names = {k: os.path.join(out, v) for k, v in
-             dict(mesh="bunny_marked.ply", pm="bunny.pmwm", key="bunny.key.json", report="verify.json").items()}
+    names = {
+        k: os.path.join(out, v)
+        for k, v in dict(mesh="bunny_marked.ply", pm="bunny.pmwm", key="bunny.key.json", report="verify.json").items()
+    }
     _check_outputs(list(names.values()), [], a.force)
     sample = resources.files("pmwm") / "data" / "bunny.off"
     with resources.as_file(sample) as path:
@@ -334,8 +374,10 @@ def cmd_demo(a) -> int:
     v = verify(check.vertices, check.faces, read_key(names["key"]))
     atomic_write_bytes(names["report"], (json.dumps(v.to_dict(), indent=1) + "\n").encode(), force=a.force)
     print(f"sample: the Stanford Bunny ({len(src.vertices)} vertices; Stanford Computer Graphics Laboratory)")
-    print(f"embedded {len(res.bits)} bits in {t_embed:.2f} s, VSNR {res.vsnr_db:.1f} dB; wrote {out}/: "
-          + ", ".join(os.path.basename(p) for p in names.values()))
+    print(
+        f"embedded {len(res.bits)} bits in {t_embed:.2f} s, VSNR {res.vsnr_db:.1f} dB; wrote {out}/: "
+        + ", ".join(os.path.basename(p) for p in names.values())
+    )
     _print_verdict(v, False)
     return EXIT_OK if v.marked else EXIT_NOT_MARKED
 
@@ -347,14 +389,12 @@ def cmd_bench(argv: Sequence[str]) -> int:
 
     found = list(entry_points(group="pmwm.commands", name="bench"))
     if not found:
-        raise UsageError("pmwm bench needs the evaluation part, installed from a checkout with "
-                         "pip install '.[bench]'")
+        raise UsageError("pmwm bench needs the evaluation part, installed from a checkout with pip install '.[bench]'")
     try:
         command = found[0].load()
     except ImportError as exc:
         raise UsageError(f"pmwm bench cannot start ({exc}); install the bench extra: pip install '.[bench]'") from None
     return command(list(argv))
-
 
 
 # --------------------------------------------------------------------------- fingerprinting
@@ -400,13 +440,22 @@ def cmd_fingerprint(a) -> int:
         run = fingerprint_scene(scene, recipients, a.out, progress=_count_progress(a.quiet, "copies"))
         run.analysis_seconds = time.perf_counter() - t0 - run.copies_seconds
     else:
-        run = fingerprint_asset(a.asset, a.key, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
-                                progress=_count_progress(a.quiet, "copies"))
+        run = fingerprint_asset(
+            a.asset,
+            a.key,
+            recipients,
+            a.out,
+            pm=a.pm,
+            options=_fingerprint_options(a),
+            progress=_count_progress(a.quiet, "copies"),
+        )
     if not a.quiet:
         per = run.copies_seconds / max(len(run.written), 1)
-        print(f"fingerprinted {a.asset} for {len(recipients)} recipients: {len(run.written)} copies written "
-              f"({per * 1000:.0f} ms each after a {run.analysis_seconds:.2f} s analysis), {len(run.skipped)} "
-              f"already delivered intact -> {a.out}")
+        print(
+            f"fingerprinted {a.asset} for {len(recipients)} recipients: {len(run.written)} copies written "
+            f"({per * 1000:.0f} ms each after a {run.analysis_seconds:.2f} s analysis), {len(run.skipped)} "
+            f"already delivered intact -> {a.out}"
+        )
         print(f"registry -> {run.registry_path}")
         print(f"key -> {a.key} ({'new' if new_key else 'reused'}; keep it secret, with the registry)")
     return EXIT_OK
@@ -435,14 +484,18 @@ def cmd_trace(a) -> int:
         print(json.dumps(r.to_dict()))
     elif r.accused:
         for acc in r.accused:
-            print(f"TRACED to {acc.recipient}: score {acc.score:.1f}, p = {acc.p_value:.3g} corrected for "
-                  f"{r.n_recipients} recipients (threshold {r.p_threshold:g})")
+            print(
+                f"TRACED to {acc.recipient}: score {acc.score:.1f}, p = {acc.p_value:.3g} corrected for "
+                f"{r.n_recipients} recipients (threshold {r.p_threshold:g})"
+            )
         print(f"{r.sites_read}/{r.sites_total} sites read ({r.mode})")
     else:
         best = int(np.argmax(r.scores)) if r.n_recipients else -1
         tail = f"; best {r.recipients[best]}, p = {r.p_values[best]:.3g}" if best >= 0 else ""
-        print(f"no recipient: none of {r.n_recipients} recipients is significant at p < {r.p_threshold:g}{tail} "
-              f"({r.sites_read}/{r.sites_total} sites read, {r.mode})")
+        print(
+            f"no recipient: none of {r.n_recipients} recipients is significant at p < {r.p_threshold:g}{tail} "
+            f"({r.sites_read}/{r.sites_total} sites read, {r.mode})"
+        )
     return EXIT_OK if r.accused else EXIT_NOT_MARKED
 
 
@@ -456,11 +509,21 @@ def cmd_catalogue(a) -> int:
     if os.path.exists(a.out) and not os.path.isdir(a.out):
         raise UsageError(f"--out {a.out} exists and is not a folder")
     recipients = read_recipients(a.recipients)
-    res = run_catalogue(a.assets, recipients, a.out, pm=a.pm, options=_fingerprint_options(a),
-                        n_workers=a.workers, scheduler=a.scheduler, progress=_count_progress(a.quiet, "copies"))
+    res = run_catalogue(
+        a.assets,
+        recipients,
+        a.out,
+        pm=a.pm,
+        options=_fingerprint_options(a),
+        n_workers=a.workers,
+        scheduler=a.scheduler,
+        progress=_count_progress(a.quiet, "copies"),
+    )
     if not a.quiet:
-        print(f"catalogue: {len(a.assets)} assets x {len(recipients)} recipients: {res.written} copies written, "
-              f"{res.skipped} already delivered intact, in {res.seconds:.1f} s -> {a.out}")
+        print(
+            f"catalogue: {len(a.assets)} assets x {len(recipients)} recipients: {res.written} copies written, "
+            f"{res.skipped} already delivered intact, in {res.seconds:.1f} s -> {a.out}"
+        )
     for name, err in res.failed.items():
         print(f"pmwm: error: {name}: {err}", file=sys.stderr)
     return EXIT_ERROR if res.failed else EXIT_OK
@@ -472,16 +535,25 @@ def _add_fingerprint_commands(sub) -> None:
         c.add_argument("--seed", type=int, help="seed of a new key's secret (default: fresh)")
         c.add_argument("--strength", type=float, default=2.0, help="a new key's: as embed's (default 2)")
         c.add_argument("--sites", type=int, default=384, help="a new key's: sites carrying the codeword (default 384)")
-        c.add_argument("--base-ratio", type=float, default=0.03, help="a new key's: base mesh vertices / input vertices")
+        c.add_argument(
+            "--base-ratio", type=float, default=0.03, help="a new key's: base mesh vertices / input vertices"
+        )
         c.add_argument("-q", "--quiet", action="store_true")
 
     f = sub.add_parser("fingerprint", help="one marked copy per recipient, and a registry to trace leaks")
     f.add_argument("asset")
-    f.add_argument("--key", required=True, help="the asset's fingerprinting key (written by the first run, "
-                                                "reused and checked on later runs; keep it secret)")
+    f.add_argument(
+        "--key",
+        required=True,
+        help="the asset's fingerprinting key (written by the first run, "
+        "reused and checked on later runs; keep it secret)",
+    )
     f.add_argument("--recipients", required=True, help="CSV of recipient ids (column 'id', or the first)")
-    f.add_argument("--out", required=True, help="folder of the copies and registry.json (a rerun skips "
-                                                "copies already written intact)")
+    f.add_argument(
+        "--out",
+        required=True,
+        help="folder of the copies and registry.json (a rerun skips copies already written intact)",
+    )
     options(f)
     f.set_defaults(func=cmd_fingerprint)
 
@@ -502,6 +574,7 @@ def _add_fingerprint_commands(sub) -> None:
     options(c)
     c.set_defaults(func=cmd_catalogue)
 
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -518,23 +591,32 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("embed", help="watermark a mesh")
     e.add_argument("input")
     e.add_argument("-o", "--output", required=True, help="marked mesh (OBJ, PLY, STL, OFF, GLB)")
-    e.add_argument("--key",
-                   help=f"key file to write (JSON; keep it secret); not with {_schemes_keyed_by(PASS_PHRASE)}")
-    e.add_argument("--passphrase-file", metavar="F",
-                   help=f"{_schemes_keyed_by(PASS_PHRASE)}: the pass phrase is F's first line "
-                        f"(else ${PASSPHRASE_ENV}); never printed")
+    e.add_argument("--key", help=f"key file to write (JSON; keep it secret); not with {_schemes_keyed_by(PASS_PHRASE)}")
+    e.add_argument(
+        "--passphrase-file",
+        metavar="F",
+        help=f"{_schemes_keyed_by(PASS_PHRASE)}: the pass phrase is F's first line "
+        f"(else ${PASSPHRASE_ENV}); never printed",
+    )
     e.add_argument("--pm", help="also write the progressive mesh (.pmwm)")
     g = e.add_mutually_exclusive_group()
     g.add_argument("--payload", help="text payload (UTF-8)")
     g.add_argument("--bits", help="payload bits, e.g. 0110...")
     e.add_argument("--n-bits", type=int, default=64, help="random payload length without --payload/--bits")
     e.add_argument("--seed", type=int, help="seed of every random choice (default: a fresh secret)")
-    e.add_argument("--strength", type=float,
-                   help="robust and paper: a factor (default 2); cho1, cho2: Cho's alpha (default 0.05); "
-                        "blind: the bin-mean margin in a bin of median count (default: calibrated per mesh)")
+    e.add_argument(
+        "--strength",
+        type=float,
+        help="robust and paper: a factor (default 2); cho1, cho2: Cho's alpha (default 0.05); "
+        "blind: the bin-mean margin in a bin of median count (default: calibrated per mesh)",
+    )
     e.add_argument("--base-ratio", type=float, default=0.03, help="base mesh vertices / input vertices")
-    e.add_argument("--scheme", choices=tuple(SCHEMES), default="robust",
-                   help="; ".join(f"{s.name}: {s.description}" for s in SCHEMES.values()))
+    e.add_argument(
+        "--scheme",
+        choices=tuple(SCHEMES),
+        default="robust",
+        help="; ".join(f"{s.name}: {s.description}" for s in SCHEMES.values()),
+    )
     e.add_argument("--force", action="store_true", help="overwrite existing outputs")
     e.add_argument("-q", "--quiet", action="store_true")
     e.set_defaults(func=cmd_embed)
@@ -542,15 +624,21 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("verify", help="check a suspect mesh or .pmwm for the mark")
     v.add_argument("suspect")
     v.add_argument("--key", help=f"the key file of the mark (not for a {' or '.join(keyed_by(PASS_PHRASE))} mark)")
-    v.add_argument("--passphrase-file", metavar="F",
-                   help=f"read a {' or '.join(keyed_by(PASS_PHRASE))} mark with the pass phrase in F's first line "
-                        f"(else ${PASSPHRASE_ENV})")
+    v.add_argument(
+        "--passphrase-file",
+        metavar="F",
+        help=f"read a {' or '.join(keyed_by(PASS_PHRASE))} mark with the pass phrase in F's first line "
+        f"(else ${PASSPHRASE_ENV})",
+    )
     v.add_argument("--json", action="store_true", help="one JSON object on stdout")
     v.add_argument("--level", type=int, help="(.pmwm) records to apply")
     v.add_argument("--vertices", type=int, help="(.pmwm) level of detail by vertex count")
     v.add_argument("--p-threshold", type=float, default=1e-6)
-    v.add_argument("--report", metavar="REPORT.html",
-                   help="also write a self-contained HTML verification report (verdict, hashes, per-bit chart, views)")
+    v.add_argument(
+        "--report",
+        metavar="REPORT.html",
+        help="also write a self-contained HTML verification report (verdict, hashes, per-bit chart, views)",
+    )
     v.add_argument("--force", action="store_true", help="overwrite an existing report")
     v.set_defaults(func=cmd_verify)
 
@@ -592,8 +680,7 @@ def build_parser() -> argparse.ArgumentParser:
             typ = type(default) if isinstance(default, (int, float, str)) and not isinstance(default, bool) else None
             if pname == "seed":
                 typ = int
-            ap.add_argument(f"--{pname.replace('_', '-')}", dest=pname, type=typ or str,
-                            help=f"default {default!r}")
+            ap.add_argument(f"--{pname.replace('_', '-')}", dest=pname, type=typ or str, help=f"default {default!r}")
         ap.add_argument("--force", action="store_true")
         ap.add_argument("-q", "--quiet", action="store_true")
         ap.set_defaults(func=cmd_attack)
@@ -607,9 +694,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_fingerprint_commands(sub)
 
-    b = sub.add_parser("bench", add_help=False,
-                       help="run the robustness benchmark (both protocols, pmwm vs Cho); "
-                            "'pmwm bench --help' for its options")
+    b = sub.add_parser(
+        "bench",
+        add_help=False,
+        help="run the robustness benchmark (both protocols, pmwm vs Cho); 'pmwm bench --help' for its options",
+    )
     b.add_argument("args", nargs=argparse.REMAINDER)  # handed to the bench entry point by main()
     return p
 

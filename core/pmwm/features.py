@@ -56,8 +56,9 @@ def row_norms(x: np.ndarray) -> np.ndarray:
     return np.sqrt(squared_norms(x))
 
 
-def face_normals(vertices: np.ndarray, faces: np.ndarray,
-                 cross: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def face_normals(
+    vertices: np.ndarray, faces: np.ndarray, cross: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Unit normals (m, 3) and areas (m,) of triangles; degenerate faces get a zero normal.
     ``cross``: the faces' ``face_cross`` when the caller has it already."""
     if cross is None:
@@ -73,8 +74,9 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray, cross: np.ndarray | 
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if cross is None:
         cross = face_cross(vertices, f)
-    vn = np.stack([np.bincount(f.ravel(), weights=np.repeat(cross[:, a], 3), minlength=len(vertices))
-                   for a in range(3)], axis=1)
+    vn = np.stack(
+        [np.bincount(f.ravel(), weights=np.repeat(cross[:, a], 3), minlength=len(vertices)) for a in range(3)], axis=1
+    )
     return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
 
@@ -89,8 +91,7 @@ def vertex_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return out.astype(np.float64, copy=False)  # (bincount of no faces gives integers)
 
 
-def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6,
-                       cross: np.ndarray | None = None) -> np.ndarray:
+def smoothness_feature(vertices: np.ndarray, adj: Adjacency, k: int = 6, cross: np.ndarray | None = None) -> np.ndarray:
     """Sorted 1-ring normal angles (radians) resampled to k values: (n, k) float64. ``cross``: the
     faces' ``face_cross`` (m, 3) when the caller has it already."""
     if k < 1:

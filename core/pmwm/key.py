@@ -88,11 +88,13 @@ class WatermarkKey:
         try:
             doc = json.loads(text)
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise KeyFileError(f"{name} is not a pmwm key (not JSON: {exc.msg if hasattr(exc, 'msg') else exc})") from None
+            raise KeyFileError(
+                f"{name} is not a pmwm key (not JSON: {exc.msg if hasattr(exc, 'msg') else exc})"
+            ) from None
         except RecursionError:
             raise KeyFileError(f"{name} is not a pmwm key (JSON nested too deeply)") from None
         if not isinstance(doc, dict) or doc.get("format") != KEY_FORMAT:
-            raise KeyFileError(f"{name} is not a pmwm key file (no \"format\": \"{KEY_FORMAT}\")")
+            raise KeyFileError(f'{name} is not a pmwm key file (no "format": "{KEY_FORMAT}")')
         version = doc.get("version")
         if not isinstance(version, int) or version > KEY_VERSION or version < 1:
             raise KeyFileError(f"{name} is key version {version}; this pmwm reads version {KEY_VERSION}: upgrade pmwm")
@@ -131,8 +133,11 @@ class WatermarkKey:
         problems = []
         if len(self.secret) != 64 or any(c not in "0123456789abcdef" for c in self.secret):
             problems.append("secret is not 64 hex digits")
-        if self.n_bits == 0 or len(self.carrier_index) not in (0, self.n_bits) \
-                or not (len(self.carrier_index) == len(self.carrier_pm_index) == len(self.carrier_position)):
+        if (
+            self.n_bits == 0
+            or len(self.carrier_index) not in (0, self.n_bits)
+            or not (len(self.carrier_index) == len(self.carrier_pm_index) == len(self.carrier_position))
+        ):
             problems.append("bit count and carrier count differ")
         if np.any(self.bits > 1):
             problems.append("bits are not 0/1")
@@ -190,8 +195,14 @@ def face_fingerprint(faces: np.ndarray) -> str:
     # each row rotated to start at its first smallest entry (argmin's): a, b or c
     at_a = (a <= b) & (a <= c)
     at_b = ~at_a & (b <= c)
-    G = np.stack([np.where(at_a, a, np.where(at_b, b, c)), np.where(at_a, b, np.where(at_b, c, a)),
-                  np.where(at_a, c, np.where(at_b, a, b))], axis=1)
+    G = np.stack(
+        [
+            np.where(at_a, a, np.where(at_b, b, c)),
+            np.where(at_a, b, np.where(at_b, c, a)),
+            np.where(at_a, c, np.where(at_b, a, b)),
+        ],
+        axis=1,
+    )
     if len(G) and F.min() >= 0 and F.max() < 1 << 21:  # rows packed in one int64: the same order, one sort
         packed = np.sort((G[:, 0] << 42) | (G[:, 1] << 21) | G[:, 2])  # equal keys are equal rows
         G = np.empty((len(packed), 3), "<i8")

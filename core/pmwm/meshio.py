@@ -161,9 +161,7 @@ def _extension(path: str) -> str:
     ext = os.path.splitext(path)[1].lower()
     if ext not in SUPPORTED_EXTENSIONS:
         shown = ext or "no extension"
-        raise MeshError(
-            f"{path}: unsupported mesh format ({shown}); use one of {', '.join(SUPPORTED_EXTENSIONS)}"
-        )
+        raise MeshError(f"{path}: unsupported mesh format ({shown}); use one of {', '.join(SUPPORTED_EXTENSIONS)}")
     return ext
 
 
@@ -217,9 +215,7 @@ def _load_trimesh(path: str, ext: str) -> tuple["trimesh.Trimesh", list[str]]:
         kwargs["maintain_order"] = _VT_LINE.search(data) is None
     try:
         resolver = trimesh.resolvers.FilePathResolver(os.path.abspath(path))
-        loaded = trimesh.load(
-            io.BytesIO(data), file_type=ext[1:], resolver=resolver, process=False, **kwargs
-        )
+        loaded = trimesh.load(io.BytesIO(data), file_type=ext[1:], resolver=resolver, process=False, **kwargs)
     except Exception as exc:  # trimesh raises anything on bad input; report it on one line
         raise MeshError(f"cannot read {path} as {_FORMAT_NAMES[ext]} ({_short(exc)})") from None
 
@@ -255,16 +251,18 @@ def _load_trimesh(path: str, ext: str) -> tuple["trimesh.Trimesh", list[str]]:
     raise MeshError(f"{path} holds no triangle mesh ({_describe_nonmesh(loaded)})")
 
 
-def canonical_mesh(v_src: np.ndarray, f_src: np.ndarray, where: str,
-                   warnings: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def canonical_mesh(
+    v_src: np.ndarray, f_src: np.ndarray, where: str, warnings: list[str]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The mesh the schemes see from a file's own vertices (n, 3) float64 and triangles (m, 3) int64:
     exact duplicates welded (``weld``), degenerate faces dropped. Returns (vertices, faces, inverse),
     inverse (n,) int64 file vertex -> canonical vertex; appends what it did to ``warnings``; MeshError
     (naming ``where``) when no face is left."""
     vertices, faces, inverse = weld(v_src, f_src)
     if len(vertices) < len(v_src):
-        warnings.append(f"welded {len(v_src) - len(vertices)} duplicate vertices "
-                        "(UV seams, split normals or a triangle soup)")
+        warnings.append(
+            f"welded {len(v_src) - len(vertices)} duplicate vertices (UV seams, split normals or a triangle soup)"
+        )
     degenerate = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 0] == faces[:, 2])
     n_bad = int(degenerate.sum())
     if n_bad:
@@ -319,9 +317,11 @@ def read_mesh(path) -> SourceMesh:
 # --------------------------------------------------------------------------------------------
 
 _PLY_FLOAT = {b"float": "<f4", b"float32": "<f4", b"double": "<f8", b"float64": "<f8"}
-_PLY_HEADER = (b"ply\nformat binary_little_endian 1.0\ncomment %s\n"
-               b"element vertex %d\nproperty float x\nproperty float y\nproperty float z\n"
-               b"element face %d\nproperty list uchar int vertex_indices\nend_header\n")
+_PLY_HEADER = (
+    b"ply\nformat binary_little_endian 1.0\ncomment %s\n"
+    b"element vertex %d\nproperty float x\nproperty float y\nproperty float z\n"
+    b"element face %d\nproperty list uchar int vertex_indices\nend_header\n"
+)
 _TRIMESH_COMMENT = b"https://github.com/mikedh/trimesh"
 _PLY_FACE = np.dtype([("count", "<u1"), ("index", "<i4", (3,))])
 
@@ -399,8 +399,12 @@ def _read_plain_ply(data: bytes) -> "PlainMesh | None":
         if len(prop) != 3 or prop[0] != b"property" or prop[2] != name or prop[1] not in _PLY_FLOAT:
             return None
         types.add(_PLY_FLOAT[prop[1]])
-    if len(types) != 1 or pf[:4] != [b"property", b"list", b"uchar", b"int"] or len(pf) != 5 \
-            or pf[4] not in (b"vertex_indices", b"vertex_index"):
+    if (
+        len(types) != 1
+        or pf[:4] != [b"property", b"list", b"uchar", b"int"]
+        or len(pf) != 5
+        or pf[4] not in (b"vertex_indices", b"vertex_index")
+    ):
         return None
     nv, nf = int(ev[2]), int(ef[2])
     vtype = np.dtype(types.pop())
@@ -465,11 +469,7 @@ def _obj_text(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = N
 
 
 def _off_text(vertices: np.ndarray, faces: np.ndarray) -> str:
-    return (
-        f"OFF\n{len(vertices)} {len(faces)} 0\n"
-        + _float_lines("", vertices)
-        + _int_lines("3 %d %d %d\n", faces)
-    )
+    return f"OFF\n{len(vertices)} {len(faces)} 0\n" + _float_lines("", vertices) + _int_lines("3 %d %d %d\n", faces)
 
 
 def _obj_material_header(src: SourceMesh, out_path: str) -> str:

@@ -179,9 +179,7 @@ def point_surface_distance(points, vertices, faces) -> np.ndarray:
     return spatial.surface_distances(np.asarray(points, dtype=np.float64).reshape(-1, 3), v[f])
 
 
-def surface_distance(
-    v1, f1, v2, f2, n_samples: int = 20000, seed: int | None = None
-) -> tuple[float, float]:
+def surface_distance(v1, f1, v2, f2, n_samples: int = 20000, seed: int | None = None) -> tuple[float, float]:
     """(MRMS %, Hausdorff %) between two surfaces, both directions, % of mesh 1's bbox diagonal.
 
     ``n_samples`` area-uniform points are drawn on each surface and their exact distance to the
@@ -236,8 +234,9 @@ def _mrms_hausdorff(d12: np.ndarray, d21: np.ndarray, v1) -> tuple[float, float]
     return 100.0 * rms / diag, 100.0 * haus / diag
 
 
-def _distance_near_own_face(src: np.ndarray, dst: np.ndarray, F: np.ndarray, face: np.ndarray,
-                            w: np.ndarray) -> np.ndarray:
+def _distance_near_own_face(
+    src: np.ndarray, dst: np.ndarray, F: np.ndarray, face: np.ndarray, w: np.ndarray
+) -> np.ndarray:
     """Distance (k,) from the points with barycentric weights w (k, 3) in faces ``face`` (k,) of
     (src, F) to the faces of (dst, F) sharing a vertex with their own face. Only the sampled faces'
     vertices have their faces grouped (one sort of their corners): a whole ``Adjacency`` would cost

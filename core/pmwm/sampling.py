@@ -13,8 +13,9 @@ from .features import face_cross, vertex_normals
 __all__ = ["sample_surface", "sample_faces"]
 
 
-def sample_surface(vertices, faces, n_samples: int, seed: Optional[int] = None,
-                   normals: bool = False) -> tuple[np.ndarray, Optional[np.ndarray]]:
+def sample_surface(
+    vertices, faces, n_samples: int, seed: Optional[int] = None, normals: bool = False
+) -> tuple[np.ndarray, Optional[np.ndarray]]:
     """``n_samples`` points uniform over the surface: a face drawn by area, a point uniform in it.
 
     vertices : (n, 3) float64; faces : (m, 3) int64.
@@ -42,8 +43,9 @@ def sample_faces(vertices, faces, n_samples: int, seed: Optional[int] = None) ->
     return face, w
 
 
-def _draw(V: np.ndarray, F: np.ndarray, n_samples: int,
-          seed: Optional[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _draw(
+    V: np.ndarray, F: np.ndarray, n_samples: int, seed: Optional[int]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The area-weighted face (n_samples,), barycentric weights (n_samples, 3) and the faces' cross
     products (m, 3) (reused for the normals)."""
     if len(F) == 0:

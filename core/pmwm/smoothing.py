@@ -32,8 +32,9 @@ from .adjacency import edge_face_counts, numpy_sparse, stable_order
 __all__ = ["neighbour_pairs", "mean_operator", "NeighbourMean", "unsmoothing_steps", "smoothed"]
 
 
-def neighbour_pairs(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def neighbour_pairs(
+    faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Whom each vertex averages: pairs (owner, neighbour), each (p,) int64, for the n vertices of the
     faces (m, 3): an interior vertex's 1-ring, a boundary vertex's neighbours along boundary edges (an
     edge of one face); each pair once, a vertex never its own neighbour (a degenerate face's repeated

@@ -65,9 +65,7 @@ def _initial_prototypes(x: np.ndarray, n_units: int) -> np.ndarray:
     return mean[None, :] + q[:, None] * axis[None, :]
 
 
-def train_som(
-    data: np.ndarray, n_units: int = 5, epochs: int = 20, seed: int = 0, sample: int = 20000
-) -> SOM:
+def train_som(data: np.ndarray, n_units: int = 5, epochs: int = 20, seed: int = 0, sample: int = 20000) -> SOM:
     """Train a 1-D SOM on ``data`` (n, d) by batch epochs on a seeded subsample of <= sample rows."""
     x = np.asarray(data, dtype=np.float64)
     if x.ndim != 2 or len(x) == 0:

@@ -45,8 +45,15 @@ from .features import row_norms, squared_norms
 if TYPE_CHECKING:  # annotations only: scipy is imported at the first query that needs it
     from scipy.spatial import cKDTree
 
-__all__ = ["PointIndex", "MovingNearest", "nearest", "pairs_within", "min_spacing", "surface_distances",
-           "closest_point_on_triangles"]
+__all__ = [
+    "PointIndex",
+    "MovingNearest",
+    "nearest",
+    "pairs_within",
+    "min_spacing",
+    "surface_distances",
+    "closest_point_on_triangles",
+]
 
 
 def _load_engine() -> None:
@@ -263,8 +270,7 @@ def nearest(T: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return PointIndex(T).nearest(Q)
 
 
-def pairs_within(P: np.ndarray, Q: np.ndarray, radius, by_j: bool = False
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pairs_within(P: np.ndarray, Q: np.ndarray, radius, by_j: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every pair of points closer than ``radius``.
 
     P : (n, 3), Q : (m, 3) float64; radius : scalar or (n,) per point of P.
@@ -391,8 +397,7 @@ def _closest_point_on_edges(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.n
     best, best_d = a.copy(), np.full(len(p), np.inf)
     for s, e in ((a, b), (b, c), (c, a)):
         d = e - s
-        t = np.clip(np.einsum("ij,ij->i", p - s, d) / np.maximum(squared_norms(d), np.finfo(np.float64).tiny),
-                    0.0, 1.0)
+        t = np.clip(np.einsum("ij,ij->i", p - s, d) / np.maximum(squared_norms(d), np.finfo(np.float64).tiny), 0.0, 1.0)
         q = s + t[:, None] * d
         dist = squared_norms(p - q)
         closer = dist < best_d
@@ -410,14 +415,13 @@ def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) ->
     """
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     cen = (a + b + c) / 3.0
-    rad = np.sqrt(np.maximum(np.maximum(squared_norms(a - cen), squared_norms(b - cen)),
-                             squared_norms(c - cen)))
+    rad = np.sqrt(np.maximum(np.maximum(squared_norms(a - cen), squared_norms(b - cen)), squared_norms(c - cen)))
     everything = _tree(cen)
     groups = [(g, _tree(cen[g]), float(rad[g].max())) for g in _radius_groups(np.maximum(rad, 1e-300))]
     k = min(4, len(tri))
     out = np.empty(len(points))
     for s in range(0, len(points), chunk):
-        p = points[s:s + chunk]
+        p = points[s : s + chunk]
         _, near = everything.query(p, k=k, workers=1)
         near = near.reshape(len(p), k)
         q = np.repeat(np.arange(len(p)), k)
@@ -435,11 +439,10 @@ def surface_distances(points: np.ndarray, tri: np.ndarray, chunk: int = 4096) ->
         q, f = q[keep], f[keep]
         best = upper.copy()
         np.minimum.at(best, q, _to_triangles(p[q], a[f], b[f], c[f]))
-        out[s:s + chunk] = best
+        out[s : s + chunk] = best
     return out
 
 
 def _to_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Distance from p[i] to triangle (a[i], b[i], c[i]), (k,)."""
     return np.linalg.norm(closest_point_on_triangles(p, a, b, c) - p, axis=1)
-

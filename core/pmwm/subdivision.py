@@ -66,8 +66,13 @@ class Coarse:
     residual: float
 
 
-def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None,
-                untangle: bool = True, progress: Progress = None) -> Optional[Coarse]:
+def coarse_mesh(
+    V: np.ndarray,
+    F: np.ndarray,
+    edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None,
+    untangle: bool = True,
+    progress: Progress = None,
+) -> Optional[Coarse]:
     """The coarse mesh the mesh V (n, 3) float64, F (m, 3) int64 is one step of subdivision of (module
     docstring), or None for a mesh that is not one (0.02-0.1 s on 29k-270k faces). ``edge_counts``: the
     mesh's ``adjacency.edge_face_counts``, when the caller has them. ``untangle``: when no step is found,
@@ -98,8 +103,11 @@ def coarse_mesh(V: np.ndarray, F: np.ndarray, edge_counts: Optional[tuple[np.nda
         if old is None or not _counts_fit(F, used, old, kind):
             continue
         new = np.flatnonzero(used & ~old)
-        c = _one_to_four(V, F, old, new, diag, report) if kind == "1-to-4" else \
-            _sqrt3(V, F, old, new, y, ring, diag, report)
+        c = (
+            _one_to_four(V, F, old, new, diag, report)
+            if kind == "1-to-4"
+            else _sqrt3(V, F, old, new, y, ring, diag, report)
+        )
         if c is not None:
             return c
     turned = _unturned(F, count) if untangle else None
@@ -135,8 +143,9 @@ def _unturned(F: np.ndarray, count: np.ndarray) -> Optional[np.ndarray]:
     return out
 
 
-def _fewest_sixes(F: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
-                  ) -> dict[str, float]:
+def _fewest_sixes(
+    F: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray, np.ndarray]] = None
+) -> dict[str, float]:
     """The fewest vertices in exactly six faces that a 1-to-4 or a sqrt(3) step leaves in a mesh of the
     faces F (m, 3) over n vertices: a necessary count, checked before the structure: many meshes that are no
     subdivision (scanned or remeshed ones) fall short of it (docs/decisions/083-numpy-fast-paths.md).
@@ -151,8 +160,9 @@ def _fewest_sixes(F: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndarray,
     return {"1-to-4": 3 * m / 8 - boundary / 4 - extra, "sqrt3": m / 3 - boundary - extra}
 
 
-def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float, progress: Progress = None
-                   ) -> Optional[Coarse]:
+def _catmull_clark(
+    V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float, progress: Progress = None
+) -> Optional[Coarse]:
     """The coarse mesh of a Catmull-Clark step of a triangle mesh (``attacks.subdivide``), or None when
     the structure does not hold. ``count`` (n,): faces per vertex.
 
@@ -181,8 +191,9 @@ def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float,
 
     def around(kind: np.ndarray) -> np.ndarray:
         """(n, 4) int64: each vertex's neighbours of each kind (0 O, 1 E, 2 P, 3 unknown)."""
-        return (np.bincount(u * 4 + kind[w], minlength=4 * n) + np.bincount(w * 4 + kind[u], minlength=4 * n)
-                ).reshape(n, 4)
+        return (np.bincount(u * 4 + kind[w], minlength=4 * n) + np.bincount(w * 4 + kind[u], minlength=4 * n)).reshape(
+            n, 4
+        )
 
     # a first guess from the face counts (0 O, 1 E, 2 P, 3 unknown): 4 or 2 an edge point, 6 a face point
     # (or an original vertex of 3 edges), odd unknown; then KIND_ROUNDS rounds of the neighbour rule
@@ -211,10 +222,15 @@ def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float,
     # a vertex whose neighbours are what its kind has (an O: no O; an E: no E, two O, one or two P; a P:
     # no P, three E) is sure; the equations use sure vertices only (none of a turned quad's edge points)
     seen = around(np.maximum(kind, 0))
-    sure = np.select([kind == 0, kind == 1, kind == 2],
-                     [seen[:, 0] == 0,
-                      (seen[:, 1] == 0) & (seen[:, 0] == 2) & (seen[:, 2] >= 1) & (seen[:, 2] <= 2),
-                      (seen[:, 2] == 0) & (seen[:, 1] == 3)], False)
+    sure = np.select(
+        [kind == 0, kind == 1, kind == 2],
+        [
+            seen[:, 0] == 0,
+            (seen[:, 1] == 0) & (seen[:, 0] == 2) & (seen[:, 2] >= 1) & (seen[:, 2] <= 2),
+            (seen[:, 2] == 0) & (seen[:, 1] == 3),
+        ],
+        False,
+    )
     ok_e = sure & (kind == 1) & (n_ends == 2) & (n_pts >= 1) & (n_pts <= 2)
     ok_e[ok_e] = sure[ends_of[ends_at[ok_e][:, None] + np.arange(2)]].all(1)
     ok_p = sure & (kind == 2) & (n_eps == 3)
@@ -264,8 +280,9 @@ def _catmull_clark(V: np.ndarray, F: np.ndarray, count: np.ndarray, diag: float,
     return Coarse("catmull-clark", x, index[tri_f], keep, vertex_rmse(fit, rhs) / diag)
 
 
-def _solve_terms(terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int, progress: Progress = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _solve_terms(
+    terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int, progress: Progress = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares over the equations sum_k weight[r] x[terms[r, k]] = rhs[r] (terms (R, 3) vertex
     indices below n, -1 for none; weight (R,); rhs (R, 3)): the vertices solved for (K,) ascending, their
     positions (K, 3) and each equation's left side at them (R, 3)."""
@@ -276,8 +293,9 @@ def _solve_terms(terms: np.ndarray, weight: np.ndarray, rhs: np.ndarray, n: int,
     index[keep] = np.arange(len(keep))
     used = terms >= 0
     r = np.broadcast_to(np.arange(len(terms))[:, None], terms.shape)[used]
-    A = coo_matrix((np.broadcast_to(weight[:, None], terms.shape)[used], (r, index[terms[used]])),
-                   shape=(len(terms), len(keep))).tocsr()
+    A = coo_matrix(
+        (np.broadcast_to(weight[:, None], terms.shape)[used], (r, index[terms[used]])), shape=(len(terms), len(keep))
+    ).tocsr()
     x = _solve(A, rhs, progress)
     return keep, x, A @ x
 
@@ -327,8 +345,7 @@ def _rings_of_six(F: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndar
     return y[ok], ring[ok]
 
 
-def _old_vertices(F: np.ndarray, used: np.ndarray, y: np.ndarray, ring: np.ndarray,
-                  hops: int) -> Optional[np.ndarray]:
+def _old_vertices(F: np.ndarray, used: np.ndarray, y: np.ndarray, ring: np.ndarray, hops: int) -> Optional[np.ndarray]:
     """(n,) bool: the candidate original vertices (module docstring), or None when there are none.
     used (n,): the vertices of a face; y (R,), ring (R, 6): the interior valence-6 vertices and their
     rings in fan order (``_rings_of_six``)."""
@@ -369,8 +386,7 @@ def _components(p: np.ndarray, q: np.ndarray, n: int) -> tuple[np.ndarray, int]:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    n_comp, label = connected_components(coo_matrix((np.ones(len(p), np.int8), (p, q)), shape=(n, n)),
-                                         directed=False)
+    n_comp, label = connected_components(coo_matrix((np.ones(len(p), np.int8), (p, q)), shape=(n, n)), directed=False)
     return label, n_comp
 
 
@@ -421,8 +437,9 @@ def _solve(A, b: np.ndarray, progress: Progress = None) -> np.ndarray:
     return x
 
 
-def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, diag: float,
-                 progress: Progress = None) -> Optional[Coarse]:
+def _one_to_four(
+    V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, diag: float, progress: Progress = None
+) -> Optional[Coarse]:
     """The coarse mesh of a 1-to-4 step (midpoint, Loop), or None when the structure does not hold."""
     from scipy.sparse import coo_matrix
 
@@ -471,8 +488,16 @@ def _one_to_four(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray,
     return Coarse("midpoint", V[keep].copy(), faces, keep, mid)
 
 
-def _sqrt3(V: np.ndarray, F: np.ndarray, old: np.ndarray, new: np.ndarray, y: np.ndarray, ring: np.ndarray,
-           diag: float, progress: Progress = None) -> Optional[Coarse]:
+def _sqrt3(
+    V: np.ndarray,
+    F: np.ndarray,
+    old: np.ndarray,
+    new: np.ndarray,
+    y: np.ndarray,
+    ring: np.ndarray,
+    diag: float,
+    progress: Progress = None,
+) -> Optional[Coarse]:
     """The coarse mesh of a sqrt(3) step, or None when the structure does not hold. The faces take the
     orientation of the face vertex's fan where it has valence 6 (all but the boundary's)."""
     from scipy.sparse import coo_matrix

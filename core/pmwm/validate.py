@@ -28,8 +28,9 @@ def check_vertices(vertices, what: str = "vertices", rows: Optional[int] = None,
     return V
 
 
-def check_mesh(vertices, faces, *, need_faces: bool = True, copy: bool = False,
-               max_coordinate: Optional[float] = None) -> tuple[np.ndarray, np.ndarray]:
+def check_mesh(
+    vertices, faces, *, need_faces: bool = True, copy: bool = False, max_coordinate: Optional[float] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Validated (n, 3) float64 vertices and (m, 3) int64 triangles, or a MeshError.
 
     need_faces: an empty mesh (no vertex or no face) is an error ("nothing to watermark"); without
@@ -52,8 +53,10 @@ def check_mesh(vertices, faces, *, need_faces: bool = True, copy: bool = False,
     if F.size and (F.min() < 0 or F.max() >= len(V)):
         raise MeshError("a face refers to a vertex index outside the vertex array; fix the face indices")
     if max_coordinate is not None and len(V) and np.abs(V).max() > max_coordinate:
-        raise MeshError(f"coordinates reach {np.abs(V).max():.3g}, beyond float32 range for a marked mesh "
-                        f"(limit {max_coordinate:g}); rescale the mesh first")
+        raise MeshError(
+            f"coordinates reach {np.abs(V).max():.3g}, beyond float32 range for a marked mesh "
+            f"(limit {max_coordinate:g}); rescale the mesh first"
+        )
     return V, F
 
 

@@ -21,8 +21,10 @@ def _state(v: Verdict) -> str:
 def headline(v: Verdict) -> str:
     """The verdict's first line: "MARKED: ..." or "not marked: ...", with the bits that match, the
     p-value and its threshold, and how much of the mark was read."""
-    return (f"{_state(v)}: {v.matches}/{v.carriers_total} {v.detail.counted} match, p = {v.p_value:.3g} "
-            f"(threshold {v.p_threshold:g}), {v.detail.headline_note(v)}")
+    return (
+        f"{_state(v)}: {v.matches}/{v.carriers_total} {v.detail.counted} match, p = {v.p_value:.3g} "
+        f"(threshold {v.p_threshold:g}), {v.detail.headline_note(v)}"
+    )
 
 
 def _differ(v: Verdict) -> str:
@@ -30,7 +32,7 @@ def _differ(v: Verdict) -> str:
 
 
 def payload_line(v: Verdict) -> str:
-    """"payload: 'OWNR'" (or "payload bits: 0110..." for a payload that is not text) when confirmed;
+    """ "payload: 'OWNR'" (or "payload bits: 0110..." for a payload that is not text) when confirmed;
     "payload unconfirmed (N of M bits differ)" when marked but not confirmed; "no payload read" when
     not marked."""
     if v.payload_confirmed:
@@ -61,10 +63,12 @@ def rows(v: Verdict) -> list[tuple[str, str]]:
         payload = repr(v.payload) if v.payload is not None else "not text (see its bits)"
     else:
         payload = payload_value(v)
-    out = [("Verdict", "MARKED" if v.marked else "NOT MARKED"),
-           ("p-value", f"{v.p_value:.3g} (threshold {v.p_threshold:g})"),
-           (f"Matching {v.detail.counted}", f"{v.matches} of {v.carriers_total} ({v.bit_errors} wrong)"),
-           ("Payload read", payload)]
+    out = [
+        ("Verdict", "MARKED" if v.marked else "NOT MARKED"),
+        ("p-value", f"{v.p_value:.3g} (threshold {v.p_threshold:g})"),
+        (f"Matching {v.detail.counted}", f"{v.matches} of {v.carriers_total} ({v.bit_errors} wrong)"),
+        ("Payload read", payload),
+    ]
     if v.payload_confirmed:
         out.append(("Payload bits", v.bits))
     return out + v.detail.in_words()
@@ -73,6 +77,11 @@ def rows(v: Verdict) -> list[tuple[str, str]]:
 def technical_rows(v: Verdict) -> list[tuple[str, str]]:
     """(name, value) pairs of the verdict's numbers: the reading's mode, the exact p-value, correlation,
     bits read, and the scheme's own figures."""
-    return [("mode", v.mode), ("p-value", f"{v.p_value:.6g}"), ("correlation", f"{v.correlation:.4f}"),
-            (f"{v.detail.counted} read (not erased)", f"{v.carriers_found}/{v.carriers_total}"),
-            ("payload confirmed", "yes" if v.payload_confirmed else "no"), *v.detail.numbers()]
+    return [
+        ("mode", v.mode),
+        ("p-value", f"{v.p_value:.6g}"),
+        ("correlation", f"{v.correlation:.4f}"),
+        (f"{v.detail.counted} read (not erased)", f"{v.carriers_found}/{v.carriers_total}"),
+        ("payload confirmed", "yes" if v.payload_confirmed else "no"),
+        *v.detail.numbers(),
+    ]

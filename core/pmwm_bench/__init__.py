@@ -31,5 +31,14 @@ from .models import CATALOGUE, DEFAULT_MODELS, load_model, model_path, resolve
 from .runner import run_bench
 from .sweep import run_sweep
 
-__all__ = ["CATALOGUE", "DEFAULT_MODELS", "SchemeMethod", "default_methods", "load_model", "model_path",
-           "resolve", "run_bench", "run_sweep"]
+__all__ = [
+    "CATALOGUE",
+    "DEFAULT_MODELS",
+    "SchemeMethod",
+    "default_methods",
+    "load_model",
+    "model_path",
+    "resolve",
+    "run_bench",
+    "run_sweep",
+]

@@ -27,9 +27,19 @@ from typing import Any, Iterator, Optional
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = (
-    "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-    "--disable-quic", "--no-first-run", "--no-default-browser-check", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--disable-extensions", "--mute-audio",
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--disable-quic",
+    "--no-first-run",
+    "--no-default-browser-check",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-extensions",
+    "--mute-audio",
     "--window-size=900,700",
 )
 
@@ -60,12 +70,25 @@ class Browser:
         a, b = (fcntl.fcntl(fd, fcntl.F_DUPFD, 10) for fd in (cmd_r, res_w))
         os.close(cmd_r)
         os.close(res_w)
-        place = f"import os, sys; os.dup2({a}, 3); os.dup2({b}, 4); os.close({a}); os.close({b}); " \
-                "os.execv(sys.argv[1], sys.argv[1:])"
+        place = (
+            f"import os, sys; os.dup2({a}, 3); os.dup2({b}, 4); os.close({a}); os.close({b}); "
+            "os.execv(sys.argv[1], sys.argv[1:])"
+        )
         self.proc = subprocess.Popen(
-            [sys.executable, "-c", place, exe, *FLAGS, f"--user-data-dir={self.profile}", "--remote-debugging-pipe",
-             "about:blank"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(a, b),
+            [
+                sys.executable,
+                "-c",
+                place,
+                exe,
+                *FLAGS,
+                f"--user-data-dir={self.profile}",
+                "--remote-debugging-pipe",
+                "about:blank",
+            ],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            pass_fds=(a, b),
         )
         os.close(a)
         os.close(b)
@@ -101,8 +124,9 @@ class Browser:
                     if q is not None:
                         q.put(msg)
 
-    def send(self, method: str, params: Optional[dict] = None, session: Optional[str] = None,
-             timeout: float = 60) -> dict:
+    def send(
+        self, method: str, params: Optional[dict] = None, session: Optional[str] = None, timeout: float = 60
+    ) -> dict:
         """One protocol command; its result, or BrowserError."""
         with self._lock:
             self._next += 1
@@ -179,8 +203,10 @@ class Page:
         """The value of a JavaScript expression (awaited if it is a promise); BrowserError if it threw."""
         res = self.send("Runtime.evaluate", {"expression": expression, "returnByValue": True, "awaitPromise": True})
         if "exceptionDetails" in res:
-            raise BrowserError(f"{expression}: {res['exceptionDetails'].get('text')} "
-                               f"{res['exceptionDetails'].get('exception', {}).get('description', '')}")
+            raise BrowserError(
+                f"{expression}: {res['exceptionDetails'].get('text')} "
+                f"{res['exceptionDetails'].get('exception', {}).get('description', '')}"
+            )
         return res.get("result", {}).get("value")
 
     def wait(self, expression: str, timeout: float = 30, every: float = 0.02) -> Any:
@@ -212,7 +238,7 @@ class _Handler(http.server.SimpleHTTPRequestHandler):
         self.send_header("Content-Length", str(len(data)))
         self.end_headers()
         for i in range(0, len(data), self.chunk):
-            self.wfile.write(data[i:i + self.chunk])
+            self.wfile.write(data[i : i + self.chunk])
             self.wfile.flush()
             time.sleep(self.pause)
 

@@ -73,8 +73,11 @@ _CASE_EDGES, _CASE_POS, _CASE_COUNT = _case_table()
 
 
 def _evaluate(field: Field, points: np.ndarray, chunk: int = 400_000) -> np.ndarray:
-    return np.concatenate([field(points[i:i + chunk]) for i in range(0, len(points), chunk)]) if len(points) else \
-        np.zeros(0)
+    return (
+        np.concatenate([field(points[i : i + chunk]) for i in range(0, len(points), chunk)])
+        if len(points)
+        else np.zeros(0)
+    )
 
 
 def _polygonise(field: Field, axes: tuple[np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +93,7 @@ def _polygonise(field: Field, axes: tuple[np.ndarray, np.ndarray, np.ndarray]) -
     pos = (f > 0).reshape(shape)
     cube_pos = np.zeros(tuple(s - 1 for s in shape), np.int64)
     for dx, dy, dz in _CORNERS:
-        cube_pos += pos[dx:shape[0] - 1 + dx, dy:shape[1] - 1 + dy, dz:shape[2] - 1 + dz]
+        cube_pos += pos[dx : shape[0] - 1 + dx, dy : shape[1] - 1 + dy, dz : shape[2] - 1 + dz]
     cells = np.argwhere((cube_pos > 0) & (cube_pos < 8))
     strides = np.array([shape[1] * shape[2], shape[2], 1])
     corner_ids = (cells[:, None, :] + _CORNERS[None]) @ strides  # (c, 8)
@@ -175,8 +178,9 @@ def _relax(field: Field, V: np.ndarray, F: np.ndarray, h: float, rounds: int = 6
         W = _project(field, V + 0.6 * d, h)
         for attempt in range(8):
             n = _face_normals(W, F)
-            bad = ((n * normal0).sum(1) <= 0.1 * area0 * np.linalg.norm(n, axis=1)) | \
-                  (np.linalg.norm(n, axis=1) < 0.05 * area0)
+            bad = ((n * normal0).sum(1) <= 0.1 * area0 * np.linalg.norm(n, axis=1)) | (
+                np.linalg.norm(n, axis=1) < 0.05 * area0
+            )
             if not bad.any():
                 V = W
                 break
@@ -185,8 +189,16 @@ def _relax(field: Field, V: np.ndarray, F: np.ndarray, h: float, rounds: int = 6
     return V
 
 
-def _surface(field: Field, lo, hi, target: int, rng: np.random.Generator, min_cells: int = 30,
-             warp: float = 0.0, relax: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def _surface(
+    field: Field,
+    lo,
+    hi,
+    target: int,
+    rng: np.random.Generator,
+    min_cells: int = 30,
+    warp: float = 0.0,
+    relax: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
     """The closed level set of ``field`` inside the box lo..hi with about ``target`` vertices: a first
     grid sizes the second (vertices grow as the square of the resolution). ``min_cells``: at least so
     many cells along the box's longest side (fine shapes keep their parts). ``warp``: the grid's points
@@ -223,8 +235,9 @@ def _surface(field: Field, lo, hi, target: int, rng: np.random.Generator, min_ce
 
 def _metaballs(centres: np.ndarray, radii: np.ndarray) -> Field:
     def f(X):
-        d2 = sum((X[:, k:k + 1] - centres[:, k]) ** 2 for k in range(3))
-        return 1.0 - np.exp(-d2 / radii ** 2).sum(1)
+        d2 = sum((X[:, k : k + 1] - centres[:, k]) ** 2 for k in range(3))
+        return 1.0 - np.exp(-d2 / radii**2).sum(1)
+
     return f
 
 
@@ -234,9 +247,11 @@ def _waves(rng: np.random.Generator, n: int, freq: tuple[float, float], amplitud
     D *= (rng.uniform(*freq, n) / np.linalg.norm(D, axis=1))[:, None]
     phase = rng.uniform(0, 2 * np.pi, n)
     amp = amplitude * rng.uniform(0.3, 1.0, n) / np.sqrt(n)
+
     def f(X):  # the products written out: a (k, 3) @ (3, n) product through BLAS threads is slower here
         arg = X[:, :1] * D[:, 0] + X[:, 1:2] * D[:, 1] + X[:, 2:3] * D[:, 2] + phase
         return np.sin(arg) @ amp
+
     return f
 
 
@@ -254,8 +269,10 @@ def _box(centre, half) -> Field:
     def f(X):
         q = np.abs(X - c) - hl
         outside = np.maximum(q, 0)
-        return np.sqrt(np.einsum("ij,ij->i", outside, outside)) + np.minimum(np.maximum(np.maximum(
-            q[:, 0], q[:, 1]), q[:, 2]), 0)
+        return np.sqrt(np.einsum("ij,ij->i", outside, outside)) + np.minimum(
+            np.maximum(np.maximum(q[:, 0], q[:, 1]), q[:, 2]), 0
+        )
+
     return f
 
 
@@ -267,6 +284,7 @@ def _cylinder(centre, axis: int, radius: float, half_height: float) -> Field:
         r = np.hypot(X[:, others[0]] - c[others[0]], X[:, others[1]] - c[others[1]]) - radius
         z = np.abs(X[:, axis] - c[axis]) - half_height
         return np.hypot(np.maximum(r, 0), np.maximum(z, 0)) + np.minimum(np.maximum(r, z), 0)
+
     return f
 
 
@@ -277,6 +295,7 @@ def _capsule(a, b, radius: float) -> Field:
     def f(X):
         t = np.clip((X - a) @ ab / (ab @ ab), 0, 1)
         return np.linalg.norm(X - a - t[:, None] * ab, axis=1) - radius
+
     return f
 
 
@@ -395,7 +414,7 @@ def _thin(rng, target):
         a, b = P[0], P[1]
         parts.append(_box((a + b) / 2, [np.linalg.norm(b - a) / 3, 0.25, r * 0.7]))
     f = _union(*parts)
-    return _surface(f, *_bounds(f, 2.2 * n ** 0.5, probe=80), target, rng)
+    return _surface(f, *_bounds(f, 2.2 * n**0.5, probe=80), target, rng)
 
 
 def _open(rng, target):
@@ -410,8 +429,12 @@ def _open(rng, target):
     i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
     q = np.stack([i * n + j, (i + 1) * n + j, (i + 1) * n + j + 1, i * n + j + 1], -1).reshape(-1, 4)
     flip = rng.random(len(q)) < 0.5
-    F = np.concatenate([np.where(flip[:, None], q[:, [0, 1, 2]], q[:, [0, 1, 3]]),
-                        np.where(flip[:, None], q[:, [0, 2, 3]], q[:, [1, 2, 3]])])
+    F = np.concatenate(
+        [
+            np.where(flip[:, None], q[:, [0, 1, 2]], q[:, [0, 1, 3]]),
+            np.where(flip[:, None], q[:, [0, 2, 3]], q[:, [1, 2, 3]]),
+        ]
+    )
     x, y = P.T
     if rng.random() < 0.5:  # the square onto the disk (one-to-one)
         x, y = x * np.sqrt(1 - y * y / 2), y * np.sqrt(1 - x * x / 2)
@@ -442,6 +465,7 @@ def _ellipsoid(rng, target):
     def f(X):
         g = np.linalg.norm(X / axes, axis=1) - 1.0
         return g - a * np.exp(-((X - c) ** 2).sum(1) / w**2)
+
     return _surface(f, -axes * 1.2, axes * 1.2, target, rng)
 
 
@@ -452,11 +476,13 @@ def _bilateral(rng, target):
     mid = _chain(rng, int(rng.integers(1, 4)), 0.8)
     mid[:, 0] = 0.0
     R = rng.uniform(0.45, 0.8, 2 * n + len(mid))
-    R[n:2 * n] = R[:n]
+    R[n : 2 * n] = R[:n]
     base = _metaballs(np.concatenate([C, C * [-1, 1, 1], mid]), R)
     bumps = _waves(rng, 10, (2.0, 6.0), 0.3)
+
     def f(X):  # symmetric about x = 0
         return base(X) + 0.5 * (bumps(X) + bumps(X * [-1, 1, 1]))
+
     return _surface(f, *_bounds(f, 4.0), target, rng)
 
 
@@ -499,8 +525,15 @@ def _cad4(rng, target):
 
 
 FAMILIES: dict[str, Callable[[np.random.Generator, int], tuple[np.ndarray, np.ndarray]]] = {
-    "organic": _organic, "cad": _cad, "scan": _scan, "thin": _thin, "open": _open,
-    "ellipsoid": _ellipsoid, "bilateral": _bilateral, "cad2": _cad2, "cad4": _cad4,
+    "organic": _organic,
+    "cad": _cad,
+    "scan": _scan,
+    "thin": _thin,
+    "open": _open,
+    "ellipsoid": _ellipsoid,
+    "bilateral": _bilateral,
+    "cad2": _cad2,
+    "cad4": _cad4,
 }
 #: the families whose shapes are closed (no boundary edge)
 CLOSED_FAMILIES = ("organic", "cad", "thin", "ellipsoid", "bilateral", "cad2", "cad4")
@@ -548,7 +581,8 @@ def mesh_report(vertices: np.ndarray, faces: np.ndarray) -> dict[str, object]:
     volume = float(np.einsum("ij,ij->i", c[:, 0], np.cross(c[:, 1], c[:, 2])).sum() / 6)
     components = len(np.unique(component_labels(np.concatenate([F[:, [0, 1]], F[:, [1, 2]]]))))
     return {
-        "vertices": len(V), "faces": len(F),
+        "vertices": len(V),
+        "faces": len(F),
         "overfull_edges": int((count > 2).sum()),
         "misoriented_edges": int(((count == 2) & (forward != 1)).sum()),
         "boundary_edges": len(boundary),

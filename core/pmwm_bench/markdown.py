@@ -23,7 +23,7 @@ from .records import BenchResults, Cell, Distortion, SweepResults, cell, mean_st
 
 
 def fmt(mean: float, std: float, digits: int = 2) -> str:
-    """"mean ± std" with ``digits`` decimals ("inf" / "n/a" for a non-finite mean)."""
+    """ "mean ± std" with ``digits`` decimals ("inf" / "n/a" for a non-finite mean)."""
     if not math.isfinite(mean):
         return "inf" if mean > 0 else "n/a"
     return f"{mean:.{digits}f} ± {std:.{digits}f}"
@@ -57,8 +57,13 @@ def bound_cell(res: BenchResults, model: str, method: str, amp_sigma: Callable[[
     return f"{np.mean(vals):.2f}"
 
 
-def distortion_table(res: BenchResults, protocol: str, models: Sequence[str], methods: Sequence[str],
-                     extra: dict[str, Callable[[list], str]]) -> list[str]:
+def distortion_table(
+    res: BenchResults,
+    protocol: str,
+    models: Sequence[str],
+    methods: Sequence[str],
+    extra: dict[str, Callable[[list], str]],
+) -> list[str]:
     """One row per model and method with the embedding distortion of ``protocol``'s marked meshes (mean
     ± std over the keys): MRMS, Hausdorff, vertex RMSE, VSNR, then the ``extra`` columns (header ->
     cell from that row's distortion records)."""
@@ -110,18 +115,27 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
     present = [m for m, i in res.models.items() if not i.get("missing")]
 
     # ---------------- paper protocol
-    lines += ["", "## Paper protocol (50-bit payloads)", "",
-              "Uniform noise in ±A·Rmax per coordinate (Rmax = max vertex norm about the vertex mean); "
-              "Laplacian smoothing, uniform weights, lambda = 0.03; cropping = a connected geodesic patch of "
-              "the given share of vertices removed. Correlation = eq. 6 (Pearson; for a constant sequence "
-              "1 − 2·BER).", ""]
+    lines += [
+        "",
+        "## Paper protocol (50-bit payloads)",
+        "",
+        "Uniform noise in ±A·Rmax per coordinate (Rmax = max vertex norm about the vertex mean); "
+        "Laplacian smoothing, uniform weights, lambda = 0.03; cropping = a connected geodesic patch of "
+        "the given share of vertices removed. Correlation = eq. 6 (Pearson; for a constant sequence "
+        "1 − 2·BER).",
+        "",
+    ]
     t1 = select(res.distortions, protocol="table1")
     if t1:
-        lines += ["### Table 1: VSNR (dB) of the marked mesh with M carriers", "",
-                  "M = number of carriers (= bits; the paper collapses one edge per carrier). Full-resolution "
-                  "marked mesh vs the original; centred VSNR (signal about the vertex mean) and uncentred "
-                  "(about the origin). The paper's 104–137 dB cannot come from its own mu ± 2 sigma rule with "
-                  "the usual VSNR definition (DESIGN section 6); we report what we measure.", ""]
+        lines += [
+            "### Table 1: VSNR (dB) of the marked mesh with M carriers",
+            "",
+            "M = number of carriers (= bits; the paper collapses one edge per carrier). Full-resolution "
+            "marked mesh vs the original; centred VSNR (signal about the vertex mean) and uncentred "
+            "(about the origin). The paper's 104–137 dB cannot come from its own mu ± 2 sigma rule with "
+            "the usual VSNR definition (DESIGN section 6); we report what we measure.",
+            "",
+        ]
         rows = []
         for model in present:
             pm = res.models[model]["paper_model"]
@@ -142,14 +156,23 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         lines += table(hdr, rows)
 
     lines += ["", "### Distortion of the 50-bit marked meshes", ""]
-    lines += distortion_table(res, "paper", present, methods, {
-        "E/N": lambda ds: f"{np.mean([d.energy_per_bit for d in ds]):.3g}",
-        "embed (s)": lambda ds: f"{np.mean([d.embed_seconds for d in ds]):.2f}"})
+    lines += distortion_table(
+        res,
+        "paper",
+        present,
+        methods,
+        {
+            "E/N": lambda ds: f"{np.mean([d.energy_per_bit for d in ds]):.3g}",
+            "embed (s)": lambda ds: f"{np.mean([d.embed_seconds for d in ds]):.2f}",
+        },
+    )
     lines += ["", f"MRMS / Hausdorff from {st['surface_samples']} area-uniform samples per surface, both directions."]
 
-    titles = {"noise": "Table 2: additive uniform noise (correlation)",
-              "smoothing": "Table 3: Laplacian smoothing, lambda = 0.03 (correlation)",
-              "cropping": "Table 4: cropping (correlation)"}
+    titles = {
+        "noise": "Table 2: additive uniform noise (correlation)",
+        "smoothing": "Table 3: Laplacian smoothing, lambda = 0.03 (correlation)",
+        "cropping": "Table 4: cropping (correlation)",
+    }
     paper_tables = PAPER_TABLES
     for group, items in p_set.items():
         for model in present:
@@ -166,31 +189,52 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
             for label, value, _, _ in items:
                 row = [label]
                 for method in methods:
-                    row.append(fmt_cell(cell(select(res.trials, protocol="paper", model=model, method=method,
-                                                       group=group, label=label)), "corr"))
+                    row.append(
+                        fmt_cell(
+                            cell(
+                                select(
+                                    res.trials, protocol="paper", model=model, method=method, group=group, label=label
+                                )
+                            ),
+                            "corr",
+                        )
+                    )
                     if group == "noise":
-                        row.append(bound_cell(res, model, method,
-                                               lambda d, a=value: a * d.r_max / math.sqrt(3.0)))
+                        row.append(bound_cell(res, model, method, lambda d, a=value: a * d.r_max / math.sqrt(3.0)))
                 row.append(paper_value(paper_tables[group], value, pm, 0))
                 if group != "cropping":
                     row.append(paper_value(paper_tables[group], value, pm, 1))
                 rows.append(row)
             lines += table(hdr, rows)
             if group == "noise":
-                lines += ["", "bound = matched-filter limit 1 − 2·Q(√(E/N)/σ) at the method's own embedding "
-                          "energy E/N (table above), σ = A·Rmax/√3 (DESIGN section 6, \"The limit\")."]
+                lines += [
+                    "",
+                    "bound = matched-filter limit 1 − 2·Q(√(E/N)/σ) at the method's own embedding "
+                    'energy E/N (table above), σ = A·Rmax/√3 (DESIGN section 6, "The limit").',
+                ]
 
     # ---------------- benchmark protocol
-    lines += ["", "## Benchmark protocol (Wang, Lavoué, Denis, Baskurt 2010; 64-bit payloads, BER)", "",
-              "Noise ±A·d̄ per coordinate (d̄ = mean vertex norm); smoothing lambda = 0.1; quantization per "
-              "axis over the bounding box; similarity = translation ±5·d̄, random rotation, scale in "
-              "[0.1, 10] (log-uniform); reordering of vertices, faces and face corners; cropping by a random "
-              "plane; simplification by fast-simplification (quadric); one subdivision step. MSDM is not "
-              "implemented.", "", "### Distortion of the 64-bit marked meshes", ""]
-    lines += distortion_table(res, "benchmark", present, methods, {
-        "PSNR (dB)": lambda ds: fmt(*mean_std([d.psnr for d in ds]), 1)})
-    lines += ["", f"MRMS / Hausdorff from {st['surface_samples']} area-uniform samples per surface, both directions. "
-              "Published anchor: Cho et al. on the benchmark's Venus at MRMS 0.008 % (perceptual protocol)."]
+    lines += [
+        "",
+        "## Benchmark protocol (Wang, Lavoué, Denis, Baskurt 2010; 64-bit payloads, BER)",
+        "",
+        "Noise ±A·d̄ per coordinate (d̄ = mean vertex norm); smoothing lambda = 0.1; quantization per "
+        "axis over the bounding box; similarity = translation ±5·d̄, random rotation, scale in "
+        "[0.1, 10] (log-uniform); reordering of vertices, faces and face corners; cropping by a random "
+        "plane; simplification by fast-simplification (quadric); one subdivision step. MSDM is not "
+        "implemented.",
+        "",
+        "### Distortion of the 64-bit marked meshes",
+        "",
+    ]
+    lines += distortion_table(
+        res, "benchmark", present, methods, {"PSNR (dB)": lambda ds: fmt(*mean_std([d.psnr for d in ds]), 1)}
+    )
+    lines += [
+        "",
+        f"MRMS / Hausdorff from {st['surface_samples']} area-uniform samples per surface, both directions. "
+        "Published anchor: Cho et al. on the benchmark's Venus at MRMS 0.008 % (perceptual protocol).",
+    ]
     for model in present:
         pm = res.models[model]["paper_model"]
         lines += ["", f"### BER — {model}" + (" (Venus stand-in)" if pm == "venus" else ""), ""]
@@ -200,13 +244,28 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
             for label, value, _, _ in items:
                 row = [group, label]
                 for method in methods:
-                    row.append(fmt_cell(cell(select(res.trials, protocol="benchmark", model=model,
-                                                       method=method, group=group, label=label)), "ber"))
+                    row.append(
+                        fmt_cell(
+                            cell(
+                                select(
+                                    res.trials,
+                                    protocol="benchmark",
+                                    model=model,
+                                    method=method,
+                                    group=group,
+                                    label=label,
+                                )
+                            ),
+                            "ber",
+                        )
+                    )
                 for method in methods:
                     if group == "noise":
                         ds = select(res.distortions, protocol="benchmark", model=model, method=method)
-                        vals = [(1 - M.matched_filter_bound(d.energy_per_bit, value * d.d_bar / math.sqrt(3))) / 2
-                                for d in ds]
+                        vals = [
+                            (1 - M.matched_filter_bound(d.energy_per_bit, value * d.d_bar / math.sqrt(3))) / 2
+                            for d in ds
+                        ]
                         row.append(f"{np.mean(vals):.2f}" if vals else "–")
                     else:
                         row.append("–")
@@ -214,8 +273,11 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
                 row.append("–" if pub is None else f"{pub:g}")
                 rows.append(row)
         lines += table(hdr, rows)
-    lines += ["", "bound (noise rows) = lowest BER any detector can reach, Q(√(E/N)/σ), σ = A·d̄/√3, at the "
-              "method's own embedding energy."]
+    lines += [
+        "",
+        "bound (noise rows) = lowest BER any detector can reach, Q(√(E/N)/σ), σ = A·d̄/√3, at the "
+        "method's own embedding energy.",
+    ]
     # a section of the report: one heading level below the file's title
     lines = ["#" + ln if ln.startswith("#") else ln for ln in lines]
     return "\n".join(lines) + "\n"
@@ -245,13 +307,18 @@ def verdict_line(label: str, comparisons: Sequence) -> str:
         bers = ", ".join(f"{m} {c.mean_ber[m]:.3f}" for m in c.ranking)
         if len(c.tied) > 1:
             names = [f"**{m}**" for m in c.tied]
-            parts.append(f"{c.model}: tie between {', '.join(names[:-1])} and {names[-1]} "
-                         f"(over MRMS {_mrms_range(c.overlap)}, mean BER {bers}{chance})")
+            parts.append(
+                f"{c.model}: tie between {', '.join(names[:-1])} and {names[-1]} "
+                f"(over MRMS {_mrms_range(c.overlap)}, mean BER {bers}{chance})"
+            )
         else:
-            parts.append(f"{c.model}: **{c.winner}** (over MRMS {_mrms_range(c.overlap)}, mean BER {bers}; "
-                         f"lowest on {100 * c.lowest_share:.0f} % of the overlap{chance})")
-    decided = [c for c in comparisons
-               if c.overlap is not None and len(c.tied) == 1 and not set(c.at_chance) >= set(c.ranges)]
+            parts.append(
+                f"{c.model}: **{c.winner}** (over MRMS {_mrms_range(c.overlap)}, mean BER {bers}; "
+                f"lowest on {100 * c.lowest_share:.0f} % of the overlap{chance})"
+            )
+    decided = [
+        c for c in comparisons if c.overlap is not None and len(c.tied) == 1 and not set(c.at_chance) >= set(c.ranges)
+    ]
     winners = {c.winner for c in decided}
     lead = ""
     if len(comparisons) > 1 and len(decided) == len(comparisons) and len(winners) == 1:
@@ -267,7 +334,8 @@ def render_sweep(res: SweepResults) -> str:
     present = [m for m, info in res.models.items() if not info.get("missing")]
     grids = "; ".join(
         f"{DISPLAY[s]} ({STRENGTH_MEANING[s]}) {', '.join(f'{x:g}' for x in st['grid'][DISPLAY[s]])}"
-        for s in st["schemes"])
+        for s in st["schemes"]
+    )
     lines = [
         "## Equal distortion: BER against embedding MRMS, every method at several strengths",
         "",
@@ -283,7 +351,7 @@ def render_sweep(res: SweepResults) -> str:
         f"{st['surface_samples']} area-uniform samples per surface in both directions. BER and MRMS are "
         "mean ± std over the keys; **~** marks a BER not distinguishable from chance (pooling all keys' bits, the "
         "correct bits are not significant against Binomial(bits, 1/2) at p < 0.01); a copy a method cannot "
-        "read at all counts as BER 0.5 (\"unreadable\").",
+        'read at all counts as BER 0.5 ("unreadable").',
         "",
         "Attacks: " + "; ".join(f"{a['label']}: {a['description']}" for a in st["attack_settings"].values()) + ".",
         "",
@@ -309,13 +377,22 @@ def render_sweep(res: SweepResults) -> str:
             for strength in st["grid"][method]:
                 row = [method, f"{strength:g}"]
                 for model in present:
-                    p = next((p for p in res.points if (p.model, p.method, p.strength, p.attack)
-                              == (model, method, strength, attack)), None)
+                    p = next(
+                        (
+                            p
+                            for p in res.points
+                            if (p.model, p.method, p.strength, p.attack) == (model, method, strength, attack)
+                        ),
+                        None,
+                    )
                     if p is None:
                         row += ["n/a", "n/a"]
                         continue
-                    ber = (fmt(p.ber_mean, p.ber_std, 3) + (" ~" if p.chance else "")
-                           + (f" ({p.failed}/{p.n} unreadable)" if p.failed else ""))
+                    ber = (
+                        fmt(p.ber_mean, p.ber_std, 3)
+                        + (" ~" if p.chance else "")
+                        + (f" ({p.failed}/{p.n} unreadable)" if p.failed else "")
+                    )
                     row += [fmt(p.mrms_mean, p.mrms_std, 4), ber]
                 rows.append(row)
         lines += table(hdr, rows)

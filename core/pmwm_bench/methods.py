@@ -31,11 +31,19 @@ import numpy as np
 import pmwm
 
 #: scheme name (``pmwm.EmbedOptions.scheme``) -> display name in every table
-DISPLAY: dict[str, str] = {"robust": "pmwm", "paper": "pmwm-paper", "cho1": "Cho I", "cho2": "Cho II",
-                           "blind": "pmwm-blind"}
+DISPLAY: dict[str, str] = {
+    "robust": "pmwm",
+    "paper": "pmwm-paper",
+    "cho1": "Cho I",
+    "cho2": "Cho II",
+    "blind": "pmwm-blind",
+}
 #: what each scheme's strength is, in a few words (for the reports)
 STRENGTH_MEANING: dict[str, str] = {
-    "robust": "bump height factor", "paper": "the paper's factor", "cho1": "alpha", "cho2": "alpha",
+    "robust": "bump height factor",
+    "paper": "the paper's factor",
+    "cho1": "alpha",
+    "cho2": "alpha",
     "blind": "bin-mean margin",
 }
 #: the pass phrase of the blind method's embeddings (+ ":" + the seed)
@@ -49,8 +57,20 @@ ALL_SCHEMES: tuple[str, ...] = tuple(s for s in DISPLAY if s != "blind")
 #: followed by its 32 check bits; BER over the payload, a reading of another length counts as chance)
 SWEEP_SCHEMES: tuple[str, ...] = tuple(DISPLAY)
 
-_ALIASES = {"pmwm": "robust", "pmwm-robust": "robust", "pmwm-paper": "paper", "cho i": "cho1", "cho-i": "cho1",
-            "choi": "cho1", "pmwm-blind": "blind", "cho ii": "cho2", "cho-ii": "cho2", "choii": "cho2", "cho-1": "cho1", "cho-2": "cho2"}
+_ALIASES = {
+    "pmwm": "robust",
+    "pmwm-robust": "robust",
+    "pmwm-paper": "paper",
+    "cho i": "cho1",
+    "cho-i": "cho1",
+    "choi": "cho1",
+    "pmwm-blind": "blind",
+    "cho ii": "cho2",
+    "cho-ii": "cho2",
+    "choii": "cho2",
+    "cho-1": "cho1",
+    "cho-2": "cho2",
+}
 
 
 def scheme_of(name: str) -> str:
@@ -95,11 +115,13 @@ class SchemeMethod:
         """The ``pmwm.EmbedOptions`` of one embedding."""
         strength = None if self.strength is None else float(self.strength)
         phrase = f"{BLIND_PASSPHRASE}:{seed}" if pmwm.SCHEMES[self.scheme].keying == pmwm.PASS_PHRASE else None
-        return pmwm.EmbedOptions(bits=np.asarray(bits).ravel(), seed=seed, strength=strength, scheme=self.scheme,
-                                 passphrase=phrase)
+        return pmwm.EmbedOptions(
+            bits=np.asarray(bits).ravel(), seed=seed, strength=strength, scheme=self.scheme, passphrase=phrase
+        )
 
-    def embed(self, vertices: np.ndarray, faces: np.ndarray, bits: Any, seed: Optional[int] = None
-              ) -> tuple[np.ndarray, Any]:
+    def embed(
+        self, vertices: np.ndarray, faces: np.ndarray, bits: Any, seed: Optional[int] = None
+    ) -> tuple[np.ndarray, Any]:
         """Mark (vertices (n, 3), faces (m, 3)) with ``bits`` ((b,) 0/1 or a '0'/'1' string), every random
         choice from ``seed``; returns (marked vertices (n, 3), what ``pmwm.verify`` reads with: the key, or
         the pass phrase (str) of a scheme keyed by one)."""
@@ -120,5 +142,14 @@ def default_methods(strength: Optional[float] = None) -> list[SchemeMethod]:
     return [SchemeMethod("robust", strength), SchemeMethod("paper"), SchemeMethod("cho1"), SchemeMethod("cho2")]
 
 
-__all__ = ["ALL_SCHEMES", "SWEEP_SCHEMES", "BLIND_PASSPHRASE", "DISPLAY", "PMWM_SCHEMES", "STRENGTH_MEANING", "SchemeMethod",
-           "default_methods", "scheme_of"]
+__all__ = [
+    "ALL_SCHEMES",
+    "SWEEP_SCHEMES",
+    "BLIND_PASSPHRASE",
+    "DISPLAY",
+    "PMWM_SCHEMES",
+    "STRENGTH_MEANING",
+    "SchemeMethod",
+    "default_methods",
+    "scheme_of",
+]

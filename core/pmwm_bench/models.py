@@ -45,10 +45,18 @@ def _models(*entries: Model) -> dict[str, Model]:
 CATALOGUE: dict[str, Model] = _models(
     Model("bunny", "bunny_wm_benchmark.off", "bunny", "the paper's bunny (34,835 V), exact"),
     Model("dragon", "dragon_wm_benchmark.off", "dragon", "the paper's dragon (50,000 V), exact"),
-    Model("venus-head", "venus_head_jigsaw.ply", "venus",
-          "Venus STAND-IN: a remeshed Venus head (14,303 V); the paper's 100k Venus is not public"),
-    Model("igea", "igea_cyberware.ply", "venus",
-          "Venus STAND-IN: the Igea statue (134,345 V), similar size, different statue"),
+    Model(
+        "venus-head",
+        "venus_head_jigsaw.ply",
+        "venus",
+        "Venus STAND-IN: a remeshed Venus head (14,303 V); the paper's 100k Venus is not public",
+    ),
+    Model(
+        "igea",
+        "igea_cyberware.ply",
+        "venus",
+        "Venus STAND-IN: the Igea statue (134,345 V), similar size, different statue",
+    ),
     Model("armadillo", "armadillo_libigl.obj", "", "the Armadillo (libigl, 43,243 V)"),
     Model("horse", "horse_cyberware.ply", "", "the Cyberware horse (48,485 V; faces point inward)"),
     Model("camelhead", "camelhead.off", "", "a camel head, an open mesh with one boundary loop (11,381 V)"),
@@ -99,8 +107,9 @@ def resolve(name: str, data_dir: Union[PathLike, Sequence[PathLike], None] = Non
             if p.exists():
                 return ResolvedModel(name, p, model.paper_model, model.note)
         if name == "bunny" and packaged_bunny().exists():
-            return ResolvedModel(name, packaged_bunny(), model.paper_model,
-                                 model.note + " (the copy packaged with pmwm)")
+            return ResolvedModel(
+                name, packaged_bunny(), model.paper_model, model.note + " (the copy packaged with pmwm)"
+            )
         return ResolvedModel(name, None, model.paper_model, model.note)
     by_file = {m.file: m.name for m in CATALOGUE.values()}
     if name in by_file and not Path(name).exists():  # a catalogue file named by its file name
@@ -127,11 +136,21 @@ def load(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(src.vertices, dtype=np.float64), np.asarray(src.faces, dtype=np.int64)
 
 
-def load_model(name: str, data_dir: Union[PathLike, Sequence[PathLike], None] = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+def load_model(name: str, data_dir: Union[PathLike, Sequence[PathLike], None] = None) -> tuple[np.ndarray, np.ndarray]:
     """(vertices, faces) of catalogue model or path ``name`` (see :func:`model_path`, :func:`load`)."""
     return load(model_path(name, data_dir))
 
 
-__all__ = ["CATALOGUE", "DATA_ENV", "DEFAULT_MODELS", "Model", "ResolvedModel", "data_dirs", "load",
-           "load_model", "model_path", "packaged_bunny", "resolve"]
+__all__ = [
+    "CATALOGUE",
+    "DATA_ENV",
+    "DEFAULT_MODELS",
+    "Model",
+    "ResolvedModel",
+    "data_dirs",
+    "load",
+    "load_model",
+    "model_path",
+    "packaged_bunny",
+    "resolve",
+]

@@ -56,8 +56,12 @@ def write_plots(res: BenchResults, p_set: dict, b_set: dict, folder: Path, stem:
                 items = sets[group]
                 x = np.arange(len(items))
                 for method in methods:
-                    cells = [cell(select(res.trials, protocol=protocol, model=model, method=method,
-                                           group=group, label=label)) for label, *_ in items]
+                    cells = [
+                        cell(
+                            select(res.trials, protocol=protocol, model=model, method=method, group=group, label=label)
+                        )
+                        for label, *_ in items
+                    ]
                     if any(c is None for c in cells):
                         continue
                     mean = [c.corr_mean if what == "corr" else c.ber_mean for c in cells]
@@ -70,14 +74,16 @@ def write_plots(res: BenchResults, p_set: dict, b_set: dict, folder: Path, stem:
                     for name, which, style in rows:
                         vals = [paper_value(table, value, pm, which) for _, value, *_ in items]
                         if "–" not in vals:
-                            ax.plot(x, [float(v) for v in vals], style, color="gray" if which == 0 else "black",
-                                    label=name)
+                            ax.plot(
+                                x, [float(v) for v in vals], style, color="gray" if which == 0 else "black", label=name
+                            )
                 ax.set_xticks(x, [label for label, *_ in items], rotation=30, fontsize=8)
                 ax.set_title(group)
                 ax.set_ylabel("correlation" if what == "corr" else "BER")
                 ax.grid(alpha=0.3)
-            written.append(_finish(plt, fig, axes, f"{model}: {protocol} protocol", {},
-                                   folder / f"{stem}_{model}_{protocol}.png"))
+            written.append(
+                _finish(plt, fig, axes, f"{model}: {protocol} protocol", {}, folder / f"{stem}_{model}_{protocol}.png")
+            )
     return written
 
 
@@ -102,31 +108,46 @@ def write_sweep_plots(res: SweepResults, folder: Path) -> list[Path]:
             xs = [p.mrms_mean for p in res.points if (p.model, p.attack) == (model, attack)]
             x_lo, x_hi = (min(xs), max(xs)) if xs else (0.001, 0.1)
             for i, method in enumerate(st["methods"]):
-                pts = sorted((p for p in res.points if (p.model, p.method, p.attack) == (model, method, attack)),
-                             key=lambda p: p.mrms_mean)
+                pts = sorted(
+                    (p for p in res.points if (p.model, p.method, p.attack) == (model, method, attack)),
+                    key=lambda p: p.mrms_mean,
+                )
                 if not pts:
                     continue
                 x = np.array([p.mrms_mean for p in pts])
-                ax.errorbar(x, [p.ber_mean for p in pts], yerr=[p.ber_std for p in pts],
-                            xerr=[p.mrms_std for p in pts], marker=markers[i % len(markers)], capsize=3,
-                            label=method)
+                ax.errorbar(
+                    x,
+                    [p.ber_mean for p in pts],
+                    yerr=[p.ber_std for p in pts],
+                    xerr=[p.mrms_std for p in pts],
+                    marker=markers[i % len(markers)],
+                    capsize=3,
+                    label=method,
+                )
                 for p in pts:  # the strength beside each point
-                    ax.annotate(f"{p.strength:g}", (p.mrms_mean, p.ber_mean), textcoords="offset points",
-                                xytext=(3, 3), fontsize=6, alpha=0.7)
+                    ax.annotate(
+                        f"{p.strength:g}",
+                        (p.mrms_mean, p.ber_mean),
+                        textcoords="offset points",
+                        xytext=(3, 3),
+                        fontsize=6,
+                        alpha=0.7,
+                    )
             comp = next((c for c in res.comparisons if (c.model, c.attack) == (model, attack)), None)
             if comp is not None and comp.overlap is not None:
                 ax.axvspan(*comp.overlap, color="gray", alpha=0.12, label="MRMS overlap")
             ax.set_xscale("log")
             ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))  # 0.01, not 1e-2
             ax.xaxis.set_minor_formatter(NullFormatter())  # unlabelled minor ticks: no overlap
-            ax.set_xticks([t for t in (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2)
-                           if 0.5 * x_lo <= t <= 2.0 * x_hi])
+            ax.set_xticks([t for t in (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2) if 0.5 * x_lo <= t <= 2.0 * x_hi])
             ax.set_xlabel("MRMS (% of bbox diagonal)")
             ax.set_ylabel("BER")
             ax.set_ylim(-0.02, 0.6)
             ax.set_title(model)
             ax.grid(alpha=0.3, which="both")
-        title = (f"{st['attack_settings'][attack]['label']}: BER against embedding distortion "
-                 f"({st['keys']} key{'s' if st['keys'] != 1 else ''})")
+        title = (
+            f"{st['attack_settings'][attack]['label']}: BER against embedding distortion "
+            f"({st['keys']} key{'s' if st['keys'] != 1 else ''})"
+        )
         written.append(_finish(plt, fig, axes, title, {"fontsize": 10}, folder / f"ber_vs_mrms_{attack}.png"))
     return written

@@ -35,10 +35,19 @@ PAPER_TABLES = {"noise": PAPER_NOISE, "smoothing": PAPER_SMOOTH, "cropping": PAP
 
 #: Cho et al. 2007 on the benchmark's Venus, 64 bits, MRMS 0.008 % (Wang et al. 2010): BER
 CHO_PUBLISHED = {
-    ("noise", 0.0005): 0.01, ("noise", 0.001): 0.03, ("noise", 0.003): 0.13, ("noise", 0.005): 0.28,
-    ("smoothing", 5): 0.10, ("smoothing", 10): 0.23, ("smoothing", 30): 0.38, ("smoothing", 50): 0.45,
-    ("quantization", 11): 0.0, ("quantization", 10): 0.04, ("quantization", 9): 0.14,
-    ("quantization", 8): 0.26, ("quantization", 7): 0.46,
+    ("noise", 0.0005): 0.01,
+    ("noise", 0.001): 0.03,
+    ("noise", 0.003): 0.13,
+    ("noise", 0.005): 0.28,
+    ("smoothing", 5): 0.10,
+    ("smoothing", 10): 0.23,
+    ("smoothing", 30): 0.38,
+    ("smoothing", 50): 0.45,
+    ("quantization", 11): 0.0,
+    ("quantization", 10): 0.04,
+    ("quantization", 9): 0.14,
+    ("quantization", 8): 0.26,
+    ("quantization", 7): 0.46,
 }
 
 
@@ -52,5 +61,13 @@ def paper_value(table: dict, key, paper_model: str, which: int) -> str:
     return f"{vals[PAPER_MODELS.index(paper_model)]:g}"
 
 
-__all__ = ["CHO_PUBLISHED", "PAPER_CROP", "PAPER_MODELS", "PAPER_NOISE", "PAPER_SMOOTH", "PAPER_TABLE1",
-           "PAPER_TABLES", "paper_value"]
+__all__ = [
+    "CHO_PUBLISHED",
+    "PAPER_CROP",
+    "PAPER_MODELS",
+    "PAPER_NOISE",
+    "PAPER_SMOOTH",
+    "PAPER_TABLE1",
+    "PAPER_TABLES",
+    "paper_value",
+]

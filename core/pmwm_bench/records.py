@@ -93,8 +93,15 @@ def cell(trials: Iterable[Trial]) -> Optional[Cell]:
     matches = sum(t.matches for t in ts)
     total = sum(t.n_bits for t in ts)
     chance = M.binomial_tail(matches, total) >= 0.01
-    return Cell(float(corr.mean()), float(corr.std()), float(ber.mean()), float(ber.std()), chance,
-                sum(1 for t in ts if t.failed), len(ts))
+    return Cell(
+        float(corr.mean()),
+        float(corr.std()),
+        float(ber.mean()),
+        float(ber.std()),
+        chance,
+        sum(1 for t in ts if t.failed),
+        len(ts),
+    )
 
 
 def mean_std(values: Sequence[float]) -> tuple[float, float]:
@@ -202,6 +209,17 @@ class SweepResults:
     markdown: str = ""
 
 
-
-__all__ = ["BenchResults", "Cell", "Distortion", "EqualMrms", "SweepEmbedding", "SweepPoint", "SweepResults",
-           "SweepTrial", "Trial", "cell", "mean_std", "select"]
+__all__ = [
+    "BenchResults",
+    "Cell",
+    "Distortion",
+    "EqualMrms",
+    "SweepEmbedding",
+    "SweepPoint",
+    "SweepResults",
+    "SweepTrial",
+    "Trial",
+    "cell",
+    "mean_std",
+    "select",
+]

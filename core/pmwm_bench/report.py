@@ -79,8 +79,10 @@ def machine() -> str:
         pass
     import numpy
 
-    return (f"{cpu}, {os.cpu_count()} cores{mem}; Python {platform.python_version()}, "
-            f"numpy {numpy.__version__}, {platform.system()} {platform.release()}")
+    return (
+        f"{cpu}, {os.cpu_count()} cores{mem}; Python {platform.python_version()}, "
+        f"numpy {numpy.__version__}, {platform.system()} {platform.release()}"
+    )
 
 
 def commit() -> str:
@@ -92,8 +94,9 @@ def commit() -> str:
     where = Path(pmwm.__file__).resolve().parent.parent  # core/ in a checkout
 
     def git(*args: str) -> str:
-        return subprocess.run(["git", "-C", str(where), *args], capture_output=True, text=True,
-                              check=True, timeout=30).stdout.strip()
+        return subprocess.run(
+            ["git", "-C", str(where), *args], capture_output=True, text=True, check=True, timeout=30
+        ).stdout.strip()
 
     try:
         head = git("rev-parse", "--short", "HEAD")

@@ -53,27 +53,46 @@ def _norms(v: np.ndarray) -> np.ndarray:
     return np.linalg.norm(v - v.mean(axis=0), axis=1)
 
 
-def measure_distortion(protocol: str, model: str, method: str, key: int, bits: np.ndarray, V: np.ndarray,
-                       F: np.ndarray, marked: np.ndarray, seconds: float, samples: int,
-                       seed: Optional[int]) -> Distortion:
+def measure_distortion(
+    protocol: str,
+    model: str,
+    method: str,
+    key: int,
+    bits: np.ndarray,
+    V: np.ndarray,
+    F: np.ndarray,
+    marked: np.ndarray,
+    seconds: float,
+    samples: int,
+    seed: Optional[int],
+) -> Distortion:
     """The distortion of ``marked`` (n, 3) against the original (V (n, 3), F (m, 3)); MRMS and Hausdorff
     from ``samples`` surface samples each way (0: skipped, left NaN)."""
     diag = M.bbox_diagonal(V)
     norms = _norms(marked)
     d = Distortion(
-        protocol=protocol, model=model, method=method, key=key, n_bits=len(bits),
-        vsnr=M.vsnr(V, marked), vsnr_uncentred=M.vsnr(V, marked, centred=False), psnr=M.psnr(V, marked),
+        protocol=protocol,
+        model=model,
+        method=method,
+        key=key,
+        n_bits=len(bits),
+        vsnr=M.vsnr(V, marked),
+        vsnr_uncentred=M.vsnr(V, marked, centred=False),
+        psnr=M.psnr(V, marked),
         rmse_percent=100.0 * M.vertex_rmse(V, marked) / diag,
         energy_per_bit=M.energy_per_bit(V, marked, len(bits)),
-        r_max=float(norms.max()), d_bar=float(norms.mean()), embed_seconds=seconds,
+        r_max=float(norms.max()),
+        d_bar=float(norms.mean()),
+        embed_seconds=seconds,
     )
     if samples:
         d.mrms_percent, d.hausdorff_percent = M.surface_distance(V, F, marked, F, samples, seed=seed)
     return d
 
 
-def read_attacked(method: SchemeMethod, va: np.ndarray, fa: np.ndarray, key: Any, n_bits: int
-                  ) -> tuple[Optional[np.ndarray], str]:
+def read_attacked(
+    method: SchemeMethod, va: np.ndarray, fa: np.ndarray, key: Any, n_bits: int
+) -> tuple[Optional[np.ndarray], str]:
     """(bits read (n_bits,), "") from an attacked copy, or (None, the reason) when the method cannot
     read it at all (a ``pmwm.PmwmError``, or a payload of another length)."""
     try:
@@ -85,20 +104,41 @@ def read_attacked(method: SchemeMethod, va: np.ndarray, fa: np.ndarray, key: Any
     return got, ""
 
 
-def run_attacks(protocol: str, model: str, method: SchemeMethod, key_idx: int, key_seed: int, bits: np.ndarray,
-                marked: np.ndarray, F: np.ndarray, mkey: Any, settings: dict[str, list[Setting]],
-                out: list[Trial]) -> None:
+def run_attacks(
+    protocol: str,
+    model: str,
+    method: SchemeMethod,
+    key_idx: int,
+    key_seed: int,
+    bits: np.ndarray,
+    marked: np.ndarray,
+    F: np.ndarray,
+    mkey: Any,
+    settings: dict[str, list[Setting]],
+    out: list[Trial],
+) -> None:
     """Attack ``marked`` with every setting, read it back, append one ``Trial`` each to ``out``."""
     for group, items in settings.items():
         for i, (label, _value, name, params) in enumerate(items):
             va, fa = A.ATTACKS[name](marked, F, seed=attack_seed(key_seed, group, i), **params)
             got, failed = read_attacked(method, va, fa, mkey, len(bits))
             if got is None:  # unreadable: counted as chance
-                trial = Trial(protocol, model, method.name, group, label, key_idx, len(bits),
-                              len(bits) // 2, 0.5, 0.0, failed)
+                trial = Trial(
+                    protocol, model, method.name, group, label, key_idx, len(bits), len(bits) // 2, 0.5, 0.0, failed
+                )
             else:
-                trial = Trial(protocol, model, method.name, group, label, key_idx, len(bits),
-                              int(np.sum(got == bits)), M.ber(bits, got), M.correlation(bits, got))
+                trial = Trial(
+                    protocol,
+                    model,
+                    method.name,
+                    group,
+                    label,
+                    key_idx,
+                    len(bits),
+                    int(np.sum(got == bits)),
+                    M.ber(bits, got),
+                    M.correlation(bits, got),
+                )
             out.append(trial)
 
 
@@ -140,10 +180,19 @@ def run_bench(
     samples = surface_samples or (5000 if quick else 20000)
     p_set, b_set = paper_settings(quick), benchmark_settings(quick)
     robust = [m for m in methods if getattr(m, "scheme", None) == "robust"]
-    res = BenchResults(settings={"command": command or "pmwm_bench.run_bench(...)", "section": section,
-                                 "commit": commit(), "keys": keys, "quick": quick, "seed": seed,
-                                 "surface_samples": samples, "methods": [m.name for m in methods],
-                                 "strength": robust[0].effective_strength if robust else 2.0})
+    res = BenchResults(
+        settings={
+            "command": command or "pmwm_bench.run_bench(...)",
+            "section": section,
+            "commit": commit(),
+            "keys": keys,
+            "quick": quick,
+            "seed": seed,
+            "surface_samples": samples,
+            "methods": [m.name for m in methods],
+            "strength": robust[0].effective_strength if robust else 2.0,
+        }
+    )
     ours = [m for m in methods if getattr(m, "is_pmwm", False)]
 
     for name in models:
@@ -154,8 +203,13 @@ def run_bench(
             res.models[label] = {"note": found.note, "missing": True, "paper_model": found.paper_model}
             continue
         V, F = load(found.path)
-        res.models[label] = {"note": found.note, "path": str(found.path), "vertices": len(V), "faces": len(F),
-                             "paper_model": found.paper_model}
+        res.models[label] = {
+            "note": found.note,
+            "path": str(found.path),
+            "vertices": len(V),
+            "faces": len(F),
+            "paper_model": found.paper_model,
+        }
         say(f"[bench] {label}: {len(V)} vertices, {len(F)} faces, {keys} keys")
         for k in range(keys):
             key_seed = seed + k
@@ -167,8 +221,9 @@ def run_bench(
                 for m_bits in (50, 80, 120):
                     t0 = time.perf_counter()
                     mv, mkey = scheme.embed(V, F, bits[m_bits], seed=key_seed)
-                    d = measure_distortion("table1", label, scheme.name, k, bits[m_bits], V, F, mv,
-                                           time.perf_counter() - t0, 0, None)
+                    d = measure_distortion(
+                        "table1", label, scheme.name, k, bits[m_bits], V, F, mv, time.perf_counter() - t0, 0, None
+                    )
                     res.distortions.append(d)
                     if m_bits == 50:
                         marked50[scheme.name] = (mv, mkey, d.embed_seconds)
@@ -181,15 +236,16 @@ def run_bench(
                     mv, mkey = method.embed(V, F, bits[50], seed=key_seed)
                     secs = time.perf_counter() - t0
                 res.distortions.append(
-                    measure_distortion("paper", label, method.name, k, bits[50], V, F, mv, secs, samples, key_seed))
+                    measure_distortion("paper", label, method.name, k, bits[50], V, F, mv, secs, samples, key_seed)
+                )
                 run_attacks("paper", label, method, k, key_seed, bits[50], mv, F, mkey, p_set, res.trials)
                 # benchmark protocol, 64 bits
                 t0 = time.perf_counter()
                 mv, mkey = method.embed(V, F, bits[64], seed=key_seed)
                 secs = time.perf_counter() - t0
                 res.distortions.append(
-                    measure_distortion("benchmark", label, method.name, k, bits[64], V, F, mv, secs, samples,
-                                       key_seed))
+                    measure_distortion("benchmark", label, method.name, k, bits[64], V, F, mv, secs, samples, key_seed)
+                )
                 run_attacks("benchmark", label, method, k, key_seed, bits[64], mv, F, mkey, b_set, res.trials)
             say(f"[bench] {label}: key {k + 1}/{keys} done ({time.perf_counter() - t_start:.0f} s)")
 
@@ -203,8 +259,12 @@ def run_bench(
         out_path = Path(out)
         write_section(out_path, section, res.markdown)
         raw_dir = raw_folder(out_path, section)
-        raw = {"settings": res.settings, "models": res.models,
-               "trials": [asdict(t) for t in res.trials], "distortions": [asdict(d) for d in res.distortions]}
+        raw = {
+            "settings": res.settings,
+            "models": res.models,
+            "trials": [asdict(t) for t in res.trials],
+            "distortions": [asdict(d) for d in res.distortions],
+        }
         (raw_dir / "trials.json").write_text(json.dumps(raw, indent=0, default=float) + "\n", encoding="utf-8")
         if plots:
             written = write_plots(res, p_set, b_set, raw_dir, "correlation")

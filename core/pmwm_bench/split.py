@@ -49,8 +49,9 @@ def fresh_seeds(count: int) -> list[int]:
     return [int.from_bytes(os.urandom(8), "little") >> 1 for _ in range(int(count))]
 
 
-def draw_corpus(per_family: int, families: Iterable[str] | None = None,
-                record: os.PathLike | None = None) -> dict[str, list[int]]:
+def draw_corpus(
+    per_family: int, families: Iterable[str] | None = None, record: os.PathLike | None = None
+) -> dict[str, list[int]]:
     """Fresh seeds for ``per_family`` shapes of each family (all of ``corpus.FAMILIES`` by default):
     family -> seeds. With ``record``, also written there as JSON (the seeds, when, and their source),
     refusing to overwrite an existing file (a record is evidence)."""
@@ -60,8 +61,14 @@ def draw_corpus(per_family: int, families: Iterable[str] | None = None,
         raise ValueError(f"unknown families {unknown}; choose among {', '.join(FAMILIES)}")
     seeds = {f: fresh_seeds(per_family) for f in chosen}
     if record is not None:
-        text = json.dumps({"source": "os.urandom", "drawn_at": datetime.datetime.now(datetime.UTC)
-                           .isoformat(timespec="seconds"), "seeds": seeds}, indent=1)
+        text = json.dumps(
+            {
+                "source": "os.urandom",
+                "drawn_at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "seeds": seeds,
+            },
+            indent=1,
+        )
         with open(Path(record), "x", encoding="utf-8") as fh:
             fh.write(text + "\n")
     return seeds

@@ -54,24 +54,59 @@ class SweepAttack:
 
 
 SWEEP_ATTACKS: tuple[SweepAttack, ...] = (
-    SweepAttack("noise", "noise 0.3 %", "noise_benchmark", {"amplitude": 0.003},
-                "uniform noise in ±0.003·d̄ per coordinate (d̄ = mean vertex norm; benchmark protocol)"),
-    SweepAttack("smoothing", "smoothing 30 it.", "smooth_laplacian", {"lam": 0.1, "iterations": 30},
-                "30 iterations of Laplacian smoothing, lambda = 0.1"),
-    SweepAttack("quantization", "quantization 8 bits", "quantize", {"bits": 8},
-                "coordinates quantized to 8 bits per axis over the bounding box"),
-    SweepAttack("cropping", "plane crop 50 %", "crop_plane", {"fraction": 0.5},
-                "the 50 % of the vertices beyond a plane of random direction removed"),
-    SweepAttack("simplification", "simplification 50 %", "simplify", {"ratio": 0.5},
-                "quadric simplification (fast-simplification) removing 50 % of the faces"),
+    SweepAttack(
+        "noise",
+        "noise 0.3 %",
+        "noise_benchmark",
+        {"amplitude": 0.003},
+        "uniform noise in ±0.003·d̄ per coordinate (d̄ = mean vertex norm; benchmark protocol)",
+    ),
+    SweepAttack(
+        "smoothing",
+        "smoothing 30 it.",
+        "smooth_laplacian",
+        {"lam": 0.1, "iterations": 30},
+        "30 iterations of Laplacian smoothing, lambda = 0.1",
+    ),
+    SweepAttack(
+        "quantization",
+        "quantization 8 bits",
+        "quantize",
+        {"bits": 8},
+        "coordinates quantized to 8 bits per axis over the bounding box",
+    ),
+    SweepAttack(
+        "cropping",
+        "plane crop 50 %",
+        "crop_plane",
+        {"fraction": 0.5},
+        "the 50 % of the vertices beyond a plane of random direction removed",
+    ),
+    SweepAttack(
+        "simplification",
+        "simplification 50 %",
+        "simplify",
+        {"ratio": 0.5},
+        "quadric simplification (fast-simplification) removing 50 % of the faces",
+    ),
 )
 #: attacks run only when named (``--attacks``): the paper protocol's heavy noise, where the paper
 #: scheme, reading a same-order copy by index, is strongest
 EXTRA_ATTACKS: tuple[SweepAttack, ...] = (
-    SweepAttack("paper-noise-0.03", "paper noise A = 0.03", "noise_paper", {"amplitude": 0.03},
-                "uniform noise in ±0.03·Rmax per coordinate (Rmax = max vertex norm; paper protocol)"),
-    SweepAttack("paper-noise-0.05", "paper noise A = 0.05", "noise_paper", {"amplitude": 0.05},
-                "uniform noise in ±0.05·Rmax per coordinate (Rmax = max vertex norm; paper protocol)"),
+    SweepAttack(
+        "paper-noise-0.03",
+        "paper noise A = 0.03",
+        "noise_paper",
+        {"amplitude": 0.03},
+        "uniform noise in ±0.03·Rmax per coordinate (Rmax = max vertex norm; paper protocol)",
+    ),
+    SweepAttack(
+        "paper-noise-0.05",
+        "paper noise A = 0.05",
+        "noise_paper",
+        {"amplitude": 0.05},
+        "uniform noise in ±0.05·Rmax per coordinate (Rmax = max vertex norm; paper protocol)",
+    ),
 )
 #: the attacks of ``--quick`` (both fast to read for every scheme)
 QUICK_ATTACKS: tuple[str, ...] = ("noise", "quantization")
@@ -91,7 +126,11 @@ DEFAULT_GRID: dict[str, tuple[float, ...]] = {
 }
 #: two strengths per scheme, for tests and smoke runs
 QUICK_GRID: dict[str, tuple[float, ...]] = {
-    "robust": (1.0, 3.5), "paper": (0.8, 2.0), "cho1": (0.025, 0.09), "cho2": (0.05, 0.18), "blind": (0.04, 0.12),
+    "robust": (1.0, 3.5),
+    "paper": (0.8, 2.0),
+    "cho1": (0.025, 0.09),
+    "cho2": (0.05, 0.18),
+    "blind": (0.04, 0.12),
 }
 
 
@@ -99,8 +138,13 @@ QUICK_GRID: dict[str, tuple[float, ...]] = {
 # the comparison at equal MRMS
 
 
-def compare_at_equal_mrms(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], tolerance: float = 0.0,
-                          n_grid: int = 64, attack: str = "", model: str = "") -> EqualMrms:
+def compare_at_equal_mrms(
+    curves: Mapping[str, tuple[np.ndarray, np.ndarray]],
+    tolerance: float = 0.0,
+    n_grid: int = 64,
+    attack: str = "",
+    model: str = "",
+) -> EqualMrms:
     """Which method has the lowest BER at equal MRMS.
 
     curves: method -> (MRMS (S,), BER (S,)), one point per strength (means over the keys).
@@ -149,9 +193,21 @@ def aggregate(res: SweepResults) -> list[SweepPoint]:
         mrms = np.array(emb.get((model, method, strength), [math.nan]))
         ber = np.array([t.ber for t in ts])
         chance = M.binomial_tail(sum(t.matches for t in ts), sum(t.n_bits for t in ts)) >= 0.01
-        points.append(SweepPoint(model, method, strength, attack, float(mrms.mean()), float(mrms.std()),
-                                 float(ber.mean()), float(ber.std()), len(ts), sum(1 for t in ts if t.failed),
-                                 bool(chance)))
+        points.append(
+            SweepPoint(
+                model,
+                method,
+                strength,
+                attack,
+                float(mrms.mean()),
+                float(mrms.std()),
+                float(ber.mean()),
+                float(ber.std()),
+                len(ts),
+                sum(1 for t in ts if t.failed),
+                bool(chance),
+            )
+        )
     return points
 
 
@@ -230,15 +286,27 @@ def run_sweep(
     strengths = {s: tuple(float(x) for x in (grid or {}).get(s, base[s])) for s in schemes}
     chosen = sweep_attacks(attacks)
     samples = surface_samples or (2000 if quick else 20000)
-    res = SweepResults(settings={
-        "command": command or "pmwm_bench.run_sweep(...)", "section": section, "commit": commit(),
-        "machine": machine(), "keys": keys, "quick": quick, "seed": seed, "surface_samples": samples,
-        "n_bits": N_BITS, "methods": [DISPLAY[s] for s in schemes], "schemes": schemes,
-        "grid": {DISPLAY[s]: list(v) for s, v in strengths.items()},
-        "attacks": [a.key for a in chosen],
-        "attack_settings": {a.key: {"label": a.label, "attack": a.attack, "params": dict(a.params),
-                                    "description": a.description} for a in chosen},
-    })
+    res = SweepResults(
+        settings={
+            "command": command or "pmwm_bench.run_sweep(...)",
+            "section": section,
+            "commit": commit(),
+            "machine": machine(),
+            "keys": keys,
+            "quick": quick,
+            "seed": seed,
+            "surface_samples": samples,
+            "n_bits": N_BITS,
+            "methods": [DISPLAY[s] for s in schemes],
+            "schemes": schemes,
+            "grid": {DISPLAY[s]: list(v) for s, v in strengths.items()},
+            "attacks": [a.key for a in chosen],
+            "attack_settings": {
+                a.key: {"label": a.label, "attack": a.attack, "params": dict(a.params), "description": a.description}
+                for a in chosen
+            },
+        }
+    )
 
     for name in models:
         found = resolve(name, data_dir)
@@ -250,8 +318,10 @@ def run_sweep(
         label = found.label
         res.models[label] = {"note": found.note, "path": str(found.path), "vertices": len(V), "faces": len(F)}
         diag = M.bbox_diagonal(V)
-        say(f"[sweep] {label}: {len(V)} vertices, {keys} keys, "
-            f"{sum(len(v) for v in strengths.values())} method-strength pairs, {len(chosen)} attacks")
+        say(
+            f"[sweep] {label}: {len(V)} vertices, {keys} keys, "
+            f"{sum(len(v) for v in strengths.values())} method-strength pairs, {len(chosen)} attacks"
+        )
         for k in range(keys):
             key_seed = seed + k
             bits = np.random.default_rng(key_seed).integers(0, 2, N_BITS)  # (64,) the same for all methods
@@ -262,21 +332,46 @@ def run_sweep(
                     marked, mkey = method.embed(V, F, bits, seed=key_seed)
                     secs = time.perf_counter() - t0
                     mrms, haus = M.surface_distance(V, F, marked, F, samples, seed=key_seed)
-                    res.embeddings.append(SweepEmbedding(
-                        label, method.name, scheme, strength, k, N_BITS, mrms, haus,
-                        100.0 * M.vertex_rmse(V, marked) / diag, secs))
+                    res.embeddings.append(
+                        SweepEmbedding(
+                            label,
+                            method.name,
+                            scheme,
+                            strength,
+                            k,
+                            N_BITS,
+                            mrms,
+                            haus,
+                            100.0 * M.vertex_rmse(V, marked) / diag,
+                            secs,
+                        )
+                    )
                     for a in chosen:
-                        va, fa = A.ATTACKS[a.attack](marked, F, seed=attack_seed(key_seed, "sweep:" + a.key, 0),
-                                                     **dict(a.params))
+                        va, fa = A.ATTACKS[a.attack](
+                            marked, F, seed=attack_seed(key_seed, "sweep:" + a.key, 0), **dict(a.params)
+                        )
                         got, failed = read_attacked(method, va, fa, mkey, N_BITS)
                         if got is None:
-                            res.trials.append(SweepTrial(label, method.name, strength, k, a.key, N_BITS,
-                                                         N_BITS // 2, 0.5, failed))
+                            res.trials.append(
+                                SweepTrial(label, method.name, strength, k, a.key, N_BITS, N_BITS // 2, 0.5, failed)
+                            )
                         else:
-                            res.trials.append(SweepTrial(label, method.name, strength, k, a.key, N_BITS,
-                                                         int(np.sum(got == bits)), M.ber(bits, got)))
-                    say(f"[sweep] {label} key {k + 1}/{keys}: {method.name} at {strength:g}, MRMS {mrms:.4f} % "
-                        f"({time.perf_counter() - t_start:.0f} s)")
+                            res.trials.append(
+                                SweepTrial(
+                                    label,
+                                    method.name,
+                                    strength,
+                                    k,
+                                    a.key,
+                                    N_BITS,
+                                    int(np.sum(got == bits)),
+                                    M.ber(bits, got),
+                                )
+                            )
+                    say(
+                        f"[sweep] {label} key {k + 1}/{keys}: {method.name} at {strength:g}, MRMS {mrms:.4f} % "
+                        f"({time.perf_counter() - t_start:.0f} s)"
+                    )
 
     res.settings["seconds"] = round(time.perf_counter() - t_start, 1)
     res.points = aggregate(res)
@@ -288,9 +383,14 @@ def run_sweep(
         out_path = Path(out)
         write_section(out_path, section, res.markdown)
         folder = raw_folder(out_path, section)
-        raw = {"settings": res.settings, "models": res.models,
-               "embeddings": [asdict(e) for e in res.embeddings], "trials": [asdict(t) for t in res.trials],
-               "points": [asdict(p) for p in res.points], "comparisons": [asdict(c) for c in res.comparisons]}
+        raw = {
+            "settings": res.settings,
+            "models": res.models,
+            "embeddings": [asdict(e) for e in res.embeddings],
+            "trials": [asdict(t) for t in res.trials],
+            "points": [asdict(p) for p in res.points],
+            "comparisons": [asdict(c) for c in res.comparisons],
+        }
         (folder / "sweep.json").write_text(json.dumps(raw, indent=0, default=float) + "\n", encoding="utf-8")
         if plots:
             written = write_sweep_plots(res, folder)
@@ -300,6 +400,23 @@ def run_sweep(
     return res
 
 
-__all__ = ["DEFAULT_GRID", "DEFAULT_SWEEP_MODELS", "EqualMrms", "QUICK_ATTACKS", "QUICK_GRID", "SECTION",
-           "SWEEP_ATTACKS", "EXTRA_ATTACKS", "SweepAttack", "SweepEmbedding", "SweepPoint", "SweepResults", "SweepTrial",
-           "aggregate", "compare", "compare_at_equal_mrms", "run_sweep", "sweep_attacks"]
+__all__ = [
+    "DEFAULT_GRID",
+    "DEFAULT_SWEEP_MODELS",
+    "EqualMrms",
+    "QUICK_ATTACKS",
+    "QUICK_GRID",
+    "SECTION",
+    "SWEEP_ATTACKS",
+    "EXTRA_ATTACKS",
+    "SweepAttack",
+    "SweepEmbedding",
+    "SweepPoint",
+    "SweepResults",
+    "SweepTrial",
+    "aggregate",
+    "compare",
+    "compare_at_equal_mrms",
+    "run_sweep",
+    "sweep_attacks",
+]

@@ -26,8 +26,9 @@ def _load_addon():
     name = "blender_pmwm"
     if name not in sys.modules:
         folder = ROOT / "blender_pmwm"
-        spec = importlib.util.spec_from_file_location(name, folder / "__init__.py",
-                                                      submodule_search_locations=[str(folder)])
+        spec = importlib.util.spec_from_file_location(
+            name, folder / "__init__.py", submodule_search_locations=[str(folder)]
+        )
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
@@ -128,8 +129,11 @@ def polygons(ob) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _props(group) -> tuple:
-    return tuple((p.identifier, str(getattr(group, p.identifier)))
-                 for p in group.bl_rna.properties if p.identifier not in {"rna_type", "name"})
+    return tuple(
+        (p.identifier, str(getattr(group, p.identifier)))
+        for p in group.bl_rna.properties
+        if p.identifier not in {"rna_type", "name"}
+    )
 
 
 def snapshot(folder: Path | None = None) -> tuple:
@@ -139,29 +143,52 @@ def snapshot(folder: Path | None = None) -> tuple:
         # ob.pmwm_lod first: Blender 4.2 creates an object's property group when it is first read
         # (then ob.keys() lists it), 4.3 and later keep it out of ob.keys()
         lod = _props(ob.pmwm_lod)
-        entry = [ob.name, ob.type, ob.mode, ob.select_get(), tuple(map(tuple, ob.matrix_world)),
-                 tuple(g.name for g in ob.vertex_groups), tuple(ob.keys()), lod]
+        entry = [
+            ob.name,
+            ob.type,
+            ob.mode,
+            ob.select_get(),
+            tuple(map(tuple, ob.matrix_world)),
+            tuple(g.name for g in ob.vertex_groups),
+            tuple(ob.keys()),
+            lod,
+        ]
         if ob.type == "MESH":
             loops, sizes = polygons(ob)
             digest = hashlib.sha256(positions(ob).tobytes() + loops.tobytes() + sizes.tobytes()).hexdigest()
-            entry += [ob.data.name, len(ob.data.vertices), digest, tuple(ob.data.keys()),
-                      tuple(a.name for a in ob.data.attributes)]
+            entry += [
+                ob.data.name,
+                len(ob.data.vertices),
+                digest,
+                tuple(ob.data.keys()),
+                tuple(a.name for a in ob.data.attributes),
+            ]
         objects.append(tuple(entry))
     active = bpy.context.view_layer.objects.active
     files = ()
     if folder is not None:
-        files = tuple(sorted((p.name, hashlib.sha256(p.read_bytes()).hexdigest())
-                             for p in Path(folder).iterdir() if p.is_file()))
-    return (tuple(objects), len(bpy.data.meshes), active.name if active else None,
-            _props(bpy.context.scene.pmwm), files)
+        files = tuple(
+            sorted((p.name, hashlib.sha256(p.read_bytes()).hexdigest()) for p in Path(folder).iterdir() if p.is_file())
+        )
+    return (
+        tuple(objects),
+        len(bpy.data.meshes),
+        active.name if active else None,
+        _props(bpy.context.scene.pmwm),
+        files,
+    )
 
 
 def cli_verify(path: Path, key: Path) -> tuple[int, dict | None]:
     """Run ``pmwm verify FILE --key KEY --json``; (exit code, parsed JSON or None)."""
     import json
 
-    proc = subprocess.run([sys.executable, "-m", "pmwm", "verify", str(path), "--key", str(key), "--json"],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pmwm", "verify", str(path), "--key", str(key), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     try:
         data = json.loads(proc.stdout)
     except ValueError:
@@ -172,6 +199,14 @@ def cli_verify(path: Path, key: Path) -> tuple[int, dict | None]:
 @pytest.fixture
 def bl():
     """Helper functions for the tests (a fixture, so test modules need no imports from here)."""
-    return SimpleNamespace(new_object=new_object, activate=activate, suzanne=suzanne, bunny=bunny,
-                           positions=positions, polygons=polygons, snapshot=snapshot, cli_verify=cli_verify,
-                           root=ROOT)
+    return SimpleNamespace(
+        new_object=new_object,
+        activate=activate,
+        suzanne=suzanne,
+        bunny=bunny,
+        positions=positions,
+        polygons=polygons,
+        snapshot=snapshot,
+        cli_verify=cli_verify,
+        root=ROOT,
+    )

@@ -28,12 +28,20 @@ def _common(bpy, addon_utils) -> dict:
         "enabled": MODULE in bpy.context.preferences.addons,
         "addon_file": getattr(module, "__file__", None),
         "warnings": warnings,
-        "has_operators": all(hasattr(bpy.types, c) for c in
-                             ("PMWM_OT_watermark", "PMWM_OT_export_pm", "PMWM_OT_import_pm", "PMWM_OT_verify",
-                              "PMWM_OT_save_report")),
+        "has_operators": all(
+            hasattr(bpy.types, c)
+            for c in (
+                "PMWM_OT_watermark",
+                "PMWM_OT_export_pm",
+                "PMWM_OT_import_pm",
+                "PMWM_OT_verify",
+                "PMWM_OT_save_report",
+            )
+        ),
         # the add-on's preferences (the key folder) under the extension's own module name
-        "key_folder_pref": hasattr(getattr(bpy.context.preferences.addons.get(MODULE), "preferences", None),
-                                   "key_folder"),
+        "key_folder_pref": hasattr(
+            getattr(bpy.context.preferences.addons.get(MODULE), "preferences", None), "key_folder"
+        ),
     }
 
 
@@ -68,8 +76,13 @@ def use(workdir: str) -> dict:
     result = _common(bpy, addon_utils)
     from pmwm import spatial
 
-    result.update(pmwm_file=pmwm.__file__, trimesh_file=trimesh.__file__, numpy_file=numpy.__file__,
-                  scipy_file=scipy.spatial.__file__, kdtree_engine=spatial.engine())
+    result.update(
+        pmwm_file=pmwm.__file__,
+        trimesh_file=trimesh.__file__,
+        numpy_file=numpy.__file__,
+        scipy_file=scipy.spatial.__file__,
+        kdtree_engine=spatial.engine(),
+    )
 
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.ops.mesh.primitive_monkey_add()

@@ -96,8 +96,11 @@ def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
         assert bpy.ops.pmwm.verify() == {"FINISHED"}
         assert _verdict() == (True, "Acme")
         if margin == 0.0:
-            lib = pmwm.embed(before.astype(np.float64), bl.polygons(bpy.context.active_object)[0].reshape(-1, 3),
-                             pmwm.EmbedOptions(payload="Acme", scheme="blind", seed=3, passphrase=PHRASE))
+            lib = pmwm.embed(
+                before.astype(np.float64),
+                bl.polygons(bpy.context.active_object)[0].reshape(-1, 3),
+                pmwm.EmbedOptions(payload="Acme", scheme="blind", seed=3, passphrase=PHRASE),
+            )
             np.testing.assert_array_equal(after, lib.vertices.astype(np.float32))
     assert moved[2] > 2 * moved[1] > 0
 
@@ -114,8 +117,10 @@ def _small_marked():
     if "res" not in _SMALL:
         src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
         pm, _ = build_progressive_mesh(src.vertices, src.faces, base_vertices=3000)
-        _SMALL["res"] = pmwm.embed(*pm.decode(vertices=14000), pmwm.EmbedOptions(
-            scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False))
+        _SMALL["res"] = pmwm.embed(
+            *pm.decode(vertices=14000),
+            pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False),
+        )
     return _SMALL["res"]
 
 
@@ -153,8 +158,11 @@ def test_verify_reads_a_copy_given_blenders_subdivision_surface(scene, addon, bl
     import pmwm
 
     src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
-    res = pmwm.embed(src.vertices, src.faces, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE,
-                                                                seed=3, progressive=False))
+    res = pmwm.embed(
+        src.vertices,
+        src.faces,
+        pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False),
+    )
     ob = bl.new_object("copy", res.vertices, res.faces)
     mod = ob.modifiers.new("Subdivision", "SUBSURF")
     mod.levels, mod.use_limit_surface = 1, limit

@@ -97,9 +97,11 @@ def _kwargs(op, tmp_path, extra):
     return {**base, **extra}
 
 
-@pytest.mark.parametrize("op,case,extra,message",
-                         [(op, *c) for op, cases in CASES.items() for c in cases],
-                         ids=[f"{op}-{c[0]}" for op, cases in CASES.items() for c in cases])
+@pytest.mark.parametrize(
+    "op,case,extra,message",
+    [(op, *c) for op, cases in CASES.items() for c in cases],
+    ids=[f"{op}-{c[0]}" for op, cases in CASES.items() for c in cases],
+)
 @pytest.mark.slow
 def test_error_reports_and_leaves_scene_unchanged(scene, bl, tmp_path, key_prefs, op, case, extra, message):
     kwargs = {**_kwargs(op, tmp_path, extra), **_setup(case, bl, tmp_path)}

@@ -19,10 +19,10 @@ def example(addon):
 
 
 def test_arguments_after_the_double_dash(example):
-    args = example.parse_args(["blender", "-b", "x.blend", "--python", "w.py", "--",
-                               "--key-dir", "keys", "--payload", "ACME", "--export-pm"])
-    assert (args.key_dir, args.payload, args.export_pm, args.save, args.strength) == ("keys", "ACME", True,
-                                                                                        False, 2.0)
+    args = example.parse_args(
+        ["blender", "-b", "x.blend", "--python", "w.py", "--", "--key-dir", "keys", "--payload", "ACME", "--export-pm"]
+    )
+    assert (args.key_dir, args.payload, args.export_pm, args.save, args.strength) == ("keys", "ACME", True, False, 2.0)
     with pytest.raises(SystemExit):
         example.parse_args(["blender", "--python", "w.py"])  # no "--": the required options are missing
 
@@ -52,4 +52,5 @@ def test_watermarks_every_mesh_object_once(scene, bl, example, tmp_path, capfd):
         bpy.ops.pmwm.verify(key_path=key)
         assert (ob.pmwm_verdict.marked, ob.pmwm_verdict.payload) == (True, "ACME 2026")
     assert sorted(p.name for p in key_dir.iterdir()) == sorted(
-        [f"{example._file_stem(n)}{ext}" for n in (a.name, b.name) for ext in (".key.json", ".pmwm")])
+        [f"{example._file_stem(n)}{ext}" for n in (a.name, b.name) for ext in (".key.json", ".pmwm")]
+    )

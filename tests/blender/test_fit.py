@@ -30,14 +30,22 @@ def test_the_room_model_cuts_where_a_real_window_cut(textfit):
     the cut, as Blender draws it)."""
     room = textfit.Room(220)
     boxed = room.boxed()
-    whole = [(room.label(), "Higher: more robust, more vis..."), (room.label(icon=True), "Key: bunny.pmwm-key.js..."),
-             (room.split_name(), "Progressive ..."), (boxed.split_name(), "Level of ..."),
-             (boxed.label(icon=True), "Stream preview: bunny..."),
-             (room.label(icon=True), "Being watermarked: Esc ...")]
-    cut = [(room.label(), "Higher: more robust, more visible"), (room.label(icon=True), "Key: bunny.pmwm-key.json"),
-           (room.split_name(), "Progressive Mesh"), (boxed.split_name(), "Level of Detail"),
-           (boxed.label(icon=True), "Stream preview: bunny.pmwm"),
-           (room.label(icon=True), "No key file: the pass phrase reads the mark")]
+    whole = [
+        (room.label(), "Higher: more robust, more vis..."),
+        (room.label(icon=True), "Key: bunny.pmwm-key.js..."),
+        (room.split_name(), "Progressive ..."),
+        (boxed.split_name(), "Level of ..."),
+        (boxed.label(icon=True), "Stream preview: bunny..."),
+        (room.label(icon=True), "Being watermarked: Esc ..."),
+    ]
+    cut = [
+        (room.label(), "Higher: more robust, more visible"),
+        (room.label(icon=True), "Key: bunny.pmwm-key.json"),
+        (room.split_name(), "Progressive Mesh"),
+        (boxed.split_name(), "Level of Detail"),
+        (boxed.label(icon=True), "Stream preview: bunny.pmwm"),
+        (room.label(icon=True), "No key file: the pass phrase reads the mark"),
+    ]
     assert all(textfit.text_width(t) <= r for r, t in whole), [(r, t, textfit.text_width(t)) for r, t in whole]
     assert all(textfit.text_width(t) > r for r, t in cut), [(r, t, textfit.text_width(t)) for r, t in cut]
 

@@ -57,7 +57,8 @@ def test_zip_holds_manifest_addon_and_the_wheels_for_this_platform(built_zip, bu
 def test_every_platform_and_python_is_a_build_target(build_addon):
     built = build_addon.targets([], [])
     assert {(t.platform, t.python.version) for t in built} == {
-        (p, v) for p in ("linux-x64", "windows-x64", "macos-arm64", "macos-x64") for v in ("3.11", "3.13")}
+        (p, v) for p in ("linux-x64", "windows-x64", "macos-arm64", "macos-x64") for v in ("3.11", "3.13")
+    }
     assert len({t.tag for t in built}) == 8
     with pytest.raises(SystemExit, match="unknown platform"):
         build_addon.targets(["linux-arm"], [])
@@ -67,8 +68,9 @@ def test_every_platform_and_python_is_a_build_target(build_addon):
 def test_blenders_validator_accepts_the_zip(built_zip, build_addon):
     tool = build_addon.find_blender_ext()
     assert tool is not None and tool.is_file()
-    proc = subprocess.run([sys.executable, str(tool), "validate", str(built_zip)],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, str(tool), "validate", str(built_zip)], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
@@ -85,11 +87,17 @@ def test_addon_sources_never_touch_sys_path_and_import_relatively():
 
 def _run(mode: str, arg: Path, resources: Path) -> dict:
     env = {**os.environ, "BLENDER_USER_RESOURCES": str(resources)}
-    proc = subprocess.run([sys.executable, str(HERE / "install_check.py"), mode, str(arg)], env=env,
-                          cwd=str(resources), capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, str(HERE / "install_check.py"), mode, str(arg)],
+        env=env,
+        cwd=str(resources),
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT:")]
     assert proc.returncode == 0 and lines, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return json.loads(lines[-1][len("RESULT:"):])
+    return json.loads(lines[-1][len("RESULT:") :])
 
 
 @pytest.mark.slow

@@ -52,8 +52,9 @@ def test_modal_watermark_progress_then_one_write_back(scene, bl, tmp_path, ops, 
     key = tmp_path / "modal.key.json"
     writes = []
     real_write = ops.meshdata.write_base_positions
-    monkeypatch.setattr(ops.meshdata, "write_base_positions",
-                        lambda mesh, V: (writes.append(len(V)), real_write(mesh, V)))
+    monkeypatch.setattr(
+        ops.meshdata, "write_base_positions", lambda mesh, V: (writes.append(len(V)), real_write(mesh, V))
+    )
 
     reports = Reports()
     task = ops.WatermarkTask(bpy.context, payload="Modal", key_path=str(key), seed=4)

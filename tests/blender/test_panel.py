@@ -71,8 +71,13 @@ class FakeLayout:
         self.log.append(("label", text, self.enabled, {"icon": icon}, (self.boxes, False)))
 
 
-PANELS = ("VIEW3D_PT_pmwm", "VIEW3D_PT_pmwm_mark", "VIEW3D_PT_pmwm_advanced", "VIEW3D_PT_pmwm_pm",
-          "VIEW3D_PT_pmwm_verify")
+PANELS = (
+    "VIEW3D_PT_pmwm",
+    "VIEW3D_PT_pmwm_mark",
+    "VIEW3D_PT_pmwm_advanced",
+    "VIEW3D_PT_pmwm_pm",
+    "VIEW3D_PT_pmwm_verify",
+)
 
 
 class Context:
@@ -132,9 +137,13 @@ def test_sub_panels_in_the_watermark_tab(addon):
         assert (cls.bl_space_type, cls.bl_region_type, cls.bl_category) == ("VIEW_3D", "UI", "Watermark")
         assert hasattr(bpy.types, cls.__name__)
     parents = {cls.__name__: getattr(cls, "bl_parent_id", "") for cls in classes}
-    assert parents == {"VIEW3D_PT_pmwm": "", "VIEW3D_PT_pmwm_mark": "VIEW3D_PT_pmwm",
-                       "VIEW3D_PT_pmwm_advanced": "VIEW3D_PT_pmwm_mark", "VIEW3D_PT_pmwm_pm": "VIEW3D_PT_pmwm",
-                       "VIEW3D_PT_pmwm_verify": "VIEW3D_PT_pmwm"}
+    assert parents == {
+        "VIEW3D_PT_pmwm": "",
+        "VIEW3D_PT_pmwm_mark": "VIEW3D_PT_pmwm",
+        "VIEW3D_PT_pmwm_advanced": "VIEW3D_PT_pmwm_mark",
+        "VIEW3D_PT_pmwm_pm": "VIEW3D_PT_pmwm",
+        "VIEW3D_PT_pmwm_verify": "VIEW3D_PT_pmwm",
+    }
     assert "DEFAULT_CLOSED" in addon.panel.VIEW3D_PT_pmwm_advanced.bl_options
 
 
@@ -153,8 +162,16 @@ def test_advanced_options_are_in_the_advanced_sub_panel_with_a_line_each(scene, 
 def test_options_and_operators_without_a_mesh(scene, addon):
     log = draw(addon)
     ops = _names(log, "operator")
-    assert set(ops) == {"pmwm.watermark", "pmwm.watermark_selected", "pmwm.export_pm", "pmwm.import_pm",
-                        "pmwm.verify", "pmwm.verify_selected", "pmwm.save_report", "pmwm.publish_web"}
+    assert set(ops) == {
+        "pmwm.watermark",
+        "pmwm.watermark_selected",
+        "pmwm.export_pm",
+        "pmwm.import_pm",
+        "pmwm.verify",
+        "pmwm.verify_selected",
+        "pmwm.save_report",
+        "pmwm.publish_web",
+    }
     assert "Select a mesh object" in _labels(log)
     # greyed out, and saying why (no active object); import needs none
     for op in ("watermark", "verify", "export_pm", "save_report", "publish_web"):

@@ -35,16 +35,25 @@ def test_watermark_selected_marks_the_asset_with_one_key_in_one_undo_step(scene,
     before = {ob.name: bl.positions(ob).copy() for ob in (a, b)}
     key = tmp_path / "asset.key.json"
     bpy.ops.ed.undo_push(message="before watermark")
-    assert bpy.ops.pmwm.watermark_selected("EXEC_DEFAULT", True, payload=PAYLOAD, key_path=str(key),
-                                           seed=4) == {"FINISHED"}
+    assert bpy.ops.pmwm.watermark_selected("EXEC_DEFAULT", True, payload=PAYLOAD, key_path=str(key), seed=4) == {
+        "FINISHED"
+    }
     keys = read_keys(key)
     assert [name for name, _ in keys] == ["Horse", "Part"]  # the shared mesh once
     for ob in (a, b):
         assert not np.array_equal(bl.positions(ob), before[ob.name])
     assert np.array_equal(bl.positions(b), bl.positions(c))
     for ob in (a, b):  # each object alone, as an exporter writes it, reads with the asset's key
-        v = verify_objects([(ob.name, bl.positions(ob).astype(np.float64), np.asarray(
-            [list(t.vertices) for t in ob.data.loop_triangles], np.int64))], keys)
+        v = verify_objects(
+            [
+                (
+                    ob.name,
+                    bl.positions(ob).astype(np.float64),
+                    np.asarray([list(t.vertices) for t in ob.data.loop_triangles], np.int64),
+                )
+            ],
+            keys,
+        )
         assert v.marked and v.payload == PAYLOAD and [f[1] for f in v.detail.found] == [ob.name]
 
     assert bpy.ops.pmwm.verify_selected(key_path=str(key)) == {"FINISHED"}
@@ -87,8 +96,9 @@ def test_modal_run_writes_every_object_or_none(scene, bl, tmp_path, addon):
     sel = addon.selection
     a, b, _ = _asset(bl)
     key = tmp_path / "k.json"
-    run = addon.operators.ModalRun(sel.WatermarkSelectedTask(bpy.context, payload=PAYLOAD, key_path=str(key),
-                                                             seed=1), lambda kind, msg: None)
+    run = addon.operators.ModalRun(
+        sel.WatermarkSelectedTask(bpy.context, payload=PAYLOAD, key_path=str(key), seed=1), lambda kind, msg: None
+    )
     run.start(bpy.context)
     assert run.status_text.startswith("Watermarking '2 selected objects': ")
     b.data.vertices[0].co.x += 0.5  # the user moves a vertex of the second object meanwhile

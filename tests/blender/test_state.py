@@ -267,8 +267,9 @@ def test_save_report_runs_in_the_background_with_moving_progress(scene, addon, b
 
 def test_watermark_progress_shows_the_stage_and_the_seconds(scene, addon, bl, tmp_path, ops):
     ob = bl.suzanne(levels=2)
-    run = ops.ModalRun(ops.WatermarkTask(bpy.context, payload="P", key_path=str(tmp_path / "k.json"), seed=1),
-                       Reports())
+    run = ops.ModalRun(
+        ops.WatermarkTask(bpy.context, payload="P", key_path=str(tmp_path / "k.json"), seed=1), Reports()
+    )
     run.job.fraction, run.job.message = 0.35, "building the progressive mesh"
     run.job.started_at = time.monotonic() - 12.2
     assert run.progress_text() == "35%, building the progressive mesh, 12 s"

@@ -76,11 +76,26 @@ def test_watermark_pm_lods_and_blender_exporters(scene, bl, tmp_path, capfd, mod
     # Blender's own exporters (axes kept as in Blender), then the pmwm command line: still marked.
     bl.activate(ob)
     obj = tmp_path / "shipped.obj"
-    bpy.ops.wm.obj_export(filepath=str(obj), export_selected_objects=True, forward_axis="Y", up_axis="Z",
-                          export_materials=False, export_uv=False, export_normals=False)
+    bpy.ops.wm.obj_export(
+        filepath=str(obj),
+        export_selected_objects=True,
+        forward_axis="Y",
+        up_axis="Z",
+        export_materials=False,
+        export_uv=False,
+        export_normals=False,
+    )
     ply = tmp_path / "shipped.ply"
-    bpy.ops.wm.ply_export(filepath=str(ply), export_selected_objects=True, forward_axis="Y", up_axis="Z",
-                          export_normals=False, export_uv=False, export_colors="NONE", ascii_format=False)
+    bpy.ops.wm.ply_export(
+        filepath=str(ply),
+        export_selected_objects=True,
+        forward_axis="Y",
+        up_axis="Z",
+        export_normals=False,
+        export_uv=False,
+        export_colors="NONE",
+        ascii_format=False,
+    )
     for path in (obj, ply):
         code, data = bl.cli_verify(path, key)
         assert code == 0, f"{path.name}: exit {code}"
@@ -100,8 +115,15 @@ def test_verify_unmarked_object(scene, bl, tmp_path):
     assert not marked.pmwm_verdict.verified  # the verdict is the verified object's only
 
     ply = tmp_path / "clean.ply"
-    bpy.ops.wm.ply_export(filepath=str(ply), export_selected_objects=True, forward_axis="Y", up_axis="Z",
-                          export_normals=False, export_uv=False, export_colors="NONE")
+    bpy.ops.wm.ply_export(
+        filepath=str(ply),
+        export_selected_objects=True,
+        forward_axis="Y",
+        up_axis="Z",
+        export_normals=False,
+        export_uv=False,
+        export_colors="NONE",
+    )
     code, data = bl.cli_verify(ply, key)
     assert code == 1 and data["marked"] is False
     assert marked.name in bpy.data.objects

@@ -16,11 +16,35 @@
 from .asset import FingerprintRun, fingerprint_asset
 from .codes import Accusation, codeword, key_id
 from .copies import AssetAnalysis, FingerprintOptions, analyse_asset
-from .registry import (FingerprintKey, Registry, RegistryError, read_fingerprint_key, read_recipients,
-                       read_registry, write_fingerprint_key, write_registry)
+from .registry import (
+    FingerprintKey,
+    Registry,
+    RegistryError,
+    read_fingerprint_key,
+    read_recipients,
+    read_registry,
+    write_fingerprint_key,
+    write_registry,
+)
 from .trace import TraceResult, trace
 
-__all__ = ["FingerprintOptions", "AssetAnalysis", "analyse_asset", "FingerprintRun", "fingerprint_asset",
-           "FingerprintKey", "Registry", "RegistryError", "read_fingerprint_key", "write_fingerprint_key",
-           "read_registry", "write_registry", "read_recipients", "TraceResult", "trace", "Accusation",
-           "codeword", "key_id"]
+__all__ = [
+    "FingerprintOptions",
+    "AssetAnalysis",
+    "analyse_asset",
+    "FingerprintRun",
+    "fingerprint_asset",
+    "FingerprintKey",
+    "Registry",
+    "RegistryError",
+    "read_fingerprint_key",
+    "write_fingerprint_key",
+    "read_registry",
+    "write_registry",
+    "read_recipients",
+    "TraceResult",
+    "trace",
+    "Accusation",
+    "codeword",
+    "key_id",
+]

@@ -22,11 +22,17 @@ from ..key import mesh_sha256
 from ..meshio import read_mesh
 from .codes import pack_codeword
 from .copies import AssetAnalysis, FingerprintOptions, analyse_asset
-from .registry import (FingerprintKey, Registry, RegistryEntry, read_fingerprint_key, read_registry,
-                       write_fingerprint_key, write_registry)
+from .registry import (
+    FingerprintKey,
+    Registry,
+    RegistryEntry,
+    read_fingerprint_key,
+    read_registry,
+    write_fingerprint_key,
+    write_registry,
+)
 
-__all__ = ["REGISTRY_NAME", "FingerprintRun", "prepare_asset", "pending", "fingerprint_asset",
-           "clean_temporaries"]
+__all__ = ["REGISTRY_NAME", "FingerprintRun", "prepare_asset", "pending", "fingerprint_asset", "clean_temporaries"]
 
 REGISTRY_NAME = "registry.json"
 REGISTRY_EVERY = 2.0  # seconds between registry writes while copies are written (and at the end)
@@ -45,8 +51,9 @@ def clean_temporaries(folder) -> None:
                 pass
 
 
-def prepare_asset(asset_path, key_path, options: Optional[FingerprintOptions] = None,
-                  progress=None, progressive: bool = True) -> tuple[AssetAnalysis, FingerprintKey]:
+def prepare_asset(
+    asset_path, key_path, options: Optional[FingerprintOptions] = None, progress=None, progressive: bool = True
+) -> tuple[AssetAnalysis, FingerprintKey]:
     """Read the asset and analyse it with the key at ``key_path``: the existing key (its options;
     KeyFileError when it was made for another asset), or a new one from ``options`` written there.
     ``progressive``: build the progressive mesh the copies share (only .pmwm copies need it)."""
@@ -55,13 +62,17 @@ def prepare_asset(asset_path, key_path, options: Optional[FingerprintOptions] = 
     if os.path.exists(key_path):
         fk = read_fingerprint_key(key_path)
         if fk.asset_sha256 != mesh_sha256(V, F, "<f8"):
-            raise KeyFileError(f"{key_path} is the fingerprinting key of another asset than {asset_path}; "
-                               "give that asset's key, or a new --key path")
+            raise KeyFileError(
+                f"{key_path} is the fingerprinting key of another asset than {asset_path}; "
+                "give that asset's key, or a new --key path"
+            )
         opts = FingerprintOptions(fk.options.strength, fk.options.n_sites, fk.options.base_ratio)
         an = analyse_asset(V, F, opts, secret=fk.key.secret, progress=progress, progressive=progressive)
         if not np.array_equal(an.key.data.origin, fk.key.data.origin):
-            raise KeyFileError(f"this pmwm analyses {asset_path} differently from the one that wrote {key_path}; "
-                               "use the same pmwm version")
+            raise KeyFileError(
+                f"this pmwm analyses {asset_path} differently from the one that wrote {key_path}; "
+                "use the same pmwm version"
+            )
         return an, fk
     an = analyse_asset(V, F, options, progress=progress, progressive=progressive)
     fk = FingerprintKey(an.key, an.options, an.asset_sha256)
@@ -86,8 +97,9 @@ def pending(reg: Registry, out_dir, recipients, pm: bool) -> list:
     todo = []
     for rid in recipients:
         e = reg.entries.get(rid)
-        ok = e is not None and all(name in e.files and _on_disk(os.path.join(out_dir, name), e.files[name])
-                                   for name in _expected(rid, pm))
+        ok = e is not None and all(
+            name in e.files and _on_disk(os.path.join(out_dir, name), e.files[name]) for name in _expected(rid, pm)
+        )
         if not ok:
             todo.append(rid)
     return todo
@@ -124,9 +136,15 @@ class FingerprintRun:
     extra: dict = field(default_factory=dict)
 
 
-def fingerprint_asset(asset_path, key_path, recipients, out_dir, pm: bool = False,
-                      options: Optional[FingerprintOptions] = None,
-                      progress: Optional[Callable[[int, int], None]] = None) -> FingerprintRun:
+def fingerprint_asset(
+    asset_path,
+    key_path,
+    recipients,
+    out_dir,
+    pm: bool = False,
+    options: Optional[FingerprintOptions] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> FingerprintRun:
     """Fingerprint ``asset_path`` for ``recipients`` (ids) into ``out_dir`` (created): see the module
     docstring. ``progress(done, total)`` after each copy."""
     if not os.path.isdir(out_dir):
@@ -151,5 +169,4 @@ def fingerprint_asset(asset_path, key_path, recipients, out_dir, pm: bool = Fals
             progress(i + 1, len(todo))
     write_registry(path, reg)
     again = set(todo)
-    return FingerprintRun(todo, [r for r in recipients if r not in again], reg, path, t1 - t0,
-                          time.perf_counter() - t1)
+    return FingerprintRun(todo, [r for r in recipients if r not in again], reg, path, t1 - t0, time.perf_counter() - t1)

@@ -119,12 +119,20 @@ def connect(n_workers: Optional[int] = None, scheduler: Optional[str] = None):
         os.environ.setdefault(var, "1")
     # distributed starts workers with MALLOC_TRIM_THRESHOLD_=65536, which makes the numpy-heavy analysis
     # about 1.5x slower (its many large temporaries are mapped and unmapped each time): left out
-    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
-               if k != "MALLOC_TRIM_THRESHOLD_"}
+    environ = {
+        k: v
+        for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
+        if k != "MALLOC_TRIM_THRESHOLD_"
+    }
     with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
-        cluster = LocalCluster(n_workers=n_workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.CRITICAL,
-                               env={v: "1" for v in _THREAD_VARS})
+        cluster = LocalCluster(
+            n_workers=n_workers or os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",
+            silence_logs=logging.CRITICAL,
+            env={v: "1" for v in _THREAD_VARS},
+        )
     return Client(cluster), cluster
 
 
@@ -141,9 +149,18 @@ def _terminate_as_interrupt() -> Callable[[], None]:
     return lambda: signal.signal(signal.SIGTERM, old)
 
 
-def run_catalogue(assets, recipients: list, out, *, pm: bool = False, options: Optional[FingerprintOptions] = None,
-                  n_workers: Optional[int] = None, scheduler: Optional[str] = None, batch: int = 8,
-                  progress: Optional[Callable[[int, int], None]] = None) -> CatalogueResult:
+def run_catalogue(
+    assets,
+    recipients: list,
+    out,
+    *,
+    pm: bool = False,
+    options: Optional[FingerprintOptions] = None,
+    n_workers: Optional[int] = None,
+    scheduler: Optional[str] = None,
+    batch: int = 8,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> CatalogueResult:
     """Fingerprint every asset (mesh paths) for every recipient (ids) under ``out``; see the module
     docstring. ``progress(done, total)`` as copies are written or found intact."""
     from dask.distributed import as_completed
@@ -161,10 +178,25 @@ def run_catalogue(assets, recipients: list, out, *, pm: bool = False, options: O
         ac = as_completed()
         for path, name in zip(assets, names):
             folder, key_path = os.path.join(out, name), os.path.join(out, name + ".key.json")
-            an = client.submit(_analyse, os.path.abspath(os.fspath(path)), os.path.abspath(key_path),
-                               options or FingerprintOptions(), pm, pure=False, key=f"analyse-{name}")
-            todo = client.submit(_todo, an, os.path.abspath(key_path), os.path.abspath(folder), list(recipients),
-                                 pm, pure=False, key=f"pending-{name}")
+            an = client.submit(
+                _analyse,
+                os.path.abspath(os.fspath(path)),
+                os.path.abspath(key_path),
+                options or FingerprintOptions(),
+                pm,
+                pure=False,
+                key=f"analyse-{name}",
+            )
+            todo = client.submit(
+                _todo,
+                an,
+                os.path.abspath(key_path),
+                os.path.abspath(folder),
+                list(recipients),
+                pm,
+                pure=False,
+                key=f"pending-{name}",
+            )
             tags[todo.key] = ("todo", name, an)
             ac.add(todo)
         for fut in ac:
@@ -184,8 +216,15 @@ def run_catalogue(assets, recipients: list, out, *, pm: bool = False, options: O
                 res.skipped += len(recipients) - len(todo)
                 done += len(recipients) - len(todo)
                 for i in range(0, len(todo), batch):
-                    f = client.submit(_copies, an, os.path.abspath(folder), todo[i:i + batch], pm, pure=False,
-                                      key=f"copies-{name}-{i}")
+                    f = client.submit(
+                        _copies,
+                        an,
+                        os.path.abspath(folder),
+                        todo[i : i + batch],
+                        pm,
+                        pure=False,
+                        key=f"copies-{name}-{i}",
+                    )
                     tags[f.key] = ("copies", name, an)
                     ac.add(f)
             else:

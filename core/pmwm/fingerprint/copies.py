@@ -99,8 +99,10 @@ class AssetAnalysis:
         """The copy's progressive mesh: the shared connectivity and records, the copy's positions
         (decodes exactly to ``marked`` in the progressive mesh's vertex order)."""
         if self.pm is None:
-            raise ValueError("this asset was analysed without a progressive mesh (progressive=False); "
-                             "analyse it with one to write .pmwm copies")
+            raise ValueError(
+                "this asset was analysed without a progressive mesh (progressive=False); "
+                "analyse it with one to write .pmwm copies"
+            )
         return with_positions(self.pm, marked)
 
     def copy(self, c: np.ndarray, pm: bool = False) -> CopyFiles:
@@ -124,8 +126,14 @@ class AssetAnalysis:
         return out
 
 
-def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None, secret: Optional[str] = None,
-                  progress: Progress = None, progressive: bool = True) -> AssetAnalysis:
+def analyse_asset(
+    vertices,
+    faces,
+    options: Optional[FingerprintOptions] = None,
+    secret: Optional[str] = None,
+    progress: Progress = None,
+    progressive: bool = True,
+) -> AssetAnalysis:
     """Analyse an asset, vertices (n, 3) float64, faces (m, 3) int64, for fingerprinting with the
     key's ``secret`` (None: drawn from ``options.seed``, or fresh). ``progressive``: build the
     progressive mesh the copies share (False: none, for copies without .pmwm files; the same sites,
@@ -141,10 +149,28 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
     # the progressive mesh every copy shares (of the unmarked asset), built beside the analysis: its set-up
     # while the sites are placed, its passes, once the readable sites are known, beside the rest
     keep = Later()
-    with loading_engine(), beside(progressive, build_progressive_mesh, V, F, protected=keep, adjacency=adj,
-                                  base_vertices=base_vertex_count(opts.base_ratio, len(V))) as building:
-        an = analyse(V, F, secret, strength, max(1, int(opts.n_sites) // SITES_PER_BIT), SITES_PER_BIT,
-                     report=lambda f, m: report(0.5 * f, m), adj=adj)
+    with (
+        loading_engine(),
+        beside(
+            progressive,
+            build_progressive_mesh,
+            V,
+            F,
+            protected=keep,
+            adjacency=adj,
+            base_vertices=base_vertex_count(opts.base_ratio, len(V)),
+        ) as building,
+    ):
+        an = analyse(
+            V,
+            F,
+            secret,
+            strength,
+            max(1, int(opts.n_sites) // SITES_PER_BIT),
+            SITES_PER_BIT,
+            report=lambda f, m: report(0.5 * f, m),
+            adj=adj,
+        )
         S = an.n_sites
         # which sites read: decided on a keyed reference copy, the same for every recipient
         ref = codeword(secret, "\0reference", S).astype(np.float64)
@@ -152,14 +178,31 @@ def analyse_asset(vertices, faces, options: Optional[FingerprintOptions] = None,
         if progressive:
             keep.set(an.protected(usable | centre_ok))
         frame = surface_frame(V, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
-        data = dataclasses.replace(an.site, bit=np.arange(S), chip=np.ones(S), usable=usable, centre_ok=centre_ok,
-                                   swirl_ok=swirl_ok, index_ok=index_ok, frame=frame)
+        data = dataclasses.replace(
+            an.site,
+            bit=np.arange(S),
+            chip=np.ones(S),
+            usable=usable,
+            centre_ok=centre_ok,
+            swirl_ok=swirl_ok,
+            index_ok=index_ok,
+            frame=frame,
+        )
         data = RobustKeyData.from_extra(data.to_extra(), S, len(V))  # as the key file will read
         pm = building.result(lambda f, m: report(0.6 + 0.35 * f, m))[0] if progressive else None
-    key = make_key(secret, np.zeros(S, np.uint8), "bits", strength, V, F, V, an.adj, pm, np.zeros(0, np.int64),
-                   NAME, data=data)
+    key = make_key(
+        secret, np.zeros(S, np.uint8), "bits", strength, V, F, V, an.adj, pm, np.zeros(0, np.int64), NAME, data=data
+    )
     head, body = ply_parts(len(V), F, comment=b"pmwm fingerprinted copy")
     report(1.0, "analysed")
-    return AssetAnalysis(sites=an, key=key, options=opts, bump=np.where(dead, 0.0, 1.0),
-                         swirl=np.where(dead | no_swirl, 0.0, 1.0), pm=pm, asset_sha256=mesh_sha256(V, F, "<f8"),
-                         _ply_head=head, _ply_faces=body)
+    return AssetAnalysis(
+        sites=an,
+        key=key,
+        options=opts,
+        bump=np.where(dead, 0.0, 1.0),
+        swirl=np.where(dead | no_swirl, 0.0, 1.0),
+        pm=pm,
+        asset_sha256=mesh_sha256(V, F, "<f8"),
+        _ply_head=head,
+        _ply_faces=body,
+    )

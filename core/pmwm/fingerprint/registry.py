@@ -27,8 +27,17 @@ from ..schemes.robust.keydata import RobustKeyData
 from .codes import check_recipient_id, key_id, unpack_codewords
 from .copies import FingerprintOptions
 
-__all__ = ["FingerprintKey", "Registry", "RegistryEntry", "read_fingerprint_key", "write_fingerprint_key",
-           "read_registry", "write_registry", "read_recipients", "RegistryError"]
+__all__ = [
+    "FingerprintKey",
+    "Registry",
+    "RegistryEntry",
+    "read_fingerprint_key",
+    "write_fingerprint_key",
+    "read_registry",
+    "write_registry",
+    "read_recipients",
+    "RegistryError",
+]
 
 KEY_FORMAT, REGISTRY_FORMAT, VERSION = "pmwm-fingerprint-key", "pmwm-fingerprint-registry", 1
 
@@ -70,24 +79,34 @@ class FingerprintKey:
         return self.key.n_bits
 
     def to_json(self) -> str:
-        doc = {"format": KEY_FORMAT, "version": VERSION, "key_id": self.key_id, "options": self.options.to_dict(),
-               "asset_sha256": self.asset_sha256, "key": json.loads(self.key.to_json())}
+        doc = {
+            "format": KEY_FORMAT,
+            "version": VERSION,
+            "key_id": self.key_id,
+            "options": self.options.to_dict(),
+            "asset_sha256": self.asset_sha256,
+            "key": json.loads(self.key.to_json()),
+        }
         return json_text(doc)
 
     @classmethod
     def from_json(cls, doc: dict, name: str = "the key") -> "FingerprintKey":
         if not isinstance(doc, dict) or doc.get("format") != KEY_FORMAT:
-            raise KeyFileError(f"{name} is not a fingerprinting key (no \"format\": \"{KEY_FORMAT}\"); "
-                               "give the --key written by pmwm fingerprint")
+            raise KeyFileError(
+                f'{name} is not a fingerprinting key (no "format": "{KEY_FORMAT}"); '
+                "give the --key written by pmwm fingerprint"
+            )
         if doc.get("version") != VERSION:
-            raise KeyFileError(f"{name} is fingerprinting key version {doc.get('version')!r}; "
-                               f"this pmwm reads {VERSION}")
+            raise KeyFileError(
+                f"{name} is fingerprinting key version {doc.get('version')!r}; this pmwm reads {VERSION}"
+            )
         try:
             key = WatermarkKey.from_json(json.dumps(doc["key"]), name)
             key.data = RobustKeyData.from_extra(key.extra, key.n_bits, key.n_vertices)
             o = doc["options"]
-            opts = FingerprintOptions(strength=float(o["strength"]), n_sites=int(o["n_sites"]),
-                                      base_ratio=float(o["base_ratio"]))
+            opts = FingerprintOptions(
+                strength=float(o["strength"]), n_sites=int(o["n_sites"]), base_ratio=float(o["base_ratio"])
+            )
             return cls(key, opts, str(doc["asset_sha256"]))
         except (KeyError, TypeError, ValueError) as exc:
             raise KeyFileError(f"{name} lacks or garbles a field ({exc}); it is damaged") from None
@@ -127,8 +146,10 @@ class Registry:
     def check(self, fk: FingerprintKey, name: str = "the registry") -> None:
         """RegistryError unless this registry belongs to the key ``fk``."""
         if self.key_id != fk.key_id:
-            raise RegistryError(f"{name} belongs to another fingerprinting key (key id {self.key_id}, "
-                                f"the key's is {fk.key_id}); give the key and registry of the same asset")
+            raise RegistryError(
+                f"{name} belongs to another fingerprinting key (key id {self.key_id}, "
+                f"the key's is {fk.key_id}); give the key and registry of the same asset"
+            )
         if self.asset_sha256 != fk.asset_sha256 or self.n_sites != fk.n_sites:
             raise RegistryError(f"{name} was written for another asset than the key's; it is damaged")
 
@@ -141,24 +162,31 @@ class Registry:
             raise RegistryError(f"the registry's codewords are damaged ({exc})") from None
 
     def to_json(self) -> str:
-        doc = {"format": REGISTRY_FORMAT, "version": VERSION, "key_id": self.key_id,
-               "asset_sha256": self.asset_sha256, "n_sites": self.n_sites,
-               "recipients": [{"id": r, "codeword": self.entries[r].codeword,
-                               "files": dict(sorted(self.entries[r].files.items()))}
-                              for r in sorted(self.entries)]}  # sorted: the same file whatever order copies came in
+        doc = {
+            "format": REGISTRY_FORMAT,
+            "version": VERSION,
+            "key_id": self.key_id,
+            "asset_sha256": self.asset_sha256,
+            "n_sites": self.n_sites,
+            "recipients": [
+                {"id": r, "codeword": self.entries[r].codeword, "files": dict(sorted(self.entries[r].files.items()))}
+                for r in sorted(self.entries)
+            ],
+        }  # sorted: the same file whatever order copies came in
         return json.dumps(doc, indent=0) + "\n"
 
     @classmethod
     def from_json(cls, doc: dict, name: str = "the registry") -> "Registry":
         if not isinstance(doc, dict) or doc.get("format") != REGISTRY_FORMAT:
-            raise RegistryError(f"{name} is not a fingerprinting registry (no \"format\": \"{REGISTRY_FORMAT}\")")
+            raise RegistryError(f'{name} is not a fingerprinting registry (no "format": "{REGISTRY_FORMAT}")')
         if doc.get("version") != VERSION:
             raise RegistryError(f"{name} is registry version {doc.get('version')!r}; this pmwm reads {VERSION}")
         try:
             reg = cls(str(doc["key_id"]), str(doc["asset_sha256"]), int(doc["n_sites"]))
             for r in doc["recipients"]:
                 reg.entries[check_recipient_id(r["id"])] = RegistryEntry(
-                    str(r["codeword"]), {str(k): str(v) for k, v in dict(r["files"]).items()})
+                    str(r["codeword"]), {str(k): str(v) for k, v in dict(r["files"]).items()}
+                )
         except (KeyError, TypeError, ValueError, PayloadError) as exc:
             raise RegistryError(f"{name} lacks or garbles a field ({exc}); it is damaged") from None
         return reg

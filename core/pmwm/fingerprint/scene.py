@@ -33,9 +33,21 @@ from .copies import FingerprintOptions, analyse_asset
 from .registry import KEY_FORMAT, FingerprintKey, Registry, RegistryEntry, RegistryError, _read_json
 from .trace import TraceResult, site_readings
 
-__all__ = ["SCENE_KEY_FORMAT", "SCENE_REGISTRY_FORMAT", "SceneFingerprintKey", "SceneRegistry", "SceneAnalysis",
-           "read_any_fingerprint_key", "read_scene_registry", "prepare_scene", "open_scene_registry",
-           "scene_pending", "add_copy", "fingerprint_scene", "trace_objects"]
+__all__ = [
+    "SCENE_KEY_FORMAT",
+    "SCENE_REGISTRY_FORMAT",
+    "SceneFingerprintKey",
+    "SceneRegistry",
+    "SceneAnalysis",
+    "read_any_fingerprint_key",
+    "read_scene_registry",
+    "prepare_scene",
+    "open_scene_registry",
+    "scene_pending",
+    "add_copy",
+    "fingerprint_scene",
+    "trace_objects",
+]
 
 SCENE_KEY_FORMAT, SCENE_REGISTRY_FORMAT, VERSION = "pmwm-scene-fingerprint-key", "pmwm-scene-fingerprint-registry", 1
 REGISTRY_NAME = "registry.json"
@@ -49,9 +61,13 @@ class SceneFingerprintKey:
     keys: list
 
     def to_json(self) -> str:
-        return json_text({"format": SCENE_KEY_FORMAT, "version": VERSION,
-                          "objects": [{"name": n, "key": json.loads(k.to_json())}
-                                      for n, k in zip(self.names, self.keys)]})
+        return json_text(
+            {
+                "format": SCENE_KEY_FORMAT,
+                "version": VERSION,
+                "objects": [{"name": n, "key": json.loads(k.to_json())} for n, k in zip(self.names, self.keys)],
+            }
+        )
 
 
 def read_any_fingerprint_key(path) -> "FingerprintKey | SceneFingerprintKey":
@@ -61,16 +77,26 @@ def read_any_fingerprint_key(path) -> "FingerprintKey | SceneFingerprintKey":
     if not (isinstance(doc, dict) and doc.get("format") == SCENE_KEY_FORMAT):
         return FingerprintKey.from_json(doc, name)
     if doc.get("version") != VERSION:
-        raise KeyFileError(f"{name} is scene fingerprinting key version {doc.get('version')!r}; this pmwm reads "
-                           f"{VERSION}")
+        raise KeyFileError(
+            f"{name} is scene fingerprinting key version {doc.get('version')!r}; this pmwm reads {VERSION}"
+        )
     objects = doc.get("objects")
-    if not isinstance(objects, list) or not objects or not all(
-            isinstance(o, dict) and isinstance(o.get("name"), str) and isinstance(o.get("key"), dict)
-            and o["key"].get("format") == KEY_FORMAT for o in objects):
+    if (
+        not isinstance(objects, list)
+        or not objects
+        or not all(
+            isinstance(o, dict)
+            and isinstance(o.get("name"), str)
+            and isinstance(o.get("key"), dict)
+            and o["key"].get("format") == KEY_FORMAT
+            for o in objects
+        )
+    ):
         raise KeyFileError(f"{name} is a damaged scene fingerprinting key (its objects are missing or malformed)")
-    return SceneFingerprintKey([o["name"] for o in objects],
-                               [FingerprintKey.from_json(o["key"], f"{name} (object {o['name']!r})")
-                                for o in objects])
+    return SceneFingerprintKey(
+        [o["name"] for o in objects],
+        [FingerprintKey.from_json(o["key"], f"{name} (object {o['name']!r})") for o in objects],
+    )
 
 
 @dataclass
@@ -87,15 +113,27 @@ class SceneRegistry:
     def check(self, sfk: SceneFingerprintKey, name: str = "the registry") -> None:
         """RegistryError unless this registry belongs to the scene key ``sfk``."""
         if self.names != sfk.names:
-            raise RegistryError(f"{name} names the objects {self.names}, the key {sfk.names}; give the key and "
-                                "registry of the same scene")
+            raise RegistryError(
+                f"{name} names the objects {self.names}, the key {sfk.names}; give the key and "
+                "registry of the same scene"
+            )
         for reg, fk, obj in zip(self.registries, sfk.keys, self.names):
             reg.check(fk, f"{name} (object {obj!r})")
 
     def to_json(self) -> str:
-        return json.dumps({"format": SCENE_REGISTRY_FORMAT, "version": VERSION,
-                           "objects": [{"name": n, "registry": json.loads(r.to_json())}
-                                       for n, r in zip(self.names, self.registries)]}, indent=0) + "\n"
+        return (
+            json.dumps(
+                {
+                    "format": SCENE_REGISTRY_FORMAT,
+                    "version": VERSION,
+                    "objects": [
+                        {"name": n, "registry": json.loads(r.to_json())} for n, r in zip(self.names, self.registries)
+                    ],
+                },
+                indent=0,
+            )
+            + "\n"
+        )
 
 
 def read_scene_registry(path) -> SceneRegistry:
@@ -103,12 +141,15 @@ def read_scene_registry(path) -> SceneRegistry:
     name = os.fspath(path)
     doc = _read_json(path, "fingerprinting registry", RegistryError)
     if not (isinstance(doc, dict) and doc.get("format") == SCENE_REGISTRY_FORMAT) or doc.get("version") != VERSION:
-        raise RegistryError(f"{name} is not the registry of a fingerprinted scene (give the registry.json written "
-                            "with the scene's copies)")
+        raise RegistryError(
+            f"{name} is not the registry of a fingerprinted scene (give the registry.json written "
+            "with the scene's copies)"
+        )
     try:
-        return SceneRegistry([str(o["name"]) for o in doc["objects"]],
-                             [Registry.from_json(o["registry"], f"{name} (object {o['name']!r})")
-                              for o in doc["objects"]])
+        return SceneRegistry(
+            [str(o["name"]) for o in doc["objects"]],
+            [Registry.from_json(o["registry"], f"{name} (object {o['name']!r})") for o in doc["objects"]],
+        )
     except (KeyError, TypeError) as exc:
         raise RegistryError(f"{name} lacks or garbles a field ({exc}); it is damaged") from None
 
@@ -119,17 +160,24 @@ def _analyses(asset, asset_path: str, key_path: str, options: Optional[Fingerpri
     objects = asset.objects
     if os.path.exists(key_path):
         sfk = read_any_fingerprint_key(key_path)
-        if not isinstance(sfk, SceneFingerprintKey) or sfk.names != [o.name for o in objects] or any(
-                fk.asset_sha256 != mesh_sha256(o.vertices, o.faces, "<f8") for fk, o in zip(sfk.keys, objects)):
-            raise KeyFileError(f"{key_path} is not the fingerprinting key of the scene {asset_path}; give that "
-                               "scene's key, or a new --key path")
+        if (
+            not isinstance(sfk, SceneFingerprintKey)
+            or sfk.names != [o.name for o in objects]
+            or any(fk.asset_sha256 != mesh_sha256(o.vertices, o.faces, "<f8") for fk, o in zip(sfk.keys, objects))
+        ):
+            raise KeyFileError(
+                f"{key_path} is not the fingerprinting key of the scene {asset_path}; give that "
+                "scene's key, or a new --key path"
+            )
         ans = []
         for fk, o in zip(sfk.keys, objects):
             opts = FingerprintOptions(fk.options.strength, fk.options.n_sites, fk.options.base_ratio)
             an = analyse_asset(o.vertices, o.faces, opts, secret=fk.key.secret, progressive=False)
             if not np.array_equal(an.key.data.origin, fk.key.data.origin):
-                raise KeyFileError(f"this pmwm analyses {asset_path} differently from the one that wrote {key_path}; "
-                                   "use the same pmwm version")
+                raise KeyFileError(
+                    f"this pmwm analyses {asset_path} differently from the one that wrote {key_path}; "
+                    "use the same pmwm version"
+                )
             ans.append(an)
         return ans, sfk
     opts = options or FingerprintOptions()
@@ -137,12 +185,20 @@ def _analyses(asset, asset_path: str, key_path: str, options: Optional[Fingerpri
     ans = []
     for i, o in enumerate(objects):
         try:
-            ans.append(analyse_asset(o.vertices, o.faces, replace(opts, seed=None), progressive=False,
-                                     secret=make_secret(derive_seed(master, f"scene-object:{i}"))))
+            ans.append(
+                analyse_asset(
+                    o.vertices,
+                    o.faces,
+                    replace(opts, seed=None),
+                    progressive=False,
+                    secret=make_secret(derive_seed(master, f"scene-object:{i}")),
+                )
+            )
         except PmwmError as exc:
             raise type(exc)(f"object {o.name!r}: {exc}") from None
-    sfk = SceneFingerprintKey([o.name for o in objects],
-                              [FingerprintKey(an.key, an.options, an.asset_sha256) for an in ans])
+    sfk = SceneFingerprintKey(
+        [o.name for o in objects], [FingerprintKey(an.key, an.options, an.asset_sha256) for an in ans]
+    )
     atomic_write_bytes(key_path, sfk.to_json().encode(), mode=0o600)
     return ans, sfk
 
@@ -169,8 +225,9 @@ class SceneAnalysis:
         return {os.path.basename(p): file_sha256(p) for p in written}
 
 
-def prepare_scene(asset_path, key_path, options: Optional[FingerprintOptions] = None,
-                  asset=None) -> Optional[SceneAnalysis]:
+def prepare_scene(
+    asset_path, key_path, options: Optional[FingerprintOptions] = None, asset=None
+) -> Optional[SceneAnalysis]:
     """The scene at ``asset_path`` (``asset``: as read already by ``pmwm.scene.read_asset``) analysed with
     the key at ``key_path`` (written when new), or None when the file holds one mesh
     (``asset.prepare_asset`` fingerprints it)."""
@@ -194,8 +251,15 @@ def open_scene_registry(out_dir, sfk: SceneFingerprintKey) -> SceneRegistry:
 def scene_pending(sreg: SceneRegistry, out_dir, recipients, ext: str) -> list:
     """The recipients whose copy is not registered with its files on disk intact."""
     first = sreg.registries[0]
-    return [r for r in recipients if not (r in first.entries and r + ext in first.entries[r].files and all(
-        _on_disk(os.path.join(out_dir, f), sha) for f, sha in first.entries[r].files.items()))]
+    return [
+        r
+        for r in recipients
+        if not (
+            r in first.entries
+            and r + ext in first.entries[r].files
+            and all(_on_disk(os.path.join(out_dir, f), sha) for f, sha in first.entries[r].files.items())
+        )
+    ]
 
 
 def add_copy(sreg: SceneRegistry, recipient: str, codes: list, files: dict) -> None:
@@ -206,8 +270,9 @@ def add_copy(sreg: SceneRegistry, recipient: str, codes: list, files: dict) -> N
         reg.entries[recipient] = entry
 
 
-def fingerprint_scene(scene: SceneAnalysis, recipients, out_dir,
-                      progress: Optional[Callable[[int, int], None]] = None) -> FingerprintRun:
+def fingerprint_scene(
+    scene: SceneAnalysis, recipients, out_dir, progress: Optional[Callable[[int, int], None]] = None
+) -> FingerprintRun:
     """Write the analysed scene's copies for ``recipients`` into ``out_dir`` (created): ``<recipient><ext>``
     each (the scene's own format) and registry.json (see the module docstring). ``progress(done, total)``
     after each copy."""
@@ -231,8 +296,7 @@ def fingerprint_scene(scene: SceneAnalysis, recipients, out_dir,
             progress(i + 1, len(todo))
     atomic_write_bytes(path, sreg.to_json().encode(), force=True)
     again = set(todo)
-    return FingerprintRun(todo, [r for r in recipients if r not in again], sreg, path, 0.0,
-                          time.perf_counter() - t1)
+    return FingerprintRun(todo, [r for r in recipients if r not in again], sreg, path, 0.0, time.perf_counter() - t1)
 
 
 def trace_objects(objects, sfk: SceneFingerprintKey, sreg: SceneRegistry, p_threshold: float = 1e-6) -> TraceResult:

@@ -16,7 +16,21 @@ from .mesh import ProgressiveMesh, base_vertex_count, with_positions
 from .records import ENDS_SHIFT, FLAG_SECOND, FLAG_SINGLE, MAX_FAN, NO_END
 
 __all__ = [
-    "ProgressiveMesh", "build_progressive_mesh", "with_positions", "base_vertex_count",
-    "to_bytes", "from_bytes", "read_pm", "write_pm", "record_size", "MAGIC", "VERSION", "HEADER",
-    "ENDS_SHIFT", "FLAG_SECOND", "FLAG_SINGLE", "MAX_FAN", "NO_END",
+    "ProgressiveMesh",
+    "build_progressive_mesh",
+    "with_positions",
+    "base_vertex_count",
+    "to_bytes",
+    "from_bytes",
+    "read_pm",
+    "write_pm",
+    "record_size",
+    "MAGIC",
+    "VERSION",
+    "HEADER",
+    "ENDS_SHIFT",
+    "FLAG_SECOND",
+    "FLAG_SINGLE",
+    "MAX_FAN",
+    "NO_END",
 ]

@@ -69,9 +69,17 @@ def build_progressive_mesh(
         keep[:] = np.asarray(protected, bool)
     bbox = bbox_diagonal(V) if n else 1.0
     boundary = boundary_half_edges(F0, adj0)
-    verts, live = _start(V, F0, vertex_quadrics(V, F0, boundary), removable=~locked & ~keep, locked=locked,
-                         on_boundary=adj0.boundary_vertex, boundary=boundary,
-                         tiebreak=np.random.default_rng(n).permutation(n), area_eps=(1e-12 * bbox) ** 2)
+    verts, live = _start(
+        V,
+        F0,
+        vertex_quadrics(V, F0, boundary),
+        removable=~locked & ~keep,
+        locked=locked,
+        on_boundary=adj0.boundary_vertex,
+        boundary=boundary,
+        tiebreak=np.random.default_rng(n).permutation(n),
+        area_eps=(1e-12 * bbox) ** 2,
+    )
     if callable(protected):
         protect(verts, live, np.asarray(protected(), bool))
 
@@ -131,9 +139,18 @@ def build_progressive_mesh(
     return pm, forced_done
 
 
-def _start(V: np.ndarray, F: np.ndarray, quadrics: np.ndarray, *, removable: np.ndarray, locked: np.ndarray,
-           on_boundary: np.ndarray, boundary: np.ndarray, tiebreak: np.ndarray,
-           area_eps: float) -> tuple[EncoderVertices, LiveMesh]:
+def _start(
+    V: np.ndarray,
+    F: np.ndarray,
+    quadrics: np.ndarray,
+    *,
+    removable: np.ndarray,
+    locked: np.ndarray,
+    on_boundary: np.ndarray,
+    boundary: np.ndarray,
+    tiebreak: np.ndarray,
+    area_eps: float,
+) -> tuple[EncoderVertices, LiveMesh]:
     """The encoder's state before the first pass, every corner's costs computed: V (n, 3), F (m, 3),
     ``quadrics`` (n, 10), per vertex (n,) ``removable``, ``locked``, ``on_boundary`` and ``tiebreak``,
     ``boundary`` (m, 3) the boundary half-edges. The vertex arrays get one more entry: the sink n
@@ -145,11 +162,24 @@ def _start(V: np.ndarray, F: np.ndarray, quadrics: np.ndarray, *, removable: np.
     Vs[:n] = V
     locked = np.r_[locked, True]
     verts = EncoderVertices(
-        positions=Vs, coords=np.ascontiguousarray(Vs.T), monomials=monomials(Vs), tiebreak=np.r_[tiebreak, n],
-        quadrics=Q, own_error=quadric_values(Q.T, Vs.T), removable=np.r_[removable, False], locked=locked,
-        on_boundary=np.r_[on_boundary, False], area_eps=area_eps)
-    live = LiveMesh(faces=F.copy(), face_ids=np.arange(m, dtype=np.int64), boundary=boundary,
-                    forward_cost=np.empty((m, 3)), reverse_cost=np.full((m, 3), np.inf))
+        positions=Vs,
+        coords=np.ascontiguousarray(Vs.T),
+        monomials=monomials(Vs),
+        tiebreak=np.r_[tiebreak, n],
+        quadrics=Q,
+        own_error=quadric_values(Q.T, Vs.T),
+        removable=np.r_[removable, False],
+        locked=locked,
+        on_boundary=np.r_[on_boundary, False],
+        area_eps=area_eps,
+    )
+    live = LiveMesh(
+        faces=F.copy(),
+        face_ids=np.arange(m, dtype=np.int64),
+        boundary=boundary,
+        forward_cost=np.empty((m, 3)),
+        reverse_cost=np.full((m, 3), np.inf),
+    )
     update_costs(verts, live, np.arange(3 * m))
     return verts, live
 
@@ -164,8 +194,17 @@ def collapse_costs(vertices: np.ndarray, faces: np.ndarray, quadrics: np.ndarray
     F = np.ascontiguousarray(faces, dtype=np.int64).reshape(-1, 3)
     n = len(V)
     none = np.zeros(n, bool)
-    verts, live = _start(V, F, quadrics, removable=~none, locked=none, on_boundary=none,
-                         boundary=np.zeros(F.shape, bool), tiebreak=np.arange(n), area_eps=0.0)
+    verts, live = _start(
+        V,
+        F,
+        quadrics,
+        removable=~none,
+        locked=none,
+        on_boundary=none,
+        boundary=np.zeros(F.shape, bool),
+        tiebreak=np.arange(n),
+        area_eps=0.0,
+    )
     cheapest, forward, _ = cheapest_costs(verts, live)
     return forward, cheapest[:n]
 
@@ -187,8 +226,14 @@ def _end_rank_bits(ends: np.ndarray, rec: np.ndarray, rank: np.ndarray, sizes: n
     return np.where(sizes > ENDS_SHIFT, np.uint64(0), out)
 
 
-def _assemble(V: np.ndarray, F0: np.ndarray, F_end: np.ndarray, fid_end: np.ndarray, alive: np.ndarray,
-              passes: list[CollapsedPass]) -> ProgressiveMesh:
+def _assemble(
+    V: np.ndarray,
+    F0: np.ndarray,
+    F_end: np.ndarray,
+    fid_end: np.ndarray,
+    alive: np.ndarray,
+    passes: list[CollapsedPass],
+) -> ProgressiveMesh:
     """Number vertices and faces in refinement order and encode the records: V (n, 3) and F0 (m, 3) the
     input, F_end (fb, 3) the base faces (input vertex ids) and fid_end (fb,) their input face ids,
     ``alive`` (n,) bool the base vertices, ``passes`` in build order."""

@@ -89,9 +89,16 @@ def apply_collapses(verts: EncoderVertices, live: LiveMesh, chosen: Collapses, f
     order, _ = stable_order(fan_rec)
     fan_ptr = np.zeros(k + 1, np.int64)
     np.cumsum(np.bincount(fan_rec, minlength=k), out=fan_ptr[1:])
-    done = CollapsedPass(u=u.copy(), v=v.copy(), flags=flags, dead=dead, fan_ptr=fan_ptr,
-                         fan=np.take(live.face_ids, np.take(fan_face, order)), arc=np.take(fan_arc, order),
-                         ends=np.take(np.pad(ends_arc, ((0, 0), (0, len(cv_kept)))), order, axis=1))
+    done = CollapsedPass(
+        u=u.copy(),
+        v=v.copy(),
+        flags=flags,
+        dead=dead,
+        fan_ptr=fan_ptr,
+        fan=np.take(live.face_ids, np.take(fan_face, order)),
+        arc=np.take(fan_arc, order),
+        ends=np.take(np.pad(ends_arc, ((0, 0), (0, len(cv_kept)))), order, axis=1),
+    )
     # apply: rewrite u -> v in the arc faces, retire the dead faces to the sink, merge the quadrics
     flat[cu_arc] = np.take(v, ru_arc)
     gone_c = (gone * 3)[:, None] + np.arange(3)

@@ -21,9 +21,18 @@ from ..adjacency import stable_order, unique_values
 from .records import ENDS_SHIFT, FLAG_SECOND, FLAG_SINGLE, NO_END, TO_NEXT_CORNER, TO_PREV_CORNER
 
 
-def decode_prefix(base_vertices: np.ndarray, base_faces: np.ndarray, pos: np.ndarray, v: np.ndarray,
-                  mask: np.ndarray, flags: np.ndarray, level_records: np.ndarray, k: int, *,
-                  end_ranks: bool) -> tuple[np.ndarray, np.ndarray]:
+def decode_prefix(
+    base_vertices: np.ndarray,
+    base_faces: np.ndarray,
+    pos: np.ndarray,
+    v: np.ndarray,
+    mask: np.ndarray,
+    flags: np.ndarray,
+    level_records: np.ndarray,
+    k: int,
+    *,
+    end_ranks: bool,
+) -> tuple[np.ndarray, np.ndarray]:
     """Apply the first ``k`` records to the base mesh, level by level (the fields of a ``ProgressiveMesh``);
     returns ``(V (nb + k, 3) float64, F (m, 3) int64)``.
 
@@ -66,8 +75,9 @@ class RecordTable:
     # row (NO_END, or a rank past _ROW_SLOTS - 3): a batch with any of them finds p and q by the sums
 
     @staticmethod
-    def of(v: np.ndarray, mask: np.ndarray, flags: np.ndarray, k: int, nb: int, nf: int, *,
-           end_ranks: bool) -> "RecordTable":
+    def of(
+        v: np.ndarray, mask: np.ndarray, flags: np.ndarray, k: int, nb: int, nf: int, *, end_ranks: bool
+    ) -> "RecordTable":
         """The table of the first ``k`` records of a progressive mesh with ``nb`` base vertices and
         ``nf`` base faces."""
         flags = flags[:k]
@@ -95,9 +105,17 @@ class RecordTable:
             end_slots = np.stack([top & NO_END, top >> 6])
             np.cumsum((end_slots >= _ROW_SLOTS - 2).any(axis=0), out=n_without_ends[1:])  # (NO_END among them)
             end_slots += v * _ROW_SLOTS
-        return RecordTable(v=v, mask=mask[:k], u=u, n_new_faces=two.astype(np.int64) + 1,
-                           has_pq=np.stack([has_first, ~has_first | two]), corner_slots=slots,
-                           n_faces=n_faces, end_slots=end_slots, n_without_ends=n_without_ends)
+        return RecordTable(
+            v=v,
+            mask=mask[:k],
+            u=u,
+            n_new_faces=two.astype(np.int64) + 1,
+            has_pq=np.stack([has_first, ~has_first | two]),
+            corner_slots=slots,
+            n_faces=n_faces,
+            end_slots=end_slots,
+            n_without_ends=n_without_ends,
+        )
 
     def fill_faces(self, new: np.ndarray) -> None:
         """Write the faces the records add, ``new`` (m, 3) in record order, as [u, v, v]: each is
@@ -189,8 +207,9 @@ class CornerTable:
             self.make_room(top + 1)
             big = slot >= _ROW_SLOTS
             s = np.flatnonzero(big)
-            self.overflow.reshape(-1)[np.take(x, s) * self.overflow.shape[1] + np.take(slot, s) - _ROW_SLOTS] = (
-                np.take(val, s))
+            self.overflow.reshape(-1)[np.take(x, s) * self.overflow.shape[1] + np.take(slot, s) - _ROW_SLOTS] = np.take(
+                val, s
+            )
             s = np.flatnonzero(~big)
             x, slot, val = np.take(x, s), np.take(slot, s), np.take(val, s)
         self.fast.reshape(-1)[x * _ROW_SLOTS + slot] = val
@@ -218,14 +237,20 @@ def _split_batch(rec: RecordTable, F: np.ndarray, first_u: int, start: int, stop
     new = rec.corner_slots[:4, start:stop] if stop < len(rec.v) else None
     if deg_v.max(initial=0) <= _ROW_SLOTS - 2:
         # the corners that end the arcs, read before the lists change (p after, q before them)
-        ends = (None if rec.end_slots is None or rec.n_without_ends[stop] > rec.n_without_ends[start]
-                else corners.fast.reshape(-1).take(rec.end_slots[:, start:stop]))
+        ends = (
+            None
+            if rec.end_slots is None or rec.n_without_ends[stop] > rec.n_without_ends[start]
+            else corners.fast.reshape(-1).take(rec.end_slots[:, start:stop])
+        )
         moved, n_moved = _move_corners_fast(corners, v, slice(first_u, first_u + n_rec), mask, deg_v, new)
         flat[moved] = u.repeat(n_moved)
         # (a rank past v's degree, only in corrupt data, reads a stale slot: a corner of an earlier
         # face, whose vertices are written; p and q are then wrong but vertices of the mesh)
-        pq = (_arc_ends(flat, moved, n_moved, first_u + n_rec) if ends is None
-              else flat.take(ends + _END_OFFSET.take(ends % 3 + _END_ROW)))
+        pq = (
+            _arc_ends(flat, moved, n_moved, first_u + n_rec)
+            if ends is None
+            else flat.take(ends + _END_OFFSET.take(ends % 3 + _END_ROW))
+        )
     else:
         n_moved = np.empty(n_rec, dtype=np.int64)
         pq = np.empty((2, n_rec), dtype=np.int64)
@@ -233,8 +258,9 @@ def _split_batch(rec: RecordTable, F: np.ndarray, first_u: int, start: int, stop
         fast, wide = np.flatnonzero(fast), np.flatnonzero(~fast)
         for sel, move in [(wide, _move_corners_wide), (fast, _move_corners_fast)]:
             u_sel = u.take(sel)
-            moved, n_sel = move(corners, v.take(sel), u_sel, mask.take(sel), deg_v.take(sel),
-                                None if new is None else new[:, sel])
+            moved, n_sel = move(
+                corners, v.take(sel), u_sel, mask.take(sel), deg_v.take(sel), None if new is None else new[:, sel]
+            )
             flat[moved] = u_sel.repeat(n_sel)
             n_moved[sel] = n_sel
             pq[:, sel] = _arc_ends(flat, moved, n_sel, first_u + n_rec)
@@ -255,8 +281,9 @@ def _split_batch(rec: RecordTable, F: np.ndarray, first_u: int, start: int, stop
     degree[v] = n_kept + n_new
 
 
-def _move_corners_fast(corners: CornerTable, v: np.ndarray, u, mask: np.ndarray, deg_v: np.ndarray,
-                       new: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def _move_corners_fast(
+    corners: CornerTable, v: np.ndarray, u, mask: np.ndarray, deg_v: np.ndarray, new: Optional[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
     """Split the lists of v (degrees ``deg_v`` <= 14, rows of 16) into u's (the corners whose rank bit
     is set) and v's (the rest), each followed by its new corners ``new`` (4, len(v)): u's two, v's two
     (the second ones past the degree with one new face; None: the lists are not kept). u: an index
@@ -297,8 +324,9 @@ def _leading_slots(n: np.ndarray, width: int) -> np.ndarray:
     return (np.arange(0, width * len(n), width) - ends + n).repeat(n) + np.arange(int(ends[-1]) if len(n) else 0)
 
 
-def _move_corners_wide(corners: CornerTable, v: np.ndarray, u: np.ndarray, mask: np.ndarray, deg_v: np.ndarray,
-                       new: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def _move_corners_wide(
+    corners: CornerTable, v: np.ndarray, u: np.ndarray, mask: np.ndarray, deg_v: np.ndarray, new: Optional[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
     """``_move_corners_fast`` for any degree: rank masks by shifts and cumulative sums (ranks past 63,
     only in corrupt data, read bit 63)."""
     take = np.take

@@ -92,9 +92,7 @@ def from_bytes(data: bytes, name: str = "the file") -> ProgressiveMesh:
     if magic != MAGIC:
         raise PMFormatError(f"{name} is not a .pmwm progressive mesh (wrong magic bytes)")
     if version > VERSION:
-        raise PMFormatError(
-            f"{name} is .pmwm version {version}; this pmwm reads versions 1 to {VERSION}: upgrade pmwm"
-        )
+        raise PMFormatError(f"{name} is .pmwm version {version}; this pmwm reads versions 1 to {VERSION}: upgrade pmwm")
     if version < 1:
         raise PMFormatError(f"{name} has an invalid .pmwm version {version}")
     if flags & ~_FLAG_F64:
@@ -104,9 +102,7 @@ def from_bytes(data: bytes, name: str = "the file") -> ProgressiveMesh:
     rdt = _record_dtype(f64)
     expected = HEADER.size + nb * 3 * fsize + fb * 12 + nl * 4 + nr * rdt.itemsize + _DIGEST
     if len(data) != expected:
-        raise PMFormatError(
-            f"{name} is truncated or padded: its header promises {expected} bytes, it has {len(data)}"
-        )
+        raise PMFormatError(f"{name} is truncated or padded: its header promises {expected} bytes, it has {len(data)}")
     if hashlib.sha256(memoryview(data)[:-_DIGEST]).digest() != bytes(data[-_DIGEST:]):
         raise PMFormatError(f"{name} is corrupted (checksum mismatch); get a fresh copy")
     off = HEADER.size

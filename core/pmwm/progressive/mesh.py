@@ -62,8 +62,17 @@ class ProgressiveMesh:
         if vertices is not None:
             records = self.records_for_vertices(vertices)
         k = self.n_records if records is None else int(np.clip(records, 0, self.n_records))
-        return decode_prefix(self.base_vertices, self.base_faces, self.pos, self.v, self.mask, self.flags,
-                             self.level_records, k, end_ranks=self.end_ranks)
+        return decode_prefix(
+            self.base_vertices,
+            self.base_faces,
+            self.pos,
+            self.v,
+            self.mask,
+            self.flags,
+            self.level_records,
+            k,
+            end_ranks=self.end_ranks,
+        )
 
 
 def base_vertex_count(base_ratio: float, n_vertices: int) -> int:
@@ -78,8 +87,13 @@ def with_positions(pm: ProgressiveMesh, vertices: np.ndarray) -> ProgressiveMesh
     its own positions: it decodes exactly to ``vertices`` (in ``pm.vertex_order``)."""
     X = np.asarray(vertices, np.float64)
     if pm.vertex_order is None or len(X) != pm.n_vertices:
-        raise ValueError(f"with_positions needs one position per vertex of the progressive mesh ({pm.n_vertices}), "
-                         f"got {len(X)}")
+        raise ValueError(
+            f"with_positions needs one position per vertex of the progressive mesh ({pm.n_vertices}), got {len(X)}"
+        )
     order, nb = pm.vertex_order, pm.n_base_vertices
-    return dataclasses.replace(pm, base_vertices=X[order[:nb]], pos=X[order[nb:]],
-                               float32=bool(np.all(X.astype(np.float32).astype(np.float64) == X)))
+    return dataclasses.replace(
+        pm,
+        base_vertices=X[order[:nb]],
+        pos=X[order[nb:]],
+        float32=bool(np.all(X.astype(np.float32).astype(np.float64) == X)),
+    )

@@ -29,8 +29,16 @@ import numpy as np
 
 from ..errors import MeshError
 from .records import MAX_FAN, NEXT_CORNER, PREV_CORNER, TO_NEXT_CORNER, TO_PREV_CORNER
-from .state import (EncoderVertices, LiveMesh, any_in_row, cheapest_costs, compress, inverse_index, ring_minimum,
-                    tagged_corners)
+from .state import (
+    EncoderVertices,
+    LiveMesh,
+    any_in_row,
+    cheapest_costs,
+    compress,
+    inverse_index,
+    ring_minimum,
+    tagged_corners,
+)
 
 SELECTION_ROUNDS = 1  # Luby rounds per pass (more are only run while none was accepted)
 _N_BUCKETS = 16  # cost quantile buckets of the priorities
@@ -63,10 +71,14 @@ class Collapses:
         off = np.cumsum([0] + [len(p.u) for p in parts[:-1]])
         cat = np.concatenate
         return Collapses(
-            u=cat([p.u for p in parts]), v=cat([p.v for p in parts]),
-            u_corners=cat([p.u_corners for p in parts]), u_records=cat([p.u_records + o for p, o in zip(parts, off)]),
-            v_corners=cat([p.v_corners for p in parts]), v_records=cat([p.v_records + o for p, o in zip(parts, off)]),
-            near_faces=cat([p.near_faces for p in parts]))
+            u=cat([p.u for p in parts]),
+            v=cat([p.v for p in parts]),
+            u_corners=cat([p.u_corners for p in parts]),
+            u_records=cat([p.u_records + o for p, o in zip(parts, off)]),
+            v_corners=cat([p.v_corners for p in parts]),
+            v_records=cat([p.v_records + o for p, o in zip(parts, off)]),
+            near_faces=cat([p.near_faces for p in parts]),
+        )
 
     def subset(self, keep: np.ndarray) -> "Collapses":
         """The records ``keep`` ((k,) bool), renumbered."""
@@ -111,8 +123,9 @@ def _ring_owners(n_with_sink: int, x: np.ndarray, r: np.ndarray) -> tuple[np.nda
     return lo, hi, many
 
 
-def _in_ring(owners: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray,
-             r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _in_ring(
+    owners: tuple[np.ndarray, np.ndarray, np.ndarray], x: np.ndarray, r: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Whether vertex x[i] is in record r[i]'s 1-ring (by ``_ring_owners``), and whether that is undecided."""
     lo, hi, many = owners
     yes = (np.take(lo, x) == r) | (np.take(hi, x) == r)
@@ -151,8 +164,9 @@ def _try_winners(shared: SelectionRound, rows, wu: np.ndarray, value: np.ndarray
     pc = cu + take(TO_PREV_CORNER, cu % 3)  # the corner of the half-edge arriving at u
     cost_f, cost_r = take(forward, cu), take(reverse, pc)
     cheapest_w = take(take(cheapest, wu), ru)
-    cand = np.concatenate([np.where(cost_f == cheapest_w, 2 * cu, _INT_INF),
-                           np.where(cost_r == cheapest_w, 2 * pc + 1, _INT_INF)])
+    cand = np.concatenate(
+        [np.where(cost_f == cheapest_w, 2 * cu, _INT_INF), np.where(cost_r == cheapest_w, 2 * pc + 1, _INT_INF)]
+    )
     chosen = np.full(k, _INT_INF, np.int64)
     np.minimum.at(chosen, np.concatenate([ru, ru]), cand)
     is_reverse = (chosen & 1).astype(bool)
@@ -243,8 +257,9 @@ def _bucket_of(bounds: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
-def select_collapses(verts: EncoderVertices, live: LiveMesh, face_count: np.ndarray,
-                     rounds: Optional[int] = None) -> Collapses:
+def select_collapses(
+    verts: EncoderVertices, live: LiveMesh, face_count: np.ndarray, rounds: Optional[int] = None
+) -> Collapses:
     """Independent valid collapses u -> v, cheapest first (the module's rule), for one pass.
 
     ``face_count`` (n + 1,) the faces per local vertex; ``rounds``: Luby rounds (SELECTION_ROUNDS when
@@ -262,8 +277,17 @@ def select_collapses(verts: EncoderVertices, live: LiveMesh, face_count: np.ndar
     # (sorted first: numpy's SIMD sort and a selection in sorted data beat the selection alone)
     bounds = np.quantile(np.sort(finite[::step]), np.arange(1, _N_BUCKETS) / _N_BUCKETS)
     priority = (_bucket_of(bounds, cheapest).astype(np.int64) << 32) | verts.tiebreak
-    shared = SelectionRound(verts, live, face_count, cheapest, priority, bounds, np.zeros(n_with_sink + 1, bool),
-                       np.full(n_with_sink, -1, np.int64), [])
+    shared = SelectionRound(
+        verts,
+        live,
+        face_count,
+        cheapest,
+        priority,
+        bounds,
+        np.zeros(n_with_sink + 1, bool),
+        np.full(n_with_sink, -1, np.int64),
+        [],
+    )
     rows = None  # faces in play (None: all)
     F_play = F
     for r in range(64):
@@ -290,8 +314,9 @@ def select_collapses(verts: EncoderVertices, live: LiveMesh, face_count: np.ndar
     return Collapses.join(shared.accepted)
 
 
-def select_forced_collapses(verts: EncoderVertices, live: LiveMesh, face_count: np.ndarray,
-                            pairs: np.ndarray) -> Collapses:
+def select_forced_collapses(
+    verts: EncoderVertices, live: LiveMesh, face_count: np.ndarray, pairs: np.ndarray
+) -> Collapses:
     """The forced collapses ``pairs`` (k, 2) local (u, v) that can go in this pass, earliest first, u
     three edges apart."""
     n_with_sink = len(verts.removable)
@@ -324,8 +349,9 @@ def select_forced_collapses(verts: EncoderVertices, live: LiveMesh, face_count: 
     return Collapses.join(parts)
 
 
-def _valid_collapses(verts: EncoderVertices, live: LiveMesh, face_count, u, v, cu, ru, cv, rv, owners,
-                     check_flips=True) -> tuple[np.ndarray, np.ndarray]:
+def _valid_collapses(
+    verts: EncoderVertices, live: LiveMesh, face_count, u, v, cu, ru, cv, rv, owners, check_flips=True
+) -> tuple[np.ndarray, np.ndarray]:
     """Link condition, enough edges left, no new boundary, no flipped faces (optionally).
 
     ``u``, ``v`` (k,): the collapses; ``cu``, ``ru`` / ``cv``, ``rv``: the flat corners at the u / at

@@ -89,8 +89,9 @@ def _update_cost_block(verts: EncoderVertices, live: LiveMesh, corners: np.ndarr
     b = take(flat, corners + take(TO_NEXT_CORNER, corners % 3))
     on_boundary = take(live.boundary.ravel(), corners)
     allowed = take(verts.removable, a) & ~take(verts.locked, b) & (on_boundary == take(verts.on_boundary, a))
-    into_b = (np.einsum("ij,ij->i", take(verts.quadrics, a, axis=0), take(verts.monomials, b, axis=0))
-              + take(verts.own_error, b))
+    into_b = np.einsum("ij,ij->i", take(verts.quadrics, a, axis=0), take(verts.monomials, b, axis=0)) + take(
+        verts.own_error, b
+    )
     into_b[~allowed] = np.inf
     live.forward_cost.ravel()[corners] = into_b
     # (off the boundary the reverse cost stays inf, as it was made: a corner's side of the boundary
@@ -99,8 +100,9 @@ def _update_cost_block(verts: EncoderVertices, live: LiveMesh, corners: np.ndarr
     on = np.flatnonzero(on_boundary)
     if len(on):
         a, b = a[on], b[on]
-        into_a = (np.einsum("ij,ij->i", take(verts.quadrics, b, axis=0), take(verts.monomials, a, axis=0))
-                  + take(verts.own_error, a))
+        into_a = np.einsum("ij,ij->i", take(verts.quadrics, b, axis=0), take(verts.monomials, a, axis=0)) + take(
+            verts.own_error, a
+        )
         into_a[~(verts.removable[b] & ~verts.locked[a])] = np.inf
         reverse[corners[on]] = into_a
 
@@ -131,8 +133,9 @@ def protect(verts: EncoderVertices, live: LiveMesh, protected: np.ndarray) -> No
     update_costs(verts, live, np.flatnonzero((hit | hit[:, NEXT_CORNER]).ravel()))
 
 
-def compact(verts: EncoderVertices, live: LiveMesh, ids: np.ndarray,
-            keep: np.ndarray) -> tuple[EncoderVertices, np.ndarray]:
+def compact(
+    verts: EncoderVertices, live: LiveMesh, ids: np.ndarray, keep: np.ndarray
+) -> tuple[EncoderVertices, np.ndarray]:
     """Renumber the live vertices 0..k-1 (sink k) so that per-vertex work follows the shrinking mesh;
     ``ids`` (n,) the input id of each local vertex, ``keep`` (n,) bool the vertices still alive. Returns
     the renumbered vertices and their input ids."""
@@ -146,10 +149,17 @@ def compact(verts: EncoderVertices, live: LiveMesh, ids: np.ndarray,
     live.faces = new_id[live.faces]
     sel = np.r_[kept, n_local]  # the old sink's entries (locked, zero quadric) serve the new sink
     return EncoderVertices(
-        positions=verts.positions[sel], coords=np.take(verts.coords, sel, axis=1), monomials=verts.monomials[sel],
-        tiebreak=verts.tiebreak[sel], quadrics=verts.quadrics[sel], own_error=verts.own_error[sel],
-        removable=verts.removable[sel], locked=verts.locked[sel], on_boundary=verts.on_boundary[sel],
-        area_eps=verts.area_eps), ids[kept]
+        positions=verts.positions[sel],
+        coords=np.take(verts.coords, sel, axis=1),
+        monomials=verts.monomials[sel],
+        tiebreak=verts.tiebreak[sel],
+        quadrics=verts.quadrics[sel],
+        own_error=verts.own_error[sel],
+        removable=verts.removable[sel],
+        locked=verts.locked[sel],
+        on_boundary=verts.on_boundary[sel],
+        area_eps=verts.area_eps,
+    ), ids[kept]
 
 
 def compress(mask: np.ndarray, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -164,8 +174,7 @@ def any_in_row(m: np.ndarray) -> np.ndarray:
     return m[:, 0] | m[:, 1] | m[:, 2]
 
 
-def tagged_corners(F: np.ndarray, tag: np.ndarray,
-                   rows: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
+def tagged_corners(F: np.ndarray, tag: np.ndarray, rows: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
     """Flat corner ids (into F (m, 3)) whose vertex has tag >= 0, and their tags (int64); only faces
     ``rows`` if given."""
     t = np.take(tag, F.ravel() if rows is None else np.take(F, rows, axis=0).ravel())

@@ -16,8 +16,17 @@ from typing import Union
 import numpy as np
 
 from ..errors import MeshError
-from .asset import (SCENE_KEY_FORMAT, AssetMarking, SceneDetail, SceneKey, embed_objects, read_keys,
-                    union_bound, verify_objects, write_keys)
+from .asset import (
+    SCENE_KEY_FORMAT,
+    AssetMarking,
+    SceneDetail,
+    SceneKey,
+    embed_objects,
+    read_keys,
+    union_bound,
+    verify_objects,
+    write_keys,
+)
 from .canonical import SceneObject
 from .gltf import GltfScene, read_gltf
 from .obj import ObjScene, read_obj_scene
@@ -25,9 +34,23 @@ from .obj import ObjScene, read_obj_scene
 Asset = Union[GltfScene, ObjScene]
 SCENE_EXTENSIONS = (".glb", ".gltf", ".obj")
 
-__all__ = ["Asset", "SCENE_EXTENSIONS", "SceneObject", "read_asset", "read_objects", "write_asset",
-           "SCENE_KEY_FORMAT", "AssetMarking", "SceneDetail", "SceneKey", "embed_objects", "verify_objects",
-           "union_bound", "read_keys", "write_keys"]
+__all__ = [
+    "Asset",
+    "SCENE_EXTENSIONS",
+    "SceneObject",
+    "read_asset",
+    "read_objects",
+    "write_asset",
+    "SCENE_KEY_FORMAT",
+    "AssetMarking",
+    "SceneDetail",
+    "SceneKey",
+    "embed_objects",
+    "verify_objects",
+    "union_bound",
+    "read_keys",
+    "write_keys",
+]
 
 
 def read_asset(path) -> "Asset | None":

@@ -28,11 +28,28 @@ import numpy as np
 from ..api import embed, load_key_data, verify
 from ..base import EmbedOptions, EmbedResult, Progress, Verdict, VerdictDetail, no_progress
 from ..errors import KeyFileError, MeshError, PayloadError, PmwmError
-from ..key import (WatermarkKey, derive_seed, face_fingerprint, json_text, keyed_bits, make_secret, read_key_text,
-                   write_key)
+from ..key import (
+    WatermarkKey,
+    derive_seed,
+    face_fingerprint,
+    json_text,
+    keyed_bits,
+    make_secret,
+    read_key_text,
+    write_key,
+)
 
-__all__ = ["SCENE_KEY_FORMAT", "SceneKey", "SceneDetail", "AssetMarking", "embed_objects", "verify_objects",
-           "union_bound", "read_keys", "write_keys"]
+__all__ = [
+    "SCENE_KEY_FORMAT",
+    "SceneKey",
+    "SceneDetail",
+    "AssetMarking",
+    "embed_objects",
+    "verify_objects",
+    "union_bound",
+    "read_keys",
+    "write_keys",
+]
 
 SCENE_KEY_FORMAT = "pmwm-scene-key"
 SCENE_KEY_VERSION = 1
@@ -48,10 +65,14 @@ class SceneKey:
     keys: list[WatermarkKey]
 
     def to_json(self) -> str:
-        return json_text({"format": SCENE_KEY_FORMAT, "version": SCENE_KEY_VERSION,
-                          "scheme": self.keys[0].scheme,
-                          "objects": [{"name": n, "key": json.loads(k.to_json())}
-                                      for n, k in zip(self.names, self.keys)]})
+        return json_text(
+            {
+                "format": SCENE_KEY_FORMAT,
+                "version": SCENE_KEY_VERSION,
+                "scheme": self.keys[0].scheme,
+                "objects": [{"name": n, "key": json.loads(k.to_json())} for n, k in zip(self.names, self.keys)],
+            }
+        )
 
 
 @dataclass
@@ -75,8 +96,9 @@ def union_bound(p: float, tries: int) -> float:
     return float(min(1.0, p * max(int(tries), 1)))
 
 
-def embed_objects(objects: Sequence[Named], options: Optional[EmbedOptions] = None,
-                  progress: Progress = None) -> AssetMarking:
+def embed_objects(
+    objects: Sequence[Named], options: Optional[EmbedOptions] = None, progress: Progress = None
+) -> AssetMarking:
     """Mark every object with the scheme of ``options``: one master secret (from ``options.seed`` or
     fresh) gives each object's seed; one payload (the options', or random bits drawn from the master
     secret) goes into every object. A PmwmError names the object that could not be marked."""
@@ -120,8 +142,10 @@ def _check_reads_back(name: str, res: EmbedResult, faces: np.ndarray, opts: Embe
     stored = res.vertices.astype(np.float32).astype(np.float64)
     v = verify(stored, faces, res.key, passphrase=None if res.key is not None else opts.passphrase)
     if not v.marked:
-        raise PayloadError(f"object {name!r} does not read back as marked (p = {v.p_value:.3g}); it may be too "
-                           "small for the payload: give a stronger --strength, fewer bits, or another scheme")
+        raise PayloadError(
+            f"object {name!r} does not read back as marked (p = {v.p_value:.3g}); it may be too "
+            "small for the payload: give a stronger --strength, fewer bits, or another scheme"
+        )
 
 
 @dataclass(frozen=True)
@@ -151,35 +175,58 @@ class SceneDetail(VerdictDetail):
         return ", ".join(shown)
 
     def notes(self) -> list[str]:
-        read = (f"mark read in {len(self.found)} of {self.n_objects} objects: {self._where()}" if self.found
-                else f"mark read in none of {self.n_objects} objects")
-        how = (f"p-value x {self.tried}, the object/key pairs tried" if self.tried
-               else "the p-value is the weakest object's: a pass phrase marks every object")
+        read = (
+            f"mark read in {len(self.found)} of {self.n_objects} objects: {self._where()}"
+            if self.found
+            else f"mark read in none of {self.n_objects} objects"
+        )
+        how = (
+            f"p-value x {self.tried}, the object/key pairs tried"
+            if self.tried
+            else "the p-value is the weakest object's: a pass phrase marks every object"
+        )
         return [*self.inner.notes(), f"{read} ({how})"]
 
     def in_words(self) -> list[tuple[str, str]]:
-        where = (f"{self._where()} ({len(self.found)} of {self.n_objects})" if self.found
-                 else f"none of the {self.n_objects} objects")
-        how = (f"the p-value is the best object's times {self.tried}, the object/key pairs tried, so that "
-               "many objects do not make a chance match likelier" if self.tried else
-               "the p-value is the weakest object's: with a pass phrase every object must carry the mark")
-        return [("Objects marked", where), ("Correction", how),
-                *self.inner.in_words()]
+        where = (
+            f"{self._where()} ({len(self.found)} of {self.n_objects})"
+            if self.found
+            else f"none of the {self.n_objects} objects"
+        )
+        how = (
+            f"the p-value is the best object's times {self.tried}, the object/key pairs tried, so that "
+            "many objects do not make a chance match likelier"
+            if self.tried
+            else "the p-value is the weakest object's: with a pass phrase every object must carry the mark"
+        )
+        return [("Objects marked", where), ("Correction", how), *self.inner.in_words()]
 
     def to_dict(self) -> dict:
         """The objects' part of ``pmwm verify --json``: the objects read (suspect object, key object,
         p-value), the pairs tried, the deciding pair and its p-value before any correction."""
-        return {"read": [{"object": s, "key": k, "p_value": p} for s, k, p in self.found],
-                "n_objects": self.n_objects, "pairs_tried": self.tried,
-                "deciding": {"object": self.best[0], "key": self.best[1], "p_value": self.p_single}}
+        return {
+            "read": [{"object": s, "key": k, "p_value": p} for s, k, p in self.found],
+            "n_objects": self.n_objects,
+            "pairs_tried": self.tried,
+            "deciding": {"object": self.best[0], "key": self.best[1], "p_value": self.p_single},
+        }
 
     def numbers(self) -> list[tuple[str, str]]:
-        return [("object/key pairs tried", str(self.tried)), ("deciding pair", " / ".join(self.best)),
-                ("its p before correction", f"{self.p_single:.6g}"), *self.inner.numbers()]
+        return [
+            ("object/key pairs tried", str(self.tried)),
+            ("deciding pair", " / ".join(self.best)),
+            ("its p before correction", f"{self.p_single:.6g}"),
+            *self.inner.numbers(),
+        ]
 
 
-def verify_objects(objects: Sequence[Named], keys: Optional[Sequence[tuple[str, WatermarkKey]]] = None,
-                   p_threshold: float = 1e-6, *, passphrase: Optional[str] = None) -> Verdict:
+def verify_objects(
+    objects: Sequence[Named],
+    keys: Optional[Sequence[tuple[str, WatermarkKey]]] = None,
+    p_threshold: float = 1e-6,
+    *,
+    passphrase: Optional[str] = None,
+) -> Verdict:
     """Read the mark from suspect objects with the object keys (``read_keys``) or a pass phrase: every
     object against every key, the best pair's verdict with its p-value times the pairs tried. One
     object and one key: ``pmwm.verify`` as it is."""
@@ -188,23 +235,38 @@ def verify_objects(objects: Sequence[Named], keys: Optional[Sequence[tuple[str, 
         return verify(objects[0][1], objects[0][2], secrets[0][1], p_threshold, passphrase=passphrase)
     plan = [(name, V, F, key_name, key) for name, V, F in objects for key_name, key in _keys_for(F, secrets)]
     tried = len(plan)
-    pairs = [(name, key_name, verify(V, F, key, p_threshold, passphrase=passphrase))
-             for name, V, F, key_name, key in plan]
+    pairs = [
+        (name, key_name, verify(V, F, key, p_threshold, passphrase=passphrase)) for name, V, F, key_name, key in plan
+    ]
     if keys is None:  # one pass phrase, one payload in every object: the weakest object decides
         found = tuple((s, k, v.p_value) for s, k, v in pairs if v.p_value < p_threshold)
         s, k, best = max(pairs, key=lambda t: t[2].p_value)
         p, tried = best.p_value, 0
     else:
-        found = tuple((s, k, union_bound(v.p_value, tried)) for s, k, v in pairs
-                      if union_bound(v.p_value, tried) < p_threshold)
+        found = tuple(
+            (s, k, union_bound(v.p_value, tried)) for s, k, v in pairs if union_bound(v.p_value, tried) < p_threshold
+        )
         s, k, best = min(pairs, key=lambda t: t[2].p_value)
         p = union_bound(best.p_value, tried)
     marked = p < p_threshold
     confirmed = bool(marked and best.payload_confirmed)
-    detail = SceneDetail(inner=best.detail, tried=tried, n_objects=len(objects), n_keys=len(secrets),
-                         best=(s, k), p_single=best.p_value, found=found)
-    return replace(best, p_value=p, marked=marked, payload_confirmed=confirmed,
-                   payload=best.payload if confirmed else None, detail=detail)
+    detail = SceneDetail(
+        inner=best.detail,
+        tried=tried,
+        n_objects=len(objects),
+        n_keys=len(secrets),
+        best=(s, k),
+        p_single=best.p_value,
+        found=found,
+    )
+    return replace(
+        best,
+        p_value=p,
+        marked=marked,
+        payload_confirmed=confirmed,
+        payload=best.payload if confirmed else None,
+        detail=detail,
+    )
 
 
 def _keys_for(faces: np.ndarray, secrets: list) -> list:
@@ -230,15 +292,22 @@ def read_keys(path) -> list[tuple[str, WatermarkKey]]:
         return [("", load_key_data(WatermarkKey.from_json(text, str(path))))]
     version = doc.get("version")
     if not isinstance(version, int) or not 1 <= version <= SCENE_KEY_VERSION:
-        raise KeyFileError(f"{path} is scene key version {version}; this pmwm reads version {SCENE_KEY_VERSION}: "
-                           "upgrade pmwm")
+        raise KeyFileError(
+            f"{path} is scene key version {version}; this pmwm reads version {SCENE_KEY_VERSION}: upgrade pmwm"
+        )
     objects = doc.get("objects")
-    if not isinstance(objects, list) or not objects or not all(
-            isinstance(o, dict) and isinstance(o.get("name"), str) and isinstance(o.get("key"), dict)
-            for o in objects):
+    if (
+        not isinstance(objects, list)
+        or not objects
+        or not all(
+            isinstance(o, dict) and isinstance(o.get("name"), str) and isinstance(o.get("key"), dict) for o in objects
+        )
+    ):
         raise KeyFileError(f"{path} is a damaged scene key (its objects are missing or malformed)")
-    return [(o["name"], load_key_data(WatermarkKey.from_json(json.dumps(o["key"]), f"{path} (object {o['name']!r})")))
-            for o in objects]
+    return [
+        (o["name"], load_key_data(WatermarkKey.from_json(json.dumps(o["key"]), f"{path} (object {o['name']!r})")))
+        for o in objects
+    ]
 
 
 def write_keys(path, key: "WatermarkKey | SceneKey", *, overwrite: bool = False) -> None:

@@ -86,12 +86,17 @@ class GltfScene:
                     if b.kind == "data":
                         doc["buffers"][i]["uri"] = _data_uri(doc["buffers"][i]["uri"], b.data)
                     elif b.kind == "file" and b.changed:
-                        name = f"{stem}.bin" if sum(x.changed and x.kind == "file" for x in buffers) == 1 \
+                        name = (
+                            f"{stem}.bin"
+                            if sum(x.changed and x.kind == "file" for x in buffers) == 1
                             else f"{stem}_{i}.bin"
+                        )
                         target = os.path.join(os.path.dirname(os.path.abspath(path)), name)
                         if any(x.path and os.path.realpath(x.path) == os.path.realpath(target) for x in buffers):
-                            raise MeshError(f"{target} is a buffer of {self.path}; pmwm never overwrites its "
-                                            "input: give the marked scene another name")
+                            raise MeshError(
+                                f"{target} is a buffer of {self.path}; pmwm never overwrites its "
+                                "input: give the marked scene another name"
+                            )
                         atomic_write_bytes(target, bytes(b.data), force=force)
                         written.append(target)
                         doc["buffers"][i]["uri"] = name
@@ -168,8 +173,10 @@ def read_gltf(path: str) -> GltfScene:
     required = set(doc.get("extensionsRequired") or []) | set(doc.get("extensionsUsed") or [])
     for name in _COMPRESSION:
         if name in required:
-            raise MeshError(f"{path} is compressed with {name}; pmwm marks uncompressed glTF only: "
-                            "export it without mesh compression and mark that")
+            raise MeshError(
+                f"{path} is compressed with {name}; pmwm marks uncompressed glTF only: "
+                "export it without mesh compression and mark that"
+            )
     buffers = [_load_buffer(b, i, path, bin_chunk) for i, b in enumerate(gltf.buffers or [])]
     scene = GltfScene(path=path, doc=doc, buffers=buffers, objects=[], glb_tail=tail)
     names = _mesh_names(gltf)
@@ -180,8 +187,10 @@ def read_gltf(path: str) -> GltfScene:
             obj.warnings.append(f"{obj.name}: skinned; marked in its bind pose, joints and weights kept")
         for other, their in zip(scene.objects, scene._parts):
             if {pos for pos, _, _ in parts} & {pos for pos, _, _ in their}:
-                raise MeshError(f"{path}: meshes {other.name!r} and {obj.name!r} share their positions; pmwm "
-                                "cannot mark them apart: make them one mesh, or give each its own data")
+                raise MeshError(
+                    f"{path}: meshes {other.name!r} and {obj.name!r} share their positions; pmwm "
+                    "cannot mark them apart: make them one mesh, or give each its own data"
+                )
         scene.objects.append(obj)
         scene._parts.append(parts)
     if not scene.objects:
@@ -232,8 +241,10 @@ def _load_buffer(buffer, index: int, path: str, bin_chunk: bytes | None) -> _Buf
     with open(file, "rb") as fh:
         data = fh.read()
     if len(data) < buffer.byteLength:
-        raise MeshError(f"{path}: its buffer file {uri} is shorter ({len(data)} bytes) than the "
-                        f"{buffer.byteLength} bytes it should hold")
+        raise MeshError(
+            f"{path}: its buffer file {uri} is shorter ({len(data)} bytes) than the "
+            f"{buffer.byteLength} bytes it should hold"
+        )
     return _Buffer(bytearray(data), "file", file)
 
 
@@ -247,8 +258,9 @@ def _mesh_names(gltf) -> list[str]:
     out, seen = [], set()
     for m, mesh in enumerate(gltf.meshes or []):
         nodes = by_node.get(m, [])
-        name = (nodes[0] if len(nodes) == 1 and nodes[0] else mesh.name or next((n for n in nodes if n), "")
-                or f"mesh {m}")
+        name = (
+            nodes[0] if len(nodes) == 1 and nodes[0] else mesh.name or next((n for n in nodes if n), "") or f"mesh {m}"
+        )
         if name in seen:
             name = f"{name} #{m}"
         seen.add(name)
@@ -302,8 +314,9 @@ def _read_mesh(doc, gltf, buffers, m: int, mesh, name: str, path: str):
     return obj, parts
 
 
-def _view(doc: dict, buffers: list, index: int, *, where: str = "", position: bool = False,
-          writable: bool = False) -> np.ndarray:
+def _view(
+    doc: dict, buffers: list, index: int, *, where: str = "", position: bool = False, writable: bool = False
+) -> np.ndarray:
     """The accessor's elements as an (count, width) array viewing its buffer (strided; writes go to the
     buffer). MeshError on a sparse, quantized (POSITION) or out-of-range accessor."""
     try:
@@ -311,8 +324,9 @@ def _view(doc: dict, buffers: list, index: int, *, where: str = "", position: bo
         if acc.get("sparse") is not None:
             raise MeshError(f"{where} has sparse accessor {index}; export it without sparse storage")
         if position and (acc.get("componentType") != 5126 or acc.get("type") != "VEC3"):
-            raise MeshError(f"{where} stores quantized positions (KHR_mesh_quantization); "
-                            "export float positions and mark that")
+            raise MeshError(
+                f"{where} stores quantized positions (KHR_mesh_quantization); export float positions and mark that"
+            )
         if "bufferView" not in acc:
             raise MeshError(f"{where}: accessor {index} has no data (no buffer view)")
         bv = doc["bufferViews"][acc["bufferView"]]

@@ -85,9 +85,11 @@ def _relocate_libraries(lines: list[bytes], source: str, target: str) -> None:
     for i, line in enumerate(lines):
         parts = line.split()
         if parts[:1] == [b"mtllib"] and len(parts) > 1:
-            names = [os.path.relpath(os.path.join(src_dir, n.decode("utf-8", "replace")), dst_dir).replace(os.sep, "/")
-                     for n in parts[1:]]
-            lines[i] = ("mtllib " + " ".join(names)).encode("utf-8") + line[len(line.rstrip(b"\r\n")):]
+            names = [
+                os.path.relpath(os.path.join(src_dir, n.decode("utf-8", "replace")), dst_dir).replace(os.sep, "/")
+                for n in parts[1:]
+            ]
+            lines[i] = ("mtllib " + " ".join(names)).encode("utf-8") + line[len(line.rstrip(b"\r\n")) :]
 
 
 def _replace_xyz(line: bytes, head: bytes, xyz: np.ndarray, fmt: str) -> bytes:
@@ -95,7 +97,7 @@ def _replace_xyz(line: bytes, head: bytes, xyz: np.ndarray, fmt: str) -> bytes:
     body = line.rstrip(b"\r\n")
     rest = body.split()[4:]
     text = head + b" " + (" ".join([fmt] * 3) % tuple(xyz.tolist())).encode("ascii")
-    return b" ".join([text, *rest]) + line[len(body):]
+    return b" ".join([text, *rest]) + line[len(body) :]
 
 
 def _numbers(lines: list[bytes], rows: list[int], first: int, take: int, what: str, path: str) -> np.ndarray:
@@ -139,8 +141,9 @@ def read_obj_scene(path: str) -> ObjScene | None:
     vn_xyz = _numbers(lines, vn_line.tolist(), 0, 3, "vn", path)
 
     # the corners: v and vn numbers of each token "v", "v/vt", "v//vn", "v/vt/vn"
-    block = b"\n".join(lines[r].split(None, 1)[1].strip() if len(lines[r].split(None, 1)) > 1 else b"-"
-                       for r in f_line.tolist())
+    block = b"\n".join(
+        lines[r].split(None, 1)[1].strip() if len(lines[r].split(None, 1)) > 1 else b"-" for r in f_line.tolist()
+    )
     count = _tokens_per_line(block, len(f_line))
     tok = np.array(block.split())
     first = np.char.partition(tok, b"/")
@@ -169,17 +172,23 @@ def read_obj_scene(path: str) -> ObjScene | None:
     s = start[tri_face]
     tris = cv[np.stack([s, s + j, s + j + 1], axis=1)]
     group = np.searchsorted(cuts, f_line, side="right") - 1  # -1: faces before the first o/g line
-    names = [lines[c].split(None, 1)[1].strip().decode("utf-8", "replace") if len(lines[c].split(None, 1)) > 1
-             else f"{cut.decode()} {k}" for k, c in enumerate(cuts.tolist())]
+    names = [
+        lines[c].split(None, 1)[1].strip().decode("utf-8", "replace")
+        if len(lines[c].split(None, 1)) > 1
+        else f"{cut.decode()} {k}"
+        for k, c in enumerate(cuts.tolist())
+    ]
     objects, rows = _objects(path, v_xyz, tris, group[tri_face], np.repeat(group, count), cv, names, cut == b"o")
     if len(objects) < 2:
         return None
-    return ObjScene(path, lines, objects, rows, v_line, v_xyz, vn_line, vn_xyz, cv, cn,
-                    [w for o in objects for w in o.warnings])
+    return ObjScene(
+        path, lines, objects, rows, v_line, v_xyz, vn_line, vn_xyz, cv, cn, [w for o in objects for w in o.warnings]
+    )
 
 
-def _objects(path, v_xyz, tris, tri_group, corner_group, cv, names,
-             explicit: bool) -> tuple[list[SceneObject], list[np.ndarray]]:
+def _objects(
+    path, v_xyz, tris, tri_group, corner_group, cv, names, explicit: bool
+) -> tuple[list[SceneObject], list[np.ndarray]]:
     """The objects: groups (index into ``names``, -1 for faces before any) joined where they share
     vertices; each with its own vertices (sorted v numbers) and fan triangles. ``explicit``: the groups
     are ``o`` objects, each of which must have faces (``g`` groups without faces are common and kept)."""
@@ -190,8 +199,9 @@ def _objects(path, v_xyz, tris, tri_group, corner_group, cv, names,
     if explicit:
         empty = sorted(set(range(1, len(names) + 1)) - set(np.unique(g).tolist()))
         if empty:
-            raise MeshError(f"{path}: object {names[empty[0] - 1]!r} has no face (an empty object); delete it "
-                            "or give it faces")
+            raise MeshError(
+                f"{path}: object {names[empty[0] - 1]!r} has no face (an empty object); delete it or give it faces"
+            )
     n_groups = len(names) + 1
     owner = np.full(len(v_xyz), n_groups, np.int64)
     np.minimum.at(owner, cv, g)

@@ -34,8 +34,19 @@ from typing import Optional
 import numpy as np
 
 from ..adjacency import build_adjacency
-from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, VerdictDetail, finish_embed, mesh_key,
-                   no_progress, start_embed, verdict_from_scores)
+from ..base import (
+    EmbedOptions,
+    EmbedResult,
+    Progress,
+    Scheme,
+    Verdict,
+    VerdictDetail,
+    finish_embed,
+    mesh_key,
+    no_progress,
+    start_embed,
+    verdict_from_scores,
+)
 from ..errors import KeyFileError, MeshError, PayloadError
 from ..key import WatermarkKey, keyed_bits
 from ..progressive import base_vertex_count, build_progressive_mesh
@@ -61,8 +72,13 @@ class ChoKeyData:
     @classmethod
     def from_extra(cls, d: dict) -> "ChoKeyData":
         try:
-            out = cls(method=str(d["method"]), alpha=float(d["alpha"]), rho_min=float(d["rho_min"]),
-                      rho_max=float(d["rho_max"]), strength_step=float(d.get("strength_step", STRENGTH_STEP)))
+            out = cls(
+                method=str(d["method"]),
+                alpha=float(d["alpha"]),
+                rho_min=float(d["rho_min"]),
+                rho_max=float(d["rho_max"]),
+                strength_step=float(d.get("strength_step", STRENGTH_STEP)),
+            )
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise KeyFileError(f"the Cho key lacks or garbles its data ({exc}); it is damaged") from None
         if out.method not in _THRESHOLD or not 0 < out.alpha < _THRESHOLD[out.method]:
@@ -84,14 +100,20 @@ class ChoDetail(VerdictDetail):
     empty_bins: int
 
     def in_words(self) -> list[tuple[str, str]]:
-        return [("How it was read", f"from the spread of the vertices' distances to their centre, over the whole "
-                                    f"surface (Cho et al. 2007, method {self.method})"),
-                ("Parts read", f"{self.bins - self.empty_bins} of the {self.bins} distance ranges that carry "
-                               "the mark")]
+        return [
+            (
+                "How it was read",
+                f"from the spread of the vertices' distances to their centre, over the whole "
+                f"surface (Cho et al. 2007, method {self.method})",
+            ),
+            ("Parts read", f"{self.bins - self.empty_bins} of the {self.bins} distance ranges that carry the mark"),
+        ]
 
     def numbers(self) -> list[tuple[str, str]]:
-        return [("method", f"{self.method} (bin {_STATISTIC[self.method]})"),
-                ("bins read", f"{self.bins - self.empty_bins}/{self.bins}")]
+        return [
+            ("method", f"{self.method} (bin {_STATISTIC[self.method]})"),
+            ("bins read", f"{self.bins - self.empty_bins}/{self.bins}"),
+        ]
 
 
 @dataclass
@@ -160,8 +182,9 @@ def _solve_k(bins: _Bins, bits: np.ndarray, targets: np.ndarray, method: str, st
     return k_of(lo)
 
 
-def _embed_bits(v: np.ndarray, b: np.ndarray, method: str, alpha: float, strength_step: float
-                ) -> tuple[np.ndarray, _Bins]:
+def _embed_bits(
+    v: np.ndarray, b: np.ndarray, method: str, alpha: float, strength_step: float
+) -> tuple[np.ndarray, _Bins]:
     """Marked vertices (n, 3) float64 (float32-exact) carrying ``b`` (N,) uint8, one bit per norm bin,
     and the bins of the input. PayloadError when a bin holds no vertex (too many bits for the mesh)."""
     n_bits = len(b)
@@ -211,8 +234,9 @@ def _embed(method: str, name: str):
         base = base_vertex_count(job.options.base_ratio, len(V))
         pm = None
         if job.options.progressive:
-            pm, _ = build_progressive_mesh(marked, F, base_vertices=base, adjacency=adj,
-                                           progress=lambda f, m: job.report(0.1 + 0.85 * f, m))
+            pm, _ = build_progressive_mesh(
+                marked, F, base_vertices=base, adjacency=adj, progress=lambda f, m: job.report(0.1 + 0.85 * f, m)
+            )
         data = ChoKeyData(method, job.strength, bins.rho_min, bins.rho_max, STRENGTH_STEP)
         none = np.zeros(0, np.int64)
         return finish_embed(job, marked, pm, none, mesh_key(job, name, marked, adj, none, data))
@@ -248,7 +272,19 @@ def load_key_data(key: WatermarkKey) -> ChoKeyData:
     return data
 
 
-CHO1 = Scheme("cho1", DEFAULT_ALPHA, _embed("I", "cho1"), _verify("I"), load_key_data,
-              "Cho et al. 2007, method I: the mean of each vertex-norm bin")
-CHO2 = Scheme("cho2", DEFAULT_ALPHA, _embed("II", "cho2"), _verify("II"), load_key_data,
-              "Cho et al. 2007, method II: the variance of each vertex-norm bin")
+CHO1 = Scheme(
+    "cho1",
+    DEFAULT_ALPHA,
+    _embed("I", "cho1"),
+    _verify("I"),
+    load_key_data,
+    "Cho et al. 2007, method I: the mean of each vertex-norm bin",
+)
+CHO2 = Scheme(
+    "cho2",
+    DEFAULT_ALPHA,
+    _embed("II", "cho2"),
+    _verify("II"),
+    load_key_data,
+    "Cho et al. 2007, method II: the variance of each vertex-norm bin",
+)

@@ -40,8 +40,19 @@ from typing import Optional
 import numpy as np
 
 from ..adjacency import Adjacency, build_adjacency, gather_rows, unique_values
-from ..base import (EmbedOptions, EmbedResult, Progress, Scheme, Verdict, VerdictDetail, finish_embed, mesh_key,
-                    no_progress, start_embed, verdict_from_scores)
+from ..base import (
+    EmbedOptions,
+    EmbedResult,
+    Progress,
+    Scheme,
+    Verdict,
+    VerdictDetail,
+    finish_embed,
+    mesh_key,
+    no_progress,
+    start_embed,
+    verdict_from_scores,
+)
 from ..carriers import eligible_carriers, select_carriers
 from ..errors import KeyFileError
 from ..key import WatermarkKey, derive_seed, face_fingerprint, keyed_bits
@@ -123,8 +134,9 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     def pm_progress(f: float, msg: str) -> None:
         report(0.15 + 0.8 * f, msg)
 
-    pm, _ = build_progressive_mesh(marked, F, base_vertices=base, protected=protected, forced=forced,
-                                   progress=pm_progress, adjacency=adj)
+    pm, _ = build_progressive_mesh(
+        marked, F, base_vertices=base, protected=protected, forced=forced, progress=pm_progress, adjacency=adj
+    )
     return finish_embed(job, marked, pm, carriers, mesh_key(job, NAME, marked, adj, carriers))
 
 
@@ -151,7 +163,6 @@ class PaperDetail(VerdictDetail):
         return [("carriers found by", self.carriers)]
 
 
-
 def locate_carriers(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> tuple[np.ndarray, str, str]:
     """Index of each carrier in V (-1 when not found), how it was found ("index" or "position") and
     why ("faces fingerprint", "near their places", "nearest vertex"; module docstring).
@@ -162,8 +173,10 @@ def locate_carriers(V: np.ndarray, F: np.ndarray, key: WatermarkKey) -> tuple[np
     tol = key.mean_edge
     if key.faces_fingerprint and n == key.n_vertices:
         fp = face_fingerprint(F)
-        for idx, known in ((key.carrier_index, key.faces_fingerprint),
-                           (key.carrier_pm_index, key.pm_faces_fingerprint)):
+        for idx, known in (
+            (key.carrier_index, key.faces_fingerprint),
+            (key.carrier_pm_index, key.pm_faces_fingerprint),
+        ):
             if fp == known:
                 return idx.copy(), "index", "faces fingerprint"
     best = None
@@ -227,10 +240,17 @@ def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6, progre
 def load_key_data(key: WatermarkKey) -> None:
     """The paper's key holds no data beyond its carriers: check there is one per bit."""
     if len(key.carrier_index) != key.n_bits:
-        raise KeyFileError(f"this paper-scheme key has {len(key.carrier_index)} carriers for {key.n_bits} bits; "
-                           "it is damaged")
+        raise KeyFileError(
+            f"this paper-scheme key has {len(key.carrier_index)} carriers for {key.n_bits} bits; it is damaged"
+        )
     return None
 
 
-SCHEME = Scheme(NAME, DEFAULT_STRENGTH, embed, verify, load_key_data,
-                "the paper's Algorithms 1-2: one carrier vertex per bit, read against its 1-ring")
+SCHEME = Scheme(
+    NAME,
+    DEFAULT_STRENGTH,
+    embed,
+    verify,
+    load_key_data,
+    "the paper's Algorithms 1-2: one carrier vertex per bit, read against its 1-ring",
+)

@@ -26,8 +26,17 @@ import numpy as np
 
 from ... import metrics
 from ...background import Background, beside, silent
-from ...base import (PASS_PHRASE, EmbedOptions, EmbedResult, Progress, Scheme, Verdict, finish_embed, no_progress,
-                     start_embed)
+from ...base import (
+    PASS_PHRASE,
+    EmbedOptions,
+    EmbedResult,
+    Progress,
+    Scheme,
+    Verdict,
+    finish_embed,
+    no_progress,
+    start_embed,
+)
 from ...errors import KeyFileError, MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
@@ -36,8 +45,22 @@ from . import frames, plan, radial, selfcheck, word
 from .config import READER, ReaderConfig
 from .detail import BlindDetail, mesh_read
 
-__all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "read", "verify", "bin_statistics", "decide", "Statistics",
-           "word_read", "guess_word", "mesh_read", "BlindDetail", "ReaderConfig", "READER"]
+__all__ = [
+    "SCHEME",
+    "DEFAULT_ALPHA",
+    "BINS_PER_BIT",
+    "read",
+    "verify",
+    "bin_statistics",
+    "decide",
+    "Statistics",
+    "word_read",
+    "guess_word",
+    "mesh_read",
+    "BlindDetail",
+    "ReaderConfig",
+    "READER",
+]
 
 DEFAULT_ALPHA = 0.07
 TARGET_MRMS = 0.019  # without an explicit strength: the margin giving this MRMS (% of the bbox diagonal)
@@ -59,18 +82,32 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     opts = options or EmbedOptions(scheme=NAME)
     passphrase = getattr(opts, "passphrase", None)
     if passphrase is None:
-        raise PayloadError("the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file "
-                           "or PMWM_PASSPHRASE)")
+        raise PayloadError(
+            "the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file or PMWM_PASSPHRASE)"
+        )
     word.check_passphrase(passphrase)  # (its secret is derived once the build has started: scrypt takes a while)
     # the generic first steps with an explicit-bits stand-in (the blind payload has its own lengths)
-    job = start_embed(vertices, faces, EmbedOptions(bits="0", strength=opts.strength, base_ratio=opts.base_ratio,
-                                                    seed=opts.seed, scheme=NAME, progressive=opts.progressive),
-                      progress, NAME, DEFAULT_ALPHA)
+    job = start_embed(
+        vertices,
+        faces,
+        EmbedOptions(
+            bits="0",
+            strength=opts.strength,
+            base_ratio=opts.base_ratio,
+            seed=opts.seed,
+            scheme=NAME,
+            progressive=opts.progressive,
+        ),
+        progress,
+        NAME,
+        DEFAULT_ALPHA,
+    )
     if not job.strength < 0.5:
         raise PayloadError(f"the blind scheme's strength (the bin-mean margin) must be below 0.5, got {job.strength}")
     payload_seed = job.secret  # fresh randomness, or from the seed: one payload per mesh
-    payload, kind = word.payload_of(opts.payload, opts.bits, opts.n_bits,
-                                    lambda n: keyed_bits(payload_seed, "blind-random-payload", n))
+    payload, kind = word.payload_of(
+        opts.payload, opts.bits, opts.n_bits, lambda n: keyed_bits(payload_seed, "blind-random-payload", n)
+    )
     V, F = job.vertices, job.faces
     base = base_vertex_count(opts.base_ratio, len(V))
     # the progressive mesh of the unmarked mesh, built beside the marking (its thread makes its own
@@ -89,10 +126,20 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
             job.strength, marked = _calibrated(V, F, signs, job.strength, marked, host)
         job.report(0.05, "checking that the mark reads back")  # (else a raised margin, or a PayloadError)
-        job.strength, marked = selfcheck.ensure(selfcheck.Mark(
-            V, F, lambda a: radial.embed_signs(V, F, signs, a, host=host), lambda V2, F2: read(V2, F2, secret),
-            "".join(map(str, payload.tolist())), word.text_of(payload) if kind == "text" else None, secret),
-            marked, job.strength, adjustable=opts.strength is None)
+        job.strength, marked = selfcheck.ensure(
+            selfcheck.Mark(
+                V,
+                F,
+                lambda a: radial.embed_signs(V, F, signs, a, host=host),
+                lambda V2, F2: read(V2, F2, secret),
+                "".join(map(str, payload.tolist())),
+                word.text_of(payload) if kind == "text" else None,
+                secret,
+            ),
+            marked,
+            job.strength,
+            adjustable=opts.strength is None,
+        )
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key is made meanwhile
             pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
@@ -156,8 +203,15 @@ class Statistics:
     def own_frame(self) -> "Statistics":
         """The same measurements in the suspect's own frame alone (the reader without the refinement)."""
         shares = None if self.shares is None else {n: s[:1] for n, s in self.shares.items()}
-        return Statistics({n: s[:1] for n, s in self.words.items()}, self.n_word, self.frame_names[:1],
-                          self.frame_stages[:1], shares, self.mesh, self.guess)
+        return Statistics(
+            {n: s[:1] for n, s in self.words.items()},
+            self.n_word,
+            self.frame_names[:1],
+            self.frame_stages[:1],
+            shares,
+            self.mesh,
+            self.guess,
+        )
 
     def candidates(self) -> list[int]:
         """The Chase candidates read per kind in each frame (``plan.candidates`` of ``frame_stages``)."""
@@ -173,14 +227,20 @@ def bin_statistics(vertices, faces, config: ReaderConfig = READER, progress: Pro
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     words = [L + word.CHECK_BITS for L in word.PAYLOAD_BITS]
     got = frames.read_statistics(V, F, [_n_bins(n) for n in words], config, progress=progress)
-    return Statistics({n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
-                      words[got.index], got.names, got.stages,
-                      {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)},
-                      got.mesh, got.guess)
+    return Statistics(
+        {n: np.stack([many[i][0] for many in got.statistics]) for i, n in enumerate(words)},
+        words[got.index],
+        got.names,
+        got.stages,
+        {n: np.stack([many[i][1] for many in got.statistics]) for i, n in enumerate(words)},
+        got.mesh,
+        got.guess,
+    )
 
 
-def word_read(stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None,
-              equalize: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def word_read(
+    stat: np.ndarray, secret: str, n_word: int, share: Optional[np.ndarray] = None, equalize: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
     """The word of length ``n_word`` as read from the bins' statistics (M,) in radial order (after
     ``radial.equalized``: hard decisions, erasures drawn from a keyed coin) (N,) uint8, and the score of
     each bit (N,) float64 (sign = the scrambled bit, 0 = an erasure). With the bins' shares of the
@@ -221,8 +281,9 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6, config: Re
         got, score = word_read(stat, secret, n_word, shares[fi], config.equalize)
         candidates = got[None] ^ word.likely_flips(np.abs(score), per_reading[fi])  # row 0: the word as read
         # the flips of check bits leave the payload as it is: each distinct payload's check computed once
-        _, first, which = np.unique(np.packbits(candidates[:, :L], axis=1), axis=0, return_index=True,
-                                    return_inverse=True)
+        _, first, which = np.unique(
+            np.packbits(candidates[:, :L], axis=1), axis=0, return_index=True, return_inverse=True
+        )
         for kind in word.KINDS:
             checks = word.check_bits(secret, kind, candidates[first, :L])
             matches = np.sum(candidates[:, L:] == checks[which.ravel()], axis=1)
@@ -236,22 +297,37 @@ def decide(stats: Statistics, secret: str, p_threshold: float = 1e-6, config: Re
     expected = word.check_bits(secret, kind, payload)
     marked = bool(p < p_threshold)  # (its check bits confirm the payload: a marked reading's is confirmed)
     detail = BlindDetail(
-        payload_bits=L, check_bits=word.CHECK_BITS,
-        mesh=frames.mesh_of(stats.frame_names[fi], stats.mesh), frame=stats.frame_names[fi], frame_index=fi,
-        frames=n_frames, chase_bits=chase, reserve_frames=stats.reserve, candidates=per_reading[fi],
+        payload_bits=L,
+        check_bits=word.CHECK_BITS,
+        mesh=frames.mesh_of(stats.frame_names[fi], stats.mesh),
+        frame=stats.frame_names[fi],
+        frame_index=fi,
+        frames=n_frames,
+        chase_bits=chase,
+        reserve_frames=stats.reserve,
+        candidates=per_reading[fi],
         payload_kind=kind if marked else None,
         word="".join(map(str, cand.tolist())) if marked else None,  # after the Chase search
-        word_read="".join(map(str, raw.tolist())) if marked else None)  # the hard decisions, before it
+        word_read="".join(map(str, raw.tolist())) if marked else None,
+    )  # the hard decisions, before it
     return Verdict(
-        marked=marked, p_value=p, bits="".join(map(str, payload.tolist())) if marked else "",
+        marked=marked,
+        p_value=p,
+        bits="".join(map(str, payload.tolist())) if marked else "",
         payload=word.text_of(payload) if kind == "text" and marked else None,
         # matches / bit_errors / carriers_*: over the check bits (what the p-value counts)
-        matches=m, bit_errors=word.CHECK_BITS - m,
+        matches=m,
+        bit_errors=word.CHECK_BITS - m,
         correlation=float(metrics.correlation(expected, cand[L:])),
-        carriers_found=int(np.sum(score[L:] != 0)), carriers_total=word.CHECK_BITS, mode="blind",
-        p_threshold=p_threshold, payload_confirmed=marked, detail=detail,
+        carriers_found=int(np.sum(score[L:] != 0)),
+        carriers_total=word.CHECK_BITS,
+        mode="blind",
+        p_threshold=p_threshold,
+        payload_confirmed=marked,
+        detail=detail,
         scores=score,  # (N,) sign = the scrambled bit read, as every scheme's scores
-        places=np.zeros((0, 3)), place_bits=np.zeros(0, np.int64),
+        places=np.zeros((0, 3)),
+        place_bits=np.zeros(0, np.int64),
     )
 
 
@@ -280,8 +356,14 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6, config: Reader
     return decide(bin_statistics(vertices, faces, config), secret, p_threshold, config)
 
 
-def verify(vertices, faces, passphrase: str, p_threshold: float = 1e-6, config: ReaderConfig = READER,
-           progress: Progress = None) -> Verdict:
+def verify(
+    vertices,
+    faces,
+    passphrase: str,
+    p_threshold: float = 1e-6,
+    config: ReaderConfig = READER,
+    progress: Progress = None,
+) -> Verdict:
     """``read`` with the secret of ``passphrase``, derived in a worker thread beside the bins' statistics,
     which need none: hashlib's scrypt (``word.SCRYPT``) releases the GIL, so the derivation costs the
     reading no time on two cores. ``progress(fraction, message)`` at the frames read (``bin_statistics``)
@@ -301,5 +383,12 @@ def load_key_data(key: WatermarkKey) -> None:
     raise KeyFileError("the blind scheme has no key file: read the mark with its pass phrase")
 
 
-SCHEME = Scheme(NAME, DEFAULT_ALPHA, embed, verify, load_key_data,
-                "read with a pass phrase alone (no key file); the distribution of vertex norms", PASS_PHRASE)
+SCHEME = Scheme(
+    NAME,
+    DEFAULT_ALPHA,
+    embed,
+    verify,
+    load_key_data,
+    "read with a pass phrase alone (no key file); the distribution of vertex norms",
+    PASS_PHRASE,
+)

@@ -21,15 +21,30 @@ from ...features import row_norms
 from ...metrics import bbox_diagonal
 from ...spatial import pairs_within
 from .config import READER, CropConfig, CutConfig
-from .radial import (QUANTILES, REFINE_SAMPLE, SCALE_CELLS, Frame, by_distance, cell_energies, cumulative_cells,
-                     distances, excess_energy, in_phase, low_quantile, refine_frame_on, scale_energies, statistics_in,
-                     thinned)
+from .radial import (
+    QUANTILES,
+    REFINE_SAMPLE,
+    SCALE_CELLS,
+    Frame,
+    by_distance,
+    cell_energies,
+    cumulative_cells,
+    distances,
+    excess_energy,
+    in_phase,
+    low_quantile,
+    refine_frame_on,
+    scale_energies,
+    statistics_in,
+    thinned,
+)
 
 _BATCH = 32  # candidate centres scored together (a memory bound, not a tuning)
 
 
-def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray, cfg: CutConfig = READER.crop.cut
-               ) -> list[tuple[np.ndarray, np.ndarray]]:
+def cut_planes(
+    V: np.ndarray, F: np.ndarray, centre: np.ndarray, cfg: CutConfig = READER.crop.cut
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """The planes in which the mesh V (n, 3), F (m, 3) was cut: [(h (3,), normal (3,))], h the
     length-weighted centroid of the boundary edges in the plane, the unit normal pointing away from
     ``centre``. A boundary loop of at least ``cfg.min_edges`` edges is a cut when its edges' midpoints lie within
@@ -45,7 +60,7 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray, cfg: CutConfig 
     length = row_norms(V[E[:, 1]] - V[E[:, 0]])
     loops, size = np.unique(loop, return_counts=True)
     flat = []
-    for k in loops[np.argsort(-size, kind="stable")][:cfg.max_loops]:
+    for k in loops[np.argsort(-size, kind="stable")][: cfg.max_loops]:
         on = loop == k
         if on.sum() < cfg.min_edges:
             break
@@ -66,7 +81,7 @@ def cut_planes(V: np.ndarray, F: np.ndarray, centre: np.ndarray, cfg: CutConfig 
                 used[j] = True
         h, n = _plane(mid[group], length[group])
         planes.append((h, n if (h - centre) @ n >= 0 else -n))
-    return planes[:cfg.max_planes]
+    return planes[: cfg.max_planes]
 
 
 def _plane(P: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -82,8 +97,9 @@ def _thickness(P: np.ndarray, w: np.ndarray, h: np.ndarray, n: np.ndarray) -> fl
     return float(np.sqrt(np.average(((P - h) @ n) ** 2, weights=w)) / np.mean(w))
 
 
-def _candidates(c: np.ndarray, planes, width: float, diag: float, cfg: CropConfig
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _candidates(
+    c: np.ndarray, planes, width: float, diag: float, cfg: CropConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Candidate centres (K, 3) on every plane's family c + lam (h + t n - c), ``cfg.lattice`` bin widths apart,
     with their lam (K,) and the unit normal of their family's plane (K, 3) (the plane through c spanned
     by h - c and n)."""
@@ -128,14 +144,22 @@ def _screen(P: np.ndarray, C: np.ndarray, width: float, cfg: CropConfig) -> tupl
     w_min, w_max = width * cfg.screen_widths[0], width * cfg.screen_widths[1]
     score, at = np.empty(len(C)), np.empty(len(C))
     for s0 in range(0, len(C), _BATCH):
-        score[s0:s0 + _BATCH], at[s0:s0 + _BATCH] = in_phase(distances(P, C[s0:s0 + _BATCH]),
-                                                             w_min / cfg.screen_cells, w_min, w_max,
-                                                             cfg.screen_pad)
+        score[s0 : s0 + _BATCH], at[s0 : s0 + _BATCH] = in_phase(
+            distances(P, C[s0 : s0 + _BATCH]), w_min / cfg.screen_cells, w_min, w_max, cfg.screen_pad
+        )
     return score, at
 
 
-def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, widths: np.ndarray, n_bins: int,
-            phases: np.ndarray, cells: int = SCALE_CELLS) -> np.ndarray:
+def _coarse(
+    P: np.ndarray,
+    area: np.ndarray,
+    C: np.ndarray,
+    lam: np.ndarray,
+    widths: np.ndarray,
+    n_bins: int,
+    phases: np.ndarray,
+    cells: int = SCALE_CELLS,
+) -> np.ndarray:
     """The coarse score of candidate centres C (K, 3) with their lam (K,): the most mark energy over
     each one's bin ``widths`` (K, W) x ``phases`` (in bin widths) from lo, on the vertices P (k, 3) of
     areas (k,); P and C relative to a point near them (``radial.distances``), float32 is enough.
@@ -148,10 +172,10 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
     j = np.arange(n_bins + 1)
     score = np.empty(len(C))
     for s0 in range(0, len(C), _BATCH):
-        rho = distances(P, C[s0:s0 + _BATCH])
+        rho = distances(P, C[s0 : s0 + _BATCH])
         B = len(rho)
-        cell = float(widths[s0:s0 + B].min()) / cells
-        wc = widths[s0:s0 + B, :, None, None] / cell  # (B, W, 1, 1) bin widths in cells
+        cell = float(widths[s0 : s0 + B].min()) / cells
+        wc = widths[s0 : s0 + B, :, None, None] / cell  # (B, W, 1, 1) bin widths in cells
         start = phases[:, None] * wc  # (B, W, P, 1) from lo, in cells
         offs = np.rint(start + j * wc).astype(np.int64)  # (B, W, P, J + 1) the edges from lo
         shift = int(max(0, -offs.min()))  # empty cells below the nearest vertex, for negative phases
@@ -161,16 +185,24 @@ def _coarse(P: np.ndarray, area: np.ndarray, C: np.ndarray, lam: np.ndarray, wid
         n_cells = int(x.max()) + 1
         cum_n, cum_x, cum_a = cumulative_cells(x, n_cells, None, area)
         # the cell of the area quantile the original's 2 % would be if the cap held none of the area
-        lo = (cum_a[:, 1:] < (QUANTILES[0] / (1.0 - lam[s0:s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
+        lo = (cum_a[:, 1:] < (QUANTILES[0] / (1.0 - lam[s0 : s0 + B]) * cum_a[:, -1])[:, None]).sum(1)
         lo = lo[:, None, None, None]
         mids = lo + start + (j[:-1] + 0.5) * wc  # (B, W, P, J) the bins' centres
         en = cell_energies(cum_n, cum_x, np.minimum(lo + offs, n_cells), mids, wc[..., 0])
-        score[s0:s0 + B] = en.reshape(B, -1).max(1)
+        score[s0 : s0 + B] = en.reshape(B, -1).max(1)
     return score
 
 
-def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, planes: list,
-                bin_counts, cfg: CropConfig = READER.crop, progress: Progress = None) -> list[Frame]:
+def crop_frames(
+    V: np.ndarray,
+    a: np.ndarray,
+    area: np.ndarray,
+    own: Frame,
+    planes: list,
+    bin_counts,
+    cfg: CropConfig = READER.crop,
+    progress: Progress = None,
+) -> list[Frame]:
     """For each count in ``bin_counts``, the frame of that many bins where a cropped copy shows the most
     mark energy (``excess_energy``) near the families of the cut ``planes`` (``cut_planes``, not empty).
     V (n, 3); a (n,) the reader's vertex weights; area (n,) ``vertex_areas``; ``own`` the suspect's own
@@ -224,7 +256,7 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
         s = _spread(C - own.centre, cfg.screen_lattice * width)
         first = _screen(Pc, Cc[s], width, cfg)[0]
         stage()
-        top = C[s[np.argsort(-first, kind="stable")[:max(cfg.screen_min, int(cfg.screen_top * len(s)))]]]
+        top = C[s[np.argsort(-first, kind="stable")[: max(cfg.screen_min, int(cfg.screen_top * len(s)))]]]
         near = unique_values(pairs_within(top, C, cfg.expand * width)[1])
         second, at = _screen(Pc, Cc[near], width, cfg)
         stage()
@@ -241,21 +273,29 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
             return excess_energy(*statistics_in(V, a, fr, [n_bins])[0], total), fr
 
         scaled = []
-        for i in np.argsort(-score, kind="stable")[:cfg.top]:
+        for i in np.argsort(-score, kind="stable")[: cfg.top]:
             # off the family's plane (the cap's centroid off the hole's axis), then the scale
             off = C[i] - own.centre + np.outer(off_plane * width, N[i])
-            e = _coarse(Pc, area_c, off.astype(np.float32), np.full(len(off), L[i]),
-                        np.tile(w_phase[i] * around, (len(off), 1)), n_bins, phases)
+            e = _coarse(
+                Pc,
+                area_c,
+                off.astype(np.float32),
+                np.full(len(off), L[i]),
+                np.tile(w_phase[i] * around, (len(off), 1)),
+                n_bins,
+                phases,
+            )
             best_off = off[int(np.argmax(e))]
             scaled.append((*_fit_scale(Pw, aw, area_w, own.centre + best_off, L[i], width, n_bins, cfg), L[i]))
         scaled.sort(key=lambda f: -f[0])
         stage()
-        fits = sorted(((*refined(fr, first_sample), lam) for _, fr, lam in scaled[:cfg.refined]),
-                      key=lambda f: -f[0])
+        fits = sorted(((*refined(fr, first_sample), lam) for _, fr, lam in scaled[: cfg.refined]), key=lambda f: -f[0])
         # the ``final`` best, and each fitted again at its refined centre: the one of most energy
-        finals = [f for z, fr, lam in fits[:cfg.final]
-                  for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins, cfg)[1],
-                                             (Pf, af)))]
+        finals = [
+            f
+            for z, fr, lam in fits[: cfg.final]
+            for f in ((z, fr), refined(_fit_scale(Pw, aw, area_w, fr.centre, lam, width, n_bins, cfg)[1], (Pf, af)))
+        ]
         stage()
         return max(finals, key=lambda f: f[0])[1]
 
@@ -263,8 +303,16 @@ def crop_frames(V: np.ndarray, a: np.ndarray, area: np.ndarray, own: Frame, plan
     return parallel_map(frame_for, list(bin_counts))
 
 
-def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarray, lam: float, width: float,
-               n_bins: int, cfg: CropConfig) -> tuple[float, Frame]:
+def _fit_scale(
+    P: np.ndarray,
+    a: np.ndarray,
+    area: np.ndarray,
+    centre: np.ndarray,
+    lam: float,
+    width: float,
+    n_bins: int,
+    cfg: CropConfig,
+) -> tuple[float, Frame]:
     """The frame around ``centre`` whose lo (near the area quantile the crop left of the original's,
     ``lam`` its share taken) and bin width (within ``cfg.fine_half`` steps of ``cfg.fine_step`` of the width
     where the radii add up in phase, within ``cfg.screen_widths`` times ``width``) show the most mark energy on the
@@ -278,7 +326,7 @@ def _fit_scale(P: np.ndarray, a: np.ndarray, area: np.ndarray, centre: np.ndarra
     widths = w_phase * (1.0 + cfg.fine_step * np.arange(-cfg.fine_half, cfg.fine_half + 1))
     phases = np.asarray(cfg.fine_phases)
     e = scale_energies(rho, a, lo, widths, phases[::4], n_bins)[0].max(1)
-    rel = widths[np.sort(np.argsort(-e, kind="stable")[:cfg.fine_keep])]
+    rel = widths[np.sort(np.argsort(-e, kind="stable")[: cfg.fine_keep])]
     e = scale_energies(rho, a, lo, rel, phases, n_bins)[0]
     wi, pi = np.unravel_index(int(np.argmax(e)), e.shape)
     w = float(rel[wi])

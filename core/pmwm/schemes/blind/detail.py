@@ -63,16 +63,25 @@ class BlindDetail(VerdictDetail):
         return [read_on] if read_on else []
 
     def in_words(self) -> list[tuple[str, str]]:
-        rows = [("How it was read", "from the spread of the vertices' distances to the surface's centre, with "
-                                    "the pass phrase alone (no key file)")]
+        rows = [
+            (
+                "How it was read",
+                "from the spread of the vertices' distances to the surface's centre, with "
+                "the pass phrase alone (no key file)",
+            )
+        ]
         read_on = mesh_read(self.mesh)
         if read_on:
             rows.append(("Read on", read_on))
         return rows
 
     def numbers(self) -> list[tuple[str, str]]:
-        return [("word", f"{self.payload_bits} payload + {self.check_bits} check bits"),
-                ("payload kind", self.payload_kind or "-"),
-                ("mesh read", self.mesh), ("frame", f"{self.frame} ({self.frame_index + 1} of {self.frames})"),
-                ("reserve frames", str(self.reserve_frames)), ("Chase bits", str(self.chase_bits)),
-                ("candidates per kind", str(self.candidates))]
+        return [
+            ("word", f"{self.payload_bits} payload + {self.check_bits} check bits"),
+            ("payload kind", self.payload_kind or "-"),
+            ("mesh read", self.mesh),
+            ("frame", f"{self.frame} ({self.frame_index + 1} of {self.frames})"),
+            ("reserve frames", str(self.reserve_frames)),
+            ("Chase bits", str(self.chase_bits)),
+            ("candidates per kind", str(self.candidates)),
+        ]

@@ -31,8 +31,21 @@ from ...smoothing import mean_operator, smoothed, unsmoothing_steps
 from ...subdivision import coarse_mesh
 from .config import READER, DenoiseConfig, ReaderConfig, UnsmoothConfig
 from .crop import crop_frames, cut_planes
-from .radial import (QUANTILES, REFINE_SAMPLE, Frame, by_distance, excess_energy, frame_of_areas, in_standard_errors,
-                     interferes, refine_frame, statistics_in, thinned, weighted_quantiles)
+from .radial import (
+    QUANTILES,
+    REFINE_SAMPLE,
+    Frame,
+    by_distance,
+    excess_energy,
+    frame_of_areas,
+    in_standard_errors,
+    interferes,
+    refine_frame,
+    statistics_in,
+    thinned,
+    weighted_quantiles,
+)
+
 
 @dataclass
 class Frames:
@@ -59,8 +72,9 @@ class Frames:
     guess: Optional[Callable[[], Optional[tuple[int, int, np.ndarray, np.ndarray]]]] = None
 
 
-def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, config: ReaderConfig = READER,
-                    progress: Progress = None) -> Frames:
+def read_statistics(
+    V: np.ndarray, F: np.ndarray, bin_counts, config: ReaderConfig = READER, progress: Progress = None
+) -> Frames:
     """``read_statistics_frames`` of the suspect V (n, 3), F (m, 3), or of the coarse mesh it was subdivided
     from (``pmwm.subdivision.coarse_mesh``, up to ``config.max_undo`` steps, one at a time: the "coarse" stage)
     when that shows ``config.coarse_gain`` times the excess energy per vertex (any, when that is not positive);
@@ -96,17 +110,25 @@ def read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, config: ReaderConf
         return _read_statistics(V, F, bin_counts, area, grid, early, counts0, operator, config, report)
 
 
-def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray, grid: bool,
-                     early: Optional[Background], counts0: Optional[tuple[np.ndarray, np.ndarray]], operator,
-                     config: ReaderConfig, report: Callable[[float, str], None] = no_progress) -> Frames:
+def _read_statistics(
+    V: np.ndarray,
+    F: np.ndarray,
+    bin_counts,
+    area: np.ndarray,
+    grid: bool,
+    early: Optional[Background],
+    counts0: Optional[tuple[np.ndarray, np.ndarray]],
+    operator,
+    config: ReaderConfig,
+    report: Callable[[float, str], None] = no_progress,
+) -> Frames:
     """``read_statistics`` once the suspect's ``area`` is known; ``grid``, whether it lies on a coarse grid;
     ``early``, the worker measuring the denoised frames of a copy on a coarse grid (None when none does),
     ``counts0`` and ``operator`` its ``edge_face_counts`` and ``mean_operator`` (None off a grid);
     ``report(fraction, message)`` the progress."""
     full_view = config.full_view
     report(0.1, "reading the suspect's frames")
-    got = read_statistics_frames(V, F, bin_counts, area, config=config,
-                                 progress=lambda f, m: report(0.1 + 0.3 * f, m))
+    got = read_statistics_frames(V, F, bin_counts, area, config=config, progress=lambda f, m: report(0.1 + 0.3 * f, m))
     V0, F0 = V, F
     # the suspect's edges, for the coarse mesh's first look and the smoothing operator: both are looked for
     # when the mark is not in full view
@@ -116,15 +138,16 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
     while config.reads("coarse") and got.energy < full_view and len(rules) < config.max_undo:
         step = 0.4 + 0.1 * len(rules)
         report(step, "looking for a mesh it was subdivided from")
-        coarse = coarse_mesh(V, F, None if rules else counts0,
-                             progress=lambda f, m, s=step: report(s + 0.08 * f, m))
+        coarse = coarse_mesh(V, F, None if rules else counts0, progress=lambda f, m, s=step: report(s + 0.08 * f, m))
         if coarse is None:
             break
         tries = [(coarse.vertices, rules + [coarse.rule])]
         if coarse.rule == "loop":
             tries.append((V[coarse.original], rules + ["1-to-4"]))
-        alt, steps = max(((read_statistics_frames(Vc, coarse.faces, bin_counts, config=config), steps)
-                          for Vc, steps in tries), key=lambda r: r[0].energy)
+        alt, steps = max(
+            ((read_statistics_frames(Vc, coarse.faces, bin_counts, config=config), steps) for Vc, steps in tries),
+            key=lambda r: r[0].energy,
+        )
         if alt.energy > config.coarse_gain * max(got.energy, 0.0):
             got = dataclasses.replace(alt, mesh=" + ".join(reversed(steps)))
         rules.append(coarse.rule)
@@ -141,8 +164,9 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
             report(0.7, "undoing a smoothing")
             steps = None
             if config.reads("unsmoothed"):
-                steps = unsmoothing(V0, F0, bin_counts, config.coarse_gain * max(got.energy, 0.0), area, operator,
-                                    config)
+                steps = unsmoothing(
+                    V0, F0, bin_counts, config.coarse_gain * max(got.energy, 0.0), area, operator, config
+                )
             if steps is not None:
                 got = dataclasses.replace(steps[1], mesh=f"smoothing:{steps[0]}")
                 blurred = _blurred(got, config)
@@ -154,12 +178,23 @@ def _read_statistics(V: np.ndarray, F: np.ndarray, bin_counts, area: np.ndarray,
     elif grid:
         report(0.85, "reading the suspect smoothed")
         got = _with_reserve(got, V0, F0, bin_counts, operator, early, config)
-    return dataclasses.replace(got, guess=functools.cache(
-        lambda: guess_statistics(V0, F0, bin_counts, operator, area, config.denoise) if grid else None))
+    return dataclasses.replace(
+        got,
+        guess=functools.cache(
+            lambda: guess_statistics(V0, F0, bin_counts, operator, area, config.denoise) if grid else None
+        ),
+    )
 
 
-def _with_reserve(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operator,
-                  measuring: Optional[Background], config: ReaderConfig) -> Frames:
+def _with_reserve(
+    got: Frames,
+    V: np.ndarray,
+    F: np.ndarray,
+    bin_counts,
+    operator,
+    measuring: Optional[Background],
+    config: ReaderConfig,
+) -> Frames:
     """``got`` with the denoised frames of ``with_denoised`` as reserve frames (the "reserve" stage), for a
     suspect on a coarse grid; ``got`` itself when it was read in a crop frame, or when ``config`` leaves the
     stage out. Why: quantization blurs the radii even where the bins do not show it, and reserve frames are
@@ -173,13 +208,23 @@ def _with_reserve(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
 def _blurred(got: Frames, config: ReaderConfig) -> bool:
     """Whether the reading ``got`` is also read in denoised frames: ``config`` reads the "denoised" stage, its
     own frame's bins show their neighbours' interference (``radial.interferes``) and no crop frame was taken."""
-    return (config.reads("denoised") and "crop" not in got.names
-            and interferes(in_standard_errors(*got.statistics[0][got.index])))
+    return (
+        config.reads("denoised")
+        and "crop" not in got.names
+        and interferes(in_standard_errors(*got.statistics[0][got.index]))
+    )
 
 
-def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operator,
-                  measuring: Optional[Background] = None, config: ReaderConfig = READER,
-                  stage: str = "denoised") -> Frames:
+def with_denoised(
+    got: Frames,
+    V: np.ndarray,
+    F: np.ndarray,
+    bin_counts,
+    operator,
+    measuring: Optional[Background] = None,
+    config: ReaderConfig = READER,
+    stage: str = "denoised",
+) -> Frames:
     """``got`` with the own and refined frames of the suspect V (n, 3), F (m, 3) after ``config.denoise.steps``
     steps of uniform Laplacian smoothing (``pmwm.smoothing.smoothed``, ``config.denoise.lam`` each;
     ``operator``, its ``mean_operator``) read too, named "denoised" and "denoised-refined" (their mesh:
@@ -201,19 +246,25 @@ def with_denoised(got: Frames, V: np.ndarray, F: np.ndarray, bin_counts, operato
     if more is None:
         return got
     names = tuple("denoised" if n == "own" else f"denoised-{n}" for n in more.names)
-    return dataclasses.replace(got, names=got.names + names, stages=got.stages + (stage,) * len(names),
-                               statistics=got.statistics + more.statistics)
+    return dataclasses.replace(
+        got,
+        names=got.names + names,
+        stages=got.stages + (stage,) * len(names),
+        statistics=got.statistics + more.statistics,
+    )
 
 
-def denoised_frames(V: np.ndarray, F: np.ndarray, bin_counts, operator, config: ReaderConfig = READER
-                    ) -> Optional[Frames]:
+def denoised_frames(
+    V: np.ndarray, F: np.ndarray, bin_counts, operator, config: ReaderConfig = READER
+) -> Optional[Frames]:
     """The own and refined frames (``read_statistics_frames``, no crop search) of the suspect V (n, 3), F (m, 3)
     after ``config.denoise.steps`` steps of smoothing (``operator``: its ``mean_operator``), for
     ``with_denoised``; None when smoothing flattened the surface to no area or no range."""
     X = smoothed(V, operator, config.denoise.lam, config.denoise.steps)
     try:
-        return read_statistics_frames(X, F, bin_counts, crop=False, refine_sample=config.denoise.refine_sample,
-                                      config=config)
+        return read_statistics_frames(
+            X, F, bin_counts, crop=False, refine_sample=config.denoise.refine_sample, config=config
+        )
     except MeshError:
         return None
 
@@ -224,12 +275,19 @@ def on_grid(V: np.ndarray, grid_values: int = READER.denoise.grid_values) -> boo
     axis and not moved since). Key-free; a prefix of each axis rejects most meshes at a small cost."""
     limit = min(grid_values, len(V) // 4)
     cols = np.asarray(V, dtype=np.float64).T
-    return all(len(unique_values(c[: 4 * limit + 1])) <= limit for c in cols) and \
-        all(len(unique_values(c)) <= limit for c in cols)
+    return all(len(unique_values(c[: 4 * limit + 1])) <= limit for c in cols) and all(
+        len(unique_values(c)) <= limit for c in cols
+    )
 
 
-def guess_statistics(V: np.ndarray, F: np.ndarray, bin_counts, operator=None, area: Optional[np.ndarray] = None,
-                     cfg: DenoiseConfig = READER.denoise) -> Optional[tuple[int, int, np.ndarray, np.ndarray]]:
+def guess_statistics(
+    V: np.ndarray,
+    F: np.ndarray,
+    bin_counts,
+    operator=None,
+    area: Optional[np.ndarray] = None,
+    cfg: DenoiseConfig = READER.denoise,
+) -> Optional[tuple[int, int, np.ndarray, np.ndarray]]:
     """(steps, index, stat (M,), share (M,)): the own frame's statistics (``statistics_in``) of the suspect
     V (n, 3), F (m, 3) as it is or after each of ``cfg.guess_steps`` steps of smoothing (``cfg.lam`` each; ``operator``
     and ``area``: its ``mean_operator`` and ``vertex_areas``, when the caller has them), at each bin count of
@@ -269,8 +327,15 @@ def mesh_of(name: str, mesh: str, cfg: DenoiseConfig = READER.denoise) -> str:
     return f"smoothing:-{cfg.steps}" if name.startswith("denoised") else mesh
 
 
-def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Optional[np.ndarray] = None,
-                operator=None, config: ReaderConfig = READER):
+def unsmoothing(
+    V: np.ndarray,
+    F: np.ndarray,
+    bin_counts,
+    above: float,
+    area: Optional[np.ndarray] = None,
+    operator=None,
+    config: ReaderConfig = READER,
+):
     """(steps, ``Frames``) of the suspect V (n, 3), F (m, 3) with that many steps of uniform Laplacian
     smoothing undone (``pmwm.smoothing``, ``cfg.lam`` each, ``cfg = config.unsmooth``: names below without the
     prefix), the count whose own frame shows the most
@@ -312,8 +377,10 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
             centre = weight @ X
             lo, hi = weighted_quantiles(row_norms(X[sub] - centre)[None], area[sub], [QUANTILES])[0]
             if hi > lo:
-                scan[m] = max(excess_energy(st, share, len(sub))
-                              for st, share in statistics_in(X[sub], ones, Frame(centre, lo, hi, 1), bin_counts))
+                scan[m] = max(
+                    excess_energy(st, share, len(sub))
+                    for st, share in statistics_in(X[sub], ones, Frame(centre, lo, hi, 1), bin_counts)
+                )
     if not scan or max(scan.values()) < cfg.floor * len(sub):
         return None
     best = max(scan, key=scan.get)
@@ -321,8 +388,9 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     lo_m, hi_m = max(1, int(round(cfg.near[0] * best))), int(round(cfg.near[1] * best))
     (m, e, X, aX), (m0, X0) = _best_count(V, F, operator, bin_counts, range(lo_m, hi_m + 1, step), limit, cfg)
     if step > 1:  # every count around the best, stepped on from the count measured before it
-        second, _ = _best_count(X0, F, operator, bin_counts,
-                                [k for k in range(m - step + 1, m + step) if k != m and k > m0], limit, cfg, m0)
+        second, _ = _best_count(
+            X0, F, operator, bin_counts, [k for k in range(m - step + 1, m + step) if k != m and k > m0], limit, cfg, m0
+        )
         if second[1] > e:
             m, e, X, aX = second
     if not np.isfinite(e):
@@ -334,8 +402,9 @@ def unsmoothing(V: np.ndarray, F: np.ndarray, bin_counts, above: float, area: Op
     return (m, got) if got.energy > above else None
 
 
-def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, limit: float, cfg: UnsmoothConfig,
-                start: int = 0) -> tuple[tuple[int, float, np.ndarray, Optional[np.ndarray]], tuple[int, np.ndarray]]:
+def _best_count(
+    V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, limit: float, cfg: UnsmoothConfig, start: int = 0
+) -> tuple[tuple[int, float, np.ndarray, Optional[np.ndarray]], tuple[int, np.ndarray]]:
     """Of the step counts ``counts`` (ascending, above ``start``), the one whose unsmoothed vertices'
     own frame shows the most excess energy per vertex over ``bin_counts``: (count, energy, vertices
     (n, 3), their ``vertex_areas`` (n,)), energy -inf, V and None when ``counts`` is empty; and the
@@ -361,10 +430,16 @@ def _best_count(V: np.ndarray, F: np.ndarray, operator, bin_counts, counts, limi
     return best, before
 
 
-def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
-                           area: Optional[np.ndarray] = None, crop: bool = True,
-                           refine_sample: int = REFINE_SAMPLE, config: ReaderConfig = READER,
-                           progress: Progress = None) -> Frames:
+def read_statistics_frames(
+    V: np.ndarray,
+    F: np.ndarray,
+    bin_counts,
+    area: Optional[np.ndarray] = None,
+    crop: bool = True,
+    refine_sample: int = REFINE_SAMPLE,
+    config: ReaderConfig = READER,
+    progress: Progress = None,
+) -> Frames:
     """The bins' statistics of the suspect V (n, 3), F (m, 3) for every count in ``bin_counts``, in the
     frames of the module docstring that ``config`` reads (the stages "own", "refined", "crop"; with ``crop``
     False, the own and refined frames only; the refined one searched on ``refine_sample`` vertices at most,
@@ -398,20 +473,30 @@ def read_statistics_frames(V: np.ndarray, F: np.ndarray, bin_counts,
     if name != "crop":
         return Frames(index, ("own", name), ("own", name), [own, statistics_in(V, a, second, counts)], z / total)
     shifts = config.crop_shifts
-    shifted = [Frame(second.centre, second.lo + k * second.width, second.hi + k * second.width, second.n_bins)
-               for k in shifts]
-    return Frames(index, ("own", "crop", *(f"crop{k:+d}" for k in shifts)), ("own",) + ("crop",) * (1 + len(shifts)),
-                  [own, *(statistics_in(V, a, f, counts) for f in (second, *shifted))], z / total)
+    shifted = [
+        Frame(second.centre, second.lo + k * second.width, second.hi + k * second.width, second.n_bins) for k in shifts
+    ]
+    return Frames(
+        index,
+        ("own", "crop", *(f"crop{k:+d}" for k in shifts)),
+        ("own",) + ("crop",) * (1 + len(shifts)),
+        [own, *(statistics_in(V, a, f, counts) for f in (second, *shifted))],
+        z / total,
+    )
 
 
-def best_length(V: np.ndarray, a: np.ndarray, found: list[Frame], counts: list[int], searched: list[int]
-                ) -> tuple[float, int, Frame]:
+def best_length(
+    V: np.ndarray, a: np.ndarray, found: list[Frame], counts: list[int], searched: list[int]
+) -> tuple[float, int, Frame]:
     """Of the frames the crop search ``found`` (one per searched count), each read at every searched length
     (its lo and bin width, with that many bins: ``counts[j]`` for j in ``searched``), the one of most excess
     energy (``excess_energy`` on the vertices V (n, 3) of weights a (n,)): (energy, j, frame). Why: the search
     for a longer word can find a shorter mark's own bins, which hold the mark read at the shorter length."""
     total = float(a.sum())
-    read = [(excess_energy(*statistics_in(V, a, f, [counts[j]])[0], total), j, f)
-            for g in found for j in searched
-            for f in [Frame(g.centre, g.lo, g.lo + counts[j] * g.width, counts[j])]]
+    read = [
+        (excess_energy(*statistics_in(V, a, f, [counts[j]])[0], total), j, f)
+        for g in found
+        for j in searched
+        for f in [Frame(g.centre, g.lo, g.lo + counts[j] * g.width, counts[j])]
+    ]
     return max(read, key=lambda r: r[0])

@@ -54,24 +54,48 @@ class Stage:
 
 STAGES: tuple[Stage, ...] = (
     Stage("own", ("own",), SHARED, "always: the suspect's area-weighted centre and quantile range"),
-    Stage("refined", ("refined",), SHARED,
-          "the compass search (at most {bound:g} bin widths) finds a frame of more mark energy than the own one"),
-    Stage("crop", ("crop", "crop-2", "crop-1", "crop+1", "crop+2"), SHARED,
-          "the suspect has a planar cut, does not show the mark in full view, and the crop search finds a "
-          "frame of more energy than the refined one (which it replaces); words of up to {c.crop_max_bins} bins"),
-    Stage("coarse", (), MESH,
-          "not in full view, and the mesh a subdivided suspect was made from (up to {c.max_undo} steps undone) "
-          "shows {c.coarse_gain:g} times its excess energy per vertex"),
-    Stage("unsmoothed", (), MESH,
-          "still not in full view, and the suspect with steps of smoothing undone shows {c.coarse_gain:g} times "
-          "the excess energy per vertex of the best so far"),
-    Stage("denoised", ("denoised", "denoised-refined"), SHARED,
-          "still not in full view, no crop frame, and the bins show their neighbours' interference (the blur "
-          "of noise or quantization): the own and refined frames of the suspect after {c.denoise.steps} "
-          "smoothing steps"),
-    Stage("reserve", ("denoised", "denoised-refined"), REST,
-          "the suspect lies on a coarse grid (at most {c.denoise.grid_values} values per axis), no crop frame "
-          "and no denoised stage: the same frames, paid from what the others leave"),
+    Stage(
+        "refined",
+        ("refined",),
+        SHARED,
+        "the compass search (at most {bound:g} bin widths) finds a frame of more mark energy than the own one",
+    ),
+    Stage(
+        "crop",
+        ("crop", "crop-2", "crop-1", "crop+1", "crop+2"),
+        SHARED,
+        "the suspect has a planar cut, does not show the mark in full view, and the crop search finds a "
+        "frame of more energy than the refined one (which it replaces); words of up to {c.crop_max_bins} bins",
+    ),
+    Stage(
+        "coarse",
+        (),
+        MESH,
+        "not in full view, and the mesh a subdivided suspect was made from (up to {c.max_undo} steps undone) "
+        "shows {c.coarse_gain:g} times its excess energy per vertex",
+    ),
+    Stage(
+        "unsmoothed",
+        (),
+        MESH,
+        "still not in full view, and the suspect with steps of smoothing undone shows {c.coarse_gain:g} times "
+        "the excess energy per vertex of the best so far",
+    ),
+    Stage(
+        "denoised",
+        ("denoised", "denoised-refined"),
+        SHARED,
+        "still not in full view, no crop frame, and the bins show their neighbours' interference (the blur "
+        "of noise or quantization): the own and refined frames of the suspect after {c.denoise.steps} "
+        "smoothing steps",
+    ),
+    Stage(
+        "reserve",
+        ("denoised", "denoised-refined"),
+        REST,
+        "the suspect lies on a coarse grid (at most {c.denoise.grid_values} values per axis), no crop frame "
+        "and no denoised stage: the same frames, paid from what the others leave",
+    ),
 )
 
 _PAYS = {s.name: s.pays for s in STAGES}
@@ -125,9 +149,11 @@ def table(config) -> list[str]:
     """The plan as the lines of a Markdown table (docs/schemes/blind.md, "The reading plan"), its conditions
     with the settings of ``config`` (a ``config.ReaderConfig``)."""
     rows = ["| stage | frames | share of the budget | read when |", "|---|---|---|---|"]
-    share = {SHARED: f"an equal part with the other shared frames (2^C candidates per kind, C <= {CHASE_BITS})",
-             REST: "an equal part of what the shared frames leave",
-             MESH: "none: the mesh the frame stages read"}
+    share = {
+        SHARED: f"an equal part with the other shared frames (2^C candidates per kind, C <= {CHASE_BITS})",
+        REST: "an equal part of what the shared frames leave",
+        MESH: "none: the mesh the frame stages read",
+    }
     for s in STAGES:
         when = s.when.format(c=config, bound=REFINE_BOUND)
         rows.append(f"| {s.name} | {', '.join(s.frames) or '-'} | {share[s.pays]} | {when} |")

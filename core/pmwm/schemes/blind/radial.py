@@ -108,7 +108,7 @@ def high_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
     n = len(x)
     m = min(n, 2 * int((1.0 - q) * n) + 256)
     if m < n and q < 1.0:  # (at q = 1 the full sort's rounding decides: its own answer is kept)
-        part = np.argpartition(x, n - m)[n - m:]
+        part = np.argpartition(x, n - m)[n - m :]
         part.sort()  # (by index: the stable sort below then orders ties as argsort of all of x does)
         order = part[np.argsort(x[part], kind="stable")]
         tail = np.take(w, order)
@@ -188,7 +188,7 @@ class BinMeans:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """The mean of x (n,) in each bin (M,), NaN in an empty one (the values outside play no part)."""
-        s = np.bincount(self.index, weights=self.a * x, minlength=self.n_bins + 1)[:self.n_bins]
+        s = np.bincount(self.index, weights=self.a * x, minlength=self.n_bins + 1)[: self.n_bins]
         return np.divide(s, self.weight, out=np.full(self.n_bins, np.nan), where=self.weight > 0)
 
 
@@ -295,8 +295,9 @@ def bin_margins(counts: np.ndarray) -> np.ndarray:
     return np.clip(np.sqrt(med / np.maximum(c, 1e-300)), *MARGIN_SPREAD)
 
 
-def moved_to_radius(V: np.ndarray, centre: np.ndarray, bv: Binned, rho_new: np.ndarray, normals: np.ndarray,
-                    share: float = NORMAL_SHARE) -> np.ndarray:
+def moved_to_radius(
+    V: np.ndarray, centre: np.ndarray, bv: Binned, rho_new: np.ndarray, normals: np.ndarray, share: float = NORMAL_SHARE
+) -> np.ndarray:
     """The vertices V (n, 3) moved to the distances rho_new (n,) from ``centre`` (``bv``: their distances and
     directions in that frame), each along e = u - (1 - share)(u . n) n, normalised: its radial direction u with
     the part across the surface (n its unit normal, ``normals`` (n, 3), zero where it has none) scaled by
@@ -345,8 +346,15 @@ class Host:
         return Host(fr, a, bin_vertices(V, fr), vertex_normals(V, F))
 
 
-def embed_signs(V: np.ndarray, F: np.ndarray, signs: np.ndarray, alpha: float, rounds: int = 8,
-                share: float = NORMAL_SHARE, host: Optional[Host] = None) -> np.ndarray:
+def embed_signs(
+    V: np.ndarray,
+    F: np.ndarray,
+    signs: np.ndarray,
+    alpha: float,
+    rounds: int = 8,
+    share: float = NORMAL_SHARE,
+    host: Optional[Host] = None,
+) -> np.ndarray:
     """Marked vertices (n, 3) float64 (float32-exact) whose bins read ``signs`` (M,) (+1 / -1; 0 =
     leave the bin alone) with margin ``alpha`` on the bin mean of r in a bin of the median count of
     vertices (``bin_margins``). An empty bin carries nothing (the reader sees an erasure). ``host``:
@@ -398,8 +406,9 @@ REFINE_BOUND = 1.5  # the search stays within this many bin widths of the suspec
 REFINE_MOVES = 12  # moves per step size at most
 
 
-def energies(V: np.ndarray, a: np.ndarray, centres: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-             n_bins: int) -> np.ndarray:
+def energies(
+    V: np.ndarray, a: np.ndarray, centres: np.ndarray, lo: np.ndarray, hi: np.ndarray, n_bins: int
+) -> np.ndarray:
     """The mark's energy in K candidate frames, (K,) float64: sum over bins of n_j (mean_j - 1/2)^2,
     i.e. S_j^2 / n_j with S_j the bin's sum of (r - 1/2). V (n, 3), a (n,) weights, centres (K, 3),
     lo, hi (K,). Under no mark it is about n_bins / 12 whatever the frame; the pass phrase plays no part."""
@@ -433,7 +442,7 @@ def distances(P: np.ndarray, C: np.ndarray) -> np.ndarray:
     d = np.subtract(C[:, 0:1], PT[0])
     r = d * d
     for k in (1, 2):
-        np.subtract(C[:, k:k + 1], PT[k], out=d)
+        np.subtract(C[:, k : k + 1], PT[k], out=d)
         d *= d
         r += d
     return np.sqrt(r, out=r)
@@ -454,8 +463,7 @@ def _cell_ids(x: np.ndarray, n_cells: int) -> tuple[np.ndarray, Optional[np.ndar
     return flat[ok], ok
 
 
-def cumulative_cells(x: np.ndarray, n_cells: int, weights: Optional[np.ndarray], *more: np.ndarray
-                     ) -> list[np.ndarray]:
+def cumulative_cells(x: np.ndarray, n_cells: int, weights: Optional[np.ndarray], *more: np.ndarray) -> list[np.ndarray]:
     """Cumulative per-cell sums of B rows of points, for many frames' bins at once (``cell_energies``).
 
     x (B, n) float: each point's position from its row's origin, in cells (points outside [0, n_cells)
@@ -477,8 +485,9 @@ def cumulative_cells(x: np.ndarray, n_cells: int, weights: Optional[np.ndarray],
     return [cum(weights), cum(x if weights is None else weights * x), *(cum(m) for m in more)]
 
 
-def cell_energies(cum_w: np.ndarray, cum_wx: np.ndarray, edges: np.ndarray, mids: np.ndarray,
-                  widths: np.ndarray) -> np.ndarray:
+def cell_energies(
+    cum_w: np.ndarray, cum_wx: np.ndarray, edges: np.ndarray, mids: np.ndarray, widths: np.ndarray
+) -> np.ndarray:
     """The mark's energy (as ``energies``) of many frames from ``cumulative_cells``' tables, (B, ...).
 
     cum_w, cum_wx (B, N + 1): the cumulative weights and weighted positions (in cells) of B rows;
@@ -496,8 +505,9 @@ def cell_energies(cum_w: np.ndarray, cum_wx: np.ndarray, edges: np.ndarray, mids
     return s.sum(-1) / (widths * widths)
 
 
-def scale_energies(rho: np.ndarray, a: np.ndarray, lo: np.ndarray, widths: np.ndarray, phases: np.ndarray,
-                   n_bins: int) -> np.ndarray:
+def scale_energies(
+    rho: np.ndarray, a: np.ndarray, lo: np.ndarray, widths: np.ndarray, phases: np.ndarray, n_bins: int
+) -> np.ndarray:
     """The mark's energy (as ``energies``) of many frames around B centres at once, (B, W, P) float64:
     around centre b, n_bins bins of width ``widths[w]`` from ``lo[b] + phases[p] * widths[w]``.
 
@@ -538,7 +548,7 @@ def in_phase(rho: np.ndarray, cell: float, w_min: float, w_max: float, pad: int)
     k_lo = max(int(np.floor(n_fft * cell / w_max)), 1)  # frequency k: a width of n_fft * cell / k
     k_hi = int(np.ceil(n_fft * cell / w_min)) + 1
     band = np.fft.rfft(counts, n=n_fft, axis=1)[:, k_lo:k_hi]
-    power = band.real ** 2 + band.imag ** 2
+    power = band.real**2 + band.imag**2
     return power.max(1), n_fft * cell / (k_lo + np.argmax(power, axis=1))
 
 
@@ -562,7 +572,7 @@ def by_distance(V: np.ndarray, a: np.ndarray, centre: np.ndarray) -> np.ndarray:
 def thinned(order: np.ndarray, k: int) -> np.ndarray:
     """Every j-th of ``order`` (at most k of them): a sample that does not depend on the vertex order
     when ``order`` does not (``by_distance``)."""
-    return order[::max(1, -(-len(order) // k))]
+    return order[:: max(1, -(-len(order) // k))]
 
 
 def refine_frame_on(Vs: np.ndarray, As: np.ndarray, fr: Frame, n_bins: int) -> Frame:
@@ -688,7 +698,7 @@ def _posterior_odds(x: np.ndarray, empty: np.ndarray, g: float, c: float, var: f
     prior = np.vstack([np.where(empty[:, None], zero_prior, sign_prior), zero_prior])  # (M + 1, 3): s_M = 0
     prev, cur, nxt = values[:, None, None], values[None, :, None], values[None, None, :]
     fit = g * cur + c * (prev + nxt)  # (3, 3, 3): x_j's mean for (s_{j-1}, s_j, s_{j+1})
-    loglik = np.where(empty[:, None, None, None], 0.0, -(x[:, None, None, None] - fit[None]) ** 2 / (2.0 * var))
+    loglik = np.where(empty[:, None, None, None], 0.0, -((x[:, None, None, None] - fit[None]) ** 2) / (2.0 * var))
     step = loglik + prior[1:, None, None, :]  # (M, 3, 3, 3), with s_{j+1}'s prior
     fwd = np.full((M + 1, 3, 3), -np.inf)  # fwd[j][s_{j-1}, s_j]
     fwd[0, 1, :] = prior[0]  # s_{-1} = 0
@@ -720,7 +730,7 @@ def _most_likely_signs(x: np.ndarray, g: float, c: float) -> np.ndarray:
         return np.where(x >= 0, 1.0, -1.0)
     prev, cur, nxt = S[:, None, None], S[None, :, None], S[None, None, :]
     # each inner bin's cost for every (s_{j-1}, s_j, s_{j+1}), all at once: the loop only adds and compares
-    step = (x[1:M - 1, None, None, None] - g * cur - c * (prev + nxt)) ** 2  # (M - 2, 2, 2, 2)
+    step = (x[1 : M - 1, None, None, None] - g * cur - c * (prev + nxt)) ** 2  # (M - 2, 2, 2, 2)
     cost = (x[0] - g * S[:, None] - c * S[None, :]) ** 2  # [s_0, s_1]
     back = np.zeros((M, 2, 2), np.int64)  # back[j][s_j, s_{j+1}]: the best s_{j-1} (the first on a tie)
     for j in range(1, M - 1):

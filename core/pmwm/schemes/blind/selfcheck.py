@@ -58,8 +58,10 @@ def light_copies(marked: np.ndarray, faces: np.ndarray, secret: str):
     Vp, Fp = attacks.similarity(marked, faces, seed=derive_seed(secret, "selfcheck-pose"))
     Vp, Fp = attacks.reorder(Vp, Fp, seed=derive_seed(secret, "selfcheck-order"))
     yield "a re-export in another pose and vertex order", Vp.astype(np.float32).astype(np.float64), Fp
-    yield "a copy with 0.05 % noise", *attacks.noise_benchmark(marked, faces, LIGHT_NOISE,
-                                                               seed=derive_seed(secret, "selfcheck-noise"))
+    yield (
+        "a copy with 0.05 % noise",
+        *attacks.noise_benchmark(marked, faces, LIGHT_NOISE, seed=derive_seed(secret, "selfcheck-noise")),
+    )
 
 
 def failed_copy(m: Mark, marked: np.ndarray) -> str | None:
@@ -87,9 +89,11 @@ def ensure(m: Mark, marked: np.ndarray, margin: float, adjustable: bool) -> tupl
         size = f"{len(m.bits)}-bit payload"
     shorter = "" if len(m.bits) == SHORTEST else "a shorter payload, "
     if not adjustable:
-        raise PayloadError(f"the blind mark at strength {margin:g} does not read back from {failed} ({size}); "
-                           f"nothing written. Try a larger --strength (below 0.5), {shorter}or omit --strength "
-                           "to let pmwm choose")
+        raise PayloadError(
+            f"the blind mark at strength {margin:g} does not read back from {failed} ({size}); "
+            f"nothing written. Try a larger --strength (below 0.5), {shorter}or omit --strength "
+            "to let pmwm choose"
+        )
     tried = margin
     while tried * RAISE <= MAX_MARGIN:
         tried *= RAISE
@@ -98,6 +102,8 @@ def ensure(m: Mark, marked: np.ndarray, margin: float, adjustable: bool) -> tupl
             continue
         if failed_copy(m, raised) is None:
             return tried, raised
-    raise PayloadError(f"the blind mark ({size}) does not read back from {failed}, nor at a higher strength "
-                       f"within the distortion budget ({MAX_MRMS:g} % MRMS); nothing written. Try {shorter}another "
-                       "pass phrase, or the keyed scheme (--scheme robust)")
+    raise PayloadError(
+        f"the blind mark ({size}) does not read back from {failed}, nor at a higher strength "
+        f"within the distortion budget ({MAX_MRMS:g} % MRMS); nothing written. Try {shorter}another "
+        "pass phrase, or the keyed scheme (--scheme robust)"
+    )

@@ -99,8 +99,9 @@ def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[
             raise PayloadError("the payload text is empty; give some text or use --bits")
         n = next((L for L in PAYLOAD_BITS if L >= 8 * len(data)), None)
         if n is None:
-            raise PayloadError(f"the blind scheme holds at most {PAYLOAD_BITS[-1] // 8} bytes of text; "
-                               f"this payload has {len(data)}")
+            raise PayloadError(
+                f"the blind scheme holds at most {PAYLOAD_BITS[-1] // 8} bytes of text; this payload has {len(data)}"
+            )
         data = data + b"\0" * (n // 8 - len(data))
         return np.unpackbits(np.frombuffer(data, np.uint8)), "text"
     if bits is not None:
@@ -124,7 +125,7 @@ def check_bits(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
     for row in np.packbits(rows, axis=1):
         h = head.copy()
         h.update(row.tobytes() + tail)
-        tags += h.digest()[:CHECK_BITS // 8]
+        tags += h.digest()[: CHECK_BITS // 8]
     bits = np.unpackbits(np.frombuffer(bytes(tags), np.uint8)).reshape(len(rows), CHECK_BITS)
     return bits if np.ndim(payload) == 2 else bits[0]
 

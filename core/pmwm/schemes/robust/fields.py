@@ -85,8 +85,9 @@ def heights(V, F, origin, normal, t1, t2, uv, reach: float, expect: np.ndarray) 
     expect = expect.reshape(S * K, 2)
     found, held = [], 0
     for c in _site_chunks(si, PAIR_CHUNK):
-        for got in _crossings(np.take(tri, fi[c], axis=0) - origin[si[c]][:, None, :], si[c], t1, t2, normal,
-                              uv, key, by_u, band, reach):
+        for got in _crossings(
+            np.take(tri, fi[c], axis=0) - origin[si[c]][:, None, :], si[c], t1, t2, normal, uv, key, by_u, band, reach
+        ):
             found.append(got)
             held += len(got[0])
             if held > CROSSINGS_HELD:  # a crumpled copy crosses each line many times: keep the nearest so far
@@ -103,8 +104,9 @@ PAIR_CHUNK = 1 << 16  # (site, face) pairs projected at once: bounds the memory 
 CROSSINGS_HELD = 1 << 22  # crossings held before all but the nearest of each line are dropped
 
 
-def _nearest_crossings(slot: np.ndarray, h: np.ndarray, back: np.ndarray, expect: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _nearest_crossings(
+    slot: np.ndarray, h: np.ndarray, back: np.ndarray, expect: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Of the crossings (slot, height, back-facing) (k,) of the sample lines, each line's nearest to either
     of its expected heights ``expect`` (S * K, 2), a front-facing one before a back-facing one at the same
     distance, the first of equals: (slot, height, back) by slot. Why: a line may cross the surface more than
@@ -115,7 +117,6 @@ def _nearest_crossings(slot: np.ndarray, h: np.ndarray, back: np.ndarray, expect
     slot, h, back = slot[order], h[order], back[order]
     first = np.r_[True, slot[1:] != slot[:-1]] if len(slot) else np.zeros(0, bool)
     return slot[first], h[first], back[first]
-
 
 
 def _site_chunks(si: np.ndarray, size: int) -> list[slice]:

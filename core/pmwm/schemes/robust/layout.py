@@ -153,8 +153,12 @@ class _CutBook:
         ki, kj = self.site_cuts[i], self.site_cuts[j]
         lose, gain = ki & ~kj, kj & ~ki  # the cuts where b loses a kept site (a gains one), and gains
         # the change in b's and a's short cuts: must not be positive
-        if ((lose & at_need[b]).bit_count() - (gain & one_short[b]).bit_count()
-                + (gain & at_need[a]).bit_count() - (lose & one_short[a]).bit_count()) > 0:
+        if (
+            (lose & at_need[b]).bit_count()
+            - (gain & one_short[b]).bit_count()
+            + (gain & at_need[a]).bit_count()
+            - (lose & one_short[a]).bit_count()
+        ) > 0:
             return False
         delta = self.kept_n[j] - self.kept_n[i]
         self.count[b] += delta
