@@ -123,7 +123,8 @@ def main(argv=None) -> int:
         f"Machine: {machine()}, bpy {bpy.app.version_string}; load average at the end {os.getloadavg()[0]:.1f}  "
     )
     out.append(
-        f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}` at commit {commit()}  "
+        f"Command: `python benchmarks/bench_addon.py --vertices {args.vertices} --repeat {args.repeat}` "
+        f"at commit {commit()}  "
     )
     out.append(
         f"Mesh: {args.mesh.name}"

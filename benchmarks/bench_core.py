@@ -2,10 +2,11 @@
 full decode, verify, bytes per record, and the size of each extension zip.
 
 Run: python benchmarks/bench_core.py [--print-only] [--no-zips]  (meshes from $PMWM_TEST_DATA or
-../shared/data beside the checkout). Writes the "core" section of the report (its fragment in benchmarks/results/) (``--print-only``:
-prints it only; ``--no-zips``: leaves out the extension zips, e.g. to time another checkout's library
-with PYTHONPATH=that/core). The anchor is a whole process, like `pmwm embed`: Python
-start-up, trimesh loading the same file, fast_simplification.simplify to 1 % of the faces.
+../shared/data beside the checkout). Writes the "core" section of the report (its fragment in
+benchmarks/results/) (``--print-only``: prints it only; ``--no-zips``: leaves out the extension
+zips, e.g. to time another checkout's library with PYTHONPATH=that/core). The anchor is a whole
+process, like `pmwm embed`: Python start-up, trimesh loading the same file,
+fast_simplification.simplify to 1 % of the faces.
 """
 
 from __future__ import annotations
@@ -174,14 +175,18 @@ def main() -> None:
     lines = [
         "## Core speed and size",
         "",
-        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. Best of 2-3 runs (`pmwm embed` and its anchor: best of 5, alternating; decode: best of 25).",
+        f"Command: `{command()}` at commit {commit()}. Machine: {machine()}. Best of 2-3 runs "
+        "(`pmwm embed` and its anchor: best of 5, alternating; decode: best of 25).",
         "",
-        "| mesh | vertices | `pmwm embed` CLI end to end | anchor: fast-simplification to 1 %, whole process | ratio | of which Python start + import | read mesh | `pmwm.embed()` | records | full decode | records/s | verify (index) | verify (re-ordered copy) | .pmwm bytes | bytes/record |",
+        "| mesh | vertices | `pmwm embed` CLI end to end | anchor: fast-simplification to 1 %, whole process | ratio "
+        "| of which Python start + import | read mesh | `pmwm.embed()` | records | full decode | records/s "
+        "| verify (index) | verify (re-ordered copy) | .pmwm bytes | bytes/record |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, n, t_cli, t_py0, t_read, t_embed, nrec, t_dec, t_ver, t_verp, size, _, head, t_anc in rows:
         lines.append(
-            f"| {name} | {n:,} | {t_cli:.2f} s | {t_anc:.2f} s | {t_cli / t_anc:.2f} | {t_py0:.2f} s | {t_read:.3f} s | {t_embed:.2f} s | {nrec:,} | "
+            f"| {name} | {n:,} | {t_cli:.2f} s | {t_anc:.2f} s | {t_cli / t_anc:.2f} | "
+            f"{t_py0:.2f} s | {t_read:.3f} s | {t_embed:.2f} s | {nrec:,} | "
             f"{t_dec * 1000:.0f} ms | {nrec / t_dec / 1e6:.2f} M | {t_ver * 1000:.1f} ms | {t_verp * 1000:.1f} ms | "
             f"{size:,} | 24 (+ {head:,} B of header, base mesh and levels) |"
         )
@@ -199,7 +204,8 @@ def main() -> None:
         "|---|---|---|---|---|---|---|---|---|---|",
         *[
             f"| {name} | {tc:.2f} / {cc:.2f} s | {tc / ta:.2f} | {tb:.2f} / {cb:.2f} s | {tb / ta:.2f} | "
-            f"{tf:.2f} / {cf:.2f} s | {tf / ta:.2f} | {tbf:.2f} / {cbf:.2f} s | {tbf / ta:.2f} | {ta:.2f} / {ca:.2f} s |"
+            f"{tf:.2f} / {cf:.2f} s | {tf / ta:.2f} | {tbf:.2f} / {cbf:.2f} s | {tbf / ta:.2f} | "
+            f"{ta:.2f} / {ca:.2f} s |"
             for name, tc, cc, tb, cb, ta, ca, tf, cf, tbf, cbf in cpu_rows
         ],
     ]

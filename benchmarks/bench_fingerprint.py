@@ -350,7 +350,8 @@ def render(r: dict) -> str:
             else ""
         ),
         "",
-        "| model | vertices | sites | full embed (s) | analysis, once (s) | per copy (ms) | of which marking (ms) | of which writing (ms) | copy / embed |",
+        "| model | vertices | sites | full embed (s) | analysis, once (s) | per copy (ms) "
+        "| of which marking (ms) | of which writing (ms) | copy / embed |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for p in r["per_copy"]:
@@ -382,7 +383,8 @@ def render(r: dict) -> str:
             )
         L.append(
             f"\nSpeed-up with 2 workers: {d[1]['copies_per_s'] / d[0]['copies_per_s']:.2f}x. The workers were busy "
-            f"{100 * min(row.get('busy_share', 0) for row in d):.0f} % or more of the time, so the catalogue keeps them "
+            f"{100 * min(row.get('busy_share', 0) for row in d):.0f} % or more of the time, "
+            "so the catalogue keeps them "
             "fed; the wall-time speed-up is what the shared machine's spare CPU allowed (a load average above 2 on "
             "2 cores leaves a second worker process no core of its own)."
         )
@@ -396,7 +398,8 @@ def render(r: dict) -> str:
         f"read and traced against the whole registry. Decision: corrected p = N exp(-T^2/2) < 1e-6, i.e. score T > "
         f"{c['threshold_score']:.2f} for N = {c['registry']}.",
         "",
-        "| colluders | trials | all colluders named | none named | lowest colluder score | mean colluder score | lowest best-colluder score |",
+        "| colluders | trials | all colluders named | none named | lowest colluder score | mean colluder score "
+        "| lowest best-colluder score |",
         "|---|---|---|---|---|---|---|",
     ]
     for k in (2, 3):

@@ -1,7 +1,8 @@
 """Paper scheme vs robust scheme: distortion, robustness per attack, levels of detail, false positives.
 
 Run: python benchmarks/bench_robust.py [--keys 5] [--models bunny,dragon] [--fp 1000] [--noise-copies 100]
-Prints markdown (the lead pastes it into its fragment, benchmarks/results/robust.md). 64-bit random payloads, one per key (seed).
+Prints markdown (the lead pastes it into its fragment, benchmarks/results/robust.md). 64-bit random
+payloads, one per key (seed).
 Models are names of the catalogue (``pmwm_bench.models``), read from $PMWM_TEST_DATA or ../shared/data.
 
 False positives. (a) ``--fp`` wrong secrets against the marked bunny: the soft site values do not

@@ -2,7 +2,8 @@
 
 The mesh is the catalogue's igea (igea_cyberware.ply) (268,686 faces) after one midpoint subdivision
 (1,074,744 faces, 537,374 vertices). Run: python benchmarks/bench_scale.py [--repeat N] [--old-core DIR]
-[--print-only]. Writes the "scale" section of the report (its fragment in benchmarks/results/) (``--print-only``: prints it only).
+[--print-only]. Writes the "scale" section of the report (its fragment in benchmarks/results/)
+(``--print-only``: prints it only).
 
 ``--repeat N`` runs the command N times and keeps the fastest (the machine is shared); ``--old-core
 DIR`` also runs the command with another checkout's library (PYTHONPATH=DIR, e.g. main's ``core``),
@@ -89,7 +90,8 @@ def main() -> None:
             "",
             "| wall time | peak memory (max RSS of the process) | .pmwm size | verify of the written file |",
             "|---|---|---|---|",
-            f"| {elapsed:.1f} s | {peak_mb:,.0f} MB | {pm_size / 2**20:.1f} MiB | {verify.stdout.splitlines()[0] if verify.stdout else verify.stderr.strip()} |",
+            f"| {elapsed:.1f} s | {peak_mb:,.0f} MB | {pm_size / 2**20:.1f} MiB | "
+            f"{verify.stdout.splitlines()[0] if verify.stdout else verify.stderr.strip()} |",
             "",
             f"Targets: under 1 GB peak: {'met' if peak_mb < 1024 else 'NOT met'}; embed under 10 s: "
             f"{'met' if elapsed < 10 else 'NOT met'} ({elapsed:.1f} s for the whole command"
@@ -100,7 +102,8 @@ def main() -> None:
     if runs["old"]:
         o_wall, o_peak = min(runs["old"])[0], max(p for _, p in runs["old"])
         body += (
-            f"\n\nIn the same run, alternating, the library {a.old_label or f'at `{a.old_core}`'}: {o_wall:.1f} s, {o_peak:,.0f} MB "
+            f"\n\nIn the same run, alternating, the library {a.old_label or f'at `{a.old_core}`'}: "
+            f"{o_wall:.1f} s, {o_peak:,.0f} MB "
             f"(this checkout: {elapsed:.1f} s, {peak_mb:,.0f} MB; all runs, s: this "
             f"{', '.join(f'{w:.1f}' for w, _ in runs['this'])}; old {', '.join(f'{w:.1f}' for w, _ in runs['old'])})."
         )

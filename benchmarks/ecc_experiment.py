@@ -61,8 +61,8 @@ def viterbi(llr, n):  # llr > 0 means coded bit 1
     bitb = np.zeros((T, NS), np.int8)
     sgn = 2.0 * OUT - 1.0  # (NS, 2, 2)
     for t in range(T):
-        l = llr[2 * t : 2 * t + 2]
-        cand = (metric[:, None] + (sgn * l).sum(axis=2)).ravel()  # (NS * 2,), index 2 s + b
+        llr_t = llr[2 * t : 2 * t + 2]
+        cand = (metric[:, None] + (sgn * llr_t).sum(axis=2)).ravel()  # (NS * 2,), index 2 s + b
         pick = PRED[np.arange(NS), np.argmax(cand[PRED], axis=1)]  # best of each state's 2 predecessors
         metric = cand[pick]
         back[t] = pick // 2
@@ -127,6 +127,7 @@ for k in range(keys):
 for a in att:
     u, c = res[(a, "uncoded")], res[(a, "coded")]
     print(
-        f"{name} {a:11s} uncoded errors {u} BER {np.mean(u) / 64:.3f} exact {sum(x == 0 for x in u)}/{keys} | coded errors {c} BER {np.mean(c) / 64:.3f} exact {sum(x == 0 for x in c)}/{keys}",
+        f"{name} {a:11s} uncoded errors {u} BER {np.mean(u) / 64:.3f} exact {sum(x == 0 for x in u)}/{keys} | "
+        f"coded errors {c} BER {np.mean(c) / 64:.3f} exact {sum(x == 0 for x in c)}/{keys}",
         flush=True,
     )

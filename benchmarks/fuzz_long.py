@@ -4,7 +4,8 @@ Mutates valid files at random: bit flips, byte overwrites, truncation, insertion
 rewritten with the checksum recomputed (so that the structural checks are reached), and for keys
 random edits of the JSON text and of its fields. A failure is any exception other than
 PMFormatError / KeyFileError, or a parsed progressive mesh whose decode raises.
-Run: python benchmarks/fuzz_long.py [--seconds 300]. Writes the "fuzz" section of the report (its fragment in benchmarks/results/).
+Run: python benchmarks/fuzz_long.py [--seconds 300]. Writes the "fuzz" section of the report (its
+fragment in benchmarks/results/).
 """
 
 from __future__ import annotations
@@ -126,12 +127,14 @@ def main() -> None:
         "",
         f"Command: `{command()}` at commit {commit()}. Machine: {machine()}.",
         "",
-        "| reader | inputs tried | rejected with the one-line error | parsed (and then decoded / verified) | failures |",
+        "| reader | inputs tried | rejected with the one-line error | parsed (and then decoded / verified) "
+        "| failures |",
         "|---|---|---|---|---|",
     ]
     for name, (tried, rejected, failed) in counts.items():
         lines.append(
-            f"| {'.pmwm' if name == 'pm' else 'key'} | {tried:,} | {rejected:,} | {tried - rejected - failed:,} | {failed} |"
+            f"| {'.pmwm' if name == 'pm' else 'key'} | {tried:,} | {rejected:,} | "
+            f"{tried - rejected - failed:,} | {failed} |"
         )
     if failures:
         lines += ["", "Failures (first 10):", *[f"- `{f}`" for f in failures[:10]]]

@@ -96,7 +96,9 @@ def render_markdown(res: BenchResults, p_set: dict, b_set: dict) -> str:
         f"({platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
         f"numpy {np.__version__}); {st['keys']} keys per model{' (quick mode)' if st['quick'] else ''}, "
         f"seeds {st['seed']}..{st['seed'] + st['keys'] - 1}, {st.get('seconds', 0)} s. "
-        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder `{st.get('raw', '<report name>-' + st.get('section', 'robustness'))}/` beside this file (`trials.json`, `correlation_*.png`).",
+        f"Methods: {', '.join(methods)}. Raw per-trial results and plots: the folder "
+        f"`{st.get('raw', '<report name>-' + st.get('section', 'robustness'))}/` "
+        "beside this file (`trials.json`, `correlation_*.png`).",
         "",
         "Cells are mean ± std over the keys. **~** marks a cell not distinguishable from chance: pooling all keys' "
         "bits, the number of correct bits is not significant against Binomial(bits, 1/2) at p < 0.01. "
