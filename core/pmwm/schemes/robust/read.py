@@ -4,14 +4,15 @@ and the per-bit scores. Shapes: S sites, K samples per site."""
 
 from __future__ import annotations
 
-from typing import Callable, Optional
+from dataclasses import dataclass
+from typing import Callable, Iterator, Optional
 
 import numpy as np
 
 from ...base import Verdict, verdict_from_scores
 from ...errors import KeyFileError
 from ...key import WatermarkKey
-from ...register import register, similarity_fit
+from ...register import POSES, register_poses, similarity_fit
 from ...spatial import nearest
 from ...validate import check_mesh
 from .fields import OUTER, heights, index_templates, profile
@@ -152,40 +153,60 @@ def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int)
     return np.bincount(s.bit[ok], weights=(s.chip * soft / var)[ok], minlength=n_bits)
 
 
-def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict]:
-    """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details."""
-    scores, mode, extra, _ = _read(vertices, faces, key)
-    return scores, mode, extra
+@dataclass
+class Reading:
+    """One reading of a suspect in one pose: per-bit ``scores`` (N,) float64 (sign = scrambled bit, 0 =
+    erasure), how it was aligned (``mode``) and details (``extra``), where the mark was read (``places``
+    (k, 3) float64 the sites read, in the suspect's coordinates; ``place_bits`` (k,) int64 the bit of
+    each), and ``poses``: how many poses a reading of this kind may have been chosen from (1 when the
+    copy sits in the key's frame or keeps the marked vertex order; ``pmwm.register.POSES`` after
+    registration), the factor of the union bound its p-value pays (``pose_bound``)."""
+
+    scores: np.ndarray
+    mode: str
+    extra: dict
+    places: np.ndarray
+    place_bits: np.ndarray
+    poses: int = 1
 
 
-def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tuple[np.ndarray, np.ndarray]]:
-    """read_scores, and where the mark was read: (places (k, 3) of the sites read, in the suspect's
-    coordinates; the bit of each)."""
+def pose_bound(p: np.ndarray, poses: int) -> np.ndarray:
+    """A p-value read in the best of ``poses`` poses, corrected for them (union bound: the chance that
+    any of them reads a mark by chance is at most ``poses`` times a single pose's), in [0, 1]."""
+    return np.minimum(1.0, np.asarray(p, np.float64) * poses)
+
+
+def readings(vertices, faces, key: WatermarkKey) -> Iterator[Reading]:
+    """The suspect's readings, one per plausible pose, most plausible first (a generator: the caller
+    stops when it has found the mark). vertices (n, 3), faces (m, 3)."""
     s = key_data(key)
     V, F = check_mesh(vertices, faces)
-    aligned = _in_key_frame(V, s, key)
-    X, back = V, _identity  # X: the suspect in the key's frame; back: key's frame -> suspect
-    if aligned:
-        extra = {"registration": "none (already in the key's frame)"}
-        mode = "aligned"
-        by_index = _same_vertices(X, s, key)
-    else:
-        mode = "registered"
-        # the marked vertices in their order (noise, smoothing, quantization, any pose): the
+    if _in_key_frame(V, s, key):
+        yield _read_at(V, F, s, key, V, _identity, True, {"registration": "none (already in the key's frame)"})
+        return
+    X, back, mirrored = V, _identity, False
+    if len(V) == key.n_vertices:
+        # the marked vertices in their order (noise, smoothing, quantization, any pose, a mirror): the
         # similarity fit of the sample vertices is the registration, no ICP needed
-        if len(V) == key.n_vertices:
-            X, back = _refined(V, s, back)
-        by_index = _same_vertices(X, s, key)
-        if by_index:
-            extra = {"registration": "by vertex index"}
-        else:
-            X, info = register(V, F, s.frame)
-            R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
-            back = lambda P: (P - t) @ R / k  # noqa: E731
-            extra = {"registration": info.init, "residual": info.residual, "scale": info.scale}
-            by_index = _same_vertices(X, s, key)
-            if by_index:
-                X, back = _refined(X, s, back)
+        X, back, mirrored = _refined(V, s, back)
+    if _same_vertices(X, s, key):
+        yield _read_at(X, F, s, key, back, False, {"registration": "by vertex index", "mirrored": mirrored})
+        return
+    for X, info in register_poses(V, F, s.frame):
+        R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
+        back = (lambda R, k, t: lambda P: (P - t) @ R / k)(R, k, t)  # noqa: E731
+        extra = {"registration": info.init, "residual": info.residual, "scale": info.scale,
+                 "mirrored": info.mirrored}
+        if _same_vertices(X, s, key):
+            X, back, _ = _refined(X, s, back)
+        yield _read_at(X, F, s, key, back, False, extra, poses=POSES)
+
+
+def _read_at(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey,
+             back: Callable[[np.ndarray], np.ndarray], aligned: bool, extra: dict, poses: int = 1) -> Reading:
+    """The reading of the suspect X (n, 3), F (m, 3) in the key's frame; ``back`` maps the key's frame to
+    the suspect's; ``aligned``: X sits exactly in the key's frame."""
+    by_index = _same_vertices(X, s, key)
     soft, var = np.full(len(s.bit), np.nan), np.full(len(s.bit), VAR_FLOOR)
     full = (s.index_ok if by_index else s.usable).copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
@@ -199,23 +220,52 @@ def _read(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict, tu
         if by_index and s.swirl > 0:  # keys from before the swirl have none
             soft_t, var_t = swirl_soft(X, s)
             soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
-    extra.update({"heights": ("by vertex index" if by_index else "by position")
-                  + (", site vertices first" if aligned else ""),
-                  "sites_read": int(np.isfinite(soft).sum()), "sites_total": int(len(soft))})
+    extra = dict(extra, heights=("by vertex index" if by_index else "by position")
+                 + (", site vertices first" if aligned else ""),
+                 sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)))
     read = np.flatnonzero(np.isfinite(soft))
-    return bit_scores(soft, var, s, key.n_bits), mode, extra, (back(s.origin[read]), s.bit[read].astype(np.int64))
+    return Reading(bit_scores(soft, var, s, key.n_bits), "aligned" if aligned else "registered", extra,
+                   back(s.origin[read]), s.bit[read].astype(np.int64), poses)
 
 
 def _identity(P: np.ndarray) -> np.ndarray:
     return P.copy()
 
 
+def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, dict]:
+    """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details:
+    the reading ``verify`` keeps."""
+    reading, _ = _strongest(vertices, faces, key, 1e-6)
+    return reading.scores, reading.mode, reading.extra
+
+
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Verdict:
-    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key."""
-    scores, mode, extra, (places, place_bits) = _read(vertices, faces, key)
-    verdict = verdict_from_scores(scores, key, mode, p_threshold)
-    verdict.extra = extra
-    verdict.places, verdict.place_bits = places, place_bits
+    """Read the robust mark from a suspect mesh (any order, pose, mirror, resolution), with the key: the
+    strongest of its readings (``readings``), its p-value paying for the poses tried (``pose_bound``)."""
+    return _strongest(vertices, faces, key, p_threshold)[1]
+
+
+def _strongest(vertices, faces, key: WatermarkKey, p_threshold: float) -> tuple[Reading, Verdict]:
+    """The reading of smallest p-value and its verdict; the readings stop at the first marked one whose
+    payload is confirmed."""
+    best, n = None, 0
+    for n, reading in enumerate(readings(vertices, faces, key), 1):
+        verdict = _verdict(reading, key, p_threshold)
+        if best is None or verdict.p_value < best[1].p_value:
+            best = (reading, verdict)
+        if verdict.marked and verdict.bit_errors == 0:
+            break
+    best[1].extra["poses_read"] = n
+    return best
+
+
+def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict:
+    """The verdict of one reading, its p-value corrected for the poses it was chosen from."""
+    verdict = verdict_from_scores(reading.scores, key, reading.mode, p_threshold)
+    verdict.p_value = float(pose_bound(verdict.p_value, reading.poses))
+    verdict.marked = bool(verdict.p_value < p_threshold)
+    verdict.extra = dict(reading.extra, poses_paid=reading.poses)
+    verdict.places, verdict.place_bits = reading.places, reading.place_bits
     return verdict
 
 
@@ -238,7 +288,7 @@ def _sample_places(s: RobustKeyData) -> np.ndarray:
 
 
 def _index_fit(X: np.ndarray, s: RobustKeyData) -> Optional[tuple[np.ndarray, float, np.ndarray]]:
-    """The similarity (R, k, t) that best fits the stored places of the sample vertices to X's
+    """The similarity (R, k, t), mirror images included, that best fits the stored places of the sample vertices to X's
     (X[vertex] ~ k place R^T + t), or None when those vertices collapsed to a point. With thousands of
     known pairs this is far tighter than surface ICP, whose error at high noise otherwise tilts every
     site (the bumps are sign-balanced, so they do not pull the fit). The noiseless stored places are
@@ -246,19 +296,19 @@ def _index_fit(X: np.ndarray, s: RobustKeyData) -> Optional[tuple[np.ndarray, fl
     least-squares scale (regression dilution; 1 % at noise 0.05 of the size, which moves far sites by
     bump heights)."""
     sm = s.samples
-    R, k, t = similarity_fit(_sample_places(s)[sm.mask], X[sm.vertex[sm.mask]])
+    R, k, t = similarity_fit(_sample_places(s)[sm.mask], X[sm.vertex[sm.mask]], mirror=True)
     return (R, k, t) if np.isfinite(k) and k > 1e-12 else None
 
 
 def _refined(X: np.ndarray, s: RobustKeyData, back: Callable[[np.ndarray], np.ndarray]
-             ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
-    """X (n, 3) mapped into the key's frame by ``_index_fit``, and ``back`` (key's frame -> the
-    suspect, through X) extended by that fit."""
+             ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray], bool]:
+    """X (n, 3) mapped into the key's frame by ``_index_fit``, ``back`` (key's frame -> the suspect,
+    through X) extended by that fit, and whether the fit mirrors."""
     fit = _index_fit(X, s)
     if fit is None:
-        return X, back
+        return X, back, False
     R, k, t = fit
-    return (X - t) @ R / k, lambda P: back(k * P @ R.T + t)
+    return (X - t) @ R / k, lambda P: back(k * P @ R.T + t), bool(np.linalg.det(R) < 0)
 
 
 def _refine_by_index(X: np.ndarray, s: RobustKeyData) -> np.ndarray:
