@@ -53,6 +53,7 @@ from .spatial import MovingNearest, PointIndex, nearest
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
 ICP_ITERATIONS = 30
 COARSE_ITERATIONS = 8
+COARSE_STEP = 2  # the PCA starts' coarse fits use every 2nd suspect sample (they only rank the starts)
 SUSPECT_SAMPLES = 1500
 CUT_DIRECTIONS = 128  # plane directions tried for cropped-and-moved copies (Fibonacci sphere)
 CUT_KEEP = (0.5, 0.6, 0.7, 0.8, 0.9)  # shares of the reference kept by each cut
@@ -177,7 +178,7 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
         given = refine(identity)[:1]
         yield from map(pose, given)
     starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
-    fits = _icp(S, index, ref_N, [x[1:] for x in starts], ref_s, COARSE_ITERATIONS)
+    fits = _icp(S[::COARSE_STEP], index, ref_N, [x[1:] for x in starts], ref_s, COARSE_ITERATIONS)
     coarse = sorted([x for x in identity + [(name, *fit) for (name, *_), fit in zip(starts, fits)]
                      if plausible(x[2])], key=lambda x: x[4])
     finalists = []

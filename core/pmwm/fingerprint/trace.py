@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..schemes.robust.read import read_scores
-from .codes import Accusation, accuse
+from ..schemes.robust.read import readings
+from .codes import Accusation, accuse, correlation_scores
 from .registry import FingerprintKey, Registry
 
 __all__ = ["TraceResult", "trace", "site_readings", "Accusation"]
@@ -44,17 +44,31 @@ class TraceResult:
 
 def site_readings(vertices, faces, fk: FingerprintKey) -> tuple[np.ndarray, str, dict]:
     """Each site's weighted soft value x (S,) float64 (soft / variance, 0 where unread) of a suspect
-    (any pose, order, resolution), how it was aligned, and the reader's details."""
-    return read_scores(vertices, faces, fk.key)
+    (any pose, order, resolution), how it was aligned, and the reader's details (the reading of the
+    first pose the reader proposes; ``trace`` reads every pose worth reading)."""
+    reading = next(readings(vertices, faces, fk.key))
+    return reading.scores, reading.mode, reading.extra
 
 
 def trace(vertices, faces, fk: FingerprintKey, registry: Registry, p_threshold: float = 1e-6) -> TraceResult:
     """Trace a suspect, vertices (n, 3), faces (m, 3), to the registry's recipients (RegistryError
-    when the registry is not the key's)."""
+    when the registry is not the key's). Of the suspect's poses (a mirror image, a symmetric shape:
+    ``pmwm.schemes.robust.read.readings``), the one where some recipient scores highest is kept, and
+    every p-value pays for the poses the reader may try, as well as for the recipients."""
     registry.check(fk)
     ids, C = registry.codewords()
-    x, mode, extra = site_readings(vertices, faces, fk)
-    accused, T, p = accuse(x, ids, C, p_threshold)
-    return TraceResult(accused, p_threshold, len(ids), mode, int(extra.get("sites_read", 0)),
-                       int(extra.get("sites_total", len(x))), ids, T, p, extra)
 
+    def strength(x: np.ndarray) -> float:  # the best recipient's score in a pose
+        return float(correlation_scores(x, C).max(initial=0.0))
+
+    best = None
+    for n, reading in enumerate(readings(vertices, faces, fk.key, strength), 1):
+        accused, T, p = accuse(reading.scores, ids, C, p_threshold, poses=reading.poses)
+        if best is None or T.max(initial=0.0) > best[2].max(initial=0.0):
+            best = (reading, accused, T, p)
+        if accused:
+            break
+    reading, accused, T, p = best
+    extra = dict(reading.extra, poses_read=n, poses_paid=reading.poses)
+    return TraceResult(accused, p_threshold, len(ids), reading.mode, int(extra.get("sites_read", 0)),
+                       int(extra.get("sites_total", len(reading.scores))), ids, T, p, extra)

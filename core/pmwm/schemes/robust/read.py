@@ -4,17 +4,20 @@ and the per-bit scores. Shapes: S sites, K samples per site."""
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable, Iterator, Optional
 
 import numpy as np
 
-from ...base import Verdict, verdict_from_scores
+from ...base import Verdict, decode_text, verdict_from_scores
 from ...errors import KeyFileError
 from ...key import WatermarkKey
 from ...register import POSES, register_poses, similarity_fit
 from ...spatial import nearest
 from ...validate import check_mesh
+from .code import coded_bits, confirm
 from .fields import OUTER, heights, index_templates, profile
 from .keydata import RobustKeyData
 
@@ -24,6 +27,8 @@ VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
 INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
+SCREEN_PER_BIT = 2  # sites per bit a registered pose is screened on
+FULL_READS = 2  # the strongest screened poses read in full
 
 
 def key_data(key: WatermarkKey) -> RobustKeyData:
@@ -176,13 +181,20 @@ def pose_bound(p: np.ndarray, poses: int) -> np.ndarray:
     return np.minimum(1.0, np.asarray(p, np.float64) * poses)
 
 
-def readings(vertices, faces, key: WatermarkKey) -> Iterator[Reading]:
-    """The suspect's readings, one per plausible pose, most plausible first (a generator: the caller
-    stops when it has found the mark). vertices (n, 3), faces (m, 3)."""
+def readings(vertices, faces, key: WatermarkKey, strength: Optional[Callable[[np.ndarray], float]] = None
+             ) -> Iterator[Reading]:
+    """The suspect's readings, one per pose worth reading, most promising first (a generator: the caller
+    stops when it has found its mark). vertices (n, 3), faces (m, 3).
+
+    A copy in the key's frame or in the marked vertex order has one pose. After registration there may
+    be several (a symmetric shape, a mirror image): each is first screened on a third of the sites
+    (``SCREEN_PER_BIT`` per bit) and ranked by ``strength`` (per-bit scores (N,) -> how strongly they
+    show the caller's mark; None: the poses' own order), and the ``FULL_READS`` strongest are read in
+    full. Every registered reading pays for ``POSES`` poses (``pose_bound``), whichever were read."""
     s = key_data(key)
     V, F = check_mesh(vertices, faces)
     if _in_key_frame(V, s, key):
-        yield _read_at(V, F, s, key, V, _identity, True, {"registration": "none (already in the key's frame)"})
+        yield _read_at(V, F, s, key, _identity, True, {"registration": "none (already in the key's frame)"})
         return
     X, back, mirrored = V, _identity, False
     if len(V) == key.n_vertices:
@@ -192,14 +204,49 @@ def readings(vertices, faces, key: WatermarkKey) -> Iterator[Reading]:
     if _same_vertices(X, s, key):
         yield _read_at(X, F, s, key, back, False, {"registration": "by vertex index", "mirrored": mirrored})
         return
-    for X, info in register_poses(V, F, s.frame):
-        R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
-        back = (lambda R, k, t: lambda P: (P - t) @ R / k)(R, k, t)  # noqa: E731
-        extra = {"registration": info.init, "residual": info.residual, "scale": info.scale,
-                 "mirrored": info.mirrored}
-        if _same_vertices(X, s, key):
-            X, back, _ = _refined(X, s, back)
-        yield _read_at(X, F, s, key, back, False, extra, poses=POSES)
+    poses = register_poses(V, F, s.frame)
+    first = next(poses)
+    if first[1].init == "identity":  # already at the sampling noise: read before any other pose is tried
+        yield _posed(first, F, s, key)
+        first = None
+    rest = ([first] if first is not None else []) + list(poses)
+    if len(rest) > 1 and strength is not None:
+        screen = _subset(s, _screen_sites(s, key.n_bits))
+        ranks = [strength(_read_at(X, F, screen, key, _identity, False, {}).scores)
+                 for X, _ in rest]
+        rest = [rest[i] for i in np.argsort(-np.asarray(ranks), kind="stable")[:FULL_READS]]
+    for posed in rest:
+        yield _posed(posed, F, s, key)
+
+
+def _posed(posed, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> Reading:
+    """The full reading of one registered pose (X (n, 3) in the key's frame, its RegistrationInfo)."""
+    X, info = posed
+    R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
+    back = lambda P: (P - t) @ R / k  # noqa: E731
+    extra = {"registration": info.init, "residual": info.residual, "scale": info.scale, "mirrored": info.mirrored}
+    if _same_vertices(X, s, key):
+        X, back, _ = _refined(X, s, back)
+    return _read_at(X, F, s, key, back, False, extra, poses=POSES)
+
+
+def _screen_sites(s: RobustKeyData, n_bits: int) -> np.ndarray:
+    """The sites a pose is screened on: the first ``SCREEN_PER_BIT`` usable sites of each bit, (k,) int64."""
+    order = np.flatnonzero(s.usable)
+    order = order[np.argsort(s.bit[order], kind="stable")]
+    rank = np.arange(len(order)) - np.searchsorted(s.bit[order], s.bit[order])
+    return np.sort(order[rank < SCREEN_PER_BIT])
+
+
+def _subset(s: RobustKeyData, sites: np.ndarray) -> RobustKeyData:
+    """The key data of the ``sites`` (k,) int64 alone."""
+    sm = copy.copy(s.samples)
+    for name in ("mask", "u", "v", "h", "vertex", "normal_tt", "centre"):
+        if getattr(sm, name) is not None:
+            setattr(sm, name, getattr(sm, name)[sites])
+    return dataclasses.replace(s, bit=s.bit[sites], chip=s.chip[sites], usable=s.usable[sites],
+                               centre_ok=s.centre_ok[sites], swirl_ok=s.swirl_ok[sites], index_ok=s.index_ok[sites],
+                               origin=s.origin[sites], normal=s.normal[sites], samples=sm)
 
 
 def _read_at(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey,
@@ -224,7 +271,7 @@ def _read_at(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey,
                  + (", site vertices first" if aligned else ""),
                  sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)))
     read = np.flatnonzero(np.isfinite(soft))
-    return Reading(bit_scores(soft, var, s, key.n_bits), "aligned" if aligned else "registered", extra,
+    return Reading(bit_scores(soft, var, s, s.coded_length(key.n_bits)), "aligned" if aligned else "registered", extra,
                    back(s.origin[read]), s.bit[read].astype(np.int64), poses)
 
 
@@ -248,23 +295,39 @@ def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6) -> Ver
 def _strongest(vertices, faces, key: WatermarkKey, p_threshold: float) -> tuple[Reading, Verdict]:
     """The reading of smallest p-value and its verdict; the readings stop at the first marked one whose
     payload is confirmed."""
+    code = key_data(key).code
+    coded = coded_bits(key.bits, code)
+    expected = 2.0 * (coded ^ key.stream("scramble", len(coded))).astype(np.float64) - 1.0
+
+    def strength(scores: np.ndarray) -> float:  # how strongly per-bit scores show the key's coded bits
+        return float(expected @ scores / max(np.sqrt(scores @ scores), 1e-300))
+
     best, n = None, 0
-    for n, reading in enumerate(readings(vertices, faces, key), 1):
+    for n, reading in enumerate(readings(vertices, faces, key, strength), 1):
         verdict = _verdict(reading, key, p_threshold)
         if best is None or verdict.p_value < best[1].p_value:
             best = (reading, verdict)
-        if verdict.marked and verdict.bit_errors == 0:
+        if verdict.marked and verdict.extra["payload_confirmed"]:
             break
     best[1].extra["poses_read"] = n
     return best
 
 
 def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict:
-    """The verdict of one reading, its p-value corrected for the poses it was chosen from."""
-    verdict = verdict_from_scores(reading.scores, key, reading.mode, p_threshold)
+    """The verdict of one reading: the p-value of its coded bits against the key's, corrected for the poses
+    it was chosen from; the payload shown only when ``confirm`` confirms it."""
+    code = key_data(key).code
+    coded_key = key if code is None else dataclasses.replace(key, bits=code.encode(key.bits), payload_kind="bits")
+    verdict = verdict_from_scores(reading.scores, coded_key, reading.mode, p_threshold)
     verdict.p_value = float(pose_bound(verdict.p_value, reading.poses))
     verdict.marked = bool(verdict.p_value < p_threshold)
-    verdict.extra = dict(reading.extra, poses_paid=reading.poses)
+    payload, confirmed, corrected = confirm(reading.scores, key, code)
+    confirmed = confirmed and verdict.marked
+    verdict.bits = "".join(map(str, payload.tolist()))
+    verdict.payload = decode_text(payload) if confirmed and key.payload_kind == "text" else None
+    verdict.payload_confirmed = confirmed
+    verdict.extra = dict(reading.extra, poses_paid=reading.poses, payload_confirmed=confirmed,
+                         payload_code=code.name if code is not None else "none", corrected=corrected)
     verdict.places, verdict.place_bits = reading.places, reading.place_bits
     return verdict
 
