@@ -89,10 +89,10 @@ def test_cropped_and_moved_copies_are_registered(marked):
     assert exact == 6, exact
 
 
-def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
-    """Over 500 random planes each cutting off half the vertices, every bit keeps at least one site
-    (the bit assignment is spread over cuts); a cropped copy is read in the key's frame, at the
-    site vertices that survived."""
+def test_no_plane_crop_to_half_erases_more_bits_than_the_code_corrects(bunny, marked):
+    """Over 500 random planes each cutting off half the vertices, at most t coded bits lose all their
+    sites (the bit assignment is spread over cuts; the code corrects twice as many erasures); a cropped
+    copy is read in the key's frame, at the site vertices that survived."""
 
 
     V, F = bunny
@@ -102,7 +102,8 @@ def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
     kept = (s.origin @ d.T) <= np.quantile(V @ d.T, 0.5, axis=0)
     per_bit = np.zeros((s.coded_length(marked.key.n_bits), len(d)))
     np.add.at(per_bit, s.bit, kept)
-    assert per_bit.min() >= 1, int((per_bit.min(axis=0) == 0).sum())
+    erased = (per_bit == 0).sum(axis=0)  # coded bits without a site, per cut: the code corrects them
+    assert erased.max() <= s.code.t, np.bincount(erased)
     X, FF = attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=1)
     v = _reads(marked, X, FF)
     assert v.mode == "aligned" and v.extra["heights"] == "by position, site vertices first"
@@ -148,9 +149,11 @@ def test_readings_by_vertex_index_of_the_marked_mesh_are_exact(bunny, marked):
     read with the plain field, curved patches read it short)."""
     from pmwm.schemes.robust.read import site_soft, swirl_soft
 
+    from pmwm.schemes.robust.code import coded_bits
+
     s = key_data(marked.key)
-    scr = marked.key.stream("scramble", marked.key.n_bits)
-    sign = s.chip * np.where((marked.bits ^ scr)[s.bit] == 1, 1.0, -1.0)
+    coded = coded_bits(marked.bits, s.code)
+    sign = s.chip * np.where((coded ^ marked.key.stream("scramble", len(coded)))[s.bit] == 1, 1.0, -1.0)
     bump = site_soft(marked.vertices, marked.faces, s, by_index=True)[0]
     turn = swirl_soft(marked.vertices, s)[0]
     assert np.abs(bump - sign)[s.index_ok].max() < 0.01
@@ -330,7 +333,8 @@ def test_noise_is_read_by_vertex_index_and_by_position(marked):
     V2, F2 = attacks.reorder(V, F, seed=4)
     v2 = robust_verify(V2, F2, marked.key)
     assert v2.extra["heights"] == "by position"
-    assert v2.marked and v2.bit_errors <= 0.1 * v2.carriers_total, v2.bit_errors
+    # (coded bits: each has 2/3 of the sites an uncoded payload bit would get, and more bit errors)
+    assert v2.marked and v2.bit_errors <= 0.15 * v2.carriers_total, v2.bit_errors
 
 
 def test_noise_on_a_reordered_copy_is_still_read(marked):
@@ -340,7 +344,8 @@ def test_noise_on_a_reordered_copy_is_still_read(marked):
         noisy = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=seed)
         v = pmwm.verify(*attacks.reorder(*noisy, seed=seed), marked.key)
         assert v.mode == "registered" and v.extra["heights"] == "by position"
-        assert v.marked and v.matches >= 0.85 * v.carriers_total, v.matches
+        assert v.marked and v.matches >= 0.8 * v.carriers_total, v.matches  # coded bits: see above
+        assert v.payload in (PAYLOAD, None)
 
 
 def test_first_format_and_garbled_keys_are_refused_when_the_key_is_read(marked, tmp_path):
@@ -563,9 +568,9 @@ def test_overmarked_copy_reads_each_keys_own_payload(bunny, marked, factor):
 def test_keys_without_a_code_still_read_their_marks(bunny, monkeypatch):
     """Keys written before the payload code (format 2: the sites carry the payload bits) keep reading
     their marks; their payload is confirmed only when every bit reads right."""
-    from pmwm.schemes.robust import embed as embed_module
+    import importlib
 
-    monkeypatch.setattr(embed_module, "payload_code", lambda k: None)
+    monkeypatch.setattr(importlib.import_module("pmwm.schemes.robust.embed"), "payload_code", lambda k: None)
     V, F = bunny
     res = robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, progressive=False))
     key = pmwm.WatermarkKey.from_json(res.key.to_json())

@@ -65,9 +65,10 @@ SCREEN_STEP = 6  # the cut starts are screened on every 6th suspect sample (and 
 ABANDON_RATIO, ABANDON_AFTER = 1.8, 5
 # sign flips of the PCA axes: the 4 proper ones (rotations), then the 4 that mirror
 SIGNS = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1))
-POSES = 8  # the most poses a reader tries (it pays for them in its p-value): the 8 of an ellipsoid
+POSES = 16  # the most poses a reader tries (it pays for them in its p-value): the 16 of a square prism
 POSE_RATIO = 1.5  # a refined pose whose residual is within this factor of the best one's is plausible
-COARSE_RATIO = 2.0  # the coarse fits within this factor of the best one's are refined
+COARSE_RATIO = 1.4  # the coarse fits within this factor of the best one's are refined
+EQUAL_SPREAD = 1.15  # two PCA axes whose spreads differ by less than this factor get quarter-turn starts
 DISTINCT = 0.05  # two poses differ when they place the suspect's PCA frame this far apart (/ reference scale)
 
 
@@ -177,7 +178,7 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
     if plausible(identity[0][2]) and identity[0][4] < 1.5 * floor:  # already aligned: at the sampling noise
         given = refine(identity)[:1]
         yield from map(pose, given)
-    starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
+    starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s, _equal_spreads(S, c, A))
     fits = _icp(S[::COARSE_STEP], index, ref_N, [x[1:] for x in starts], ref_s, COARSE_ITERATIONS)
     coarse = sorted([x for x in identity + [(name, *fit) for (name, *_), fit in zip(starts, fits)]
                      if plausible(x[2])], key=lambda x: x[4])
@@ -207,15 +208,29 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
             yield pose(fit)
 
 
-def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s) -> list:
+def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s, swaps: tuple = ()) -> list:
     """Similarity starts mapping a PCA frame (c, A, s) onto a reference one, for the 8 sign flips (both
-    frames are right-handed: the flips of an odd number of axes mirror)."""
+    frames are right-handed: the flips of an odd number of axes mirror), and the same after a quarter
+    turn exchanging each pair of axes (i, j) in ``swaps`` (axes of about equal spread, whose directions
+    PCA cannot tell apart: a square section)."""
     out = []
-    for signs in SIGNS:
-        R = ref_A.T @ np.diag(signs) @ A  # rows of A are the axes
-        k = ref_s / max(s, 1e-300)
-        out.append((f"{label}{signs}", R, k, ref_c - k * R @ c))
+    k = ref_s / max(s, 1e-300)
+    for swap in ((), *swaps):
+        B = A.copy()
+        if swap:
+            i, j = swap
+            B[i], B[j] = A[j], -A[i]
+        for signs in SIGNS:
+            R = ref_A.T @ np.diag(signs) @ B  # rows of B are the axes
+            out.append((f"{label}{'q' if swap else ''}{signs}", R, k, ref_c - k * R @ c))
     return out
+
+
+def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple:
+    """The pairs of PCA axes (i, j) of the points P (n, 3) whose spreads differ by less than ``EQUAL_SPREAD``."""
+    sd = np.sqrt(np.maximum(((P - c) @ A.T).var(axis=0), 1e-300))
+    return tuple((i, j) for i in range(3) for j in range(i + 1, 3)
+                 if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j]))
 
 
 def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:

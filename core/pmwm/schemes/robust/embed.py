@@ -289,13 +289,15 @@ def _coded_sites(V, F, secret: str, strength: float, nb: int, sites_per_bit: int
                  report, adj: Adjacency) -> tuple[SitePlaces, Optional[BCHCode]]:
     """The sites of a payload of ``nb`` bits and its code: the payload's BCH codeword (``code``) over about
     as many sites as the payload alone would get (``sites_per_bit`` per payload bit, an even number per
-    coded bit); the payload alone, ``sites_per_bit`` each, when the mesh cannot hold the codeword's sites
-    or no code fits."""
+    coded bit); the payload alone, ``sites_per_bit`` each (fewer on small meshes), when the mesh cannot hold
+    that many sites for the codeword (crowded sites spoil each other: the code would not pay) or no code fits."""
     code = payload_code(nb)
     if code is not None:
         per_coded = max(2, 2 * round(sites_per_bit * nb / code.n / 2))
         try:
-            return place_sites(V, F, secret, strength, code.n, per_coded, radius_edges, report, adj), code
+            places = place_sites(V, F, secret, strength, code.n, per_coded, radius_edges, report, adj)
+            if places.per_bit == per_coded:
+                return places, code
         except PayloadError:
             pass
     return place_sites(V, F, secret, strength, nb, sites_per_bit, radius_edges, report, adj), None
