@@ -186,21 +186,31 @@ def main() -> None:
     ap.add_argument("--per-shape", type=int, default=6, help="attacked copies per marked shape")
     ap.add_argument("--seed", type=int, default=None, help="replay a run (default: fresh)")
     ap.add_argument("--out", default="pose.jsonl", help="one JSON line per copy (appended)")
+    ap.add_argument("--uncoded", action="store_true",
+                    help="mark without the payload code (as keys of format 2), to compare")
     ap.add_argument("--speed", action="store_true", help="part 2: verify's speed on the bunny")
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--summarize", default=None, help="print the tables of a JSON-lines file of an earlier run")
     ap.add_argument("--compare", default=None, help="another checkout's core folder, for --speed")
     a = ap.parse_args()
     commit = subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True).stdout.strip()
     print(f"commit {commit}, {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}, numpy {np.__version__}; shapes from {SHAPES_FROM}")
+    if a.summarize:
+        rows = [json.loads(line) for line in open(a.summarize)]
+        print(summary([r for r in rows if "family" in r]))
+    if a.uncoded:
+        import importlib
+
+        importlib.import_module("pmwm.schemes.robust.embed").payload_code = lambda k: None
     if a.copies:
         seed = a.seed if a.seed is not None else int.from_bytes(os.urandom(4), "little")
         print(f"run seed {seed} (replay with --seed {seed})", flush=True)
         rng = np.random.default_rng(seed)
         rows: list = []
         with open(a.out, "a") as out:
-            out.write(json.dumps({"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM}) + "\n")
+            out.write(json.dumps({"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM, "uncoded": a.uncoded}) + "\n")
             while len(rows) < a.copies:
                 family = FAMILIES[int(rng.integers(len(FAMILIES)))]
                 rows += one_shape(family, int(rng.integers(1 << 31)), rng, min(a.per_shape, a.copies - len(rows)),
