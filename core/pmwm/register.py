@@ -53,7 +53,7 @@ from .spatial import MovingNearest, PointIndex, nearest
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
 ICP_ITERATIONS = 30
 COARSE_ITERATIONS = 8
-COARSE_STEP = 2  # the PCA starts' coarse fits use every 2nd suspect sample (they only rank the starts)
+COARSE_STEP = 4  # the PCA starts' coarse fits use every 4th suspect sample (they only rank the starts)
 SUSPECT_SAMPLES = 1500
 CUT_DIRECTIONS = 128  # plane directions tried for cropped-and-moved copies (Fibonacci sphere)
 CUT_KEEP = (0.5, 0.6, 0.7, 0.8, 0.9)  # shares of the reference kept by each cut
@@ -174,8 +174,10 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
                                                  mirrored=bool(np.linalg.det(R) < 0))
 
     given = []  # the poses yielded so far
-    identity = [("identity", *_icp(S, index, ref_N, [(np.eye(3), 1.0, np.zeros(3))], ref_s, COARSE_ITERATIONS)[0])]
-    if plausible(identity[0][2]) and identity[0][4] < 1.5 * floor:  # already aligned: at the sampling noise
+    identity = []  # (not tried on a copy whose size is not the reference's: it cannot be in the key's frame)
+    if plausible(1.0):
+        identity = [("identity", *_icp(S, index, ref_N, [(np.eye(3), 1.0, np.zeros(3))], ref_s, COARSE_ITERATIONS)[0])]
+    if identity and plausible(identity[0][2]) and identity[0][4] < 1.5 * floor:  # already aligned (sampling noise)
         given = refine(identity)[:1]
         yield from map(pose, given)
     starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s, _equal_spreads(S, c, A))

@@ -11,8 +11,8 @@ Rademacher sum with unit-norm weights: mean 0, variance 1, and P(T_j >= t) <= ex
 x (Hoeffding; no Gaussian approximation). That bound, corrected for the N recipients of the registry
 (Bonferroni, p = min(1, N exp(-t^2/2))), is each recipient's p-value; recipients with p below the
 threshold (1e-6, as ``pmwm verify``) are named. A copy read in the best of several poses (a mirror image,
-a symmetric shape) pays for them as well: the p-values are multiplied by the poses the reader may try. The chance that any innocent recipient is named in
-one trace is below the threshold, whatever the copy.
+a symmetric shape) pays for them as well: the p-values are multiplied by the poses the reader may try. The
+chance that any innocent recipient is named in one trace is below the threshold, whatever the copy.
 
 Averaging collusion. k copies averaged vertex by vertex give x ~ (c_1 + ... + c_k) / k (marking and
 reading are linear in the signs), so each colluder scores about sqrt(S_read / k) instead of
