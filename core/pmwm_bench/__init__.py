@@ -20,6 +20,8 @@ published, protocols, report -> pmwm):
 - ``plots``      the PNGs (matplotlib, imported lazily)
 - ``report``     sections of a markdown file, the commit and the machine a section names
 - ``cli``        ``main(argv)``: ``pmwm bench`` and ``pmwm bench --sweep``
+- ``corpus``     generated shapes in families (organic, cad, scan, thin, open, near-symmetric ones)
+- ``split``      the data meshes a reader may be tuned on and those only reported on; fresh seeds
 """
 
 from .methods import SchemeMethod, default_methods

@@ -87,7 +87,7 @@ from ...errors import MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...validate import check_mesh
-from . import frames, radial, word
+from . import frames, radial, selfcheck, word
 from .keydata import BlindKeyData
 
 __all__ = ["SCHEME", "DEFAULT_ALPHA", "BINS_PER_BIT", "key_from_passphrase", "read", "read_with_passphrase",
@@ -142,6 +142,11 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
         marked = radial.embed_signs(V, F, signs, job.strength, host=host)
         if opts.strength is None:  # the default: calibrate the margin to the distortion budget
             job.strength, marked = _calibrated(V, F, signs, job.strength, marked, host)
+        job.report(0.05, "checking that the mark reads back")  # (else a raised margin, or a PayloadError)
+        job.strength, marked = selfcheck.ensure(selfcheck.Mark(
+            V, F, lambda a: radial.embed_signs(V, F, signs, a, host=host), lambda V2, F2: read(V2, F2, secret),
+            "".join(map(str, payload.tolist())), word.text_of(payload) if kind == "text" else None, secret),
+            marked, job.strength, adjustable=opts.strength is None)
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key is made meanwhile
             pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
