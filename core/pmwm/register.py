@@ -65,7 +65,7 @@ SCREEN_STEP = 6  # the cut starts are screened on every 6th suspect sample (and 
 ABANDON_RATIO, ABANDON_AFTER = 1.8, 5
 # sign flips of the PCA axes: the 4 proper ones (rotations), then the 4 that mirror
 SIGNS = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1))
-POSES = 16  # the most poses a reader tries (it pays for them in its p-value): the 16 of a square prism
+POSES = 32  # the most poses a reader tries (it pays for them in its p-value): a round part's eighths of a turn
 POSE_RATIO = 1.5  # a refined pose whose residual is within this factor of the best one's is plausible
 COARSE_RATIO = 1.4  # the coarse fits within this factor of the best one's are refined
 EQUAL_SPREAD = 1.15  # two PCA axes whose spreads differ by less than this factor get quarter-turn starts
@@ -210,29 +210,32 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
             yield pose(fit)
 
 
-def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s, swaps: tuple = ()) -> list:
+def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s, turns: tuple = ()) -> list:
     """Similarity starts mapping a PCA frame (c, A, s) onto a reference one, for the 8 sign flips (both
-    frames are right-handed: the flips of an odd number of axes mirror), and the same after a quarter
-    turn exchanging each pair of axes (i, j) in ``swaps`` (axes of about equal spread, whose directions
-    PCA cannot tell apart: a square section)."""
+    frames are right-handed: the flips of an odd number of axes mirror), and the same after the turns
+    (i, j, angle) of the frame in the plane of its axes i and j (axes of about equal spread, whose
+    directions PCA cannot tell apart: a square or round section)."""
     out = []
     k = ref_s / max(s, 1e-300)
-    for swap in ((), *swaps):
+    for turn in ((), *turns):
         B = A.copy()
-        if swap:
-            i, j = swap
-            B[i], B[j] = A[j], -A[i]
+        if turn:
+            i, j, a = turn
+            B[i], B[j] = np.cos(a) * A[i] + np.sin(a) * A[j], np.cos(a) * A[j] - np.sin(a) * A[i]
         for signs in SIGNS:
             R = ref_A.T @ np.diag(signs) @ B  # rows of B are the axes
-            out.append((f"{label}{'q' if swap else ''}{signs}", R, k, ref_c - k * R @ c))
+            name = f"{label}{signs}" if not turn else f"{label}{signs}+{round(np.degrees(turn[2]))}"
+            out.append((name, R, k, ref_c - k * R @ c))
     return out
 
 
 def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple:
-    """The pairs of PCA axes (i, j) of the points P (n, 3) whose spreads differ by less than ``EQUAL_SPREAD``."""
+    """The turns (i, j, angle) worth starting from for the points P (n, 3) of PCA frame (c, A): for each pair
+    of axes whose spreads differ by less than ``EQUAL_SPREAD``, the turns in their plane by 45, 90 and 135
+    degrees (with the sign flips' half turns: every eighth of a turn, for a round part with 4-fold features)."""
     sd = np.sqrt(np.maximum(((P - c) @ A.T).var(axis=0), 1e-300))
-    return tuple((i, j) for i in range(3) for j in range(i + 1, 3)
-                 if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j]))
+    return tuple((i, j, np.pi * q / 4) for i in range(3) for j in range(i + 1, 3)
+                 if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j]) for q in (1, 2, 3))
 
 
 def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:
