@@ -86,8 +86,12 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
     V, F = generate(family, shape_seed)
     payload = "".join(rng.choice(list(LETTERS), int(rng.integers(3, 8))))
     key_seed = int(rng.integers(1 << 31))
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(payload=payload, seed=key_seed, progressive=False))
-    wrong_key = pmwm.embed(V, F, pmwm.EmbedOptions(payload="WRONG", seed=key_seed + 1, progressive=False)).key
+    try:
+        res = pmwm.embed(V, F, pmwm.EmbedOptions(payload=payload, seed=key_seed, progressive=False))
+        wrong_key = pmwm.embed(V, F, pmwm.EmbedOptions(payload="WRONG", seed=key_seed + 1, progressive=False)).key
+    except pmwm.PayloadError as exc:  # a shape too small for the payload: recorded, not counted
+        out.write(json.dumps({"family": family, "shape_seed": shape_seed, "embed_refused": str(exc)}) + "\n")
+        return []
     rows = []
     for _ in range(copies):
         W, G = res.vertices, res.faces
@@ -95,8 +99,11 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
         params: dict = {}
         if kind == "overmark":
             f = float(rng.uniform(1.0, 4.0))
-            W = pmwm.embed(W, G, pmwm.EmbedOptions(payload="THIEF", seed=int(rng.integers(1 << 31)),
-                                                   strength=2.0 * f, progressive=False)).vertices
+            try:
+                W = pmwm.embed(W, G, pmwm.EmbedOptions(payload="THIEF", seed=int(rng.integers(1 << 31)),
+                                                       strength=2.0 * f, progressive=False)).vertices
+            except pmwm.PayloadError:
+                continue
             params = {"overmark": round(f, 2)}
         mirrored = bool(rng.random() < 0.5)
         if mirrored:
@@ -205,7 +212,7 @@ def main() -> None:
           f"Python {platform.python_version()}, numpy {np.__version__}; shapes from {SHAPES_FROM}")
     if a.summarize:
         rows = [json.loads(line) for line in open(a.summarize)]
-        print(summary([r for r in rows if "family" in r]))
+        print(summary([r for r in rows if "marked" in r]))
     if a.uncoded:
         import importlib
 
@@ -218,7 +225,7 @@ def main() -> None:
         with open(a.out, "a") as out:
             head = {"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM, "uncoded": a.uncoded}
             out.write(json.dumps(head) + "\n")
-            while len(rows) < a.copies:
+            while len(rows) < a.copies:  # (a shape too small for the payload adds no row)
                 family = FAMILIES[int(rng.integers(len(FAMILIES)))]
                 rows += one_shape(family, int(rng.integers(1 << 31)), rng, min(a.per_shape, a.copies - len(rows)),
                                   out)
