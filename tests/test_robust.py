@@ -523,7 +523,8 @@ def test_a_payload_read_with_wrong_bits_is_never_shown(bunny, marked):
 def test_confirm_corrects_few_errors_and_never_confirms_another_codeword(marked):
     """``confirm``: up to the code's t errors (or twice as many erasures) corrected; beyond that, or on a
     reading of another codeword, nothing confirmed; weak wrong bits cost less than strong ones."""
-    from pmwm.schemes.robust.code import coded_bits, confirm
+    from pmwm.schemes.robust import confirm
+    from pmwm.schemes.robust.code import coded_bits
 
     key = marked.key
     code = key_data(key).code
@@ -537,20 +538,24 @@ def test_confirm_corrects_few_errors_and_never_confirms_another_codeword(marked)
         pick = rng.permutation(len(x))
         x[pick[:errors]] *= -1
         x[pick[errors:errors + erasures]] = 0
-        bits, confirmed, corrected = confirm(x, key, code)
+        bits, confirmed, corrected = confirm(x, key)
         assert confirmed == ok, (errors, erasures)
         assert (bits == key.bits).all() if ok else corrected == 0
         if ok:
             assert corrected == errors + erasures
+    hard = c.copy()  # descrambled bits as read, three wrong: corrected
+    hard[[1, 40, 90]] ^= 1
+    bits, confirmed, corrected = confirm(hard, key)
+    assert confirmed and corrected == 3 and (bits == key.bits).all()
     x = clean.copy()
     x[rng.permutation(len(x))[:7]] *= -0.05  # seven wrong bits, each far weaker than the others
-    assert confirm(x, key, code)[1]
+    assert confirm(x, key)[1]
     for seed in range(50):  # readings of other payloads' codewords, without noise
         other = rng.integers(0, 2, key.n_bits).astype(np.uint8)
         if (other == key.bits).all():
             continue
         y = 2.0 * (coded_bits(other, code) ^ key.stream("scramble", len(c))) - 1.0
-        assert not confirm(y, key, code)[1]
+        assert not confirm(y, key)[1]
 
 
 @pytest.mark.parametrize("factor", [1.0, 3.0])

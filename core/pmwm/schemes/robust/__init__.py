@@ -68,7 +68,7 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
   variance (maximum-ratio combining; a site in a damaged or cropped region weighs little). A bit
   with no readable site is an erasure and gets a keyed coin flip, so the binomial p-value of
   ``pmwm.base.verdict_from_scores`` (over the coded bits) stays exact.
-- The payload is confirmed (``code.confirm``) when the key's codeword passes the generalised minimum
+- The payload is confirmed (``confirm``) when the key's codeword passes the generalised minimum
   distance test on the soft scores: no other codeword can pass it, so a confirmed payload is the one a
   decoder would give. The verdict shows the payload only when it is confirmed.
 
@@ -87,9 +87,9 @@ from ...base import Scheme
 from ...key import WatermarkKey
 from .embed import DEFAULT_STRENGTH, embed
 from .keydata import RobustKeyData
-from .read import NAME, key_data, read_scores, verify
+from .read import NAME, confirm, key_data, read_scores, verify
 
-__all__ = ["SCHEME", "embed", "verify", "read_scores", "key_data", "RobustKeyData"]
+__all__ = ["SCHEME", "embed", "verify", "read_scores", "key_data", "confirm", "RobustKeyData"]
 
 
 def load_key_data(key: WatermarkKey) -> RobustKeyData:

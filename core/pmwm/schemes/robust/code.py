@@ -147,10 +147,9 @@ def coded_bits(bits: np.ndarray, code: Optional[BCHCode]) -> np.ndarray:
     return np.asarray(bits, np.uint8).copy() if code is None else code.encode(bits)
 
 
-def confirm(scores: np.ndarray, key: WatermarkKey, code: Optional[BCHCode] = None
-            ) -> tuple[np.ndarray, bool, int]:
-    """The payload a reading gives, whether it is confirmed as the key's, and how many coded bits the
-    code corrected (read wrong or not read). scores (n,) float64: one per coded bit (sign = the scrambled
+def confirm_with(scores: np.ndarray, key: WatermarkKey, code: Optional[BCHCode]) -> tuple[np.ndarray, bool, int]:
+    """``pmwm.schemes.robust.confirm`` for the key's ``code`` (None: no code): the payload a reading gives,
+    whether it is confirmed as the key's, and how many coded bits the code corrected (read wrong or not read). scores (n,) float64: one per coded bit (sign = the scrambled
     bit read, magnitude = its reliability, 0 = erased), or bits (n,) uint8 already descrambled.
 
     Returns (payload bits (k,) uint8: the key's when confirmed, else the bits as read, never to be shown

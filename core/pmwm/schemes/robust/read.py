@@ -17,7 +17,7 @@ from ...key import WatermarkKey
 from ...register import POSES, register_poses, similarity_fit
 from ...spatial import nearest
 from ...validate import check_mesh
-from .code import coded_bits, confirm
+from .code import coded_bits, confirm_with
 from .fields import OUTER, heights, index_templates, profile
 from .keydata import RobustKeyData
 
@@ -211,7 +211,7 @@ def readings(vertices, faces, key: WatermarkKey, strength: Optional[Callable[[np
         first = None
     rest = ([first] if first is not None else []) + list(poses)
     if len(rest) > 1 and strength is not None:
-        screen = _subset(s, _screen_sites(s, key.n_bits))
+        screen = _subset(s, _screen_sites(s))
         ranks = [strength(_read_at(X, F, screen, key, _identity, False, {}).scores)
                  for X, _ in rest]
         rest = [rest[i] for i in np.argsort(-np.asarray(ranks), kind="stable")[:FULL_READS]]
@@ -230,7 +230,7 @@ def _posed(posed, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> Reading
     return _read_at(X, F, s, key, back, False, extra, poses=POSES)
 
 
-def _screen_sites(s: RobustKeyData, n_bits: int) -> np.ndarray:
+def _screen_sites(s: RobustKeyData) -> np.ndarray:
     """The sites a pose is screened on: the first ``SCREEN_PER_BIT`` usable sites of each bit, (k,) int64."""
     order = np.flatnonzero(s.usable)
     order = order[np.argsort(s.bit[order], kind="stable")]
@@ -313,6 +313,15 @@ def _strongest(vertices, faces, key: WatermarkKey, p_threshold: float) -> tuple[
     return best
 
 
+def confirm(bits_read_or_scores: np.ndarray, key: WatermarkKey) -> tuple[np.ndarray, bool, int]:
+    """Whether a reading confirms the key's payload: (payload bits (k,) uint8, the key's when confirmed,
+    else the bits as read, never to be shown as the payload; confirmed; coded bits corrected). The reading
+    is one score per coded bit (N,) float64 (sign = the scrambled bit, 0 = erased) or the descrambled
+    coded bits (N,) uint8; the key's payload code (``code.confirm_with``) decides, or without one, every bit
+    read and right."""
+    return confirm_with(bits_read_or_scores, key, key_data(key).code)
+
+
 def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict:
     """The verdict of one reading: the p-value of its coded bits against the key's, corrected for the poses
     it was chosen from; the payload shown only when ``confirm`` confirms it."""
@@ -321,7 +330,7 @@ def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict
     verdict = verdict_from_scores(reading.scores, coded_key, reading.mode, p_threshold)
     verdict.p_value = float(pose_bound(verdict.p_value, reading.poses))
     verdict.marked = bool(verdict.p_value < p_threshold)
-    payload, confirmed, corrected = confirm(reading.scores, key, code)
+    payload, confirmed, corrected = confirm_with(reading.scores, key, code)
     confirmed = confirmed and verdict.marked
     verdict.bits = "".join(map(str, payload.tolist()))
     verdict.payload = decode_text(payload) if confirmed and key.payload_kind == "text" else None
