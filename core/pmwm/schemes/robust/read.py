@@ -332,11 +332,13 @@ def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict
     verdict.marked = bool(verdict.p_value < p_threshold)
     payload, confirmed, corrected = confirm_with(reading.scores, key, code)
     confirmed = confirmed and verdict.marked
+    coded_read, coded_key_bits = verdict.bits, "".join(map(str, coded_key.bits.tolist()))
     verdict.bits = "".join(map(str, payload.tolist()))
     verdict.payload = decode_text(payload) if confirmed and key.payload_kind == "text" else None
     verdict.payload_confirmed = confirmed
     verdict.extra = dict(reading.extra, poses_paid=reading.poses, payload_confirmed=confirmed,
-                         payload_code=code.name if code is not None else "none", corrected=corrected)
+                         payload_code=code.name if code is not None else "none", corrected=corrected,
+                         coded_bits=coded_read, coded_key_bits=coded_key_bits)  # what the scores read, and the key's
     verdict.places, verdict.place_bits = reading.places, reading.place_bits
     return verdict
 
