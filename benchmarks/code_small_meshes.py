@@ -4,6 +4,11 @@ docs/decisions/110-payload-code.md, not part of pmwm.
 
 Run: python benchmarks/code_small_meshes.py coded2    (and: ... uncoded)
 """
+import sys
+
+import numpy as np
+
+import pmwm
 from pmwm import attacks
 from pmwm.schemes.robust import key_data, embed as robust_embed
 from pmwm_bench.corpus import generate
