@@ -121,6 +121,7 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
                "shown": v.payload, "exact": bool(v.marked and confirmed and v.payload == payload),
                "wrong_shown": v.payload is not None and v.payload != payload,
                "mirror_said": v.extra.get("mirrored"), "corrected": v.extra.get("corrected"),
+               "bit_errors": v.bit_errors, "code": v.extra.get("payload_code"),
                "poses_read": v.extra.get("poses_read"), "verify_s": round(dt, 3),
                "wrong_key_marked": w.marked, "wrong_key_shown": w.payload}
         rows.append(row)
