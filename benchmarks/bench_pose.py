@@ -1,7 +1,7 @@
 """Any pose, any copy: the robust scheme on near-symmetric shapes never tuned on, and the speed of verify.
 
-Part 1 (``--copies N``): shapes of the near-symmetric families (``pmwm_bench.corpus`` when present, else
-``pose_shapes`` beside this file), each marked with a random text payload under a random key, then attacked:
+Part 1 (``--copies N``): shapes of the near-symmetric families of ``pmwm_bench.corpus``, never tuned on
+(``--shapes tuning``: those of ``pose_shapes`` beside this file, the ones the pose search was tuned on), each marked with a random text payload under a random key, then attacked:
 a random pose (rotation, scale, translation), mirrored or not, and one damage drawn at random: quadric
 simplification (10-50 %), noise, Laplacian smoothing, overmarking by another key at 1-4x the strength,
 quantization, or a chain (simplification, then quantization, noise or smoothing). Each copy is verified with
@@ -38,14 +38,12 @@ sys.path.insert(0, str(HERE))
 import pmwm  # noqa: E402
 from pmwm import attacks  # noqa: E402
 
-try:
-    from pmwm_bench.corpus import generate  # noqa: E402
+import pose_shapes  # noqa: E402
+from pmwm_bench import corpus  # noqa: E402
 
-    SHAPES_FROM = "pmwm_bench.corpus"
-except ImportError:
-    from pose_shapes import generate  # noqa: E402
-
-    SHAPES_FROM = "benchmarks/pose_shapes.py"
+SHAPES = {"report": (corpus.generate, "pmwm_bench.corpus"),  # never tuned on
+          "tuning": (pose_shapes.generate, "benchmarks/pose_shapes.py")}  # the pose search was tuned on these
+generate, SHAPES_FROM = SHAPES["report"]
 
 FAMILIES = ("ellipsoid", "bilateral", "cad2", "cad4")
 DAMAGES = ("simplify", "noise", "smooth", "overmark", "quantize", "chain")
@@ -200,6 +198,8 @@ def main() -> None:
     ap.add_argument("--per-shape", type=int, default=6, help="attacked copies per marked shape")
     ap.add_argument("--seed", type=int, default=None, help="replay a run (default: fresh)")
     ap.add_argument("--out", default="pose.jsonl", help="one JSON line per copy (appended)")
+    ap.add_argument("--shapes", choices=sorted(SHAPES), default="report",
+                    help="report: pmwm_bench.corpus (never tuned on); tuning: pose_shapes.py")
     ap.add_argument("--uncoded", action="store_true",
                     help="mark without the payload code (as keys of format 2), to compare")
     ap.add_argument("--speed", action="store_true", help="part 2: verify's speed on the bunny")
@@ -207,6 +207,8 @@ def main() -> None:
     ap.add_argument("--summarize", default=None, help="print the tables of a JSON-lines file of an earlier run")
     ap.add_argument("--compare", default=None, help="another checkout's core folder, for --speed")
     a = ap.parse_args()
+    global generate, SHAPES_FROM
+    generate, SHAPES_FROM = SHAPES[a.shapes]
     commit = subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True).stdout.strip()
     print(f"commit {commit}, {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "

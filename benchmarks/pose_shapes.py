@@ -1,4 +1,5 @@
-"""Near-symmetric shapes for the pose benchmark, used when ``pmwm_bench.corpus`` is not available.
+"""The near-symmetric shapes the pose search was tuned on (``bench_pose.py --shapes tuning``); its results are
+reported on ``pmwm_bench.corpus``'s, never tuned on.
 
 Every shape is an icosphere (10,242 vertices) pushed onto a surface, with a seeded low-frequency wobble
 small enough that the shape stays close to its symmetric ideal:
