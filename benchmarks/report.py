@@ -57,6 +57,7 @@ TUNING = (
 #: the report's order; the fragments' own figures, as the scripts wrote them
 SECTIONS: tuple[Section, ...] = (
     Section("heldout", "Held out: meshes no method was tuned on"),
+    Section("pose", "Any pose, any copy: near-symmetric shapes never tuned on"),
     Section(
         "robustness",
         "Robustness: both protocols, pmwm against Cho et al. 2007",

@@ -72,6 +72,19 @@ def test_trace_names_the_recipient_after_a_similarity_and_10_percent_simplificat
     assert r.accused[0].p_value < 1e-6 and np.sort(r.p_values)[1] > 1e-3
 
 
+def test_a_mirrored_posed_simplified_copy_names_its_recipient_and_pays_for_its_poses(cap):
+    """A copy mirrored, then posed and simplified by 10 %: traced to its recipient, the trace saying it
+    was mirrored; its p-values pay for the poses the reader may try, so no innocent comes near."""
+    from pmwm.register import POSES
+
+    an, fk, reg = cap
+    X = an.marked(an.codeword("r123")) * [-1.0, 1.0, 1.0]
+    V, F = attacks.simplify(*attacks.similarity(X, an.sites.faces[:, ::-1], seed=8), ratio=0.1)
+    r = trace(V, F, fk, reg)
+    assert _named(r) == ["r123"] and r.detail.mirrored and r.detail.poses_paid == POSES
+    assert np.sort(r.p_values)[1] > 1e-3
+
+
 def test_averaged_copies_name_their_colluders_and_no_innocent(cap):
     an, fk, reg = cap
     F = an.sites.faces

@@ -52,3 +52,39 @@ def test_abandoning_hopeless_finalists_keeps_the_registration(monkeypatch):
             _, full = reg.register(W, G, frame)
         assert np.allclose(info.rotation, full.rotation, atol=1e-6)
         assert np.isclose(info.scale, full.scale, rtol=1e-6) and np.isclose(info.residual, full.residual)
+
+
+def test_a_mirrored_copy_registers_as_a_mirror_image():
+    """The bunny mirrored, rotated, scaled and moved: one of the poses proposed is a mirror image that puts
+    it back on the reference surface (rotations alone cannot)."""
+    from scipy.spatial import cKDTree
+
+    from meshes import bunny
+    from pmwm import attacks, register as reg
+
+    V, F = bunny()
+    frame = reg.surface_frame(V, F, 3000, seed=7)
+    tree = cKDTree(V)
+    W = V * [1.0, -1.0, 1.0]
+    W, G = attacks.similarity(W, F[:, ::-1], seed=4)
+    poses = list(reg.register_poses(W, G, frame))
+    X, info = min(poses, key=lambda x: x[1].residual)
+    assert info.mirrored and np.linalg.det(info.rotation) < 0
+    assert np.median(tree.query(X)[0]) < 0.005 * frame.scale
+    assert len(poses) <= reg.POSES
+
+
+def test_a_symmetric_shape_gets_every_symmetric_pose():
+    """An ellipsoid moved at random: the surface fits equally in its 8 symmetric poses (4 rotations, 4
+    mirror images); all 8 are proposed, for the mark to choose."""
+    import trimesh
+
+    from pmwm import attacks, register as reg
+
+    sphere = trimesh.creation.icosphere(4)
+    V, F = np.asarray(sphere.vertices) * [1.0, 0.7, 0.45], np.asarray(sphere.faces, np.int64)
+    frame = reg.surface_frame(V, F, 3000, seed=1)
+    W, G = attacks.similarity(V, F, seed=2)
+    poses = list(reg.register_poses(W, G, frame))
+    assert len(poses) == 8
+    assert sum(info.mirrored for _, info in poses) == 4

@@ -93,10 +93,10 @@ def test_cropped_and_moved_copies_are_registered(marked):
 
 
 @pytest.mark.slow
-def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
-    """Over 500 random planes each cutting off half the vertices, every bit keeps at least one site
-    (the bit assignment is spread over cuts); a cropped copy is read in the key's frame, at the
-    site vertices that survived."""
+def test_no_plane_crop_to_half_erases_more_bits_than_the_code_corrects(bunny, marked):
+    """Over 500 random planes each cutting off half the vertices, at most t coded bits lose all their
+    sites (the bit assignment is spread over cuts; the code corrects twice as many erasures); a cropped
+    copy is read in the key's frame, at the site vertices that survived."""
 
 
     V, F = bunny
@@ -104,9 +104,10 @@ def test_no_plane_crop_to_half_erases_a_bit(bunny, marked):
     d = np.random.default_rng(99).standard_normal((500, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
     kept = (s.origin @ d.T) <= np.quantile(V @ d.T, 0.5, axis=0)
-    per_bit = np.zeros((marked.key.n_bits, len(d)))
+    per_bit = np.zeros((s.coded_length(marked.key.n_bits), len(d)))
     np.add.at(per_bit, s.bit, kept)
-    assert per_bit.min() >= 1, int((per_bit.min(axis=0) == 0).sum())
+    erased = (per_bit == 0).sum(axis=0)  # coded bits without a site, per cut: the code corrects them
+    assert erased.max() <= s.code.t, np.bincount(erased)
     X, FF = attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=1)
     v = _reads(marked, X, FF)
     assert v.mode == "aligned" and v.detail.heights == "by position, site vertices first"
@@ -152,9 +153,11 @@ def test_readings_by_vertex_index_of_the_marked_mesh_are_exact(bunny, marked):
     read with the plain field, curved patches read it short)."""
     from pmwm.schemes.robust.read import site_soft, swirl_soft
 
+    from pmwm.schemes.robust.code import coded_bits
+
     s = key_data(marked.key)
-    scr = marked.key.stream("scramble", marked.key.n_bits)
-    sign = s.chip * np.where((marked.bits ^ scr)[s.bit] == 1, 1.0, -1.0)
+    coded = coded_bits(marked.bits, s.code)
+    sign = s.chip * np.where((coded ^ marked.key.stream("scramble", len(coded)))[s.bit] == 1, 1.0, -1.0)
     bump = site_soft(marked.vertices, marked.faces, s, by_index=True)[0]
     turn = swirl_soft(marked.vertices, s)[0]
     assert np.abs(bump - sign)[s.index_ok].max() < 0.01
@@ -343,7 +346,8 @@ def test_noise_is_read_by_vertex_index_and_by_position(marked):
     V2, F2 = attacks.reorder(V, F, seed=4)
     v2 = robust_verify(V2, F2, marked.key)
     assert v2.detail.heights == "by position"
-    assert v2.marked and v2.bit_errors <= 0.1 * v2.carriers_total, v2.bit_errors
+    # (coded bits: each has 2/3 of the sites an uncoded payload bit would get, and more bit errors)
+    assert v2.marked and v2.bit_errors <= 0.15 * v2.carriers_total, v2.bit_errors
 
 
 @pytest.mark.slow
@@ -354,7 +358,8 @@ def test_noise_on_a_reordered_copy_is_still_read(marked):
         noisy = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=seed)
         v = pmwm.verify(*attacks.reorder(*noisy, seed=seed), marked.key)
         assert v.mode == "registered" and v.detail.heights == "by position"
-        assert v.marked and v.matches >= 0.85 * v.carriers_total, v.matches
+        assert v.marked and v.matches >= 0.8 * v.carriers_total, v.matches  # coded bits: see above
+        assert v.payload in (PAYLOAD, None)
 
 
 def test_first_format_and_garbled_keys_are_refused_when_the_key_is_read(marked, tmp_path):
@@ -462,3 +467,134 @@ def test_both_kdtree_engines_mark_and_read_alike(bunny, marked):
         np.testing.assert_array_equal(a.scores, b.scores)
         assert a.detail == b.detail
     assert read["scipy"].marked is False
+
+
+# --------------------------------------------------------------------------- any pose, any copy
+
+
+def _ellipsoid_blob(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A closed ellipsoid-like blob (10,242 vertices) with a faint seeded wobble: nearly symmetric in 8
+    poses (4 rotations, 4 mirror images), so its surface alone cannot tell its pose."""
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(5)
+    U, F = np.asarray(sphere.vertices), np.asarray(sphere.faces, np.int64)
+    rng = np.random.default_rng(seed)
+    wobble = np.sin(U @ rng.normal(size=3) + rng.uniform(0, 6)) * 0.01
+    return U * [1.0, 0.72, 0.5] * (1.0 + wobble)[:, None], F
+
+
+def test_a_mirrored_copy_reads_and_says_it_was_mirrored(marked):
+    """Mirroring is one click in any 3D tool: the mirror image in the marked vertex order, and the mirror
+    image posed and simplified by 30 %, both read their payload and say they were mirrored."""
+    W, G = marked.vertices * [-1.0, 1.0, 1.0], marked.faces[:, ::-1]
+    v = _reads(marked, W, G)
+    assert v.detail.registration == "by vertex index" and v.detail.mirrored
+    v = _reads(marked, *attacks.simplify(*attacks.similarity(W, G, seed=6), ratio=0.3))
+    assert v.detail.mirrored and v.mode == "registered"
+    assert not _reads(marked, *attacks.similarity(marked.vertices, marked.faces, seed=6)).detail.mirrored
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_near_symmetric_blob_in_a_random_pose_reads(seed):
+    """A blob whose surface fits as well in 8 poses, marked, then posed at random (mirrored for seed 2)
+    and simplified by 10 %: the mark, not the surface, chooses the pose, and the payload reads."""
+    V, F = _ellipsoid_blob(seed)
+    res = robust_embed(V, F, pmwm.EmbedOptions(payload="OWNR", seed=seed, progressive=False))
+    W, G = res.vertices, res.faces
+    if seed == 2:
+        W, G = W * [1.0, 1.0, -1.0], G[:, ::-1]
+    W, G = attacks.simplify(*attacks.similarity(W, G, seed=10 + seed), ratio=0.1)
+    v = robust_verify(W, G, res.key)
+    assert v.marked and v.payload == "OWNR" and v.detail.mirrored == (seed == 2), (v.p_value, v.detail)
+
+
+def test_registered_readings_pay_for_every_pose_they_may_try(marked):
+    """A copy read after registration has its p-value multiplied by the poses the reader may try (the
+    union bound); one read by vertex index or in the key's frame does not."""
+    from pmwm.register import POSES
+
+    W, G = attacks.simplify(*attacks.similarity(marked.vertices, marked.faces, seed=2), ratio=0.3)
+    v = robust_verify(W, G, marked.key)
+    single = metrics.binomial_tail(v.matches, v.carriers_total)
+    assert v.detail.poses_paid == POSES and v.p_value >= POSES * single * 0.999
+    v = robust_verify(*attacks.similarity(marked.vertices, marked.faces, seed=2), marked.key)
+    assert v.detail.poses_paid == 1
+
+
+def test_a_payload_read_with_wrong_bits_is_never_shown(bunny, marked):
+    """The same key's secret over another payload: the copy carries the key's mark (marked), but not its
+    payload; the payload read is never shown as the key's."""
+    V, F = bunny
+    other = robust_embed(V, F, pmwm.EmbedOptions(payload="ACME 2027", seed=11, progressive=False))
+    v = robust_verify(other.vertices, other.faces, marked.key)
+    assert v.bit_errors >= 9  # the two codewords differ in at least the code's distance
+    assert v.payload is None and not v.payload_confirmed
+    assert v.bits != "".join(map(str, marked.key.bits.tolist()))
+    w = robust_verify(other.vertices, other.faces, other.key)
+    assert w.payload == "ACME 2027" and w.payload_confirmed
+
+
+def test_confirm_corrects_few_errors_and_never_confirms_another_codeword(marked):
+    """``confirm``: up to the code's t errors (or twice as many erasures) corrected; beyond that, or on a
+    reading of another codeword, nothing confirmed; weak wrong bits cost less than strong ones."""
+    from pmwm.schemes.robust import confirm
+    from pmwm.schemes.robust.code import coded_bits
+
+    key = marked.key
+    code = key_data(key).code
+    assert code is not None and code.k == key.n_bits and code.distance >= 9
+    c = coded_bits(key.bits, code)
+    clean = (2.0 * (c ^ key.stream("scramble", len(c))) - 1.0) * 3.0
+    rng = np.random.default_rng(5)
+    for errors, erasures, ok in ((0, 0, True), (4, 0, True), (0, 8, True), (3, 2, True), (5, 0, False),
+                                 (2, 5, False)):
+        x = clean.copy()
+        pick = rng.permutation(len(x))
+        x[pick[:errors]] *= -1
+        x[pick[errors:errors + erasures]] = 0
+        bits, confirmed, corrected = confirm(x, key)
+        assert confirmed == ok, (errors, erasures)
+        assert (bits == key.bits).all() if ok else corrected == 0
+        if ok:
+            assert corrected == errors + erasures
+    hard = c.copy()  # descrambled bits as read, three wrong: corrected
+    hard[[1, 40, 90]] ^= 1
+    bits, confirmed, corrected = confirm(hard, key)
+    assert confirmed and corrected == 3 and (bits == key.bits).all()
+    x = clean.copy()
+    x[rng.permutation(len(x))[:7]] *= -0.05  # seven wrong bits, each far weaker than the others
+    assert confirm(x, key)[1]
+    for seed in range(50):  # readings of other payloads' codewords, without noise
+        other = rng.integers(0, 2, key.n_bits).astype(np.uint8)
+        if (other == key.bits).all():
+            continue
+        y = 2.0 * (coded_bits(other, code) ^ key.stream("scramble", len(c))) - 1.0
+        assert not confirm(y, key)[1]
+
+
+@pytest.mark.parametrize("factor", [1.0, 3.0])
+def test_overmarked_copy_reads_each_keys_own_payload(bunny, marked, factor):
+    """The marked bunny marked again by another key at 1x and 3x the strength: each key reads its own
+    payload, confirmed; neither shows a payload with wrong bits."""
+    res_b = robust_embed(marked.vertices, marked.faces,
+                         pmwm.EmbedOptions(payload="THIEF", seed=77, strength=2.0 * factor, progressive=False))
+    for key, payload in ((marked.key, PAYLOAD), (res_b.key, "THIEF")):
+        v = robust_verify(res_b.vertices, res_b.faces, key)
+        assert v.marked and v.payload == payload and v.payload_confirmed, (payload, v.p_value, v.bit_errors)
+        w = robust_verify(*attacks.simplify(*attacks.similarity(res_b.vertices, res_b.faces, seed=3), 0.1), key)
+        assert w.payload in (payload, None)
+
+
+def test_keys_without_a_code_still_read_their_marks(bunny, monkeypatch):
+    """Keys written before the payload code (format 2: the sites carry the payload bits) keep reading
+    their marks; their payload is confirmed only when every bit reads right."""
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module("pmwm.schemes.robust.embed"), "payload_code", lambda k: None)
+    V, F = bunny
+    res = robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11, progressive=False))
+    key = pmwm.WatermarkKey.from_json(res.key.to_json())
+    assert json.loads(res.key.to_json())["extra"]["robust_version"] == 2 and key_data(key).code is None
+    v = robust_verify(*attacks.similarity(res.vertices, res.faces, seed=1), key)
+    assert v.marked and v.payload == PAYLOAD and v.payload_confirmed and v.carriers_total == key.n_bits

@@ -5,25 +5,29 @@ normals, plus the centroid, PCA axes and scale of the surface (area-weighted, so
 simplification or subdivision do not move them). ``register`` maps a suspect into that frame:
 
 1. Initial guesses: the identity (most copies are not rotated; PCA is useless on a copy cropped to
-   half), and the PCA alignment (centroid, axes, scale from the eigenvalues) with the 4 proper sign
-   flips of the axes.
+   half), and the PCA alignment (centroid, axes, scale from the eigenvalues) with the 8 sign flips of
+   the axes: 4 rotations and 4 mirror images (mirroring a model is one click in any 3D tool).
 2. Each guess is refined by trimmed similarity ICP, point-to-plane against the reference normals
    (sampling offsets along the surface then cost nothing, unlike point-to-point): the closest
    ``TRIM`` share of pairs drive a linearised least-squares step (scale, rotation, translation).
    Suspect samples are the sources and the reference points the targets, so a cropped suspect still
-   finds a counterpart for all its points.
-3. The guess with the smallest trimmed point-to-point residual wins (point-to-point here, so that a
-   fit sliding along a flat part cannot look perfect; a guess whose scale collapsed or exploded is
-   dropped); the identity is kept without trying the others when its residual is already at the
-   sampling noise (two samplings of the same surface, stored in the key as ``floor``).
-   The winner gets 30 more ICP iterations. Accuracy is ~0.1 % of the size: enough for the robust
-   reading, which is relative to a ring around each site.
+   finds a counterpart for all its points. The step keeps the handedness of its start.
+3. The residual is the trimmed point-to-point RMS (point-to-point, so that a fit sliding along a flat
+   part cannot look perfect; a guess whose scale collapsed or exploded is dropped). A (nearly)
+   symmetric shape has several poses of the same residual, of which only one carries the mark where
+   the key expects it: so the registration does not choose. ``register_poses`` gives every distinct
+   pose whose residual is within ``POSE_RATIO`` of the best (at most ``POSES``), and the reader keeps
+   the one where its mark reads strongest, paying for the poses in its p-value. The identity comes
+   first, alone, when its residual is already at the sampling noise (two samplings of the same
+   surface, stored in the key as ``floor``): a reader that finds its mark there tries nothing else.
+   Accuracy is ~0.1 % of the size: enough for the robust reading, which is relative to a ring around
+   each site.
 4. A copy cut by a plane AND moved defeats both starts: its PCA is not the reference's. When no start
    reaches twice the sampling noise, the reference samples are cut by ``CUT_DIRECTIONS`` planes at
    ``CUT_KEEP`` shares each; the cuts whose PCA shape (eigenvalue ratios) is closest to the suspect's
-   give ``CUT_CANDIDATES`` x 4 more starts, screened by ICP on every ``SCREEN_STEP``-th suspect
-   sample against a third of the reference ones. The best ``CUT_FINALISTS`` and the best plain start
-   are refined in full, and the smallest residual wins.
+   give ``CUT_CANDIDATES`` x 8 more starts, screened by ICP on every ``SCREEN_STEP``-th suspect
+   sample against a third of the reference ones. The best ``CUT_FINALISTS`` and the best plain starts
+   are refined in full (30 iterations).
    A finalist whose residual is still ``ABANDON_RATIO`` times the best plausible one's after
    ``ABANDON_AFTER`` iterations (typically the plain start, sliding slowly in a wrong pose) is
    dropped there.
@@ -38,6 +42,7 @@ changed (``pmwm.spatial.MovingNearest``: the same answers).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 
@@ -49,6 +54,7 @@ from .spatial import MovingNearest, PointIndex, nearest
 TRIM = 0.65  # share of the closest pairs used by ICP (robust to cropping to half)
 ICP_ITERATIONS = 30
 COARSE_ITERATIONS = 8
+COARSE_STEP = 4  # the PCA starts' coarse fits use every 4th suspect sample (they only rank the starts)
 SUSPECT_SAMPLES = 1500
 CUT_DIRECTIONS = 128  # plane directions tried for cropped-and-moved copies (Fibonacci sphere)
 CUT_KEEP = (0.5, 0.6, 0.7, 0.8, 0.9)  # shares of the reference kept by each cut
@@ -58,7 +64,13 @@ SCREEN_STEP = 6  # the cut starts are screened on every 6th suspect sample (and 
 # a finalist whose trimmed residual is still this many times the best one's after that many
 # iterations is abandoned (a wrong pose sliding slowly along the surface)
 ABANDON_RATIO, ABANDON_AFTER = 1.8, 5
-SIGNS = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1))  # proper sign flips of PCA axes
+# sign flips of the PCA axes: the 4 proper ones (rotations), then the 4 that mirror
+SIGNS = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1, 1), (1, -1, 1), (1, 1, -1))
+POSES = 32  # the most poses a reader tries (it pays for them in its p-value): a round part's eighths of a turn
+POSE_RATIO = 1.5  # a refined pose whose residual is within this factor of the best one's is plausible
+COARSE_RATIO = 1.4  # the coarse fits within this factor of the best one's are refined
+EQUAL_SPREAD = 1.15  # two PCA axes whose spreads differ by less than this factor get quarter-turn starts
+DISTINCT = 0.05  # two poses differ when they place the suspect's PCA frame this far apart (/ reference scale)
 
 
 @dataclass
@@ -69,7 +81,8 @@ class RegistrationInfo:
     scale: float
     translation: np.ndarray
     residual: float  # trimmed RMS point-to-point residual / reference scale
-    init: str  # "identity" or "pca<signs>"
+    init: str  # "identity", "pca<signs>" or "cut<j><signs>"
+    mirrored: bool = False  # the suspect is a mirror image of the reference (det R < 0)
 
 
 @dataclass
@@ -115,41 +128,76 @@ def surface_frame(vertices: np.ndarray, faces: np.ndarray, n_samples: int, seed:
 
 def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0,
              progress: Progress = None) -> tuple[np.ndarray, RegistrationInfo]:
-    """The suspect's vertices mapped into the reference frame, and how (see the module docstring).
-    ``progress(fraction, message)`` before each of its stages and at the end.
+    """The suspect's vertices mapped into the reference frame by the pose of smallest residual, and how
+    (``register_poses``' best; ``progress(fraction, message)`` at its stages). suspect_V : (n, 3) float64, suspect_F : (m, 3) int64; returns (n, 3) float64."""
+    poses = list(register_poses(suspect_V, suspect_F, frame, seed, progress=progress))
+    return min(poses, key=lambda x: x[1].residual)
 
-    suspect_V : (n, 3) float64, suspect_F : (m, 3) int64; returns (n, 3) float64."""
+
+def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0,
+                   max_poses: int = POSES, progress: Progress = None
+                   ) -> Iterator[tuple[np.ndarray, RegistrationInfo]]:
+    """The plausible poses of the suspect in the reference frame, reflections included, at most
+    ``max_poses``, each as (suspect_V mapped, (n, 3) float64; how). See the module docstring.
+
+    A generator: a copy whose identity start is already at the sampling noise gets that pose first,
+    before any other start is tried (a reader that finds its mark there stops); then the distinct refined
+    poses whose residual is within ``POSE_RATIO`` of the best, by increasing residual. The surface alone
+    cannot tell the poses of a (nearly) symmetric shape apart: the reader's mark does. ``progress(fraction,
+    message)`` before each stage, and 1.0 once every pose is given."""
     report = progress or no_progress
     report(0.0, "aligning: from the pose it has")
     ref_P, ref_N, ref_c, ref_A, ref_s = frame.points, frame.normals, frame.centroid, frame.axes, frame.scale
     V = np.asarray(suspect_V, np.float64)
     S, _ = sample_surface(V, suspect_F, SUSPECT_SAMPLES, seed)
     c, A, s = _pca(S)
-    inits = [("identity", np.eye(3), 1.0, np.zeros(3))] + _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
     k_pca = ref_s / max(s, 1e-300)
+    low, high = 0.3 * k_pca, 3.0 * k_pca
 
     def plausible(k: float) -> bool:
         """A fit whose scale is far from the PCA one collapsed (k -> 0 maps every point near one spot,
         a tiny residual) or exploded: not a fit."""
-        return 0.3 * k_pca < k < 3.0 * k_pca
+        return low < k < high
 
     floor = frame.floor
     index = PointIndex(ref_P)  # one tree over the key's samples for every ICP iteration of every start
-    best = None
-    for group in (inits[:1], inits[1:]):  # the identity first: it may make the PCA starts needless
-        if len(group) > 1:
-            report(0.1, "aligning: from its principal axes")
-        fits = _icp(S, index, ref_N, [x[1:] for x in group], ref_s, COARSE_ITERATIONS)
-        for (name, *_), (R, k, t, res) in zip(group, fits):
-            if plausible(k) and (best is None or res < best[4]):
-                best = (name, R, k, t, res)
-        if best is not None and best[0] == "identity" and best[4] < 1.5 * floor:
-            break  # already aligned: at the sampling noise
-    if best is None:
-        best = inits[1] + (np.inf,)
-    finalists = [best]
-    if not best[4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
-        report(0.3, "aligning: as a cropped copy")
+    ends = c + s * np.vstack([np.zeros(3), A])  # (4, 3): where two poses are compared
+
+    def distinct(fit, others) -> bool:
+        X = fit[2] * ends @ fit[1].T + fit[3]
+        return all(np.abs(X - (o[2] * ends @ o[1].T + o[3])).max() > DISTINCT * ref_s for o in others)
+
+    def refine(finalists: list) -> list:
+        fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True,
+                    abandon=(low, high))
+        return sorted(((name, R, k, t, res) for (name, *_), (R, k, t, res) in zip(finalists, fits)
+                       if plausible(k) and res < np.inf), key=lambda x: x[4])
+
+    def pose(fit) -> tuple[np.ndarray, RegistrationInfo]:
+        name, R, k, t, res = fit
+        return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name,
+                                                 mirrored=bool(np.linalg.det(R) < 0))
+
+    given = []  # the poses yielded so far
+    identity = []  # (not tried on a copy whose size is not the reference's: it cannot be in the key's frame)
+    if plausible(1.0):
+        identity = [("identity", *_icp(S, index, ref_N, [(np.eye(3), 1.0, np.zeros(3))], ref_s, COARSE_ITERATIONS)[0])]
+    if identity and plausible(identity[0][2]) and identity[0][4] < 1.5 * floor:  # already aligned (sampling noise)
+        given = refine(identity)[:1]
+        yield from map(pose, given)
+    report(0.1, "aligning: from its principal axes")
+    starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s, _equal_spreads(S, c, A))
+    fits = _icp(S[::COARSE_STEP], index, ref_N, [x[1:] for x in starts], ref_s, COARSE_ITERATIONS)
+    coarse = sorted([x for x in identity + [(name, *fit) for (name, *_), fit in zip(starts, fits)]
+                     if plausible(x[2])], key=lambda x: x[4])
+    finalists = []
+    for fit in coarse:  # the distinct coarse fits near the best, best first
+        if fit[4] <= COARSE_RATIO * coarse[0][4] and len(finalists) < max_poses and distinct(fit, finalists):
+            finalists.append(fit)
+    if not finalists:
+        finalists = [starts[0] + (np.inf,)]
+    report(0.3, "aligning: as a cropped copy")
+    if not coarse or not coarse[0][4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
         sub = slice(None, None, 3)
         cuts = _cut_starts(ref_P, S, c, A, s)
         fits = _icp(S[::SCREEN_STEP], PointIndex(ref_P[sub]), ref_N[sub], [x[1:] for x in cuts], ref_s,
@@ -157,25 +205,47 @@ def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, 
         screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
     report(0.5, "aligning: refining")
-    fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True,
-                abandon=(0.3 * k_pca, 3.0 * k_pca))
-    refined = [(not (plausible(k) and res < np.inf), res, i, finalists[i][0], R, k, t)  # plausible fits first
-               for i, (R, k, t, res) in enumerate(fits)]
-    _, res, _, name, R, k, t = min(refined)
+    refined = refine(finalists)
+    if not refined:  # nothing plausible: the best of the finalists as they are, for a reader to say so
+        R, k, t = finalists[0][1:4]
+        yield pose(("none plausible", R, k, t, np.inf))
+        report(1.0, "aligned")
+        return
+    for fit in refined:
+        if len(given) >= max_poses or fit[4] > POSE_RATIO * refined[0][4]:
+            break
+        if distinct(fit, given):
+            given.append(fit)
+            yield pose(fit)
     report(1.0, "aligned")
-    return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name)
 
 
-def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s) -> list:
-    """Similarity starts mapping a PCA frame (c, A, s) onto a reference one, for the 4 sign flips."""
+def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s, turns: tuple = ()) -> list:
+    """Similarity starts mapping a PCA frame (c, A, s) onto a reference one, for the 8 sign flips (both
+    frames are right-handed: the flips of an odd number of axes mirror), and the same after the turns
+    (i, j, angle) of the frame in the plane of its axes i and j (axes of about equal spread, whose
+    directions PCA cannot tell apart: a square or round section)."""
     out = []
-    for signs in SIGNS:
-        R = ref_A.T @ np.diag(signs) @ A  # rows of A are the axes
-        if np.linalg.det(R) < 0:
-            R = ref_A.T @ np.diag(signs) @ np.diag([1, 1, -1]) @ A
-        k = ref_s / max(s, 1e-300)
-        out.append((f"{label}{signs}", R, k, ref_c - k * R @ c))
+    k = ref_s / max(s, 1e-300)
+    for turn in ((), *turns):
+        B = A.copy()
+        if turn:
+            i, j, a = turn
+            B[i], B[j] = np.cos(a) * A[i] + np.sin(a) * A[j], np.cos(a) * A[j] - np.sin(a) * A[i]
+        for signs in SIGNS:
+            R = ref_A.T @ np.diag(signs) @ B  # rows of B are the axes
+            name = f"{label}{signs}" if not turn else f"{label}{signs}+{round(np.degrees(turn[2]))}"
+            out.append((name, R, k, ref_c - k * R @ c))
     return out
+
+
+def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple:
+    """The turns (i, j, angle) worth starting from for the points P (n, 3) of PCA frame (c, A): for each pair
+    of axes whose spreads differ by less than ``EQUAL_SPREAD``, the turns in their plane by 45, 90 and 135
+    degrees (with the sign flips' half turns: every eighth of a turn, for a round part with 4-fold features)."""
+    sd = np.sqrt(np.maximum(((P - c) @ A.T).var(axis=0), 1e-300))
+    return tuple((i, j, np.pi * q / 4) for i in range(3) for j in range(i + 1, 3)
+                 if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j]) for q in (1, 2, 3))
 
 
 def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:
@@ -359,13 +429,14 @@ def _lstsq(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     return x / norm
 
 
-def similarity_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-    """Least-squares similarity (R, k, t) with dst ~ k R src + t for paired points (Umeyama 1991):
-    the exact registration when the correspondences are known."""
+def similarity_fit(src: np.ndarray, dst: np.ndarray, mirror: bool = False) -> tuple[np.ndarray, float, np.ndarray]:
+    """Least-squares similarity (R, k, t) with dst ~ k R src + t for paired points src, dst (n, 3)
+    (Umeyama 1991): the exact registration when the correspondences are known. R is a rotation, or with
+    ``mirror`` any orthogonal matrix (det -1 when dst is a mirror image of src)."""
     ms, md = src.mean(axis=0), dst.mean(axis=0)
     a, b = src - ms, dst - md
     U, sv, Wt = np.linalg.svd(b.T @ a)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt)) or 1.0])
+    D = np.diag([1.0, 1.0, 1.0 if mirror else (np.sign(np.linalg.det(U @ Wt)) or 1.0)])
     R = U @ D @ Wt
     k = float(np.trace(np.diag(sv) @ D) / max(np.einsum("ij,ij->", a, a), 1e-300))
     return R, k, md - k * R @ ms

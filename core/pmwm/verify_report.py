@@ -217,10 +217,13 @@ def p_value_in_words(v: Verdict) -> str:
 def _bit_states(v: Verdict, key: WatermarkKey) -> tuple[np.ndarray, np.ndarray]:
     """(signed confidence per bit relative to the median bit: + read as the key's bit, - read wrong,
     0 erased; state per bit 'match' | 'mismatch' | 'erased')."""
-    n = key.n_bits
+    # a payload code: the scores are per coded bit, compared with the key's codeword
+    read_bits = getattr(v.detail, "coded_bits", "") or v.bits
+    key_bits = getattr(v.detail, "coded_key_bits", "") or key.bits
+    n = len(key_bits)
     scores = np.zeros(n) if v.scores is None else np.asarray(v.scores, np.float64)
-    read = np.array([int(c) for c in v.bits], np.int64)
-    match = read == np.asarray(key.bits, np.int64)
+    read = np.array([int(c) for c in read_bits], np.int64)
+    match = read == np.array([int(c) for c in key_bits], np.int64)
     mag = np.abs(scores)
     typical = float(np.median(mag[mag > 0])) if np.any(mag > 0) else 1.0
     conf = np.where(match, 1.0, -1.0) * mag / typical

@@ -10,8 +10,9 @@ scores T_j = <x, c_j> / |x|. For an innocent recipient c_j is independent of x a
 Rademacher sum with unit-norm weights: mean 0, variance 1, and P(T_j >= t) <= exp(-t^2 / 2) for every
 x (Hoeffding; no Gaussian approximation). That bound, corrected for the N recipients of the registry
 (Bonferroni, p = min(1, N exp(-t^2/2))), is each recipient's p-value; recipients with p below the
-threshold (1e-6, as ``pmwm verify``) are named. The chance that any innocent recipient is named in
-one trace is below the threshold, whatever the copy.
+threshold (1e-6, as ``pmwm verify``) are named. A copy read in the best of several poses (a mirror image,
+a symmetric shape) pays for them as well: the p-values are multiplied by the poses the reader may try. The
+chance that any innocent recipient is named in one trace is below the threshold, whatever the copy.
 
 Averaging collusion. k copies averaged vertex by vertex give x ~ (c_1 + ... + c_k) / k (marking and
 reading are linear in the signs), so each colluder scores about sqrt(S_read / k) instead of
@@ -30,6 +31,7 @@ import numpy as np
 
 from ..errors import PayloadError
 from ..key import derive_seed
+from ..schemes.robust.read import pose_bound
 
 __all__ = ["codeword", "codewords", "pack_codeword", "unpack_codewords", "check_recipient_id",
            "correlation_scores", "p_values", "Accusation", "accuse", "key_id"]
@@ -107,12 +109,13 @@ class Accusation:
     p_value: float
 
 
-def accuse(x: np.ndarray, recipients: list, C: np.ndarray, p_threshold: float = 1e-6
+def accuse(x: np.ndarray, recipients: list, C: np.ndarray, p_threshold: float = 1e-6, poses: int = 1
            ) -> tuple[list[Accusation], np.ndarray, np.ndarray]:
     """The recipients named by readings x (S,) (best first), and every recipient's score and
-    corrected p-value (N,). C : (N, S) int8 their codewords."""
+    corrected p-value (N,). C : (N, S) int8 their codewords; ``poses``: the poses the readings were
+    chosen from, paid for as well (``pose_bound``)."""
     T = correlation_scores(x, C)
-    p = p_values(T, len(recipients))
+    p = pose_bound(p_values(T, len(recipients)), poses)
     named = np.flatnonzero(p < p_threshold)
     named = named[np.argsort(-T[named], kind="stable")]
     return [Accusation(recipients[i], float(T[i]), float(p[i])) for i in named], T, p

@@ -4,13 +4,15 @@ recipients whose corrected p-value is below the threshold (``codes``)."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
 
-from ..schemes.robust.read import RobustDetail, read_scores
-from .codes import Accusation, accuse
+from ..schemes.robust.read import RobustDetail, readings
+from .codes import Accusation, accuse, correlation_scores
 from .registry import FingerprintKey, Registry
 
 __all__ = ["TraceResult", "trace", "site_readings", "Accusation"]
@@ -45,17 +47,31 @@ class TraceResult:
 
 def site_readings(vertices, faces, fk: FingerprintKey) -> tuple[np.ndarray, str, RobustDetail]:
     """Each site's weighted soft value x (S,) float64 (soft / variance, 0 where unread) of a suspect
-    (any pose, order, resolution), how it was aligned, and the reader's details."""
-    return read_scores(vertices, faces, fk.key)
+    (any pose, order, resolution), how it was aligned, and the reader's details (the reading of the
+    first pose the reader proposes; ``trace`` reads every pose worth reading)."""
+    reading = next(readings(vertices, faces, fk.key))
+    return reading.scores, reading.mode, reading.detail
 
 
 def trace(vertices, faces, fk: FingerprintKey, registry: Registry, p_threshold: float = 1e-6) -> TraceResult:
     """Trace a suspect, vertices (n, 3), faces (m, 3), to the registry's recipients (RegistryError
-    when the registry is not the key's)."""
+    when the registry is not the key's). Of the suspect's poses (a mirror image, a symmetric shape:
+    ``pmwm.schemes.robust.read.readings``), the one where some recipient scores highest is kept, and
+    every p-value pays for the poses the reader may try, as well as for the recipients."""
     registry.check(fk)
     ids, C = registry.codewords()
-    x, mode, detail = site_readings(vertices, faces, fk)
-    accused, T, p = accuse(x, ids, C, p_threshold)
-    return TraceResult(accused, p_threshold, len(ids), mode, detail.sites_read, detail.sites_total, ids, T, p,
-                       detail)
 
+    def strength(x: np.ndarray) -> float:  # the best recipient's score in a pose
+        return float(correlation_scores(x, C).max(initial=0.0))
+
+    best = None
+    for n, reading in enumerate(readings(vertices, faces, fk.key, strength), 1):
+        accused, T, p = accuse(reading.scores, ids, C, p_threshold, poses=reading.poses)
+        if best is None or T.max(initial=0.0) > best[2].max(initial=0.0):
+            best = (reading, accused, T, p)
+        if accused:
+            break
+    reading, accused, T, p = best
+    detail = dataclasses.replace(reading.detail, poses_read=n, poses_paid=reading.poses)
+    return TraceResult(accused, p_threshold, len(ids), reading.mode, detail.sites_read, detail.sites_total, ids, T, p,
+                       detail)

@@ -7,6 +7,10 @@ a smooth bump along the surface normal, read with a matched filter after registe
 the marked mesh.
 
 Embedding.
+- Payload code: the payload's bits go through a shortened BCH code correcting 4 errors (``code``; 92 coded
+  bits for 64), and the sites carry the coded bits, about as many sites in all as the payload alone would
+  get (an even number per coded bit). The key names the code (key format 3); a mesh too small for the
+  codeword's sites carries the payload alone (format 2, as keys written before the code).
 - Sites: SOM-suitable vertices (``pmwm.carriers``) picked by seeded farthest-point sampling,
   ``sites_per_bit`` per payload bit, assigned to bits so that each bit's sites are spread around the
   shape (pairs of roughly opposite sites, then keyed swaps checked against 512 plane cuts): a plane
@@ -34,6 +38,12 @@ Embedding.
   mesh, so every level of detail, from the base mesh up, keeps each bump's peak and its surroundings.
 
 Reading (on the suspect registered to the key's frame, ``pmwm.register``).
+- Pose: a copy that is not in the key's frame and not in the marked vertex order is registered in every
+  plausible pose, mirror images included (``pmwm.register.register_poses``): a symmetric shape fits its
+  surface equally well in several. Each pose is screened on a third of the sites, the strongest are read in
+  full, and the reading of smallest p-value is kept; its p-value is multiplied by the most poses the reader
+  may try (``read.pose_bound``, a union bound). A mirror image says so (``mirrored`` in the verdict's
+  details).
 - Heights along n: by vertex index when the suspect has the marked mesh's vertices in the marked
   order (noise, smoothing and quantization keep it); otherwise where the line through each sample
   (u, v) crosses the suspect surface (any order, resolution or re-triangulation).
@@ -57,13 +67,17 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
 - A bit is the sign of the sum of its sites' chip-weighted soft values, each weighted by its inverse
   variance (maximum-ratio combining; a site in a damaged or cropped region weighs little). A bit
   with no readable site is an erasure and gets a keyed coin flip, so the binomial p-value of
-  ``pmwm.base.verdict_from_scores`` stays exact.
+  ``pmwm.base.verdict_from_scores`` (over the coded bits) stays exact.
+- The payload is confirmed (``confirm``) when the key's codeword passes the generalised minimum
+  distance test on the soft scores: no other codeword can pass it, so a confirmed payload is the one a
+  decoder would give. The verdict shows the payload only when it is confirmed.
 
 Not blind in the strict sense: the key holds, per sample, its place and its height on the unmarked
 surface (never the faces), and 3,000 samples of the marked surface for registration.
 
 Modules: ``fields`` (site frame, bump and swirl fields, templates, line-surface crossings),
-``layout`` (the keyed bit assignment), ``keydata`` (the typed key data, its reader and writer),
+``layout`` (the keyed bit assignment), ``code`` (the payload code and its confirmation), ``keydata`` (the typed
+key data, its reader and writer),
 ``embed``, ``read``.
 """
 
@@ -73,9 +87,9 @@ from ...base import Scheme
 from ...key import WatermarkKey
 from .embed import DEFAULT_STRENGTH, embed
 from .keydata import RobustKeyData
-from .read import NAME, RobustDetail, key_data, read_scores, verify
+from .read import NAME, RobustDetail, confirm, key_data, read_scores, verify
 
-__all__ = ["SCHEME", "embed", "verify", "read_scores", "key_data", "RobustKeyData", "RobustDetail"]
+__all__ = ["SCHEME", "embed", "verify", "read_scores", "key_data", "confirm", "RobustKeyData", "RobustDetail"]
 
 
 def load_key_data(key: WatermarkKey) -> RobustKeyData:

@@ -28,6 +28,7 @@ from ...key import derive_seed, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...register import surface_frame
 from ...spatial import loading_engine, min_spacing, pairs_within
+from .code import BCHCode, coded_bits, payload_code
 from .fields import OUTER, index_templates, profile, swirl, tangent_frames
 from .keydata import RobustKeyData, Samples
 from .layout import assign_bits
@@ -284,6 +285,24 @@ def _first_least(score: np.ndarray, starts: np.ndarray, group: np.ndarray) -> np
     return least[np.r_[True, group[least[1:]] != group[least[:-1]]]]
 
 
+def _coded_sites(V, F, secret: str, strength: float, nb: int, sites_per_bit: int, radius_edges: float,
+                 report, adj: Adjacency) -> tuple[SitePlaces, Optional[BCHCode]]:
+    """The sites of a payload of ``nb`` bits and its code: the payload's BCH codeword (``code``) over about
+    as many sites as the payload alone would get (``sites_per_bit`` per payload bit, an even number per
+    coded bit); the payload alone, ``sites_per_bit`` each (fewer on small meshes), when the mesh cannot hold
+    that many sites for the codeword (crowded sites spoil each other: the code would not pay) or no code fits."""
+    code = payload_code(nb)
+    if code is not None:
+        per_coded = max(2, 2 * round(sites_per_bit * nb / code.n / 2))
+        try:
+            places = place_sites(V, F, secret, strength, code.n, per_coded, radius_edges, report, adj)
+            if places.per_bit == per_coded:
+                return places, code
+        except PayloadError:
+            pass
+    return place_sites(V, F, secret, strength, nb, sites_per_bit, radius_edges, report, adj), None
+
+
 def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
           sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
     """Watermark a mesh with the robust scheme (``pmwm.schemes.robust``); same options and result as
@@ -305,19 +324,20 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
     build = job.options.progressive
     with beside(build, build_progressive_mesh, V, F, base_vertices=base, protected=protect,
                 adjacency=adj) as building:
-        places = place_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
+        places, code = _coded_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
         if build:  # (the vertices to protect only when something is built)
             protect.set(places.protected())
         an = lay_out(places, secret)
         site, sites = an.site, an.sites
-        w = bits ^ keyed_bits(secret, "scramble", nb)
+        coded = coded_bits(bits, code)
+        w = coded ^ keyed_bits(secret, "scramble", len(coded))
         sign = site.chip * np.where(w[site.bit] == 1, 1.0, -1.0)
         marked, (usable, centre_ok, index_ok, swirl_ok), _, _ = an.mark_readable(sign)
         report(0.2, "sites marked")
         frame = surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
         first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
         data = dataclasses.replace(site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
-                                   frame=frame)
+                                   frame=frame, code=code)
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
             pm, _ = building.result(lambda f, msg: report(0.25 + 0.7 * f, msg))

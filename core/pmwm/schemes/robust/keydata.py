@@ -13,9 +13,11 @@ import numpy as np
 
 from ...errors import KeyFileError
 from ...register import SurfaceFrame
+from .code import BCHCode
 from .fields import tangent_frames
 
-EXTRA_VERSION = 2
+EXTRA_VERSION = 3  # written when the payload has a code; keys without one are written as version 2
+READ_VERSIONS = (2, 3)
 
 
 class Samples:
@@ -65,8 +67,10 @@ class RobustKeyData:
     (S,) float64, which readings were clean on the marked mesh (``usable``: by position;
     ``centre_ok``: at the site vertex; ``swirl_ok``: the swirl by index; ``index_ok``: by index;
     (S,) bool), its place ``origin`` and unit ``normal`` (S, 3) float64; the bump radius, amplitude
-    and swirl amplitude; the samples; the registration frame (None only inside the embedder).
-    ``t1``, ``t2`` (S, 3): the tangent frame, derived from the normals."""
+    and swirl amplitude; the samples; the registration frame (None only inside the embedder); the
+    payload's error-correcting ``code`` (None: the sites carry the payload bits themselves; then ``bit``
+    indexes the payload, else the codeword). ``t1``, ``t2`` (S, 3): the tangent frame, derived from the
+    normals."""
 
     bit: np.ndarray
     chip: np.ndarray
@@ -81,6 +85,7 @@ class RobustKeyData:
     swirl: float
     samples: Samples
     frame: Optional[SurfaceFrame]
+    code: Optional[BCHCode] = None
     t1: np.ndarray = field(init=False, repr=False)
     t2: np.ndarray = field(init=False, repr=False)
 
@@ -91,7 +96,7 @@ class RobustKeyData:
         """The JSON form stored under the key's ``extra``."""
         sm = self.samples
         out = {
-            "robust_version": EXTRA_VERSION,
+            "robust_version": EXTRA_VERSION if self.code is not None else 2,
             "radius": self.radius,
             "amplitude": self.amplitude,
             "swirl": self.swirl,
@@ -111,15 +116,21 @@ class RobustKeyData:
             out["sample_normal"] = _pack(sm.normal_tt[sm.mask], "<f2")
         if self.frame is not None:
             out["frame"] = self.frame.to_json()
+        if self.code is not None:
+            out["code"] = self.code.to_json()
         return out
+
+    def coded_length(self, n_bits: int) -> int:
+        """The bits the sites carry for a payload of ``n_bits``: the codeword's, or the payload's."""
+        return n_bits if self.code is None else self.code.n
 
     @classmethod
     def from_extra(cls, x, n_bits: int, n_vertices: int) -> "RobustKeyData":
         """The data of a key's ``extra`` (a key of ``n_bits`` bits for a mesh of ``n_vertices``),
         checked; a KeyFileError naming the problem when it is damaged or of another format."""
         version = x.get("robust_version") if isinstance(x, dict) else None
-        if version != EXTRA_VERSION:
-            raise KeyFileError(f"this robust key has format {version!r}, this pmwm reads format {EXTRA_VERSION} "
+        if version not in READ_VERSIONS:
+            raise KeyFileError(f"this robust key has format {version!r}, this pmwm reads formats 2 and 3 "
                                "(the first robust scheme's keys are not read any more); re-embed with this version")
         try:
             site = {
@@ -141,6 +152,9 @@ class RobustKeyData:
             vertex = _unpack(x["sample_vertex"], "<u4", (total,))
             normal_tt = _unpack(x["sample_normal"], "<f2", (total, 2)) if "sample_normal" in x else None
             frame = SurfaceFrame.from_json(x["frame"])
+            code = BCHCode.from_json(x["code"]) if version == 3 else None
+            if code is not None and code.k != n_bits:
+                raise ValueError("the payload code is for another payload length")
             if not all(np.isfinite(site[k]).all() for k in ("origin", "normal", "chip")):
                 raise ValueError("site places, normals or chips are not finite numbers")
             if not (np.isfinite(uvh).all() and radius > 0 and amplitude > 0 and np.isfinite(swirl)) \
@@ -150,8 +164,8 @@ class RobustKeyData:
             raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
         n = len(site["bit"]) if np.ndim(site["bit"]) == 1 else 0
         if n == 0 or any(np.ndim(site[k]) == 0 or len(site[k]) != n for k in site) \
-                or site["bit"].min() < 0 or site["bit"].max() >= n_bits \
+                or site["bit"].min() < 0 or site["bit"].max() >= (n_bits if code is None else code.n) \
                 or vertex.max(initial=0) >= n_vertices:
             raise KeyFileError("the robust key's site data are inconsistent; it is damaged")
         samples = Samples(counts, uvh[:, 0], uvh[:, 1], uvh[:, 2], vertex, normal_tt)
-        return cls(**site, radius=radius, amplitude=amplitude, swirl=swirl, samples=samples, frame=frame)
+        return cls(**site, radius=radius, amplitude=amplitude, swirl=swirl, samples=samples, frame=frame, code=code)

@@ -4,17 +4,20 @@ and the per-bit scores. Shapes: S sites, K samples per site."""
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Callable, Iterator, Optional
 
 import numpy as np
 
-from ...base import Progress, Verdict, VerdictDetail, no_progress, verdict_from_scores
+from ...base import Progress, Verdict, VerdictDetail, decode_text, no_progress, verdict_from_scores
 from ...errors import KeyFileError
 from ...key import WatermarkKey
-from ...register import register, similarity_fit
+from ...register import POSES, register_poses, similarity_fit
 from ...spatial import nearest
 from ...validate import check_mesh
+from .code import coded_bits, confirm_with
 from .fields import OUTER, heights, index_templates, profile
 from .keydata import RobustKeyData
 
@@ -24,6 +27,8 @@ VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
 INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
+SCREEN_PER_BIT = 2  # sites per bit a registered pose is screened on
+FULL_READS = 2  # the strongest screened poses read in full
 
 
 ALIGNED = "none (already in the key's frame)"  # RobustDetail.registration of a copy read in place
@@ -44,6 +49,16 @@ class RobustDetail(VerdictDetail):
     sites_total: int
     residual: Optional[float] = None
     scale: Optional[float] = None
+    mirrored: bool = False
+    poses_read: int = 1
+    poses_paid: int = 1
+    payload_code: str = "none"
+    corrected: int = 0
+    coded_bits: str = ""
+    coded_key_bits: str = ""
+
+    def notes(self) -> list[str]:
+        return ["read as a mirror image of the marked mesh (the copy was mirrored)"] if self.mirrored else []
 
     def in_words(self) -> list[tuple[str, str]]:
         if self.registration == ALIGNED:
@@ -54,14 +69,22 @@ class RobustDetail(VerdictDetail):
             found = "it was moved, re-ordered or re-meshed: lined up with the key by its shape"
         how = ("each place read on its own vertices" if self.heights.startswith("by vertex index") else
                "each place read where the surface passes")
-        return [("How the copy was found", found), ("How it was read", how),
+        rows = [("How the copy was found", found), ("How it was read", how),
                 ("Places read", f"{self.sites_read} of the {self.sites_total} places that carry the mark")]
+        if self.mirrored:
+            rows.append(("Mirrored", "yes: the copy is a mirror image of the marked mesh"))
+        if self.corrected:
+            rows.append(("Corrected", f"{self.corrected} coded bits read wrong were corrected by the payload code"))
+        return rows
 
     def numbers(self) -> list[tuple[str, str]]:
         rows = [("registration", self.registration), ("heights", self.heights),
                 ("sites read", f"{self.sites_read}/{self.sites_total}")]
         if self.residual is not None:
             rows += [("registration residual", f"{self.residual:.3g}"), ("scale", f"{self.scale:.6g}")]
+        rows += [("mirrored", "yes" if self.mirrored else "no"), ("poses read", str(self.poses_read)),
+                 ("poses paid (union bound)", str(self.poses_paid)), ("payload code", self.payload_code),
+                 ("coded bits corrected", str(self.corrected))]
         return rows
 
 
@@ -192,45 +215,111 @@ def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int)
     return np.bincount(s.bit[ok], weights=(s.chip * soft / var)[ok], minlength=n_bits)
 
 
-def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, RobustDetail]:
-    """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details."""
-    scores, mode, detail, _ = _read(vertices, faces, key)
-    return scores, mode, detail
+@dataclass
+class Reading:
+    """One reading of a suspect in one pose: per-bit ``scores`` (N,) float64 (sign = scrambled bit, 0 =
+    erasure), how it was aligned (``mode``) and how it was read (``detail``), where the mark was read (``places``
+    (k, 3) float64 the sites read, in the suspect's coordinates; ``place_bits`` (k,) int64 the bit of
+    each), and ``poses``: how many poses a reading of this kind may have been chosen from (1 when the
+    copy sits in the key's frame or keeps the marked vertex order; ``pmwm.register.POSES`` after
+    registration), the factor of the union bound its p-value pays (``pose_bound``)."""
+
+    scores: np.ndarray
+    mode: str
+    detail: RobustDetail
+    places: np.ndarray
+    place_bits: np.ndarray
+    poses: int = 1
 
 
-def _read(vertices, faces, key: WatermarkKey, progress: Progress = None
-          ) -> tuple[np.ndarray, str, RobustDetail, tuple[np.ndarray, np.ndarray]]:
-    """read_scores, and where the mark was read: (places (k, 3) of the sites read, in the suspect's
-    coordinates; the bit of each). ``progress(fraction, message)`` at its stages (up to 0.9)."""
+def pose_bound(p: np.ndarray, poses: int) -> np.ndarray:
+    """A p-value read in the best of ``poses`` poses, corrected for them (union bound: the chance that
+    any of them reads a mark by chance is at most ``poses`` times a single pose's), in [0, 1]."""
+    return np.minimum(1.0, np.asarray(p, np.float64) * poses)
+
+
+def readings(vertices, faces, key: WatermarkKey, strength: Optional[Callable[[np.ndarray], float]] = None,
+             progress: Progress = None) -> Iterator[Reading]:
+    """The suspect's readings, one per pose worth reading, most promising first (a generator: the caller
+    stops when it has found its mark). vertices (n, 3), faces (m, 3).
+
+    A copy in the key's frame or in the marked vertex order has one pose. After registration there may
+    be several (a symmetric shape, a mirror image): each is first screened on a third of the sites
+    (``SCREEN_PER_BIT`` per bit) and ranked by ``strength`` (per-bit scores (N,) -> how strongly they
+    show the caller's mark; None: the poses' own order), and the ``FULL_READS`` strongest are read in
+    full. Every registered reading pays for ``POSES`` poses (``pose_bound``), whichever were read.
+    ``progress(fraction, message)`` at its stages (up to 0.9)."""
     report = progress or no_progress
     report(0.0, "loading the suspect")
     s = key_data(key)
     V, F = check_mesh(vertices, faces)
-    aligned = _in_key_frame(V, s, key)
-    X, back = V, _identity  # X: the suspect in the key's frame; back: key's frame -> suspect
-    residual = scale = None
-    if aligned:
-        registration = ALIGNED
-        mode = "aligned"
-        by_index = _same_vertices(X, s, key)
-    else:
-        mode = "registered"
-        # the marked vertices in their order (noise, smoothing, quantization, any pose): the
+    if _in_key_frame(V, s, key):
+        report(0.7, "reading the sites")
+        yield _read_at(V, F, s, key, _identity, True, {"registration": ALIGNED})
+        return
+    X, back, mirrored = V, _identity, False
+    if len(V) == key.n_vertices:
+        # the marked vertices in their order (noise, smoothing, quantization, any pose, a mirror): the
         # similarity fit of the sample vertices is the registration, no ICP needed
-        if len(V) == key.n_vertices:
-            X, back = _refined(V, s, back)
-        by_index = _same_vertices(X, s, key)
-        if by_index:
-            registration = BY_INDEX
-        else:
-            X, info = register(V, F, s.frame, progress=lambda f, m: report(0.1 + 0.6 * f, m))
-            R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
-            back = lambda P: (P - t) @ R / k  # noqa: E731
-            registration, residual, scale = info.init, float(info.residual), float(info.scale)
-            by_index = _same_vertices(X, s, key)
-            if by_index:
-                X, back = _refined(X, s, back)
+        X, back, mirrored = _refined(V, s, back)
+    if _same_vertices(X, s, key):
+        report(0.7, "reading the sites")
+        yield _read_at(X, F, s, key, back, False, {"registration": BY_INDEX, "mirrored": mirrored})
+        return
+    poses = register_poses(V, F, s.frame, progress=lambda f, m: report(0.1 + 0.6 * f, m))
+    first = next(poses)
+    if first[1].init == "identity":  # already at the sampling noise: read before any other pose is tried
+        report(0.7, "reading the sites")
+        yield _posed(first, F, s, key)
+        first = None
+    rest = ([first] if first is not None else []) + list(poses)
+    if len(rest) > 1 and strength is not None:
+        screen = _subset(s, _screen_sites(s))
+        ranks = [strength(_read_at(X, F, screen, key, _identity, False, {"registration": "screening"}).scores)
+                 for X, _ in rest]
+        rest = [rest[i] for i in np.argsort(-np.asarray(ranks), kind="stable")[:FULL_READS]]
     report(0.7, "reading the sites")
+    for posed in rest:
+        yield _posed(posed, F, s, key)
+
+
+def _posed(posed, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> Reading:
+    """The full reading of one registered pose (X (n, 3) in the key's frame, its RegistrationInfo)."""
+    X, info = posed
+    R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
+    back = lambda P: (P - t) @ R / k  # noqa: E731
+    how = {"registration": info.init, "residual": float(info.residual), "scale": float(info.scale),
+           "mirrored": bool(info.mirrored)}
+    if _same_vertices(X, s, key):
+        X, back, _ = _refined(X, s, back)
+    return _read_at(X, F, s, key, back, False, how, poses=POSES)
+
+
+def _screen_sites(s: RobustKeyData) -> np.ndarray:
+    """The sites a pose is screened on: the first ``SCREEN_PER_BIT`` usable sites of each bit, (k,) int64."""
+    order = np.flatnonzero(s.usable)
+    order = order[np.argsort(s.bit[order], kind="stable")]
+    rank = np.arange(len(order)) - np.searchsorted(s.bit[order], s.bit[order])
+    return np.sort(order[rank < SCREEN_PER_BIT])
+
+
+def _subset(s: RobustKeyData, sites: np.ndarray) -> RobustKeyData:
+    """The key data of the ``sites`` (k,) int64 alone."""
+    sm = copy.copy(s.samples)
+    for name in ("mask", "u", "v", "h", "vertex", "normal_tt", "centre"):
+        if getattr(sm, name) is not None:
+            setattr(sm, name, getattr(sm, name)[sites])
+    return dataclasses.replace(s, bit=s.bit[sites], chip=s.chip[sites], usable=s.usable[sites],
+                               centre_ok=s.centre_ok[sites], swirl_ok=s.swirl_ok[sites], index_ok=s.index_ok[sites],
+                               origin=s.origin[sites], normal=s.normal[sites], samples=sm)
+
+
+def _read_at(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey,
+             back: Callable[[np.ndarray], np.ndarray], aligned: bool, how: dict, poses: int = 1) -> Reading:
+    """The reading of the suspect X (n, 3), F (m, 3) in the key's frame; ``back`` maps the key's frame to
+    the suspect's; ``aligned``: X sits exactly in the key's frame; ``how``: RobustDetail's registration
+    fields (registration, and residual, scale, mirrored where known)."""
+    by_index = _same_vertices(X, s, key)
     soft, var = np.full(len(s.bit), np.nan), np.full(len(s.bit), VAR_FLOOR)
     full = (s.index_ok if by_index else s.usable).copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
@@ -245,24 +334,83 @@ def _read(vertices, faces, key: WatermarkKey, progress: Progress = None
             soft_t, var_t = swirl_soft(X, s)
             soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
     heights = ("by vertex index" if by_index else "by position") + (", site vertices first" if aligned else "")
-    detail = RobustDetail(registration, heights, int(np.isfinite(soft).sum()), int(len(soft)), residual, scale)
+    detail = RobustDetail(heights=heights, sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)), **how)
     read = np.flatnonzero(np.isfinite(soft))
-    return bit_scores(soft, var, s, key.n_bits), mode, detail, (back(s.origin[read]), s.bit[read].astype(np.int64))
+    return Reading(bit_scores(soft, var, s, s.coded_length(key.n_bits)), "aligned" if aligned else "registered",
+                   detail, back(s.origin[read]), s.bit[read].astype(np.int64), poses)
 
 
 def _identity(P: np.ndarray) -> np.ndarray:
     return P.copy()
 
 
+def read_scores(vertices, faces, key: WatermarkKey) -> tuple[np.ndarray, str, RobustDetail]:
+    """Per-bit scores (sign = scrambled bit, 0 = erasure) of a suspect, how it was aligned, and details:
+    the reading ``verify`` keeps."""
+    reading, _ = _strongest(vertices, faces, key, 1e-6)
+    return reading.scores, reading.mode, reading.detail
+
+
 def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6, progress: Progress = None) -> Verdict:
-    """Read the robust mark from a suspect mesh (any order, pose, resolution), with the key;
+    """Read the robust mark from a suspect mesh (any order, pose, mirror, resolution), with the key: the
+    strongest of its readings (``readings``), its p-value paying for the poses tried (``pose_bound``).
     ``progress(fraction, message)`` at its stages (loading, registration, reading), ending at 1.0."""
     report = progress or no_progress
-    scores, mode, detail, (places, place_bits) = _read(vertices, faces, key, report)
-    report(0.9, "deciding")
-    verdict = verdict_from_scores(scores, key, mode, p_threshold, detail)
-    verdict.places, verdict.place_bits = places, place_bits
+    verdict = _strongest(vertices, faces, key, p_threshold, report)[1]
     report(1.0, "read")
+    return verdict
+
+
+def _strongest(vertices, faces, key: WatermarkKey, p_threshold: float, progress: Progress = None
+               ) -> tuple[Reading, Verdict]:
+    """The reading of smallest p-value and its verdict; the readings stop at the first marked one whose
+    payload is confirmed."""
+    code = key_data(key).code
+    coded = coded_bits(key.bits, code)
+    expected = 2.0 * (coded ^ key.stream("scramble", len(coded))).astype(np.float64) - 1.0
+
+    def strength(scores: np.ndarray) -> float:  # how strongly per-bit scores show the key's coded bits
+        return float(expected @ scores / max(np.sqrt(scores @ scores), 1e-300))
+
+    best, n = None, 0
+    for n, reading in enumerate(readings(vertices, faces, key, strength, progress), 1):
+        verdict = _verdict(reading, key, p_threshold)
+        if best is None or verdict.p_value < best[1].p_value:
+            best = (reading, verdict)
+        if verdict.marked and verdict.payload_confirmed:
+            break
+    (progress or no_progress)(0.9, "deciding")
+    best[1].detail = dataclasses.replace(best[1].detail, poses_read=n)
+    return best
+
+
+def confirm(bits_read_or_scores: np.ndarray, key: WatermarkKey) -> tuple[np.ndarray, bool, int]:
+    """Whether a reading confirms the key's payload: (payload bits (k,) uint8, the key's when confirmed,
+    else the bits as read, never to be shown as the payload; confirmed; coded bits corrected). The reading
+    is one score per coded bit (N,) float64 (sign = the scrambled bit, 0 = erased) or the descrambled
+    coded bits (N,) uint8; the key's payload code (``code.confirm_with``) decides, or without one, every bit
+    read and right."""
+    return confirm_with(bits_read_or_scores, key, key_data(key).code)
+
+
+def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict:
+    """The verdict of one reading: the p-value of its coded bits against the key's, corrected for the poses
+    it was chosen from; the payload shown only when ``confirm`` confirms it."""
+    code = key_data(key).code
+    coded_key = key if code is None else dataclasses.replace(key, bits=code.encode(key.bits), payload_kind="bits")
+    verdict = verdict_from_scores(reading.scores, coded_key, reading.mode, p_threshold, reading.detail)
+    verdict.p_value = float(pose_bound(verdict.p_value, reading.poses))
+    verdict.marked = bool(verdict.p_value < p_threshold)
+    payload, confirmed, corrected = confirm_with(reading.scores, key, code)
+    confirmed = confirmed and verdict.marked
+    coded_read, coded_key_bits = verdict.bits, "".join(map(str, coded_key.bits.tolist()))
+    verdict.bits = "".join(map(str, payload.tolist()))
+    verdict.payload = decode_text(payload) if confirmed and key.payload_kind == "text" else None
+    verdict.payload_confirmed = confirmed
+    verdict.detail = dataclasses.replace(reading.detail, poses_paid=reading.poses,
+                                         payload_code=code.name if code is not None else "none", corrected=corrected,
+                                         coded_bits=coded_read, coded_key_bits=coded_key_bits)  # read, and the key's
+    verdict.places, verdict.place_bits = reading.places, reading.place_bits
     return verdict
 
 
@@ -285,7 +433,7 @@ def _sample_places(s: RobustKeyData) -> np.ndarray:
 
 
 def _index_fit(X: np.ndarray, s: RobustKeyData) -> Optional[tuple[np.ndarray, float, np.ndarray]]:
-    """The similarity (R, k, t) that best fits the stored places of the sample vertices to X's
+    """The similarity (R, k, t), mirror images included, that best fits the stored places of the sample vertices to X's
     (X[vertex] ~ k place R^T + t), or None when those vertices collapsed to a point. With thousands of
     known pairs this is far tighter than surface ICP, whose error at high noise otherwise tilts every
     site (the bumps are sign-balanced, so they do not pull the fit). The noiseless stored places are
@@ -293,19 +441,19 @@ def _index_fit(X: np.ndarray, s: RobustKeyData) -> Optional[tuple[np.ndarray, fl
     least-squares scale (regression dilution; 1 % at noise 0.05 of the size, which moves far sites by
     bump heights)."""
     sm = s.samples
-    R, k, t = similarity_fit(_sample_places(s)[sm.mask], X[sm.vertex[sm.mask]])
+    R, k, t = similarity_fit(_sample_places(s)[sm.mask], X[sm.vertex[sm.mask]], mirror=True)
     return (R, k, t) if np.isfinite(k) and k > 1e-12 else None
 
 
 def _refined(X: np.ndarray, s: RobustKeyData, back: Callable[[np.ndarray], np.ndarray]
-             ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
-    """X (n, 3) mapped into the key's frame by ``_index_fit``, and ``back`` (key's frame -> the
-    suspect, through X) extended by that fit."""
+             ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray], bool]:
+    """X (n, 3) mapped into the key's frame by ``_index_fit``, ``back`` (key's frame -> the suspect,
+    through X) extended by that fit, and whether the fit mirrors."""
     fit = _index_fit(X, s)
     if fit is None:
-        return X, back
+        return X, back, False
     R, k, t = fit
-    return (X - t) @ R / k, lambda P: back(k * P @ R.T + t)
+    return (X - t) @ R / k, lambda P: back(k * P @ R.T + t), bool(np.linalg.det(R) < 0)
 
 
 def _refine_by_index(X: np.ndarray, s: RobustKeyData) -> np.ndarray:
