@@ -1,7 +1,8 @@
 """Any pose, any copy: the robust scheme on near-symmetric shapes never tuned on, and the speed of verify.
 
 Part 1 (``--copies N``): shapes of the near-symmetric families of ``pmwm_bench.corpus``, never tuned on
-(``--shapes tuning``: those of ``pose_shapes`` beside this file, the ones the pose search was tuned on), each marked with a random text payload under a random key, then attacked:
+(``--shapes tuning``: those of ``pose_shapes`` beside this file, the ones the pose search was tuned on),
+each marked with a random text payload under a random key, then attacked:
 a random pose (rotation, scale, translation), mirrored or not, and one damage drawn at random: quadric
 simplification (10-50 %), noise, Laplacian smoothing, overmarking by another key at 1-4x the strength,
 quantization, or a chain (simplification, then quantization, noise or smoothing). Each copy is verified with
@@ -41,8 +42,10 @@ from pmwm import attacks  # noqa: E402
 import pose_shapes  # noqa: E402
 from pmwm_bench import corpus  # noqa: E402
 
-SHAPES = {"report": (corpus.generate, "pmwm_bench.corpus"),  # never tuned on
-          "tuning": (pose_shapes.generate, "benchmarks/pose_shapes.py")}  # the pose search was tuned on these
+SHAPES = {
+    "report": (corpus.generate, "pmwm_bench.corpus"),  # never tuned on
+    "tuning": (pose_shapes.generate, "benchmarks/pose_shapes.py"),
+}  # the pose search was tuned on these
 generate, SHAPES_FROM = SHAPES["report"]
 
 FAMILIES = ("ellipsoid", "bilateral", "cad2", "cad4")
@@ -98,8 +101,13 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
         if kind == "overmark":
             f = float(rng.uniform(1.0, 4.0))
             try:
-                W = pmwm.embed(W, G, pmwm.EmbedOptions(payload="THIEF", seed=int(rng.integers(1 << 31)),
-                                                       strength=2.0 * f, progressive=False)).vertices
+                W = pmwm.embed(
+                    W,
+                    G,
+                    pmwm.EmbedOptions(
+                        payload="THIEF", seed=int(rng.integers(1 << 31)), strength=2.0 * f, progressive=False
+                    ),
+                ).vertices
             except pmwm.PayloadError:
                 continue
             params = {"overmark": round(f, 2)}
@@ -114,14 +122,27 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
         dt = time.perf_counter() - t
         w = pmwm.verify(W, G, wrong_key)
         confirmed = bool(v.payload_confirmed)
-        row = {"family": family, "shape_seed": shape_seed, "payload": payload, "mirrored": mirrored,
-               "attack": params, "marked": v.marked, "p": v.p_value, "confirmed": confirmed,
-               "shown": v.payload, "exact": bool(v.marked and confirmed and v.payload == payload),
-               "wrong_shown": v.payload is not None and v.payload != payload,
-               "mirror_said": getattr(v.detail, "mirrored", None), "corrected": getattr(v.detail, "corrected", None),
-               "bit_errors": v.bit_errors, "code": getattr(v.detail, "payload_code", None),
-               "poses_read": getattr(v.detail, "poses_read", None), "verify_s": round(dt, 3),
-               "wrong_key_marked": w.marked, "wrong_key_shown": w.payload}
+        row = {
+            "family": family,
+            "shape_seed": shape_seed,
+            "payload": payload,
+            "mirrored": mirrored,
+            "attack": params,
+            "marked": v.marked,
+            "p": v.p_value,
+            "confirmed": confirmed,
+            "shown": v.payload,
+            "exact": bool(v.marked and confirmed and v.payload == payload),
+            "wrong_shown": v.payload is not None and v.payload != payload,
+            "mirror_said": getattr(v.detail, "mirrored", None),
+            "corrected": getattr(v.detail, "corrected", None),
+            "bit_errors": v.bit_errors,
+            "code": getattr(v.detail, "payload_code", None),
+            "poses_read": getattr(v.detail, "poses_read", None),
+            "verify_s": round(dt, 3),
+            "wrong_key_marked": w.marked,
+            "wrong_key_shown": w.payload,
+        }
         rows.append(row)
         out.write(json.dumps(row) + "\n")
         out.flush()
@@ -129,14 +150,19 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
 
 
 def summary(rows: list[dict]) -> str:
-    lines = ["| family | copies | read exactly | marked | wrong payload shown | mirror misreported | "
-             "wrong key marked | median verify s |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| family | copies | read exactly | marked | wrong payload shown | mirror misreported | "
+        "wrong key marked | median verify s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for fam in sorted({r["family"] for r in rows}) + ["all"]:
         rs = [r for r in rows if fam in ("all", r["family"])]
         mis = sum(bool(r["marked"]) and bool(r["mirror_said"]) != r["mirrored"] for r in rs)
-        lines.append(f"| {fam} | {len(rs)} | {sum(r['exact'] for r in rs)} | {sum(r['marked'] for r in rs)} | "
-                     f"{sum(r['wrong_shown'] or r['wrong_key_shown'] is not None for r in rs)} | {mis} | "
-                     f"{sum(r['wrong_key_marked'] for r in rs)} | {np.median([r['verify_s'] for r in rs]):.2f} |")
+        lines.append(
+            f"| {fam} | {len(rs)} | {sum(r['exact'] for r in rs)} | {sum(r['marked'] for r in rs)} | "
+            f"{sum(r['wrong_shown'] or r['wrong_key_shown'] is not None for r in rs)} | {mis} | "
+            f"{sum(r['wrong_key_marked'] for r in rs)} | {np.median([r['verify_s'] for r in rs]):.2f} |"
+        )
     lines += ["", "| damage | copies | read exactly |", "|---|---|---|"]
     for kind in DAMAGES:
         rs = [r for r in rows if kind in r["attack"]]
@@ -185,8 +211,11 @@ def speed(repeat: int, compare: str | None) -> None:
     env = dict(os.environ)
     for label, core in runs.items():
         env["PYTHONPATH"] = core
-        got = json.loads(subprocess.run([sys.executable, "-c", SPEED_CASES, str(repeat)], env=env, check=True,
-                                        capture_output=True, text=True).stdout)
+        got = json.loads(
+            subprocess.run(
+                [sys.executable, "-c", SPEED_CASES, str(repeat)], env=env, check=True, capture_output=True, text=True
+            ).stdout
+        )
         print(f"\n{label} ({core}): median of {repeat} verifies, wall and CPU seconds (loading excluded)")
         for name, (t, c, marked, payload) in got.items():
             print(f"  {name:36s} wall {t:6.3f}  cpu {c:6.3f}  marked={marked} payload={payload!r}")
@@ -198,10 +227,15 @@ def main() -> None:
     ap.add_argument("--per-shape", type=int, default=6, help="attacked copies per marked shape")
     ap.add_argument("--seed", type=int, default=None, help="replay a run (default: fresh)")
     ap.add_argument("--out", default="pose.jsonl", help="one JSON line per copy (appended)")
-    ap.add_argument("--shapes", choices=sorted(SHAPES), default="report",
-                    help="report: pmwm_bench.corpus (never tuned on); tuning: pose_shapes.py")
-    ap.add_argument("--uncoded", action="store_true",
-                    help="mark without the payload code (as keys of format 2), to compare")
+    ap.add_argument(
+        "--shapes",
+        choices=sorted(SHAPES),
+        default="report",
+        help="report: pmwm_bench.corpus (never tuned on); tuning: pose_shapes.py",
+    )
+    ap.add_argument(
+        "--uncoded", action="store_true", help="mark without the payload code (as keys of format 2), to compare"
+    )
     ap.add_argument("--speed", action="store_true", help="part 2: verify's speed on the bunny")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--summarize", default=None, help="print the tables of a JSON-lines file of an earlier run")
@@ -209,10 +243,13 @@ def main() -> None:
     a = ap.parse_args()
     global generate, SHAPES_FROM
     generate, SHAPES_FROM = SHAPES[a.shapes]
-    commit = subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True).stdout.strip()
-    print(f"commit {commit}, {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}, numpy {np.__version__}; shapes from {SHAPES_FROM}")
+    commit = subprocess.run(
+        ["git", "-C", str(HERE), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
+    print(
+        f"commit {commit}, {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}, numpy {np.__version__}; shapes from {SHAPES_FROM}"
+    )
     if a.summarize:
         rows = [json.loads(line) for line in open(a.summarize)]
         print(summary([r for r in rows if "marked" in r]))
@@ -230,8 +267,7 @@ def main() -> None:
             out.write(json.dumps(head) + "\n")
             while len(rows) < a.copies:  # (a shape too small for the payload adds no row)
                 family = FAMILIES[int(rng.integers(len(FAMILIES)))]
-                rows += one_shape(family, int(rng.integers(1 << 31)), rng, min(a.per_shape, a.copies - len(rows)),
-                                  out)
+                rows += one_shape(family, int(rng.integers(1 << 31)), rng, min(a.per_shape, a.copies - len(rows)), out)
                 print(f"{len(rows)} copies", flush=True)
         print(summary(rows))
     if a.speed:

@@ -18,8 +18,18 @@ import pytest
 import pmwm
 import pmwm.cli
 from pmwm import attacks
-from pmwm.fingerprint import (FingerprintKey, FingerprintOptions, Registry, RegistryError, analyse_asset,
-                              fingerprint_asset, read_fingerprint_key, read_recipients, read_registry, trace)
+from pmwm.fingerprint import (
+    FingerprintKey,
+    FingerprintOptions,
+    Registry,
+    RegistryError,
+    analyse_asset,
+    fingerprint_asset,
+    read_fingerprint_key,
+    read_recipients,
+    read_registry,
+    trace,
+)
 from pmwm.fingerprint.codes import codewords, pack_codeword
 from pmwm.fingerprint.registry import RegistryEntry
 
@@ -52,8 +62,10 @@ def test_a_copy_is_its_files_exactly_and_its_progressive_mesh_decodes_to_it(cap,
     pm = pmwm.read_pm(tmp_path / "r007.pmwm")
     V, F = pm.decode()
     assert np.array_equal(V, X[an.pm.vertex_order])
-    assert np.array_equal(np.sort(np.sort(F, axis=1), axis=0),  # the asset's faces, in the PM's numbering
-                          np.sort(np.sort(np.argsort(an.pm.vertex_order)[an.sites.faces], axis=1), axis=0))
+    assert np.array_equal(
+        np.sort(np.sort(F, axis=1), axis=0),  # the asset's faces, in the PM's numbering
+        np.sort(np.sort(np.argsort(an.pm.vertex_order)[an.sites.faces], axis=1), axis=0),
+    )
     for name, sha in files.items():
         assert hashlib.sha256((tmp_path / name).read_bytes()).hexdigest() == sha
     # two recipients differ only where the sites are; the distortion is the embed's
@@ -107,8 +119,20 @@ def test_an_unmarked_asset_names_no_recipient(cap):
 def test_fingerprint_command_resumes_and_trace_command_exit_codes(tmp_path, capsys):
     asset = str(meshes.mesh_file("open_cap.off"))
     (tmp_path / "people.csv").write_text("id,name\nalice,Alice A.\nbob,Bob B.\ncarol,Carol C.\n")
-    args = ["fingerprint", asset, "--key", str(tmp_path / "cap.key.json"), "--recipients",
-            str(tmp_path / "people.csv"), "--out", str(tmp_path / "out"), "--pm", "--seed", "4", "-q"]
+    args = [
+        "fingerprint",
+        asset,
+        "--key",
+        str(tmp_path / "cap.key.json"),
+        "--recipients",
+        str(tmp_path / "people.csv"),
+        "--out",
+        str(tmp_path / "out"),
+        "--pm",
+        "--seed",
+        "4",
+        "-q",
+    ]
     assert pmwm.cli.main(args) == 0
     out = tmp_path / "out"
     before = {p.name: p.read_bytes() for p in out.iterdir()}
@@ -133,25 +157,70 @@ def test_fingerprint_command_resumes_and_trace_command_exit_codes(tmp_path, caps
 def test_a_key_and_registry_that_do_not_belong_together_are_a_clear_error(tmp_path, capsys):
     (tmp_path / "r.csv").write_text("ann\nben\n")
     for name in ("blob", "open_cap"):
-        assert pmwm.cli.main(["fingerprint", str(meshes.mesh_file(f"{name}.off")),
-                              "--key", str(tmp_path / f"{name}.key"), "--recipients", str(tmp_path / "r.csv"),
-                              "--out", str(tmp_path / name), "-q"]) == 0
+        assert (
+            pmwm.cli.main(
+                [
+                    "fingerprint",
+                    str(meshes.mesh_file(f"{name}.off")),
+                    "--key",
+                    str(tmp_path / f"{name}.key"),
+                    "--recipients",
+                    str(tmp_path / "r.csv"),
+                    "--out",
+                    str(tmp_path / name),
+                    "-q",
+                ]
+            )
+            == 0
+        )
     capsys.readouterr()
-    code = pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"), "--key", str(tmp_path / "open_cap.key"),
-                          "--registry", str(tmp_path / "blob" / "registry.json")])
+    code = pmwm.cli.main(
+        [
+            "trace",
+            str(tmp_path / "blob" / "ann.ply"),
+            "--key",
+            str(tmp_path / "open_cap.key"),
+            "--registry",
+            str(tmp_path / "blob" / "registry.json"),
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "belongs to another fingerprinting key" in err
     with pytest.raises(RegistryError, match="another fingerprinting key"):
-        trace(*meshes.blob(), read_fingerprint_key(tmp_path / "open_cap.key"),
-              read_registry(tmp_path / "blob" / "registry.json"))
+        trace(
+            *meshes.blob(),
+            read_fingerprint_key(tmp_path / "open_cap.key"),
+            read_registry(tmp_path / "blob" / "registry.json"),
+        )
     # the key of one asset given with another asset
-    code = pmwm.cli.main(["fingerprint", str(meshes.mesh_file("blob.off")), "--key", str(tmp_path / "open_cap.key"),
-                          "--recipients", str(tmp_path / "r.csv"), "--out", str(tmp_path / "x"), "-q"])
+    code = pmwm.cli.main(
+        [
+            "fingerprint",
+            str(meshes.mesh_file("blob.off")),
+            "--key",
+            str(tmp_path / "open_cap.key"),
+            "--recipients",
+            str(tmp_path / "r.csv"),
+            "--out",
+            str(tmp_path / "x"),
+            "-q",
+        ]
+    )
     assert code == 2 and "fingerprinting key of another asset" in capsys.readouterr().err
     # a payload key is not a fingerprinting key
-    assert pmwm.cli.main(["trace", str(tmp_path / "blob" / "ann.ply"),
-                          "--key", str(tmp_path / "blob" / "registry.json"),
-                          "--registry", str(tmp_path / "blob" / "registry.json")]) == 2
+    assert (
+        pmwm.cli.main(
+            [
+                "trace",
+                str(tmp_path / "blob" / "ann.ply"),
+                "--key",
+                str(tmp_path / "blob" / "registry.json"),
+                "--registry",
+                str(tmp_path / "blob" / "registry.json"),
+            ]
+        )
+        == 2
+    )
     assert "not a fingerprinting key" in capsys.readouterr().err
 
 
@@ -191,10 +260,29 @@ def test_catalogue_on_a_local_cluster_reports_a_failing_asset_and_resumes_identi
 
     # the same catalogue from the command line, interrupted (SIGTERM, a plain kill) once copies appear, then resumed
     (tmp_path / "ids.csv").write_text("\n".join(ids) + "\n")
-    cmd = [sys.executable, "-m", "pmwm", "catalogue", *assets[:2], "--recipients", str(tmp_path / "ids.csv"),
-           "--out", str(tmp_path / "b"), "--pm", "--seed", "9", "--workers", "2", "-q"]
-    proc = subprocess.Popen(cmd, env={**os.environ, "PYTHONPATH": str(Path(pmwm.__file__).parents[1])},
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    cmd = [
+        sys.executable,
+        "-m",
+        "pmwm",
+        "catalogue",
+        *assets[:2],
+        "--recipients",
+        str(tmp_path / "ids.csv"),
+        "--out",
+        str(tmp_path / "b"),
+        "--pm",
+        "--seed",
+        "9",
+        "--workers",
+        "2",
+        "-q",
+    ]
+    proc = subprocess.Popen(
+        cmd,
+        env={**os.environ, "PYTHONPATH": str(Path(pmwm.__file__).parents[1])},
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         t0 = time.monotonic()
         while proc.poll() is None and time.monotonic() - t0 < 120:
@@ -239,7 +327,18 @@ def test_without_a_progressive_mesh_the_copies_are_the_same_and_trace(cap, tmp_p
         flat.copy(c, pm=True)
     # the command without --pm: the same, through the files
     (tmp_path / "people.csv").write_text("id\nalice\nbob\n")
-    args = ["fingerprint", str(meshes.mesh_file("open_cap.off")), "--key", str(tmp_path / "cap.key.json"),
-            "--recipients", str(tmp_path / "people.csv"), "--out", str(tmp_path / "out"), "--seed", "4", "-q"]
+    args = [
+        "fingerprint",
+        str(meshes.mesh_file("open_cap.off")),
+        "--key",
+        str(tmp_path / "cap.key.json"),
+        "--recipients",
+        str(tmp_path / "people.csv"),
+        "--out",
+        str(tmp_path / "out"),
+        "--seed",
+        "4",
+        "-q",
+    ]
     assert pmwm.cli.main(args) == 0
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["alice.ply", "bob.ply", "registry.json"]

@@ -98,7 +98,6 @@ def test_no_plane_crop_to_half_erases_more_bits_than_the_code_corrects(bunny, ma
     sites (the bit assignment is spread over cuts; the code corrects twice as many erasures); a cropped
     copy is read in the key's frame, at the site vertices that survived."""
 
-
     V, F = bunny
     s = key_data(marked.key)
     d = np.random.default_rng(99).standard_normal((500, 3))
@@ -168,7 +167,6 @@ def test_sites_no_reading_uses_are_not_marked_and_every_clean_site_is_read():
     """On a small mesh some sites are spoilt by a neighbour's bump: a site no reading uses is not
     displaced at all; a site whose protected ring was not found but reads cleanly by vertex index is
     read on copies that keep the vertex order."""
-
 
     V, F = meshes.blob()
     res = robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11))
@@ -259,8 +257,10 @@ def test_fifty_bits_at_less_surface_distance_than_the_paper_scheme_and_read_thro
     mrms_p, haus_p, rmse_p = np.mean(paper, axis=0)
     assert mrms_r < 0.95 * mrms_p and haus_r < haus_p and rob.rmse < rmse_p
     truth = np.array([int(b) for b in bits])
-    cor = [metrics.correlation(truth, pmwm.verify(*attacks.noise_paper(rob.vertices, F, 0.01, seed=k), rob.key).bits)
-           for k in range(4)]
+    cor = [
+        metrics.correlation(truth, pmwm.verify(*attacks.noise_paper(rob.vertices, F, 0.01, seed=k), rob.key).bits)
+        for k in range(4)
+    ]
     assert np.mean(cor) >= 0.95, cor
 
 
@@ -268,7 +268,6 @@ def test_fifty_bits_at_less_surface_distance_than_the_paper_scheme_and_read_thro
 def test_swirl_alone_carries_the_payload_by_vertex_index(bunny, marked):
     """Undo every bump along its site normal: the surface is back to the original, only the in-surface
     swirl is left, and a copy that keeps the vertex order still reads the payload from it."""
-
 
     V, F = bunny
     s = key_data(marked.key)
@@ -316,13 +315,33 @@ def test_scheme_dispatch_library_and_command_line(tmp_path, marked):
     src = tmp_path / "cow.off"
     src.write_bytes(meshes.mesh_file("blob.off").read_bytes())
     out, key = tmp_path / "m.ply", tmp_path / "k.json"
-    assert pmwm.cli.main(["embed", str(src), "-o", str(out), "--key", str(key),
-                          "--bits", "10" * 16, "--seed", "2", "-q"]) == 0
+    assert (
+        pmwm.cli.main(["embed", str(src), "-o", str(out), "--key", str(key), "--bits", "10" * 16, "--seed", "2", "-q"])
+        == 0
+    )
     assert pmwm.read_key(key).scheme == "robust"
     assert pmwm.cli.main(["verify", str(out), "--key", str(key)]) == 0
     out_p, key_p = tmp_path / "p.ply", tmp_path / "p.json"
-    assert pmwm.cli.main(["embed", str(src), "-o", str(out_p), "--key", str(key_p), "--scheme", "paper",
-                          "--bits", "10" * 16, "--seed", "2", "-q"]) == 0
+    assert (
+        pmwm.cli.main(
+            [
+                "embed",
+                str(src),
+                "-o",
+                str(out_p),
+                "--key",
+                str(key_p),
+                "--scheme",
+                "paper",
+                "--bits",
+                "10" * 16,
+                "--seed",
+                "2",
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert pmwm.read_key(key_p).scheme == "paper"
     assert pmwm.cli.main(["verify", str(out_p), "--key", str(key_p)]) == 0
     with pytest.raises(pmwm.PayloadError, match="unknown scheme"):
@@ -368,15 +387,20 @@ def test_first_format_and_garbled_keys_are_refused_when_the_key_is_read(marked, 
     pmwm.write_key(path, marked.key)
     good = json.loads(path.read_text())
     samples = good["extra"]["samples"]
-    for change, words in (({"robust_version": 1}, "re-embed"), ({"samples": "not base64!"}, "damaged"),
-                          ({"samples": samples[:-8]}, "damaged"), ({"site_bit": 3}, "damaged"),
-                          ({"frame": {"points": []}}, "damaged")):
+    for change, words in (
+        ({"robust_version": 1}, "re-embed"),
+        ({"samples": "not base64!"}, "damaged"),
+        ({"samples": samples[:-8]}, "damaged"),
+        ({"site_bit": 3}, "damaged"),
+        ({"frame": {"points": []}}, "damaged"),
+    ):
         path.write_text(json.dumps({**good, "extra": {**good["extra"], **change}}))
         with pytest.raises(KeyFileError, match=words):
             pmwm.read_key(path)
     old = dataclasses.replace(marked.key, extra={**marked.key.data.to_extra(), "robust_version": 1}, data=None)
     with pytest.raises(KeyFileError, match="re-embed"):  # a key built in memory is read when first used
         robust_verify(marked.vertices, marked.faces, old)
+
 
 @pytest.mark.parametrize("runs", ["at once", "in small runs"])
 def test_heights_by_position_are_the_crossings_of_every_face(runs, monkeypatch):
@@ -455,8 +479,11 @@ def test_both_kdtree_engines_mark_and_read_alike(bunny, marked):
         other = robust_embed(*small, pmwm.EmbedOptions(payload=PAYLOAD, seed=12)).key
     np.testing.assert_array_equal(again.vertices, marked.vertices)
     cut = attacks.similarity(*attacks.crop_plane(marked.vertices, marked.faces, 0.5, seed=3), seed=3)
-    suspects = [(attacks.reorder(marked.vertices, marked.faces, seed=2), marked.key), (cut, marked.key),
-                ((V, F), other)]
+    suspects = [
+        (attacks.reorder(marked.vertices, marked.faces, seed=2), marked.key),
+        (cut, marked.key),
+        ((V, F), other),
+    ]
     for (SV, SF), key in suspects:
         read = {}
         for name in spatial.ENGINES:
@@ -547,12 +574,11 @@ def test_confirm_corrects_few_errors_and_never_confirms_another_codeword(marked)
     c = coded_bits(key.bits, code)
     clean = (2.0 * (c ^ key.stream("scramble", len(c))) - 1.0) * 3.0
     rng = np.random.default_rng(5)
-    for errors, erasures, ok in ((0, 0, True), (4, 0, True), (0, 8, True), (3, 2, True), (5, 0, False),
-                                 (2, 5, False)):
+    for errors, erasures, ok in ((0, 0, True), (4, 0, True), (0, 8, True), (3, 2, True), (5, 0, False), (2, 5, False)):
         x = clean.copy()
         pick = rng.permutation(len(x))
         x[pick[:errors]] *= -1
-        x[pick[errors:errors + erasures]] = 0
+        x[pick[errors : errors + erasures]] = 0
         bits, confirmed, corrected = confirm(x, key)
         assert confirmed == ok, (errors, erasures)
         assert (bits == key.bits).all() if ok else corrected == 0
@@ -577,8 +603,11 @@ def test_confirm_corrects_few_errors_and_never_confirms_another_codeword(marked)
 def test_overmarked_copy_reads_each_keys_own_payload(bunny, marked, factor):
     """The marked bunny marked again by another key at 1x and 3x the strength: each key reads its own
     payload, confirmed; neither shows a payload with wrong bits."""
-    res_b = robust_embed(marked.vertices, marked.faces,
-                         pmwm.EmbedOptions(payload="THIEF", seed=77, strength=2.0 * factor, progressive=False))
+    res_b = robust_embed(
+        marked.vertices,
+        marked.faces,
+        pmwm.EmbedOptions(payload="THIEF", seed=77, strength=2.0 * factor, progressive=False),
+    )
     for key, payload in ((marked.key, PAYLOAD), (res_b.key, "THIEF")):
         v = robust_verify(res_b.vertices, res_b.faces, key)
         assert v.marked and v.payload == payload and v.payload_confirmed, (payload, v.p_value, v.bit_errors)

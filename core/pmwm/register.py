@@ -102,9 +102,14 @@ class SurfaceFrame:
     floor: float = 0.0
 
     def to_json(self) -> dict:
-        return {"points": self.points.tolist(), "normals": self.normals.tolist(),
-                "centroid": self.centroid.tolist(), "axes": self.axes.tolist(), "scale": self.scale,
-                "floor": self.floor}
+        return {
+            "points": self.points.tolist(),
+            "normals": self.normals.tolist(),
+            "centroid": self.centroid.tolist(),
+            "axes": self.axes.tolist(),
+            "scale": self.scale,
+            "floor": self.floor,
+        }
 
     @classmethod
     def from_json(cls, d: dict) -> "SurfaceFrame":
@@ -112,8 +117,12 @@ class SurfaceFrame:
         shapes = {"points": (-1, 3), "normals": (-1, 3), "centroid": (3,), "axes": (3, 3)}
         arrays = {k: np.asarray(d[k], np.float64).reshape(shp) for k, shp in shapes.items()}
         frame = cls(**arrays, scale=float(d["scale"]), floor=float(d.get("floor", 0.0)))
-        if not all(np.all(np.isfinite(v)) for v in (*arrays.values(), frame.scale, frame.floor)) \
-                or frame.scale <= 0 or len(frame.points) != len(frame.normals) or len(frame.points) < 3:
+        if (
+            not all(np.all(np.isfinite(v)) for v in (*arrays.values(), frame.scale, frame.floor))
+            or frame.scale <= 0
+            or len(frame.points) != len(frame.normals)
+            or len(frame.points) < 3
+        ):
             raise ValueError("registration frame")
         return frame
 
@@ -122,21 +131,34 @@ def surface_frame(vertices: np.ndarray, faces: np.ndarray, n_samples: int, seed:
     """The reference frame of a surface: ``n_samples`` area-uniform samples and their PCA."""
     P, N = sample_surface(vertices, faces, n_samples, seed, normals=True)
     centroid, axes, scale = _pca(P)
-    return SurfaceFrame(points=np.round(P, 9), normals=np.round(N, 6), centroid=centroid, axes=axes,
-                        scale=scale, floor=_self_floor(P, vertices, faces, seed) / scale)
+    return SurfaceFrame(
+        points=np.round(P, 9),
+        normals=np.round(N, 6),
+        centroid=centroid,
+        axes=axes,
+        scale=scale,
+        floor=_self_floor(P, vertices, faces, seed) / scale,
+    )
 
 
-def register(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0,
-             progress: Progress = None) -> tuple[np.ndarray, RegistrationInfo]:
+def register(
+    suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0, progress: Progress = None
+) -> tuple[np.ndarray, RegistrationInfo]:
     """The suspect's vertices mapped into the reference frame by the pose of smallest residual, and how
-    (``register_poses``' best; ``progress(fraction, message)`` at its stages). suspect_V : (n, 3) float64, suspect_F : (m, 3) int64; returns (n, 3) float64."""
+    (``register_poses``' best; ``progress(fraction, message)`` at its stages). suspect_V : (n, 3) float64,
+    suspect_F : (m, 3) int64; returns (n, 3) float64."""
     poses = list(register_poses(suspect_V, suspect_F, frame, seed, progress=progress))
     return min(poses, key=lambda x: x[1].residual)
 
 
-def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceFrame, seed: int = 0,
-                   max_poses: int = POSES, progress: Progress = None
-                   ) -> Iterator[tuple[np.ndarray, RegistrationInfo]]:
+def register_poses(
+    suspect_V: np.ndarray,
+    suspect_F: np.ndarray,
+    frame: SurfaceFrame,
+    seed: int = 0,
+    max_poses: int = POSES,
+    progress: Progress = None,
+) -> Iterator[tuple[np.ndarray, RegistrationInfo]]:
     """The plausible poses of the suspect in the reference frame, reflections included, at most
     ``max_poses``, each as (suspect_V mapped, (n, 3) float64; how). See the module docstring.
 
@@ -168,15 +190,23 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
         return all(np.abs(X - (o[2] * ends @ o[1].T + o[3])).max() > DISTINCT * ref_s for o in others)
 
     def refine(finalists: list) -> list:
-        fits = _icp(S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True,
-                    abandon=(low, high))
-        return sorted(((name, R, k, t, res) for (name, *_), (R, k, t, res) in zip(finalists, fits)
-                       if plausible(k) and res < np.inf), key=lambda x: x[4])
+        fits = _icp(
+            S, index, ref_N, [x[1:4] for x in finalists], ref_s, ICP_ITERATIONS, track=True, abandon=(low, high)
+        )
+        return sorted(
+            (
+                (name, R, k, t, res)
+                for (name, *_), (R, k, t, res) in zip(finalists, fits)
+                if plausible(k) and res < np.inf
+            ),
+            key=lambda x: x[4],
+        )
 
     def pose(fit) -> tuple[np.ndarray, RegistrationInfo]:
         name, R, k, t, res = fit
-        return k * V @ R.T + t, RegistrationInfo(rotation=R, scale=k, translation=t, residual=res, init=name,
-                                                 mirrored=bool(np.linalg.det(R) < 0))
+        return k * V @ R.T + t, RegistrationInfo(
+            rotation=R, scale=k, translation=t, residual=res, init=name, mirrored=bool(np.linalg.det(R) < 0)
+        )
 
     given = []  # the poses yielded so far
     identity = []  # (not tried on a copy whose size is not the reference's: it cannot be in the key's frame)
@@ -188,8 +218,10 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
     report(0.1, "aligning: from its principal axes")
     starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s, _equal_spreads(S, c, A))
     fits = _icp(S[::COARSE_STEP], index, ref_N, [x[1:] for x in starts], ref_s, COARSE_ITERATIONS)
-    coarse = sorted([x for x in identity + [(name, *fit) for (name, *_), fit in zip(starts, fits)]
-                     if plausible(x[2])], key=lambda x: x[4])
+    coarse = sorted(
+        [x for x in identity + [(name, *fit) for (name, *_), fit in zip(starts, fits)] if plausible(x[2])],
+        key=lambda x: x[4],
+    )
     finalists = []
     for fit in coarse:  # the distinct coarse fits near the best, best first
         if fit[4] <= COARSE_RATIO * coarse[0][4] and len(finalists) < max_poses and distinct(fit, finalists):
@@ -200,8 +232,9 @@ def register_poses(suspect_V: np.ndarray, suspect_F: np.ndarray, frame: SurfaceF
     if not coarse or not coarse[0][4] < 2.0 * floor:  # not at the sampling noise: maybe cropped and moved
         sub = slice(None, None, 3)
         cuts = _cut_starts(ref_P, S, c, A, s)
-        fits = _icp(S[::SCREEN_STEP], PointIndex(ref_P[sub]), ref_N[sub], [x[1:] for x in cuts], ref_s,
-                    COARSE_ITERATIONS)  # every cut start at once: one tree query per iteration
+        fits = _icp(
+            S[::SCREEN_STEP], PointIndex(ref_P[sub]), ref_N[sub], [x[1:] for x in cuts], ref_s, COARSE_ITERATIONS
+        )  # every cut start at once: one tree query per iteration
         screened = [(name, *fit) for (name, *_), fit in zip(cuts, fits) if plausible(fit[1])]
         finalists += sorted(screened, key=lambda x: x[4])[:CUT_FINALISTS]
     report(0.5, "aligning: refining")
@@ -244,8 +277,13 @@ def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple:
     of axes whose spreads differ by less than ``EQUAL_SPREAD``, the turns in their plane by 45, 90 and 135
     degrees (with the sign flips' half turns: every eighth of a turn, for a round part with 4-fold features)."""
     sd = np.sqrt(np.maximum(((P - c) @ A.T).var(axis=0), 1e-300))
-    return tuple((i, j, np.pi * q / 4) for i in range(3) for j in range(i + 1, 3)
-                 if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j]) for q in (1, 2, 3))
+    return tuple(
+        (i, j, np.pi * q / 4)
+        for i in range(3)
+        for j in range(i + 1, 3)
+        if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j])
+        for q in (1, 2, 3)
+    )
 
 
 def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:
@@ -310,9 +348,16 @@ def _pca(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return c, A, float(np.sqrt(max(w.sum(), 1e-300)))
 
 
-def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_s: float,
-         iterations: int, track: bool = False, abandon: tuple[float, float] | None = None
-         ) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
+def _icp(
+    S: np.ndarray,
+    index: PointIndex,
+    ref_N: np.ndarray,
+    starts: list,
+    ref_s: float,
+    iterations: int,
+    track: bool = False,
+    abandon: tuple[float, float] | None = None,
+) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
     """Trimmed point-to-plane similarity ICP of the sources S (m, 3) onto the reference points of
     ``index`` (n, 3) with normals ref_N (n, 3), from every start (R (3, 3), k, t (3,)) at once (each
     stops when its own step is negligible, as it would alone). Returns (R, k, t, residual) per
@@ -387,12 +432,15 @@ def _icp(S: np.ndarray, index: PointIndex, ref_N: np.ndarray, starts: list, ref_
     done = np.flatnonzero(alive)
     _, _, d2, keep = search(done)
     res = np.full(len(k), np.inf)
-    res[done] = np.sqrt(np.mean(np.take(d2, np.arange(len(done))[:, None] * len(S) + keep), axis=1)) / ref_s  # point-to-point: no sliding
+    res[done] = (
+        np.sqrt(np.mean(np.take(d2, np.arange(len(done))[:, None] * len(S) + keep), axis=1)) / ref_s
+    )  # point-to-point: no sliding
     return [(R[b], float(k[b]), t[b], float(res[b])) for b in range(len(k))]
 
 
-def _closest(index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, X: np.ndarray,
-             bound: np.ndarray, n_keep: int) -> tuple[np.ndarray, np.ndarray]:
+def _closest(
+    index: PointIndex, tracker: MovingNearest | None, ids: np.ndarray, X: np.ndarray, bound: np.ndarray, n_keep: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest reference point (b, m) and squared distance (b, m) of the starts ``ids``' points X
     (b, m, 3), searched within each start's ``bound`` (b,) (beyond it: -1, inf); a start with fewer
     than ``n_keep`` points inside is searched again without a bound. With a ``tracker``, the same

@@ -54,8 +54,12 @@ def png_bytes(rgb: np.ndarray) -> bytes:
     def chunk(kind: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
 
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(raw, 9))
+        + chunk(b"IEND", b"")
+    )
 
 
 def _view_rotations(V: np.ndarray) -> list[tuple[str, np.ndarray]]:
@@ -77,8 +81,9 @@ def _view_rotations(V: np.ndarray) -> list[tuple[str, np.ndarray]]:
     return [("front", rot(c, a)), ("side", rot(b, a)), ("oblique", rot(oblique, a))]
 
 
-def _rasterise(P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int, progress: Progress = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+def _rasterise(
+    P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int, progress: Progress = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Z-buffer of triangles already in pixel space, P (n, 3) = (x, y, depth towards the viewer):
     each triangle is sampled on a barycentric grid finer than a pixel, the nearest sample wins (the
     first one drawn among equals). Returns (shade image (size, size), NaN = background; depth image,
@@ -102,7 +107,7 @@ def _rasterise(P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int, progr
         faces = np.flatnonzero(level == n)
         step = max(1, CHUNK_SAMPLES // len(W))
         for a in range(0, len(faces), step):
-            f = faces[a:a + step]
+            f = faces[a : a + step]
             S = np.einsum("kc,fcd->fkd", W, T[f]).reshape(-1, 3)
             x, y = np.floor(S[:, 0]).astype(np.int64), np.floor(S[:, 1]).astype(np.int64)
             inside = (x >= 0) & (x < size) & (y >= 0) & (y < size)
@@ -119,8 +124,9 @@ def _rasterise(P: np.ndarray, F: np.ndarray, shade: np.ndarray, size: int, progr
     return img.reshape(size, size), depth.reshape(size, size)
 
 
-def _draw_places(rgb: np.ndarray, depth: np.ndarray, Q: np.ndarray, colors: np.ndarray, radius: float,
-                 tol: float) -> int:
+def _draw_places(
+    rgb: np.ndarray, depth: np.ndarray, Q: np.ndarray, colors: np.ndarray, radius: float, tol: float
+) -> int:
     """Draw the places Q (k, 3) in pixel space (x, y, depth) that the surface does not hide (within
     ``tol`` of the nearest surface in a 7 x 7 pixel window) onto ``rgb`` (h, w, 3) as discs of
     ``radius`` in ``colors`` (k, 3), each with a dark rim; returns how many were drawn."""
@@ -134,20 +140,26 @@ def _draw_places(rgb: np.ndarray, depth: np.ndarray, Q: np.ndarray, colors: np.n
             near = np.maximum(near, np.where(ok, depth[y, x], -np.inf))
     show = np.flatnonzero(ok & (Q[:, 2] >= near - tol))
     reach = int(np.ceil(radius + 2))
-    oy, ox = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+    oy, ox = np.mgrid[-reach : reach + 1, -reach : reach + 1]
     for r, paint in ((radius + 2, None), (radius, colors)):  # dark rims first, then the discs
         # every (place, stencil pixel) within r of the place's exact position
-        dy = (yi[show, None] + oy.ravel()[None, :])
-        dx = (xi[show, None] + ox.ravel()[None, :])
-        inside = ((dx - Q[show, 0, None]) ** 2 + (dy - Q[show, 1, None]) ** 2 <= r * r) \
-            & (dx >= 0) & (dx < w) & (dy >= 0) & (dy < h)
+        dy = yi[show, None] + oy.ravel()[None, :]
+        dx = xi[show, None] + ox.ravel()[None, :]
+        inside = (
+            ((dx - Q[show, 0, None]) ** 2 + (dy - Q[show, 1, None]) ** 2 <= r * r)
+            & (dx >= 0)
+            & (dx < w)
+            & (dy >= 0)
+            & (dy < h)
+        )
         rows = np.broadcast_to(np.arange(len(show))[:, None], inside.shape)[inside]
         rgb[dy[inside], dx[inside]] = (20, 20, 20) if paint is None else paint[show][rows]
     return len(show)
 
 
-def render_views(vertices, faces, places=None, place_colors=None, size: int = VIEW_SIZE, progress: Progress = None
-                 ) -> list[tuple[str, np.ndarray, int]]:
+def render_views(
+    vertices, faces, places=None, place_colors=None, size: int = VIEW_SIZE, progress: Progress = None
+) -> list[tuple[str, np.ndarray, int]]:
     """Pictures of a mesh from three views, (name, (size, size, 3) uint8 RGB, places shown): grey
     shaded surface on white, and each of ``places`` (k, 3) that is not hidden by the surface drawn
     as a disc in its colour (``place_colors``: k "#rrggbb" strings). ``progress(fraction, message)``
@@ -156,12 +168,13 @@ def render_views(vertices, faces, places=None, place_colors=None, size: int = VI
     V = np.asarray(vertices, np.float64)
     F = np.asarray(faces, np.int64)
     places = np.zeros((0, 3)) if places is None else np.asarray(places, np.float64).reshape(-1, 3)
-    colors = np.array([[int(c[i:i + 2], 16) for i in (1, 3, 5)] for c in (place_colors or [])], np.float64)
+    colors = np.array([[int(c[i : i + 2], 16) for i in (1, 3, 5)] for c in (place_colors or [])], np.float64)
     big = 2 * size
     centre = (V.max(axis=0) + V.min(axis=0)) / 2
     out = []
     views = _view_rotations(V)
     for v, (name, R) in enumerate(views):
+
         def drawing(f: float, _: str, v: int = v, name: str = name) -> None:
             report((v + f) / len(views), f"drawing the {name} view")
 
@@ -203,15 +216,21 @@ def _one_in(p: float) -> str:
 def p_value_in_words(v: Verdict) -> str:
     """What the p-value means, in plain words."""
     n, k = v.carriers_total, v.matches
-    chance = (f"If this mesh did not carry the mark of this key, {k} or more of the {n} bits would match by "
-              f"pure chance with probability p = {v.p_value:.3g} ({_one_in(v.p_value)}): every bit read from an "
-              f"unmarked mesh, or with another key, matches like a coin toss.")
+    chance = (
+        f"If this mesh did not carry the mark of this key, {k} or more of the {n} bits would match by "
+        f"pure chance with probability p = {v.p_value:.3g} ({_one_in(v.p_value)}): every bit read from an "
+        f"unmarked mesh, or with another key, matches like a coin toss."
+    )
     if v.marked:
-        return (chance + f" That is below the threshold of {v.p_threshold:g} set before reading, so chance is ruled "
-                "out as an explanation: the mesh carries this key's watermark.")
-    return (chance + f" That is not below the threshold of {v.p_threshold:g}, so the reading is consistent with "
-            "chance: this report does not show the watermark of this key in the mesh (it does not prove that the "
-            "mesh was never derived from the marked one).")
+        return (
+            chance + f" That is below the threshold of {v.p_threshold:g} set before reading, so chance is ruled "
+            "out as an explanation: the mesh carries this key's watermark."
+        )
+    return (
+        chance + f" That is not below the threshold of {v.p_threshold:g}, so the reading is consistent with "
+        "chance: this report does not show the watermark of this key in the mesh (it does not prove that the "
+        "mesh was never derived from the marked one)."
+    )
 
 
 def _bit_states(v: Verdict, key: WatermarkKey) -> tuple[np.ndarray, np.ndarray]:
@@ -245,23 +264,33 @@ def _chart_svg(conf: np.ndarray, state: np.ndarray) -> str:
     def y(c: float) -> float:
         return y0 - (max(-lim, min(lim, c)) / lim) * (plot_h / 2)
 
-    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" '
-             'role="img" aria-label="confidence of each bit">',
-             f'<line x1="{left}" y1="{y0:.1f}" x2="{w - 8}" y2="{y0:.1f}" stroke="#444"/>']
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" viewBox="0 0 {w} {h}" '
+        'role="img" aria-label="confidence of each bit">',
+        f'<line x1="{left}" y1="{y0:.1f}" x2="{w - 8}" y2="{y0:.1f}" stroke="#444"/>',
+    ]
     for t in (-lim, -lim / 2, lim / 2, lim):
-        parts.append(f'<line x1="{left}" y1="{y(t):.1f}" x2="{w - 8}" y2="{y(t):.1f}" stroke="#ddd"/>'
-                     f'<text x="{left - 4}" y="{y(t) + 4:.1f}" text-anchor="end" font-size="10">{t:+g}</text>')
+        parts.append(
+            f'<line x1="{left}" y1="{y(t):.1f}" x2="{w - 8}" y2="{y(t):.1f}" stroke="#ddd"/>'
+            f'<text x="{left - 4}" y="{y(t) + 4:.1f}" text-anchor="end" font-size="10">{t:+g}</text>'
+        )
     for i, (c, s) in enumerate(zip(conf, state)):
         x = left + i * bw + 0.1 * bw
         if s == "erased":
-            parts.append(f'<rect x="{x:.1f}" y="{y0 - 1.5:.1f}" width="{0.8 * bw:.1f}" height="3" fill="{ERASED}">'
-                         f'<title>bit {i}: not read</title></rect>')
+            parts.append(
+                f'<rect x="{x:.1f}" y="{y0 - 1.5:.1f}" width="{0.8 * bw:.1f}" height="3" fill="{ERASED}">'
+                f"<title>bit {i}: not read</title></rect>"
+            )
             continue
         top_y, bot_y = sorted((y(c), y0))
-        parts.append(f'<rect x="{x:.1f}" y="{top_y:.1f}" width="{0.8 * bw:.1f}" height="{max(bot_y - top_y, 1):.1f}" '
-                     f'fill="{MATCH if s == "match" else MISMATCH}"><title>bit {i}: {c:+.2f}</title></rect>')
+        parts.append(
+            f'<rect x="{x:.1f}" y="{top_y:.1f}" width="{0.8 * bw:.1f}" height="{max(bot_y - top_y, 1):.1f}" '
+            f'fill="{MATCH if s == "match" else MISMATCH}"><title>bit {i}: {c:+.2f}</title></rect>'
+        )
     for i in range(0, n, 8):
-        parts.append(f'<text x="{left + (i + 0.5) * bw:.1f}" y="{h - 12}" text-anchor="middle" font-size="10">{i}</text>')
+        parts.append(
+            f'<text x="{left + (i + 0.5) * bw:.1f}" y="{h - 12}" text-anchor="middle" font-size="10">{i}</text>'
+        )
     parts.append(f'<text x="{left + (w - left) / 2:.0f}" y="{h - 1}" text-anchor="middle" font-size="10">bit</text>')
     parts.append("</svg>")
     return "".join(parts)
@@ -287,9 +316,18 @@ footer{margin-top:2em;font-size:.8em;color:#666}
 """
 
 
-def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspect_path=None, key_path=None,
-                 suspect_name: Optional[str] = None, when: Optional[_dt.datetime] = None,
-                 progress: Progress = None) -> str:
+def build_report(
+    verdict: Verdict,
+    key: WatermarkKey,
+    vertices,
+    faces,
+    *,
+    suspect_path=None,
+    key_path=None,
+    suspect_name: Optional[str] = None,
+    when: Optional[_dt.datetime] = None,
+    progress: Progress = None,
+) -> str:
     """The report's HTML text (see the module docstring). suspect_path / key_path: the files read (their
     SHA-256 is reported); without suspect_path, the SHA-256 of the mesh data (``mesh_sha256``).
     ``progress(fraction, message)`` is called at each step and while the pictures are drawn (at least
@@ -302,17 +340,27 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
     if suspect_path is not None:
         suspect_hash = (f"SHA-256 of the file {os.path.basename(os.fspath(suspect_path))}", file_sha256(suspect_path))
     else:
-        suspect_hash = ("SHA-256 of the mesh data (vertex positions as float32, then triangles as int64)",
-                        mesh_sha256(vertices, faces))
-    key_hash = (f"SHA-256 of the key file {os.path.basename(os.fspath(key_path))}", file_sha256(key_path)) \
-        if key_path is not None else None
+        suspect_hash = (
+            "SHA-256 of the mesh data (vertex positions as float32, then triangles as int64)",
+            mesh_sha256(vertices, faces),
+        )
+    key_hash = (
+        (f"SHA-256 of the key file {os.path.basename(os.fspath(key_path))}", file_sha256(key_path))
+        if key_path is not None
+        else None
+    )
 
     conf, state = _bit_states(v, key)
     places = np.zeros((0, 3)) if v.places is None else np.asarray(v.places)
     place_bits = np.zeros(0, np.int64) if v.place_bits is None else np.asarray(v.place_bits, np.int64)
     place_colors = [{"match": MATCH, "mismatch": MISMATCH, "erased": ERASED}[state[b]] for b in place_bits]
-    views = render_views(vertices, faces, places, place_colors,
-                         progress=lambda f, m: report(DRAWING[0] + (DRAWING[1] - DRAWING[0]) * f, m))
+    views = render_views(
+        vertices,
+        faces,
+        places,
+        place_colors,
+        progress=lambda f, m: report(DRAWING[0] + (DRAWING[1] - DRAWING[0]) * f, m),
+    )
 
     e = html.escape
     state_text = "MARKED" if v.marked else "NOT MARKED"
@@ -322,14 +370,18 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
             return f"<strong>{e(value)}</strong>"
         return f'<span class="hash">{e(value)}</span>' if label == "Payload bits" else e(value)
 
-    rows = [("Suspect", e(name) + f" ({len(np.asarray(vertices))} vertices, {len(np.asarray(faces))} triangles)"),
-            ("Scheme", e(key.scheme)),
-            *((e(label), cell(label, value)) for label, value in wording.rows(v)),
-            (e(suspect_hash[0]), f'<span class="hash">{suspect_hash[1]}</span>')]
+    rows = [
+        ("Suspect", e(name) + f" ({len(np.asarray(vertices))} vertices, {len(np.asarray(faces))} triangles)"),
+        ("Scheme", e(key.scheme)),
+        *((e(label), cell(label, value)) for label, value in wording.rows(v)),
+        (e(suspect_hash[0]), f'<span class="hash">{suspect_hash[1]}</span>'),
+    ]
     if key_hash:
         rows.append((e(key_hash[0]), f'<span class="hash">{key_hash[1]}</span>'))
-    rows += [("Date (UTC)", when.astimezone(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S")),
-             ("Software", f"pmwm {e(__version__)}")]
+    rows += [
+        ("Date (UTC)", when.astimezone(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S")),
+        ("Software", f"pmwm {e(__version__)}"),
+    ]
     table = "".join(f"<tr><th>{k}</th><td>{val}</td></tr>" for k, val in rows)
     numbers = "".join(f"<tr><th>{e(k)}</th><td>{e(val)}</td></tr>" for k, val in wording.technical_rows(v))
 
@@ -339,15 +391,20 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
         f'<figure><img alt="{e(nm)} view of the suspect" width="{img.shape[1]}" height="{img.shape[0]}" '
         f'src="data:image/png;base64,{base64.b64encode(png_bytes(img)).decode("ascii")}">'
         f"<figcaption>{e(nm)} view: {shown} of {len(places)} places seen</figcaption></figure>"
-        for nm, img, shown in views)
+        for nm, img, shown in views
+    )
     if len(places):
-        where = (f"Discs mark the {len(places)} places where the mark was read, in the suspect's own coordinates: "
-                 f'<span class="key" style="background:{MATCH}"></span> its bit read as in the key, '
-                 f'<span class="key" style="background:{MISMATCH}"></span> read wrong. '
-                 "Places hidden behind the surface in a view are not drawn.")
+        where = (
+            f"Discs mark the {len(places)} places where the mark was read, in the suspect's own coordinates: "
+            f'<span class="key" style="background:{MATCH}"></span> its bit read as in the key, '
+            f'<span class="key" style="background:{MISMATCH}"></span> read wrong. '
+            "Places hidden behind the surface in a view are not drawn."
+        )
     else:
-        where = ("This scheme reads the mark from the whole surface at once (the distribution of vertex distances "
-                 "from the centre), not at places: the pictures show the suspect alone.")
+        where = (
+            "This scheme reads the mark from the whole surface at once (the distribution of vertex distances "
+            "from the centre), not at places: the pictures show the suspect alone."
+        )
 
     text = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
@@ -357,7 +414,7 @@ def build_report(verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspec
 <body>
 <h1>Watermark verification report</h1>
 <p>{e(name)}, checked against a pmwm key.</p>
-<div id="verdict" class="verdict {'marked' if v.marked else 'notmarked'}">{state_text}</div>
+<div id="verdict" class="verdict {"marked" if v.marked else "notmarked"}">{state_text}</div>
 <p id="meaning">{e(p_value_in_words(v))}</p>
 <h2>Details</h2>
 <table>{table}</table>
@@ -381,12 +438,31 @@ can repeat this check with <code>pmwm verify SUSPECT --key KEY</code>.</footer>
     return text
 
 
-def write_report(path, verdict: Verdict, key: WatermarkKey, vertices, faces, *, suspect_path=None, key_path=None,
-                 suspect_name: Optional[str] = None, force: bool = False, progress: Progress = None) -> None:
+def write_report(
+    path,
+    verdict: Verdict,
+    key: WatermarkKey,
+    vertices,
+    faces,
+    *,
+    suspect_path=None,
+    key_path=None,
+    suspect_name: Optional[str] = None,
+    force: bool = False,
+    progress: Progress = None,
+) -> None:
     """Write ``build_report(...)`` to ``path`` atomically (an existing file only with ``force``);
     ``progress(fraction, message)`` as in ``build_report``, reaching 1.0 once the file is written."""
     report = progress or no_progress
-    text = build_report(verdict, key, vertices, faces, suspect_path=suspect_path, key_path=key_path,
-                        suspect_name=suspect_name, progress=lambda f, m: report(0.99 * f, m))
+    text = build_report(
+        verdict,
+        key,
+        vertices,
+        faces,
+        suspect_path=suspect_path,
+        key_path=key_path,
+        suspect_name=suspect_name,
+        progress=lambda f, m: report(0.99 * f, m),
+    )
     atomic_write_bytes(path, text.encode("utf-8"), force=force)
     report(1.0, "report written")

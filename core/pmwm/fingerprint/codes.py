@@ -33,8 +33,18 @@ from ..errors import PayloadError
 from ..key import derive_seed
 from ..schemes.robust.read import pose_bound
 
-__all__ = ["codeword", "codewords", "pack_codeword", "unpack_codewords", "check_recipient_id",
-           "correlation_scores", "p_values", "Accusation", "accuse", "key_id"]
+__all__ = [
+    "codeword",
+    "codewords",
+    "pack_codeword",
+    "unpack_codewords",
+    "check_recipient_id",
+    "correlation_scores",
+    "p_values",
+    "Accusation",
+    "accuse",
+    "key_id",
+]
 
 RECIPIENT_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
 
@@ -48,8 +58,10 @@ def check_recipient_id(rid: str) -> str:
     """``rid`` when it is a valid recipient id (it names files: letters, digits, '.', '_', '-', at
     most 64, not starting with a dot or dash); a PayloadError otherwise."""
     if not isinstance(rid, str) or not RECIPIENT_ID.fullmatch(rid):
-        raise PayloadError(f"recipient id {rid!r} is not valid: use 1-64 letters, digits, '.', '_' or '-', "
-                           "starting with a letter or digit")
+        raise PayloadError(
+            f"recipient id {rid!r} is not valid: use 1-64 letters, digits, '.', '_' or '-', "
+            "starting with a letter or digit"
+        )
     return rid
 
 
@@ -109,8 +121,9 @@ class Accusation:
     p_value: float
 
 
-def accuse(x: np.ndarray, recipients: list, C: np.ndarray, p_threshold: float = 1e-6, poses: int = 1
-           ) -> tuple[list[Accusation], np.ndarray, np.ndarray]:
+def accuse(
+    x: np.ndarray, recipients: list, C: np.ndarray, p_threshold: float = 1e-6, poses: int = 1
+) -> tuple[list[Accusation], np.ndarray, np.ndarray]:
     """The recipients named by readings x (S,) (best first), and every recipient's score and
     corrected p-value (N,). C : (N, S) int8 their codewords; ``poses``: the poses the readings were
     chosen from, paid for as well (``pose_bound``)."""

@@ -40,9 +40,15 @@ class TraceResult:
         return bool(self.accused)
 
     def to_dict(self) -> dict:
-        return {"traced": self.traced, "accused": [a.__dict__ for a in self.accused],
-                "p_threshold": self.p_threshold, "n_recipients": self.n_recipients, "mode": self.mode,
-                "sites_read": self.sites_read, "sites_total": self.sites_total}
+        return {
+            "traced": self.traced,
+            "accused": [a.__dict__ for a in self.accused],
+            "p_threshold": self.p_threshold,
+            "n_recipients": self.n_recipients,
+            "mode": self.mode,
+            "sites_read": self.sites_read,
+            "sites_total": self.sites_total,
+        }
 
 
 def site_readings(vertices, faces, fk: FingerprintKey) -> tuple[np.ndarray, str, RobustDetail]:
@@ -73,5 +79,6 @@ def trace(vertices, faces, fk: FingerprintKey, registry: Registry, p_threshold: 
             break
     reading, accused, T, p = best
     detail = dataclasses.replace(reading.detail, poses_read=n, poses_paid=reading.poses)
-    return TraceResult(accused, p_threshold, len(ids), reading.mode, detail.sites_read, detail.sites_total, ids, T, p,
-                       detail)
+    return TraceResult(
+        accused, p_threshold, len(ids), reading.mode, detail.sites_read, detail.sites_total, ids, T, p, detail
+    )

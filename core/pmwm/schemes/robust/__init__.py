@@ -97,5 +97,11 @@ def load_key_data(key: WatermarkKey) -> RobustKeyData:
     return RobustKeyData.from_extra(key.extra, key.n_bits, key.n_vertices)
 
 
-SCHEME = Scheme(NAME, DEFAULT_STRENGTH, embed, verify, load_key_data,
-                "bumps and swirls spread over sites, read after registration with a matched filter (default)")
+SCHEME = Scheme(
+    NAME,
+    DEFAULT_STRENGTH,
+    embed,
+    verify,
+    load_key_data,
+    "bumps and swirls spread over sites, read after registration with a matched filter (default)",
+)

@@ -29,8 +29,17 @@ import numpy as np
 from ...key import WatermarkKey
 
 # primitive polynomials of GF(2^m), bit i = coefficient of x^i
-PRIMITIVE = {5: 0b100101, 6: 0b1000011, 7: 0b10001001, 8: 0b100011101, 9: 0b1000010001, 10: 0b10000001001,
-             11: 0b100000000101, 12: 0b1000001010011, 13: 0b10000000011011}
+PRIMITIVE = {
+    5: 0b100101,
+    6: 0b1000011,
+    7: 0b10001001,
+    8: 0b100011101,
+    9: 0b1000010001,
+    10: 0b10000001001,
+    11: 0b100000000101,
+    12: 0b1000001010011,
+    13: 0b10000000011011,
+}
 CORRECTS = 4  # t: the errors a payload's code corrects (design distance 2t + 1)
 
 
@@ -149,7 +158,8 @@ def coded_bits(bits: np.ndarray, code: Optional[BCHCode]) -> np.ndarray:
 
 def confirm_with(scores: np.ndarray, key: WatermarkKey, code: Optional[BCHCode]) -> tuple[np.ndarray, bool, int]:
     """``pmwm.schemes.robust.confirm`` for the key's ``code`` (None: no code): the payload a reading gives,
-    whether it is confirmed as the key's, and how many coded bits the code corrected (read wrong or not read). scores (n,) float64: one per coded bit (sign = the scrambled
+    whether it is confirmed as the key's, and how many coded bits the code corrected (read wrong or not read).
+    scores (n,) float64: one per coded bit (sign = the scrambled
     bit read, magnitude = its reliability, 0 = erased), or bits (n,) uint8 already descrambled.
 
     Returns (payload bits (k,) uint8: the key's when confirmed, else the bits as read, never to be shown

@@ -90,8 +90,10 @@ class SiteAnalysis:
         F, site = self.faces, self.site
         ring_found = (self.ring >= 0).all(axis=1)
         at_vertices = site_soft(marked, F, site, by_index=True)[0]
-        usable, centre_ok = [ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
-                             for soft in (at_vertices, centre_soft(marked, site, True))]
+        usable, centre_ok = [
+            ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
+            for soft in (at_vertices, centre_soft(marked, site, True))
+        ]
         # copies with the marked vertex order are read at every site that reads cleanly by index,
         # also where no protected ring was found (that ring only matters to coarser levels)
         index_ok = np.isfinite(at_vertices) & (np.abs(at_vertices - sign) < 0.5)
@@ -166,18 +168,34 @@ def protected_vertices(n: int, sites: np.ndarray, ring: np.ndarray) -> np.ndarra
     return protected
 
 
-def analyse(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
-            sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES,
-            report: Callable[[float, str], None] = no_progress, adj: Optional[Adjacency] = None) -> SiteAnalysis:
+def analyse(
+    V: np.ndarray,
+    F: np.ndarray,
+    secret: str,
+    strength: float,
+    n_bits: int,
+    sites_per_bit: int = SITES_PER_BIT,
+    radius_edges: float = RADIUS_EDGES,
+    report: Callable[[float, str], None] = no_progress,
+    adj: Optional[Adjacency] = None,
+) -> SiteAnalysis:
     """The robust scheme's analysis of a mesh V (n, 3) float64, F (m, 3) int64 for the key's
     ``secret``: ``n_bits`` bits, ``sites_per_bit`` sites each (fewer on small meshes, down to 2);
     ``adj``: the mesh's adjacency, when the caller has it."""
     return lay_out(place_sites(V, F, secret, strength, n_bits, sites_per_bit, radius_edges, report, adj), secret)
 
 
-def place_sites(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bits: int,
-                sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES,
-                report: Callable[[float, str], None] = no_progress, adj: Optional[Adjacency] = None) -> SitePlaces:
+def place_sites(
+    V: np.ndarray,
+    F: np.ndarray,
+    secret: str,
+    strength: float,
+    n_bits: int,
+    sites_per_bit: int = SITES_PER_BIT,
+    radius_edges: float = RADIUS_EDGES,
+    report: Callable[[float, str], None] = no_progress,
+    adj: Optional[Adjacency] = None,
+) -> SitePlaces:
     """The first half of ``analyse``: sites, frames, samples and protected rings (``adj``: the mesh's
     adjacency, when the caller has it)."""
     per_bit = max(2, 2 * (int(sites_per_bit) // 2))
@@ -245,9 +263,28 @@ def place_sites(V: np.ndarray, F: np.ndarray, secret: str, strength: float, n_bi
         first = _first_least(score, starts, group)
         good = np.isfinite(score[first])
         ring[si[first][good], k] = vi[first][good]
-    return SitePlaces(vertices=V, faces=F, adj=adj, sites=sites, n_bits=nb, per_bit=per_bit, normal=N, t1=t1,
-                      t2=t2, radius=r, amplitude=A, swirl=At, sample_site=si, sample_vertex=vi, u=u, v=v,
-                      normals=normals, prof=prof, samples=samples, ring=ring)
+    return SitePlaces(
+        vertices=V,
+        faces=F,
+        adj=adj,
+        sites=sites,
+        n_bits=nb,
+        per_bit=per_bit,
+        normal=N,
+        t1=t1,
+        t2=t2,
+        radius=r,
+        amplitude=A,
+        swirl=At,
+        sample_site=si,
+        sample_vertex=vi,
+        u=u,
+        v=v,
+        normals=normals,
+        prof=prof,
+        samples=samples,
+        ring=ring,
+    )
 
 
 def lay_out(places: SitePlaces, secret: str) -> SiteAnalysis:
@@ -269,11 +306,34 @@ def lay_out(places: SitePlaces, secret: str) -> SiteAnalysis:
     e = gu[:, None] * pl.t1[si] + gv[:, None] * pl.t2[si]
     e -= np.einsum("ij,ij->i", e, pl.normals)[:, None] * pl.normals
     none = np.zeros(len(P), bool)
-    site = RobustKeyData(bit=bit_of, chip=chip, usable=none, centre_ok=none, swirl_ok=none, index_ok=none,
-                         origin=P, normal=pl.normal, radius=r, amplitude=A, swirl=At, samples=pl.samples, frame=None)
-    return SiteAnalysis(vertices=pl.vertices, faces=pl.faces, adj=pl.adj, sites=pl.sites, site=site,
-                        n_bits=pl.n_bits, sample_site=si, sample_vertex=pl.sample_vertex,
-                        bump_field=(A * pl.prof)[:, None] * pl.normal[si], swirl_field=At * e, ring=pl.ring)
+    site = RobustKeyData(
+        bit=bit_of,
+        chip=chip,
+        usable=none,
+        centre_ok=none,
+        swirl_ok=none,
+        index_ok=none,
+        origin=P,
+        normal=pl.normal,
+        radius=r,
+        amplitude=A,
+        swirl=At,
+        samples=pl.samples,
+        frame=None,
+    )
+    return SiteAnalysis(
+        vertices=pl.vertices,
+        faces=pl.faces,
+        adj=pl.adj,
+        sites=pl.sites,
+        site=site,
+        n_bits=pl.n_bits,
+        sample_site=si,
+        sample_vertex=pl.sample_vertex,
+        bump_field=(A * pl.prof)[:, None] * pl.normal[si],
+        swirl_field=At * e,
+        ring=pl.ring,
+    )
 
 
 def _first_least(score: np.ndarray, starts: np.ndarray, group: np.ndarray) -> np.ndarray:
@@ -285,8 +345,9 @@ def _first_least(score: np.ndarray, starts: np.ndarray, group: np.ndarray) -> np
     return least[np.r_[True, group[least[1:]] != group[least[:-1]]]]
 
 
-def _coded_sites(V, F, secret: str, strength: float, nb: int, sites_per_bit: int, radius_edges: float,
-                 report, adj: Adjacency) -> tuple[SitePlaces, Optional[BCHCode]]:
+def _coded_sites(
+    V, F, secret: str, strength: float, nb: int, sites_per_bit: int, radius_edges: float, report, adj: Adjacency
+) -> tuple[SitePlaces, Optional[BCHCode]]:
     """The sites of a payload of ``nb`` bits and its code: the payload's BCH codeword (``code``) over about
     as many sites as the payload alone would get (``sites_per_bit`` per payload bit, an even number per
     coded bit); the payload alone, ``sites_per_bit`` each (fewer on small meshes), when the mesh cannot hold
@@ -303,8 +364,14 @@ def _coded_sites(V, F, secret: str, strength: float, nb: int, sites_per_bit: int
     return place_sites(V, F, secret, strength, nb, sites_per_bit, radius_edges, report, adj), None
 
 
-def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None,
-          sites_per_bit: int = SITES_PER_BIT, radius_edges: float = RADIUS_EDGES) -> EmbedResult:
+def embed(
+    vertices,
+    faces,
+    options: Optional[EmbedOptions] = None,
+    progress: Progress = None,
+    sites_per_bit: int = SITES_PER_BIT,
+    radius_edges: float = RADIUS_EDGES,
+) -> EmbedResult:
     """Watermark a mesh with the robust scheme (``pmwm.schemes.robust``); same options and result as
     ``pmwm.embed``. vertices : (n, 3) float64, faces : (m, 3) int64."""
     with loading_engine():  # the KD-tree's imports while the mesh is checked and its sites chosen
@@ -322,8 +389,7 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
     # pass); the marked positions go in after. None built when the options ask for none.
     protect = Later()
     build = job.options.progressive
-    with beside(build, build_progressive_mesh, V, F, base_vertices=base, protected=protect,
-                adjacency=adj) as building:
+    with beside(build, build_progressive_mesh, V, F, base_vertices=base, protected=protect, adjacency=adj) as building:
         places, code = _coded_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
         if build:  # (the vertices to protect only when something is built)
             protect.set(places.protected())
@@ -336,15 +402,21 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
         report(0.2, "sites marked")
         frame = surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
         first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
-        data = dataclasses.replace(site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok,
-                                   frame=frame, code=code)
+        data = dataclasses.replace(
+            site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok, frame=frame, code=code
+        )
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
             pm, _ = building.result(lambda f, msg: report(0.25 + 0.7 * f, msg))
             return with_positions(pm, marked)
 
         # the key read back from its stored form, so that it reads exactly as the key file will
-        return finish_embed(job, marked, marked_pm if build else None, sites,
-                            mesh_key(job, NAME, marked, adj, sites[first_site],
-                                     data=RobustKeyData.from_extra(data.to_extra(), nb, len(V))))
-
+        return finish_embed(
+            job,
+            marked,
+            marked_pm if build else None,
+            sites,
+            mesh_key(
+                job, NAME, marked, adj, sites[first_site], data=RobustKeyData.from_extra(data.to_extra(), nb, len(V))
+            ),
+        )

@@ -130,8 +130,10 @@ class RobustKeyData:
         checked; a KeyFileError naming the problem when it is damaged or of another format."""
         version = x.get("robust_version") if isinstance(x, dict) else None
         if version not in READ_VERSIONS:
-            raise KeyFileError(f"this robust key has format {version!r}, this pmwm reads formats 2 and 3 "
-                               "(the first robust scheme's keys are not read any more); re-embed with this version")
+            raise KeyFileError(
+                f"this robust key has format {version!r}, this pmwm reads formats 2 and 3 "
+                "(the first robust scheme's keys are not read any more); re-embed with this version"
+            )
         try:
             site = {
                 "bit": np.asarray(x["site_bit"], np.int64),
@@ -157,15 +159,20 @@ class RobustKeyData:
                 raise ValueError("the payload code is for another payload length")
             if not all(np.isfinite(site[k]).all() for k in ("origin", "normal", "chip")):
                 raise ValueError("site places, normals or chips are not finite numbers")
-            if not (np.isfinite(uvh).all() and radius > 0 and amplitude > 0 and np.isfinite(swirl)) \
-                    or (normal_tt is not None and not (np.abs(normal_tt) <= 1.0).all()):
+            if not (np.isfinite(uvh).all() and radius > 0 and amplitude > 0 and np.isfinite(swirl)) or (
+                normal_tt is not None and not (np.abs(normal_tt) <= 1.0).all()
+            ):
                 raise ValueError("sample values")
         except (KeyError, TypeError, ValueError, OverflowError, AttributeError, binascii.Error) as exc:
             raise KeyFileError(f"the robust key lacks or garbles its site data ({exc}); it is damaged") from None
         n = len(site["bit"]) if np.ndim(site["bit"]) == 1 else 0
-        if n == 0 or any(np.ndim(site[k]) == 0 or len(site[k]) != n for k in site) \
-                or site["bit"].min() < 0 or site["bit"].max() >= (n_bits if code is None else code.n) \
-                or vertex.max(initial=0) >= n_vertices:
+        if (
+            n == 0
+            or any(np.ndim(site[k]) == 0 or len(site[k]) != n for k in site)
+            or site["bit"].min() < 0
+            or site["bit"].max() >= (n_bits if code is None else code.n)
+            or vertex.max(initial=0) >= n_vertices
+        ):
             raise KeyFileError("the robust key's site data are inconsistent; it is damaged")
         samples = Samples(counts, uvh[:, 0], uvh[:, 1], uvh[:, 2], vertex, normal_tt)
         return cls(**site, radius=radius, amplitude=amplitude, swirl=swirl, samples=samples, frame=frame, code=code)

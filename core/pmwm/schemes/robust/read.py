@@ -67,10 +67,16 @@ class RobustDetail(VerdictDetail):
             found = "it keeps the marked mesh's vertex order: lined up with the key vertex by vertex"
         else:
             found = "it was moved, re-ordered or re-meshed: lined up with the key by its shape"
-        how = ("each place read on its own vertices" if self.heights.startswith("by vertex index") else
-               "each place read where the surface passes")
-        rows = [("How the copy was found", found), ("How it was read", how),
-                ("Places read", f"{self.sites_read} of the {self.sites_total} places that carry the mark")]
+        how = (
+            "each place read on its own vertices"
+            if self.heights.startswith("by vertex index")
+            else "each place read where the surface passes"
+        )
+        rows = [
+            ("How the copy was found", found),
+            ("How it was read", how),
+            ("Places read", f"{self.sites_read} of the {self.sites_total} places that carry the mark"),
+        ]
         if self.mirrored:
             rows.append(("Mirrored", "yes: the copy is a mirror image of the marked mesh"))
         if self.corrected:
@@ -78,13 +84,20 @@ class RobustDetail(VerdictDetail):
         return rows
 
     def numbers(self) -> list[tuple[str, str]]:
-        rows = [("registration", self.registration), ("heights", self.heights),
-                ("sites read", f"{self.sites_read}/{self.sites_total}")]
+        rows = [
+            ("registration", self.registration),
+            ("heights", self.heights),
+            ("sites read", f"{self.sites_read}/{self.sites_total}"),
+        ]
         if self.residual is not None:
             rows += [("registration residual", f"{self.residual:.3g}"), ("scale", f"{self.scale:.6g}")]
-        rows += [("mirrored", "yes" if self.mirrored else "no"), ("poses read", str(self.poses_read)),
-                 ("poses paid (union bound)", str(self.poses_paid)), ("payload code", self.payload_code),
-                 ("coded bits corrected", str(self.corrected))]
+        rows += [
+            ("mirrored", "yes" if self.mirrored else "no"),
+            ("poses read", str(self.poses_read)),
+            ("poses paid (union bound)", str(self.poses_paid)),
+            ("payload code", self.payload_code),
+            ("coded bits corrected", str(self.corrected)),
+        ]
         return rows
 
 
@@ -173,8 +186,7 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
         soft = (f * y).sum(axis=1) / fp / A
         var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
-    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) \
-        & np.isfinite(var)
+    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) & np.isfinite(var)
     return np.where(readable, soft, np.nan), var
 
 
@@ -238,8 +250,13 @@ def pose_bound(p: np.ndarray, poses: int) -> np.ndarray:
     return np.minimum(1.0, np.asarray(p, np.float64) * poses)
 
 
-def readings(vertices, faces, key: WatermarkKey, strength: Optional[Callable[[np.ndarray], float]] = None,
-             progress: Progress = None) -> Iterator[Reading]:
+def readings(
+    vertices,
+    faces,
+    key: WatermarkKey,
+    strength: Optional[Callable[[np.ndarray], float]] = None,
+    progress: Progress = None,
+) -> Iterator[Reading]:
     """The suspect's readings, one per pose worth reading, most promising first (a generator: the caller
     stops when it has found its mark). vertices (n, 3), faces (m, 3).
 
@@ -275,8 +292,10 @@ def readings(vertices, faces, key: WatermarkKey, strength: Optional[Callable[[np
     rest = ([first] if first is not None else []) + list(poses)
     if len(rest) > 1 and strength is not None:
         screen = _subset(s, _screen_sites(s))
-        ranks = [strength(_read_at(X, F, screen, key, _identity, False, {"registration": "screening"}).scores)
-                 for X, _ in rest]
+        ranks = [
+            strength(_read_at(X, F, screen, key, _identity, False, {"registration": "screening"}).scores)
+            for X, _ in rest
+        ]
         rest = [rest[i] for i in np.argsort(-np.asarray(ranks), kind="stable")[:FULL_READS]]
     report(0.7, "reading the sites")
     for posed in rest:
@@ -288,8 +307,12 @@ def _posed(posed, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> Reading
     X, info = posed
     R, k, t = info.rotation, info.scale, info.translation  # X = k V R^T + t
     back = lambda P: (P - t) @ R / k  # noqa: E731
-    how = {"registration": info.init, "residual": float(info.residual), "scale": float(info.scale),
-           "mirrored": bool(info.mirrored)}
+    how = {
+        "registration": info.init,
+        "residual": float(info.residual),
+        "scale": float(info.scale),
+        "mirrored": bool(info.mirrored),
+    }
     if _same_vertices(X, s, key):
         X, back, _ = _refined(X, s, back)
     return _read_at(X, F, s, key, back, False, how, poses=POSES)
@@ -309,13 +332,30 @@ def _subset(s: RobustKeyData, sites: np.ndarray) -> RobustKeyData:
     for name in ("mask", "u", "v", "h", "vertex", "normal_tt", "centre"):
         if getattr(sm, name) is not None:
             setattr(sm, name, getattr(sm, name)[sites])
-    return dataclasses.replace(s, bit=s.bit[sites], chip=s.chip[sites], usable=s.usable[sites],
-                               centre_ok=s.centre_ok[sites], swirl_ok=s.swirl_ok[sites], index_ok=s.index_ok[sites],
-                               origin=s.origin[sites], normal=s.normal[sites], samples=sm)
+    return dataclasses.replace(
+        s,
+        bit=s.bit[sites],
+        chip=s.chip[sites],
+        usable=s.usable[sites],
+        centre_ok=s.centre_ok[sites],
+        swirl_ok=s.swirl_ok[sites],
+        index_ok=s.index_ok[sites],
+        origin=s.origin[sites],
+        normal=s.normal[sites],
+        samples=sm,
+    )
 
 
-def _read_at(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey,
-             back: Callable[[np.ndarray], np.ndarray], aligned: bool, how: dict, poses: int = 1) -> Reading:
+def _read_at(
+    X: np.ndarray,
+    F: np.ndarray,
+    s: RobustKeyData,
+    key: WatermarkKey,
+    back: Callable[[np.ndarray], np.ndarray],
+    aligned: bool,
+    how: dict,
+    poses: int = 1,
+) -> Reading:
     """The reading of the suspect X (n, 3), F (m, 3) in the key's frame; ``back`` maps the key's frame to
     the suspect's; ``aligned``: X sits exactly in the key's frame; ``how``: RobustDetail's registration
     fields (registration, and residual, scale, mirrored where known)."""
@@ -336,8 +376,14 @@ def _read_at(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey,
     heights = ("by vertex index" if by_index else "by position") + (", site vertices first" if aligned else "")
     detail = RobustDetail(heights=heights, sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)), **how)
     read = np.flatnonzero(np.isfinite(soft))
-    return Reading(bit_scores(soft, var, s, s.coded_length(key.n_bits)), "aligned" if aligned else "registered",
-                   detail, back(s.origin[read]), s.bit[read].astype(np.int64), poses)
+    return Reading(
+        bit_scores(soft, var, s, s.coded_length(key.n_bits)),
+        "aligned" if aligned else "registered",
+        detail,
+        back(s.origin[read]),
+        s.bit[read].astype(np.int64),
+        poses,
+    )
 
 
 def _identity(P: np.ndarray) -> np.ndarray:
@@ -361,8 +407,9 @@ def verify(vertices, faces, key: WatermarkKey, p_threshold: float = 1e-6, progre
     return verdict
 
 
-def _strongest(vertices, faces, key: WatermarkKey, p_threshold: float, progress: Progress = None
-               ) -> tuple[Reading, Verdict]:
+def _strongest(
+    vertices, faces, key: WatermarkKey, p_threshold: float, progress: Progress = None
+) -> tuple[Reading, Verdict]:
     """The reading of smallest p-value and its verdict; the readings stop at the first marked one whose
     payload is confirmed."""
     code = key_data(key).code
@@ -407,9 +454,14 @@ def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict
     verdict.bits = "".join(map(str, payload.tolist()))
     verdict.payload = decode_text(payload) if confirmed and key.payload_kind == "text" else None
     verdict.payload_confirmed = confirmed
-    verdict.detail = dataclasses.replace(reading.detail, poses_paid=reading.poses,
-                                         payload_code=code.name if code is not None else "none", corrected=corrected,
-                                         coded_bits=coded_read, coded_key_bits=coded_key_bits)  # read, and the key's
+    verdict.detail = dataclasses.replace(
+        reading.detail,
+        poses_paid=reading.poses,
+        payload_code=code.name if code is not None else "none",
+        corrected=corrected,
+        coded_bits=coded_read,
+        coded_key_bits=coded_key_bits,
+    )  # read, and the key's
     verdict.places, verdict.place_bits = reading.places, reading.place_bits
     return verdict
 
@@ -445,8 +497,9 @@ def _index_fit(X: np.ndarray, s: RobustKeyData) -> Optional[tuple[np.ndarray, fl
     return (R, k, t) if np.isfinite(k) and k > 1e-12 else None
 
 
-def _refined(X: np.ndarray, s: RobustKeyData, back: Callable[[np.ndarray], np.ndarray]
-             ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray], bool]:
+def _refined(
+    X: np.ndarray, s: RobustKeyData, back: Callable[[np.ndarray], np.ndarray]
+) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray], bool]:
     """X (n, 3) mapped into the key's frame by ``_index_fit``, ``back`` (key's frame -> the suspect,
     through X) extended by that fit, and whether the fit mirrors."""
     fit = _index_fit(X, s)
