@@ -1,4 +1,4 @@
-"""The blind scheme (issue 14): distortion, BER per benchmark attack, the whole payload after the
+"""The blind scheme: distortion, BER per benchmark attack, the whole payload after the
 target attacks, progressive-mesh levels, false positives and speed; section ``blind`` of the report.
 
 Run: python benchmarks/bench_blind.py [--keys 10] [--models bunny,dragon,venus-head,igea] [--fp 10000]

@@ -213,7 +213,7 @@ def main() -> None:
     igb = [r for r in cpu_rows if r[0] == "igea"][0]
     lines += [
         "",
-        "Against the targets of issue 13 (measured above, in the same run):",
+        "Against the speed targets (measured above, in the same run):",
         f"- `pmwm embed` of igea end to end at most 1.5x (stretch 1.0x) the anchor's whole process: "
         f"with the progressive mesh (`--pm`) {ig[2]:.2f} s against {ig[13]:.2f} s, ratio {ig[2] / ig[13]:.2f} "
         f"(`--scheme blind`: {igb[3]:.2f} s, ratio {igb[3] / igb[5]:.2f}); without it {igb[7]:.2f} s, ratio "

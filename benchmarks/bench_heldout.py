@@ -6,7 +6,7 @@ Run: nice -n 10 python benchmarks/bench_heldout.py [--meshes report] [--per-fami
 
 Meshes: the REPORT_ONLY meshes of ``pmwm_bench.split`` and shapes of every family of
 ``pmwm_bench.corpus`` from seeds drawn fresh at each run (recorded in the JSON with the attack seed and
-the pass phrase). Default settings, payload "ACME-2026". Attacks (issue 54, item 3): pose and reorder;
+the pass phrase). Default settings, payload "ACME-2026". Attacks (the held-out protocol): pose and reorder;
 re-export OBJ/PLY/STL/GLB; 8-bit quantization; uniform noise of 0.1 % of the bounding-box diagonal
 per coordinate; five uniform Laplacian steps (lambda 0.5); five cotangent steps (pymeshlab's
 Laplacian smoothing, its default weights); 50 % simplification by fast-simplification and by

@@ -1,4 +1,4 @@
-"""The blind scheme against Blender's own subdivision (issue 14): each model marked, then given the
+"""The blind scheme against Blender's own subdivision: each model marked, then given the
 Subdivision Surface modifier (Catmull-Clark, one level) in headless Blender, with its default limit
 surface and without; read as the add-on reads an object (Blender's triangulation of the quads) and as
 a PLY file Blender exported is read. Unmarked copies given the same modifier, read with every key's

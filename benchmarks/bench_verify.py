@@ -1,4 +1,4 @@
-"""Speed of ``pmwm.verify`` (the call, not reading the files) on the cases of issue 13, against an
+"""Speed of ``pmwm.verify`` (the call, not reading the files) on the cases of the speed target, against an
 older commit run side by side.
 
 Run: python benchmarks/bench_verify.py [--repeat 3] [--rounds 2] [--baseline REV]
@@ -30,7 +30,7 @@ With ``--cli``, every case is timed as the user runs it: the suspect written to 
 a JSON file, or the pass phrase to a file), ``python -m pmwm verify`` as a whole process, beside a process
 that only reads the two files as ``pmwm verify`` does (the same imports, ``read_key`` or the pass phrase
 file, ``read_mesh``), the two alternating, best of ``--repeat`` each; their difference is the time
-``pmwm verify`` takes beyond reading the two files (issue 13's wording). The section's name then ends in
+``pmwm verify`` takes beyond reading the two files. The section's name then ends in
 "-cli"; no baseline. Its processes run with OMP_NUM_THREADS=1 and OPENBLAS_NUM_THREADS=1 (steadier on a
 shared machine), unless ``--threads-as-set`` leaves them as this process has them (a user's default:
 unset, every library's threads on every core); the section's name then ends in "-cli-threads".
@@ -101,7 +101,7 @@ BASELINES = {
     "the distances; np.linalg.norm for the rows' norms, axis-0 reductions for the "
     "bounding box, the bin statistics on compressed arrays",
 }
-TARGET = 0.5  # seconds, issue 13
+TARGET = 0.5  # seconds: the verify speed target
 
 
 def build_cases(path: Path) -> None:
@@ -411,7 +411,7 @@ def cli(a) -> None:
             "|---|---|---|---|---|---|---|",
             *lines,
             "",
-            f"Target of issue 13, every case under {TARGET} s beyond reading the two files: in CPU time "
+            f"Target: every case under {TARGET} s beyond reading the two files: in CPU time "
             + ("met" if not over_cpu else "not met for " + "; ".join(over_cpu))
             + "; in wall-clock time "
             + ("met." if not over_wall else "not met for " + "; ".join(over_wall) + "."),
@@ -498,7 +498,7 @@ def report(runs: dict[str, list[list[dict]]], a) -> None:
 
     lines += [
         "",
-        f"Target of issue 13, every {'blind' if blind else 'robust'} case under {TARGET} s: in CPU time "
+        f"Target: every {'blind' if blind else 'robust'} case under {TARGET} s: in CPU time "
         + ("met" if not over("cpu") else "not met for " + "; ".join(over("cpu")))
         + "; in wall-clock time on the loaded machine "
         + ("met." if not over("times") else "not met for " + "; ".join(over("times")) + "."),

@@ -158,8 +158,8 @@ class WatermarkKey:
 
 def json_text(doc: dict) -> str:
     """A key file's text: JSON, one top-level field per line (readable), each value compact. Why not
-    ``indent``: json writes indented text in pure Python, 3x slower than compact (0.04 against 0.012 s
-    for a robust key of Igea, 1 MB, measured), and that time is the end of every ``pmwm embed``."""
+    ``indent``: json writes indented text in pure Python, about three times slower than compact text on a
+    large key, and that time is the end of every ``pmwm embed`` (docs/decisions/012-numpy-hot-paths.md)."""
     fields = (f"{json.dumps(k)}:{json.dumps(v, separators=(',', ':'))}" for k, v in doc.items())
     return "{\n" + ",\n".join(fields) + "\n}\n"
 
