@@ -894,10 +894,8 @@ index.html, its script and model.pmwm)"""
                 f"{folder} exists and is not empty: tick Replace Existing in the file browser "
                 "(overwrite=True in scripts), or choose another name"
             )
-        try:
-            from pmwm import viewer
-        except ImportError:
-            raise _Failed("this pmwm has no web viewer (pmwm.viewer): update the add-on") from None
+        from pmwm import viewer
+
         site = viewer.write_site(pm, folder, title=ob.name, force=self.overwrite)
         self.report({"INFO"}, f"Published '{ob.name}' for the web in {site}: upload the folder, open index.html")
         return {"FINISHED"}

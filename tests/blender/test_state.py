@@ -5,10 +5,7 @@ the background runs; Publish for Web."""
 
 from __future__ import annotations
 
-import sys
 import time
-from pathlib import Path
-from types import SimpleNamespace
 
 import bpy
 import pytest
@@ -280,57 +277,24 @@ def test_watermark_progress_shows_the_stage_and_the_seconds(scene, addon, bl, tm
     assert all(t.endswith(" s (Esc to cancel)") for t in seen)
 
 
-class _StubViewer:
-    """Stands in for pmwm.viewer where the library has none yet: records the call, writes a page."""
-
-    def __init__(self):
-        self.calls = []
-
-    def write_site(self, pm, folder, *, title="", force=False):
-        import pmwm
-
-        folder = Path(folder)
-        if folder.exists() and any(folder.iterdir()) and not force:
-            raise pmwm.OutputExistsError(f"{folder} exists")
-        folder.mkdir(parents=True, exist_ok=True)
-        (folder / "index.html").write_text(f"<title>{title}</title>")
-        pmwm.write_pm(folder / "model.pmwm", pm, force=True)
-        self.calls.append(SimpleNamespace(pm=pm, folder=folder, title=title, force=force))
-        return folder
-
-
-def test_publish_for_web_writes_the_active_objects_site(scene, addon, bl, tmp_path, monkeypatch):
-    """With a stub pmwm.viewer when the library has none (the add-on's side of the contract:
-    write_site(pm, folder, title=..., force=...))."""
+def test_publish_for_web_writes_the_active_objects_site(scene, addon, bl, tmp_path):
+    """Publish for Web writes pmwm.viewer's page of the active object's last progressive mesh, named for the
+    object, and never replaces a folder in use unless asked."""
     import pmwm
+    from pmwm.progressive import to_bytes
 
-    stub = _StubViewer()
-    monkeypatch.setitem(sys.modules, "pmwm.viewer", stub)
-    monkeypatch.setattr(pmwm, "viewer", stub, raising=False)
     ob = bl.suzanne(levels=2)
     assert "was not watermarked in this session" in _poll_reason("publish_web")
     bpy.ops.pmwm.watermark(payload="Web", key_path=str(tmp_path / "k.json"), seed=1)
     site = tmp_path / "Suzanne-web"
     assert bpy.ops.pmwm.publish_web(filepath=str(site)) == {"FINISHED"}
-    call = stub.calls[-1]
-    assert (call.folder, call.title, call.force) == (site, "Suzanne", False)
-    assert call.pm is addon.session.lookup(ob).pm
+    assert {"index.html", "viewer.js", "model.pmwm"} <= {f.name for f in site.iterdir()}
+    assert "Suzanne" in (site / "index.html").read_text(encoding="utf-8")
+    assert (site / "model.pmwm").read_bytes() == to_bytes(addon.session.lookup(ob).pm)
     assert pmwm.read_pm(site / "model.pmwm").n_vertices == len(ob.data.vertices)
     # a folder with something in it is not replaced unless asked
+    before = (site / "index.html").stat().st_mtime_ns
     with pytest.raises(RuntimeError, match="exists and is not empty: tick Replace Existing"):
         bpy.ops.pmwm.publish_web(filepath=str(site))
-    assert len(stub.calls) == 1
+    assert (site / "index.html").stat().st_mtime_ns == before
     assert bpy.ops.pmwm.publish_web(filepath=str(site) + "/", overwrite=True) == {"FINISHED"}
-    assert stub.calls[-1].folder == site and stub.calls[-1].force is True
-
-
-def test_publish_for_web_without_a_viewer_in_the_library_says_so(scene, addon, bl, tmp_path, monkeypatch):
-    import pmwm
-
-    monkeypatch.setitem(sys.modules, "pmwm.viewer", None)  # import fails, as in a library without it
-    monkeypatch.delattr(pmwm, "viewer", raising=False)
-    bl.suzanne(levels=2)
-    bpy.ops.pmwm.watermark(payload="Web", key_path=str(tmp_path / "k.json"), seed=1)
-    with pytest.raises(RuntimeError, match="no web viewer"):
-        bpy.ops.pmwm.publish_web(filepath=str(tmp_path / "site"))
-    assert not (tmp_path / "site").exists()
