@@ -219,6 +219,8 @@ def test_a_pass_phrase_marks_every_object(tmp_path, capsys):
         main(
             [
                 "embed",
+                "--seed",
+                "3",
                 str(path),
                 "-o",
                 str(tmp_path / "m.glb"),
@@ -352,7 +354,7 @@ def _refused(capsys, tmp_path, scene, words: str) -> None:
     out = tmp_path / "marked" / scene.name
     out.parent.mkdir(exist_ok=True)
     capsys.readouterr()
-    rc = main(["embed", str(scene), "-o", str(out), "--key", str(tmp_path / "marked" / "k.json"), "-q"])
+    rc = main(["embed", "--seed", "3", str(scene), "-o", str(out), "--key", str(tmp_path / "marked" / "k.json"), "-q"])
     err = capsys.readouterr().err
     assert rc == 2 and err.startswith("pmwm: error: ") and err.count("\n") == 1 and words in err, err
     assert list(out.parent.iterdir()) == []  # nothing written
@@ -423,6 +425,8 @@ def test_gltf_with_external_buffer_is_written_with_its_own(tmp_path, capsys):
         main(
             [
                 "embed",
+                "--seed",
+                "3",
                 str(tmp_path / "scene.gltf"),
                 "-o",
                 str(out / "m.gltf"),
@@ -446,7 +450,19 @@ def test_a_scene_goes_back_to_its_own_format(tmp_path, capsys):
     scene_glb(tmp_path / "s.glb", extra_node=False)
     capsys.readouterr()
     assert (
-        main(["embed", str(tmp_path / "s.glb"), "-o", str(tmp_path / "m.ply"), "--key", str(tmp_path / "k.json")]) == 2
+        main(
+            [
+                "embed",
+                "--seed",
+                "3",
+                str(tmp_path / "s.glb"),
+                "-o",
+                str(tmp_path / "m.ply"),
+                "--key",
+                str(tmp_path / "k.json"),
+            ]
+        )
+        == 2
     )
     assert "use -o NAME.glb" in capsys.readouterr().err
     assert not (tmp_path / "m.ply").exists() and not (tmp_path / "k.json").exists()
@@ -480,7 +496,18 @@ def test_morph_targets_are_kept_and_the_mesh_marked_at_rest(tmp_path, capsys):
     capsys.readouterr()
     assert (
         main(
-            ["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--payload", PAYLOAD]
+            [
+                "embed",
+                "--seed",
+                "3",
+                str(path),
+                "-o",
+                str(tmp_path / "m.glb"),
+                "--key",
+                str(tmp_path / "k.json"),
+                "--payload",
+                PAYLOAD,
+            ]
         )
         == 0
     )
@@ -572,6 +599,8 @@ def test_interleaved_buffers_are_patched_in_place(tmp_path, capsys):
         main(
             [
                 "embed",
+                "--seed",
+                "3",
                 str(tmp_path / "i.glb"),
                 "-o",
                 str(tmp_path / "m.glb"),
@@ -606,6 +635,8 @@ def test_gltf_with_embedded_buffers(tmp_path, capsys):
         main(
             [
                 "embed",
+                "--seed",
+                "3",
                 str(tmp_path / "s.gltf"),
                 "-o",
                 str(tmp_path / "m.gltf"),
@@ -659,7 +690,18 @@ def test_skinned_mesh_is_marked_in_its_bind_pose(tmp_path, capsys):
     capsys.readouterr()
     assert (
         main(
-            ["embed", str(path), "-o", str(tmp_path / "m.glb"), "--key", str(tmp_path / "k.json"), "--payload", PAYLOAD]
+            [
+                "embed",
+                "--seed",
+                "3",
+                str(path),
+                "-o",
+                str(tmp_path / "m.glb"),
+                "--key",
+                str(tmp_path / "k.json"),
+                "--payload",
+                PAYLOAD,
+            ]
         )
         == 0
     )
@@ -695,6 +737,8 @@ def test_a_glb_of_one_mesh_is_marked_in_place_with_a_key_of_one_mesh(tmp_path, c
                 str(tmp_path / "k.json"),
                 "--payload",
                 PAYLOAD,
+                "--seed",
+                "1",
                 "-q",
             ]
         )
@@ -718,6 +762,8 @@ def test_a_glb_of_one_mesh_is_marked_in_place_with_a_key_of_one_mesh(tmp_path, c
         main(
             [
                 "embed",
+                "--seed",
+                "3",
                 str(tmp_path / "one.glb"),
                 "-o",
                 str(tmp_path / "m.ply"),
