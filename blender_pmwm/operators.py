@@ -154,6 +154,23 @@ def _key_path(context, ob, raw: str) -> tuple[str, bool]:
     return os.path.abspath(bpy.path.abspath(path)), not path.startswith("//")
 
 
+def apply_marked(ob, res) -> None:
+    """Write a marked result's positions into the object's base mesh and remember the watermark for this
+    session (Export, Publish for Web, Show Carriers)."""
+    meshdata.write_base_positions(ob.data, res.vertices)
+    session.remember(
+        ob,
+        session.Marked(
+            name=ob.name,
+            pm=res.pm,
+            carriers=res.carriers,
+            positions=meshdata.read_positions32(ob.data),
+            n_bits=len(res.bits),
+            vsnr_db=float(res.vsnr_db),
+        ),
+    )
+
+
 def _uses_passphrase(scheme: str) -> bool:
     """True for a scheme marked and read with the Pass Phrase alone (no key file)."""
     import pmwm
@@ -312,18 +329,7 @@ class WatermarkTask(_Task):
 
         # Success: write back (nothing before this touched the scene).
         mesh = ob.data
-        meshdata.write_base_positions(mesh, res.vertices)
-        session.remember(
-            ob,
-            session.Marked(
-                name=ob.name,
-                pm=res.pm,
-                carriers=res.carriers,
-                positions=meshdata.read_positions32(mesh),
-                n_bits=len(res.bits),
-                vsnr_db=float(res.vsnr_db),
-            ),
-        )
+        apply_marked(ob, res)
         if ob.modifiers or mesh.shape_keys is not None:
             report(
                 {"WARNING"},

@@ -17,6 +17,7 @@ from bpy.types import Operator
 
 from . import meshdata, props, session, verdictwords
 from .operators import (
+    apply_marked,
     VerifyOptions,
     VerifyTask,
     WatermarkOptions,
@@ -90,18 +91,7 @@ class WatermarkSelectedTask(_Selection, WatermarkTask):
                 os.makedirs(os.path.dirname(self.key_path), exist_ok=True)
             write_keys(self.key_path, marking.key, overwrite=self.overwrite)
         for ob, res in zip(obs, marking.results):
-            meshdata.write_base_positions(ob.data, res.vertices)
-            session.remember(
-                ob,
-                session.Marked(
-                    name=ob.name,
-                    pm=res.pm,
-                    carriers=res.carriers,
-                    positions=meshdata.read_positions32(ob.data),
-                    n_bits=len(res.bits),
-                    vsnr_db=float(res.vsnr_db),
-                ),
-            )
+            apply_marked(ob, res)
         where = "no key file (the pass phrase reads it)" if self.blind else f"key written to {self.key_path}"
         vsnr = ", ".join(f"{ob.name} {res.vsnr_db:.1f} dB" for ob, res in zip(obs, marking.results))
         report(

@@ -867,3 +867,27 @@ def test_the_catalogue_takes_a_scene_beside_a_mesh(tmp_path):
     again = run_catalogue(assets, ids, tmp_path / "a", options=opts, n_workers=1)
     assert again.written == 0 and again.skipped == 6
     assert {p: p.read_bytes() for p in sorted((tmp_path / "a").rglob("*")) if p.is_file()} == tree
+
+
+@pytest.mark.parametrize(
+    "objects",
+    [None, [], [{"name": "a"}], [{"name": 3, "key": {}}], ["not an object"]],
+)
+def test_a_damaged_scene_key_is_refused_in_one_line(tmp_path, objects):
+    """A scene key (or scene fingerprinting key) whose objects are missing or malformed: a KeyFileError that
+    names the file, for both readers."""
+    from pmwm.fingerprint.scene import SCENE_KEY_FORMAT as FP_FORMAT
+    from pmwm.fingerprint.scene import VERSION as FP_VERSION
+    from pmwm.fingerprint.scene import read_any_fingerprint_key
+    from pmwm.scene.asset import SCENE_KEY_FORMAT, SCENE_KEY_VERSION
+
+    doc = {"format": SCENE_KEY_FORMAT, "version": SCENE_KEY_VERSION}
+    fp = {"format": FP_FORMAT, "version": FP_VERSION}
+    if objects is not None:
+        doc["objects"] = fp["objects"] = objects
+    (tmp_path / "k.json").write_text(json.dumps(doc))
+    (tmp_path / "f.json").write_text(json.dumps(fp))
+    with pytest.raises(pmwm.KeyFileError, match="k.json is damaged"):
+        read_keys(tmp_path / "k.json")
+    with pytest.raises(pmwm.KeyFileError, match="f.json is damaged"):
+        read_any_fingerprint_key(tmp_path / "f.json")

@@ -248,3 +248,19 @@ def read_key_text(path) -> str:
         return data.decode("utf-8")
     except UnicodeDecodeError:
         raise KeyFileError(f"{path} is not a pmwm key (not UTF-8 text)") from None
+
+
+def scene_objects(doc: dict, what: str) -> list[tuple[str, dict]]:
+    """The (object name, key document) pairs of a scene key file's ``objects`` list, each checked to be a
+    named JSON object; a KeyFileError naming ``what`` (the file, and its kind) when the list is missing,
+    empty or malformed."""
+    objects = doc.get("objects")
+    if not (
+        isinstance(objects, list)
+        and objects
+        and all(
+            isinstance(o, dict) and isinstance(o.get("name"), str) and isinstance(o.get("key"), dict) for o in objects
+        )
+    ):
+        raise KeyFileError(f"{what} is damaged (its objects are missing or malformed)")
+    return [(o["name"], o["key"]) for o in objects]

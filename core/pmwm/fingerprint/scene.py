@@ -26,7 +26,7 @@ import numpy as np
 
 from ..atomic import atomic_write_bytes, file_sha256
 from ..errors import KeyFileError, PmwmError
-from ..key import derive_seed, face_fingerprint, json_text, make_secret, mesh_sha256
+from ..key import derive_seed, face_fingerprint, json_text, make_secret, mesh_sha256, scene_objects
 from .asset import FingerprintRun, _on_disk, clean_temporaries
 from .codes import Accusation, accuse, pack_codeword
 from .copies import FingerprintOptions, analyse_asset
@@ -80,22 +80,14 @@ def read_any_fingerprint_key(path) -> "FingerprintKey | SceneFingerprintKey":
         raise KeyFileError(
             f"{name} is scene fingerprinting key version {doc.get('version')!r}; this pmwm reads {VERSION}"
         )
-    objects = doc.get("objects")
-    if (
-        not isinstance(objects, list)
-        or not objects
-        or not all(
-            isinstance(o, dict)
-            and isinstance(o.get("name"), str)
-            and isinstance(o.get("key"), dict)
-            and o["key"].get("format") == KEY_FORMAT
-            for o in objects
+    objects = scene_objects(doc, f"the scene fingerprinting key {name}")
+    if any(key.get("format") != KEY_FORMAT for _, key in objects):
+        raise KeyFileError(
+            f"the scene fingerprinting key {name} is damaged (an object's key is not a fingerprinting key)"
         )
-    ):
-        raise KeyFileError(f"{name} is a damaged scene fingerprinting key (its objects are missing or malformed)")
     return SceneFingerprintKey(
-        [o["name"] for o in objects],
-        [FingerprintKey.from_json(o["key"], f"{name} (object {o['name']!r})") for o in objects],
+        [n for n, _ in objects],
+        [FingerprintKey.from_json(key, f"{name} (object {n!r})") for n, key in objects],
     )
 
 

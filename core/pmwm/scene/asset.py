@@ -29,6 +29,7 @@ from ..api import embed, load_key_data, verify
 from ..base import EmbedOptions, EmbedResult, Progress, Verdict, VerdictDetail, no_progress
 from ..errors import KeyFileError, MeshError, PayloadError, PmwmError
 from ..key import (
+    scene_objects,
     WatermarkKey,
     derive_seed,
     face_fingerprint,
@@ -295,18 +296,9 @@ def read_keys(path) -> list[tuple[str, WatermarkKey]]:
         raise KeyFileError(
             f"{path} is scene key version {version}; this pmwm reads version {SCENE_KEY_VERSION}: upgrade pmwm"
         )
-    objects = doc.get("objects")
-    if (
-        not isinstance(objects, list)
-        or not objects
-        or not all(
-            isinstance(o, dict) and isinstance(o.get("name"), str) and isinstance(o.get("key"), dict) for o in objects
-        )
-    ):
-        raise KeyFileError(f"{path} is a damaged scene key (its objects are missing or malformed)")
     return [
-        (o["name"], load_key_data(WatermarkKey.from_json(json.dumps(o["key"]), f"{path} (object {o['name']!r})")))
-        for o in objects
+        (name, load_key_data(WatermarkKey.from_json(json.dumps(key), f"{path} (object {name!r})")))
+        for name, key in scene_objects(doc, f"the scene key {path}")
     ]
 
 
