@@ -445,6 +445,7 @@ to the median bit (1 = a typical bit); a bar near zero is a weak reading.</p>
 def _page(title: str, intro: str, body: str, when: _dt.datetime) -> str:
     """The whole HTML page: head, title, the first paragraph(s) ``intro`` (HTML), ``body`` (HTML), footer."""
     e = html.escape
+    day = when.astimezone(_dt.timezone.utc).strftime("%Y-%m-%d")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
@@ -453,7 +454,7 @@ def _page(title: str, intro: str, body: str, when: _dt.datetime) -> str:
 <body>
 <h1>Watermark verification report</h1>
 {intro}
-{body}<footer>Made by pmwm {e(__version__)} on {when.astimezone(_dt.timezone.utc).strftime("%Y-%m-%d")}. The key file itself
+{body}<footer>Made by pmwm {e(__version__)} on {day}. The key file itself
 is secret and not part of this report; its SHA-256 above identifies it. Anyone holding the key and the suspect file
 can repeat this check with <code>pmwm verify SUSPECT --key KEY</code>.</footer>
 </body></html>
