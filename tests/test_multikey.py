@@ -173,3 +173,18 @@ def test_several_keys_refuse_a_key_twice_and_a_pass_phrase(copies, extra, mentio
     proc = call("verify", copies.owner, "--key", copies.A, "--key", copies.B, *args)
     assert proc.returncode == 2 and proc.stderr.startswith("pmwm: error:") and mention in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_several_keys_refuse_a_scene_of_several_objects(copies):
+    """Several keys read one mesh: a suspect of two objects gets one line saying to read it with one key."""
+    V, F = meshes.blob()
+    scene = copies.dir / "two.obj"
+    with open(scene, "w") as fh:
+        for i, name in enumerate("AB"):
+            fh.write(f"o {name}\n" + "".join(f"v {x + 3 * i} {y} {z}\n" for x, y, z in V))
+            fh.write("".join(f"f {a} {b} {c}\n" for a, b, c in F + 1 + len(V) * i))
+    proc = call("verify", scene, "--key", copies.A, "--key", copies.B)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.strip() == (
+        f"pmwm: error: several --key read one mesh; {scene} holds 2 objects: verify a scene with one key at a time"
+    )
