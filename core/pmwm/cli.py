@@ -317,9 +317,7 @@ def _verify_keys(a, key_paths: list[str], key_files: list, objects: list) -> int
 
         base = [os.path.basename(p) for p in key_paths]
         names = base if len(set(base)) == len(base) else key_paths
-        write_keys_report(
-            a.report, kv, keys, names, V, F, suspect_path=a.suspect, key_paths=key_paths, force=a.force
-        )
+        write_keys_report(a.report, kv, keys, names, V, F, suspect_path=a.suspect, key_paths=key_paths, force=a.force)
     if a.json:
         print(json.dumps(kv.to_dict(key_paths)))
     else:

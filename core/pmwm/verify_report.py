@@ -572,9 +572,7 @@ def build_keys_report(
             after_meaning=after,
             extra_rows=(("p-value of this key alone", f"{kv.p_single[i]:.3g}"),) if n > 1 else (),
         )
-        sections.append(
-            f'<section id="key-{i + 1}">\n<h2>Key {i + 1} of {n}: {e(names[i])}</h2>\n{body}</section>\n'
-        )
+        sections.append(f'<section id="key-{i + 1}">\n<h2>Key {i + 1} of {n}: {e(names[i])}</h2>\n{body}</section>\n')
     correction = wording.keys_correction(kv)
     intro = (
         f"<p>{e(name)}, checked against {n} pmwm keys.</p>\n"
