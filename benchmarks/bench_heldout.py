@@ -232,7 +232,11 @@ def markdown(doc) -> str:
     lines += [f"- machine: {doc.get('runs', [doc])[0]['machine']}", ""]
     head = (
         "| attack | "
-        + " | ".join(f"{s} on {g} ({len(ms)})" for s in ("robust", "blind") for g, ms in groups.items())
+        + " | ".join(
+            f"{s} on {g} ({sum(s in m['schemes'] for m in ms)})"
+            for s in ("robust", "blind")
+            for g, ms in groups.items()
+        )
         + " |"
     )
     lines += [head, "|" + "---|" * (1 + 2 * len(groups))]

@@ -627,3 +627,30 @@ def test_keys_without_a_code_still_read_their_marks(bunny, monkeypatch):
     assert json.loads(res.key.to_json())["extra"]["robust_version"] == 2 and key_data(key).code is None
     v = robust_verify(*attacks.similarity(res.vertices, res.faces, seed=1), key)
     assert v.marked and v.payload == PAYLOAD and v.payload_confirmed and v.carriers_total == key.n_bits
+
+
+def _renumbered_locally(V, F, cell: float, seed: int):
+    """The mesh with its vertices re-numbered within cells of size ``cell``: each index now names another
+    vertex of its neighbourhood, as an STL re-export renumbers a mesh whose faces run along its surface."""
+    rng = np.random.default_rng(seed)
+    ids = np.unique(np.floor(V / cell).astype(np.int64), axis=0, return_inverse=True)[1].ravel()
+    perm = np.arange(len(V))
+    for c in np.unique(ids):
+        members = np.flatnonzero(ids == c)
+        perm[members] = rng.permutation(members)
+    new_of_old = np.empty_like(perm)
+    new_of_old[perm] = np.arange(len(V))
+    return V[perm], new_of_old[F]
+
+
+@pytest.mark.parametrize("name", ["blob", "cad_part"])
+def test_a_copy_renumbered_near_its_old_order_is_read_by_position(name):
+    """Vertex indices that each name a neighbour of the marked vertex (the marked mesh's vertex count, its
+    surface unchanged, its faces re-numbered) are not the marked order: reading heights by index there
+    gives noise; the faces show the order was not kept."""
+    V, F = getattr(meshes, name)()
+    res = robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11))
+    Va, Fa = _renumbered_locally(res.vertices, res.faces, 0.25 * key_data(res.key).frame.scale, seed=3)
+    v = robust_verify(Va, Fa, res.key)
+    assert v.marked and v.payload == PAYLOAD, (v.p_value, v.detail.heights)
+    assert v.detail.heights.startswith("by position")

@@ -13,7 +13,7 @@ import numpy as np
 
 from ...base import Progress, Verdict, VerdictDetail, decode_text, no_progress, verdict_from_scores
 from ...errors import KeyFileError
-from ...key import WatermarkKey
+from ...key import WatermarkKey, face_fingerprint
 from ...register import POSES, register_poses, similarity_fit
 from ...spatial import nearest
 from ...validate import check_mesh
@@ -26,7 +26,8 @@ TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of th
 VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
-INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
+INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size and the faces are kept
+INDEX_CLOSE = 0.05  # ... or within this share, whatever the faces (noise, smoothing and quantization keep both)
 SCREEN_PER_BIT = 2  # sites per bit a registered pose is screened on
 FULL_READS = 2  # the strongest screened poses read in full
 
@@ -279,7 +280,7 @@ def readings(
         # the marked vertices in their order (noise, smoothing, quantization, any pose, a mirror): the
         # similarity fit of the sample vertices is the registration, no ICP needed
         X, back, mirrored = _refined(V, s, back)
-    if _same_vertices(X, s, key):
+    if _same_vertices(X, F, s, key):
         report(0.7, "reading the sites")
         yield _read_at(X, F, s, key, back, False, {"registration": BY_INDEX, "mirrored": mirrored})
         return
@@ -313,7 +314,7 @@ def _posed(posed, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> Reading
         "scale": float(info.scale),
         "mirrored": bool(info.mirrored),
     }
-    if _same_vertices(X, s, key):
+    if _same_vertices(X, F, s, key):
         X, back, _ = _refined(X, s, back)
     return _read_at(X, F, s, key, back, False, how, poses=POSES)
 
@@ -359,7 +360,7 @@ def _read_at(
     """The reading of the suspect X (n, 3), F (m, 3) in the key's frame; ``back`` maps the key's frame to
     the suspect's; ``aligned``: X sits exactly in the key's frame; ``how``: RobustDetail's registration
     fields (registration, and residual, scale, mirrored where known)."""
-    by_index = _same_vertices(X, s, key)
+    by_index = _same_vertices(X, F, s, key)
     soft, var = np.full(len(s.bit), np.nan), np.full(len(s.bit), VAR_FLOOR)
     full = (s.index_ok if by_index else s.usable).copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
@@ -466,14 +467,22 @@ def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict
     return verdict
 
 
-def _same_vertices(X: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> bool:
-    """True when the suspect has the marked mesh's vertices in their order (noise, smoothing and
-    quantization keep it): the sample vertices lie near their stored places."""
+def _same_vertices(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> bool:
+    """True when the suspect X (n, 3), F (m, 3) has the marked mesh's vertices in their order (noise,
+    smoothing and quantization keep it): its sample vertices lie close to their stored places, or near them
+    and the faces are the marked mesh's. A copy re-numbered along its faces (an STL re-export) puts each
+    index near its old place without keeping it: its faces tell."""
     if len(X) != key.n_vertices:
         return False
     sm = s.samples
     dist = np.linalg.norm(X[sm.vertex] - _sample_places(s), axis=2)[sm.mask]
-    return bool(len(dist) and np.median(dist) < INDEX_MATCH * s.frame.scale)
+    if not len(dist):
+        return False
+    median = np.median(dist)
+    if median < INDEX_CLOSE * s.frame.scale:
+        return True
+    kept = {key.faces_fingerprint, key.pm_faces_fingerprint} - {""}
+    return bool(median < INDEX_MATCH * s.frame.scale and face_fingerprint(F) in kept)
 
 
 def _sample_places(s: RobustKeyData) -> np.ndarray:
