@@ -89,6 +89,7 @@ SECTIONS: tuple[Section, ...] = (
         "Blind scheme: read with a pass phrase alone",
         note=TUNING,
         paras=("Command:", "Embedding distortion", "Whole payload read", "False positives"),
+        cap=50,
     ),
     Section("blind-equal-mrms", "Blind scheme against Cho I and II at equal MRMS", note=TUNING),
     Section("fingerprint", "Fingerprinting: tracing and collusion", keep=("Per-copy cost", "Averaging collusion")),
