@@ -2,7 +2,7 @@
 whether the copy reads at the right length (the embed's self-check refuses or raises the margin on these today).
 
 Run: nice -n 10 python benchmarks/blind_length_choice.py [--families organic,cad,scan,thin,open] [--per-family 2]
-     [--phrases 3] [--seed S] [--out benchmarks/results/blind-attacks/length_choice.jsonl]
+     [--phrases 3] [--seed S] [--vertices 0] [--out benchmarks/results/blind-attacks/length_choice.jsonl]
 
 Each generated shape (fresh seeds from the master seed) x text payloads of 4, 7, 9 and 26 bytes x pass phrases
 is marked as ``pmwm.embed`` marks it before its self-check (the calibrated margin, ``radial.embed_signs``), written
@@ -22,25 +22,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import RESULTS  # noqa: E402
+from bench_blind_attacks import mark_unchecked  # noqa: E402
 
 from pmwm.schemes import blind  # noqa: E402
-from pmwm.schemes.blind import radial, word  # noqa: E402
+from pmwm.schemes.blind import word  # noqa: E402
 from pmwm_bench import corpus, split  # noqa: E402
 
 BYTES = (4, 7, 9, 26)
-
-
-def mark(V, F, phrase: str, text: str):
-    """The marked vertices (float32-exact) and margin, as ``blind.embed`` makes them before its self-check."""
-    secret = word.derive_secret(phrase)
-    payload, kind = word.payload_of(text, None, 64, None)
-    w = word.word_of(secret, kind, payload)
-    bit_of_bin, scramble = word.layout(secret, len(w), len(w))
-    signs = np.where((w ^ scramble)[bit_of_bin] == 1, 1, -1)
-    host = radial.Host.of(V, F, len(w))
-    marked = radial.embed_signs(V, F, signs, blind.DEFAULT_ALPHA, host=host)
-    alpha, marked = blind._calibrated(V, F, signs, blind.DEFAULT_ALPHA, marked, host)
-    return marked.astype(np.float32).astype(np.float64), alpha, secret, len(w)
 
 
 def main(argv=None) -> int:
@@ -49,6 +37,7 @@ def main(argv=None) -> int:
     ap.add_argument("--per-family", type=int, default=2)
     ap.add_argument("--phrases", type=int, default=3)
     ap.add_argument("--seed", type=int, default=None)
+    ap.add_argument("--vertices", type=int, default=0, help="vertices aimed at (0: the seed's, 3,000-28,000)")
     ap.add_argument("--out", default=str(RESULTS / "blind-attacks" / "length_choice.jsonl"))
     a = ap.parse_args(argv)
     seed = split.fresh_seeds(1)[0] if a.seed is None else a.seed
@@ -56,14 +45,17 @@ def main(argv=None) -> int:
     shapes = [(f, int(rng.integers(2**62))) for f in a.families.split(",") for _ in range(a.per_family)]
     print(f"master seed {seed}; shapes {shapes}", flush=True)
     with open(a.out, "w", encoding="utf-8") as fh:
-        fh.write(json.dumps({"run": " ".join(sys.argv), "seed": seed, "shapes": shapes}) + "\n")
+        head = {"run": " ".join(sys.argv), "seed": seed, "shapes": shapes, "vertices": a.vertices}
+        fh.write(json.dumps(head) + "\n")
         for fam, s in shapes:
-            V, F = corpus.generate(fam, s)
+            V, F = corpus.generate(fam, s, a.vertices or None)
             for k in range(a.phrases):
                 phrase = f"length {rng.integers(2**40):x}"
                 for n in BYTES:
                     text = "".join(rng.choice(list("ABCDEFGHJKLMNPQRSTUVWXYZ"), n))
-                    M, alpha, secret, n_word = mark(V, F, phrase, text)
+                    M, alpha = mark_unchecked(V, F, phrase, text)
+                    secret = word.derive_secret(phrase)
+                    n_word = len(word.payload_of(text, None, 32, None)[0]) + word.CHECK_BITS
                     stats = blind.bin_statistics(M, F)
                     v = blind.decide(stats, secret)
                     forced = blind.decide(dataclasses.replace(stats, n_word=n_word), secret)
