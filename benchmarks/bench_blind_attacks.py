@@ -3,7 +3,8 @@
 
 Run: nice -n 10 python benchmarks/bench_blind_attacks.py [--meshes horse_cyberware.ply,...]
      [--families organic,cad,scan] [--seed S] [--strengths 0.1,0.2,0.3,0.4,0.5,1]
-     python benchmarks/bench_blind_attacks.py --markdown-only      (the fragment and plot from the JSON lines)
+     [--out benchmarks/results/blind-attacks/runs.jsonl] [--also MORE.jsonl ...]
+     python benchmarks/bench_blind_attacks.py --markdown-only [--also ...]   (the fragment and plot from the rows)
 
 Meshes: report-only meshes of ``pmwm_bench.split`` (the reader was never tuned on them) and one shape per
 family of ``pmwm_bench.corpus`` from a seed drawn fresh. One master seed (fresh unless ``--seed``) draws every
@@ -238,21 +239,26 @@ def run_mesh(name: str, V: np.ndarray, F: np.ndarray, rng: np.random.Generator, 
 # --------------------------------------------------------------------------- the fragment
 
 
-def fragment(rows: list[dict], head: dict) -> str:
+def fragment(rows: list[dict], heads: list[dict], files: list[str]) -> str:
     meshes = sorted({r["mesh"] for r in rows if "mark_mrms" in r})
     refused = sorted({r["mesh"] for r in rows if r.get("attack") == "embed"})
-    n = len(meshes)
     marks = [r["mark_mrms"] for r in rows if r.get("attack") == "none"]
     own = [r for r in rows if r.get("attack") == "none"]
-    est = {r["mesh"]: (r["strip_bins"], r["true_bins"]) for r in rows if "strip_bins" in r}
+    est = {(r["mesh"], r["owner_phrase"]): (r["strip_bins"], r["true_bins"]) for r in rows if "strip_bins" in r}
     lines = [
         "## What an informed attacker does to the blind mark (no pass phrase)",
         "",
-        f"Command: `{head['command']}`; commit {head['commit']}; machine: {MACHINE}; {head['started']}. "
-        f"Master seed {head['seed']} (drawn fresh from os.urandom; every pass phrase, payload and noise seed of "
-        "the run follows from it); corpus seeds: " + ", ".join(f"{f} {s}" for f, s in head["corpus"].items()) + ".",
+        f"Command: {len(heads)} run(s) on {MACHINE}, "
+        + "; ".join(
+            f"`{h['command']}` at commit {h['commit']}, {h['started']}, master seed {h['seed']}, corpus seeds "
+            + ", ".join(f"{f} {s}" for f, s in h["corpus"].items())
+            for h in heads
+        )
+        + ". Master seeds drawn fresh from os.urandom; every pass phrase, payload and noise seed of a run follows "
+        "from its seed. Raw rows: " + ", ".join(f"`{f}`" for f in files) + ".",
         "",
-        f"Meshes: {', '.join(m for m in meshes)} ({n}; report-only data meshes and generated shapes, none tuned on)"
+        f"Copies: {len(own) + len(refused)} marked by their owners on {', '.join(meshes)} (report-only data meshes "
+        "and generated shapes, none tuned on)"
         + (f"; embed refused on {', '.join(refused)}" if refused else "")
         + f". Owner: default settings, an 8-byte text payload; marking MRMS median {np.median(marks):.4f} % of the "
         f"bounding-box diagonal (range {min(marks):.4f}-{max(marks):.4f}); the untouched marked copy read with its "
@@ -314,7 +320,7 @@ def fragment(rows: list[dict], head: dict) -> str:
                 + f" | {sum(r['owner']['marked'] and not r['owner']['payload_ok'] for r in done)} of {n}"
                 + f" | {sum(r['pirate']['payload_ok'] for r in done)} of {n} |"
             )
-    lines += ["", f"The curve: ![curve](blind-attacks/curve.png) (raw rows: `benchmarks/results/{NAME}/runs.jsonl`)."]
+    lines += ["", "The curve: ![curve](blind-attacks/curve.png)"]
     return "\n".join(lines) + "\n"
 
 
@@ -323,7 +329,7 @@ def target(rows: list[dict], r: dict) -> float:
     if r["variant"].endswith("x the marking"):
         return float(r["variant"].split("x")[0]) * r["mark_mrms"]
     return next(s["mrms"] for s in rows if s.get("attack") == "strip" and s["mesh"] == r["mesh"]
-                and s["variant"] == r["variant"])
+                and s["owner_phrase"] == r["owner_phrase"] and s["variant"] == r["variant"])
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -357,13 +363,14 @@ def plot(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def write_outputs(rows_path: Path) -> None:
-    lines = [json.loads(ln) for ln in rows_path.read_text().splitlines() if ln.strip()]
-    head = next(r for r in lines if r.get("attack") == "run")
+def write_outputs(paths: list[Path]) -> None:
+    """The fragment and the plot from the JSON lines of one or more runs (each file starts with its run's row)."""
+    lines = [json.loads(ln) for p in paths for ln in p.read_text().splitlines() if ln.strip()]
+    heads = [r for r in lines if r.get("attack") == "run"]
     rows = [r for r in lines if r.get("attack") != "run"]
     RAW.mkdir(parents=True, exist_ok=True)
     plot(rows, RAW / "curve.png")
-    write_section(NAME, fragment(rows, head))
+    write_section(NAME, fragment(rows, heads, [os.path.relpath(p, RESULTS.parents[1]) for p in paths]))
 
 
 def main(argv=None) -> int:
@@ -374,10 +381,11 @@ def main(argv=None) -> int:
     ap.add_argument("--strengths", default=",".join(map(str, STRENGTHS)))
     ap.add_argument("--out", default=str(RAW / "runs.jsonl"))
     ap.add_argument("--markdown-only", action="store_true")
+    ap.add_argument("--also", nargs="*", default=[], help="more runs' JSON lines for the fragment and the plot")
     a = ap.parse_args(argv)
     out = Path(a.out)
     if a.markdown_only:
-        write_outputs(out)
+        write_outputs([out, *map(Path, a.also)])
         return 0
     names = [m for m in a.meshes.split(",") if m]
     bad = [m for m in names if m not in split.REPORT_ONLY]
@@ -403,7 +411,7 @@ def main(argv=None) -> int:
     for name, V, F in items:
         run_mesh(name, np.asarray(V, np.float64), np.asarray(F, np.int64), rng, strengths, emit)
     fh.close()
-    write_outputs(out)
+    write_outputs([out, *map(Path, a.also)])
     return 0
 
 
