@@ -26,6 +26,9 @@ Every attacked copy is verified with the owner's pass phrase (marked, p-value, p
 one with the pirate's too. Distortion: MRMS surface distance (``pmwm.metrics.displaced_surface_distance``, 20,000
 samples, % of the bounding-box diagonal), the attack's from the marked copy, the marking's from the original; the
 table gives the attack's as a multiple of the marking's. One JSON line per attacked copy (``--out``).
+
+Unlike the other scripts, this one uses the blind scheme's internals (``radial``, ``word``, the embedder's margin
+calibration): the attacker it plays has the code.
 """
 
 from __future__ import annotations
@@ -257,9 +260,10 @@ def fragment(rows: list[dict], heads: list[dict], files: list[str]) -> str:
         + ". Master seeds drawn fresh from os.urandom; every pass phrase, payload and noise seed of a run follows "
         "from its seed. Raw rows: " + ", ".join(f"`{f}`" for f in files) + ".",
         "",
-        f"Copies: {len(own) + len(refused)} marked by their owners on {', '.join(meshes)} (report-only data meshes "
-        "and generated shapes, none tuned on)"
-        + (f"; embed refused on {', '.join(refused)}" if refused else "")
+        f"Copies: {len(own)}, marked by their owners on {', '.join(meshes)} (report-only data meshes and generated "
+        "shapes, none tuned on)"
+        + (f"; the owner's embed refused (its self-check, one line, nothing written) on {', '.join(refused)}"
+           if refused else "")
         + f". Owner: default settings, an 8-byte text payload; marking MRMS median {np.median(marks):.4f} % of the "
         f"bounding-box diagonal (range {min(marks):.4f}-{max(marks):.4f}); the untouched marked copy read with its "
         f"payload {sum(r['owner']['payload_ok'] for r in own)} of {len(own)}. The key-free length estimate "

@@ -94,7 +94,7 @@ SECTIONS: tuple[Section, ...] = (
     Section(
         "blind-attacks",
         "Blind scheme against an attacker without the pass phrase",
-        paras=("Command:", "Strip:", "Overmarking:"),
+        paras=("Command:", "Copies:", "Strip:", "Overmarking:"),
         plots=("curve.png",),
     ),
     Section("fingerprint", "Fingerprinting: tracing and collusion", keep=("Per-copy cost", "Averaging collusion")),
