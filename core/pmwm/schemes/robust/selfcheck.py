@@ -29,10 +29,13 @@ from ...base import KeyOf, Verdict
 from ...errors import PayloadError
 from ...key import WatermarkKey
 from ...readback import light_copies
+from .code import coded_bits
+from .read import key_data
 
-__all__ = ["ATTEMPTS", "Marking", "ensure", "failed_copy"]
+__all__ = ["ATTEMPTS", "Marking", "ensure", "failed_copy", "misread_sites"]
 
-ATTEMPTS = 4  # layouts of the same sites tried before the embed refuses
+ATTEMPTS = 4  # layouts of the same sites read back before the embed refuses
+RELAYOUTS = 3  # layouts dealt again, without reading, while a bit has no site that reads
 
 
 @dataclass
@@ -53,14 +56,25 @@ class Marking:
 
 def failed_copy(
     marking: Marking, faces: np.ndarray, read: Callable[[np.ndarray, np.ndarray, WatermarkKey], Verdict]
-) -> Optional[str]:
-    """The name of the first light copy of the marked mesh (faces (m, 3) int64) whose verdict by ``read``
-    (vertices, faces, key) is not MARKED with the payload confirmed; None when every copy reads."""
+) -> Optional[tuple[str, Verdict]]:
+    """The name and the verdict of the first light copy of the marked mesh (faces (m, 3) int64) whose verdict by
+    ``read`` (vertices, faces, key) is not MARKED with the payload confirmed; None when every copy reads."""
     for name, V, F in light_copies(marking.vertices, faces, marking.key.secret):
         verdict = read(V, F, marking.key)
         if not (verdict.marked and verdict.payload_confirmed):
-            return name
+            return name, verdict
     return None
+
+
+def misread_sites(key: WatermarkKey, verdict: Verdict) -> np.ndarray:
+    """(S,) bool: the sites of the coded bits that ``verdict`` erased or read wrong (its per-bit scores against
+    the key's coded, scrambled bits)."""
+    data = key_data(key)
+    coded = coded_bits(key.bits, data.code)
+    expected = (coded ^ key.stream("scramble", len(coded))) == 1
+    scores = np.asarray(verdict.scores, np.float64)
+    misread = (scores == 0) | ((scores > 0) != expected)
+    return misread[data.bit]
 
 
 def ensure(
@@ -70,18 +84,35 @@ def ensure(
     payload: str,
 ) -> Marking:
     """The first marking that reads back from every light copy: ``mark(attempt, unread)`` for attempt 0, 1,
-    ... ``ATTEMPTS`` - 1, ``unread`` (S,) bool the sites unread in any earlier attempt (None at first). faces
-    (m, 3) int64; ``read``: the scheme's reader; ``payload``: the payload in words, for the message. Raises
-    PayloadError (one line: the copy that failed, what to try) when none does."""
+    ... ``ATTEMPTS`` - 1, ``unread`` (S,) bool the sites an earlier attempt could not count on (None at first):
+    those no registered copy reads, and those of the bits the failed copy misread. faces (m, 3) int64;
+    ``read``: the scheme's reader; ``payload``: the payload in words, for the message. Raises PayloadError (one
+    line: the copy that failed, what to try) when none reads back."""
     unread = None
     for attempt in range(ATTEMPTS):
         marking = mark(attempt, unread)
+        for _ in range(RELAYOUTS):  # (cheap: no reading) until every bit has a site that reads
+            if not _bare_bits(marking):
+                break
+            unread = _union(unread, marking.unread)
+            marking = mark(attempt, unread)
         failed = failed_copy(marking, faces, read)
         if failed is None:
             return marking
-        unread = marking.unread if unread is None else unread | marking.unread
+        unread = _union(unread, marking.unread | misread_sites(marking.key, failed[1]))
     raise PayloadError(
-        f"the robust mark ({payload}) does not read back from {failed} with its payload confirmed, "
+        f"the robust mark ({payload}) does not read back from {failed[0]} with its payload confirmed, "
         f"in {ATTEMPTS} layouts of its sites; nothing written. Try a shorter payload, or a mesh with more "
         "vertices (subdivide it)"
     )
+
+
+def _bare_bits(marking: Marking) -> bool:
+    """Whether some coded bit of the marking has no site that a registered copy reads."""
+    data = key_data(marking.key)
+    reads = np.bincount(data.bit[~marking.unread], minlength=data.coded_length(marking.key.n_bits))
+    return bool((reads == 0).any())
+
+
+def _union(a: Optional[np.ndarray], b: np.ndarray) -> np.ndarray:
+    return b.copy() if a is None else a | b
