@@ -418,7 +418,9 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
             return selfcheck.Marking(marked, key_of, ~usable)
 
         report(0.2, "marking the sites and reading them back")  # (else another layout, or a PayloadError)
-        marking = selfcheck.ensure(mark, F, verify, _payload_words(job))
+        marking = selfcheck.ensure(
+            mark, F, verify, _payload_words(job), _advice(job), lambda message: report(0.2, message)
+        )
         marked = marking.vertices
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
@@ -433,3 +435,10 @@ def _payload_words(job) -> str:
     if job.payload_kind == "text" and job.options.payload is not None:
         return f"a {len(job.options.payload.encode('utf-8'))}-byte payload"
     return f"a {len(job.bits)}-bit payload"
+
+
+def _advice(job) -> str:
+    """What to try when the mark does not read back: a higher strength when it was set below the default, a
+    shorter payload, a finer mesh."""
+    weak = f"a higher --strength ({DEFAULT_STRENGTH:g} by default), " if job.strength < DEFAULT_STRENGTH else ""
+    return f"{weak}a shorter payload, or a mesh with more vertices (subdivide it)"

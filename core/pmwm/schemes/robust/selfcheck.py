@@ -7,11 +7,12 @@ order, which takes the registration path, and a copy with a small noise), and as
 payload confirmed. On a small mesh a bit's few sites may all be spoilt by their neighbours' bumps, or find no
 protected ring: a registered copy then reads that bit as an erasure (a keyed coin flip), and a payload without
 a code is unconfirmed half the time. A larger strength does not help (the spoilt sites stay spoilt); another
-layout does. So when a copy does not read, the same sites are dealt to the bits again, in a layout drawn from
-the secret with the attempt's number (``embed.lay_out``), the sites that no registered copy can read given no
-readable energy (the layout then pairs them with sites that read), up to ``ATTEMPTS`` layouts in all. If none
-reads back, the embed refuses with a PayloadError of one line (the copy that failed, what to try), so the
-command line and the add-on report it and write nothing.
+layout does. So the sites are dealt to the bits again (``embed.lay_out``, ``layout.assign_bits``), each bit then
+given a site that reads: first, without reading anything, while some bit has no site a registered copy can read
+(at most ``RELAYOUTS`` times); then, when a copy does not read, in a layout drawn from the secret with the
+attempt's number, the sites of the bits that copy misread no longer counted on, up to ``ATTEMPTS`` readings in
+all. If none reads back, the embed refuses with a PayloadError of one line (the copy that failed, what to try),
+so the command line and the add-on report it and write nothing.
 
 Every choice comes from the secret: the same secret and mesh give the same marking, the same copies and the
 same verdict.
@@ -82,12 +83,15 @@ def ensure(
     faces: np.ndarray,
     read: Callable[[np.ndarray, np.ndarray, WatermarkKey], Verdict],
     payload: str,
+    advice: str,
+    report: Callable[[str], None] = lambda message: None,
 ) -> Marking:
     """The first marking that reads back from every light copy: ``mark(attempt, unread)`` for attempt 0, 1,
     ... ``ATTEMPTS`` - 1, ``unread`` (S,) bool the sites an earlier attempt could not count on (None at first):
     those no registered copy reads, and those of the bits the failed copy misread. faces (m, 3) int64;
-    ``read``: the scheme's reader; ``payload``: the payload in words, for the message. Raises PayloadError (one
-    line: the copy that failed, what to try) when none reads back."""
+    ``read``: the scheme's reader; ``payload`` (the payload in words) and ``advice`` (what to try): for the
+    message; ``report(message)``: told of each layout that does not read back. Raises PayloadError (one line:
+    the copy that failed, what to try) when none reads back."""
     unread = None
     for attempt in range(ATTEMPTS):
         marking = mark(attempt, unread)
@@ -100,10 +104,10 @@ def ensure(
         if failed is None:
             return marking
         unread = _union(unread, marking.unread | misread_sites(marking.key, failed[1]))
+        report(f"layout {attempt + 1} of the sites does not read back from {failed[0]}")
     raise PayloadError(
         f"the robust mark ({payload}) does not read back from {failed[0]} with its payload confirmed, "
-        f"in {ATTEMPTS} layouts of its sites; nothing written. Try a shorter payload, or a mesh with more "
-        "vertices (subdivide it)"
+        f"in {ATTEMPTS} layouts of its sites; nothing written. Try {advice}"
     )
 
 
