@@ -81,15 +81,38 @@ def costs(repeats: int, rows: list, save) -> None:
     shapes = {"bunny": (src.vertices, src.faces), "organic 11": corpus.generate("organic", 11, vertices=35000)}
     for name, (V, F) in shapes.items():
         for progressive in (False, True):
-            times = []
+            times, reads, layouts = [], [], []
             for r in range(repeats):
+                told: list[str] = []
                 t0 = time.perf_counter()
-                pmwm.embed(V, F, pmwm.EmbedOptions(seed=r, progressive=progressive))
+                res = pmwm.embed(
+                    V,
+                    F,
+                    pmwm.EmbedOptions(seed=r, progressive=progressive),
+                    progress=lambda f, m: told.append(m) if m.startswith("layout ") else None,
+                )
                 times.append(time.perf_counter() - t0)
+                layouts.append(len(told) + 1)
+                if not progressive:  # one reading of the copies the check reads (where this pmwm has them)
+                    reads.append(_copies_read_s(res))
             row = {"part": "cost", "mesh": name, "vertices": len(V), "progressive": progressive, "times": times}
+            row.update(reads=reads, layouts=layouts)
             rows.append(row)
             save()
             print(json.dumps(row), flush=True)
+
+
+def _copies_read_s(res) -> float | None:
+    """Seconds to read the light copies of an embed's output with its key, as the self-check does once (None
+    when this pmwm has no ``pmwm.readback``)."""
+    try:
+        from pmwm.readback import light_copies
+    except ImportError:
+        return None
+    t0 = time.perf_counter()
+    for _, V, F in light_copies(res.vertices, res.faces, res.key.secret):
+        pmwm.verify(V, F, res.key)
+    return time.perf_counter() - t0
 
 
 def run(args) -> None:
@@ -99,10 +122,12 @@ def run(args) -> None:
     def save() -> None:
         Path(args.out).write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
 
-    outcomes(range(args.seeds[0], args.seeds[1]), args.poses, None, rows, save)
-    if args.payload:
-        outcomes(range(args.seeds[0], args.seeds[1]), args.poses, args.payload, rows, save)
-    costs(args.repeats, rows, save)
+    if args.part in ("all", "outcomes"):
+        outcomes(range(args.seeds[0], args.seeds[1]), args.poses, None, rows, save)
+        if args.payload:
+            outcomes(range(args.seeds[0], args.seeds[1]), args.poses, args.payload, rows, save)
+    if args.part in ("all", "cost"):
+        costs(args.repeats, rows, save)
 
 
 def _summary(rows: list, payload) -> dict:
@@ -121,20 +146,30 @@ def _summary(rows: list, payload) -> dict:
     }
 
 
+def _merged(paths: str) -> dict:
+    """The runs of the comma-separated JSON files ``paths``: the first one's meta, every row."""
+    runs = [json.loads(Path(p).read_text()) for p in paths.split(",")]
+    return {
+        "meta": runs[0]["meta"],
+        "commands": [r["meta"]["command"] for r in runs],
+        "rows": [row for r in runs for row in r["rows"]],
+    }
+
+
 def write(args) -> None:
-    before, after = (json.loads(Path(p).read_text()) for p in (args.before, args.after))
+    runs = before, after = [_merged(p) for p in (args.before, args.after)]
     payloads = sorted({r["payload"] or "" for r in after["rows"] if r["part"] == "blob"})
     lines = [
         f"## Robust embed self-check (`{NAME}`)",
         "",
-        f"Command: `{after['meta']['command']}` after `{before['meta']['command']}`; code before: "
+        f"Commands: {', '.join(f'`{c}`' for c in before['commands'] + after['commands'])}; code before: "
         f"{before['meta']['label']}, after: {after['meta']['label']}; {after['meta']['machine']} (shared with "
         "other jobs: times are indicative).",
         "",
         "### Embeds on the small blob (2,906 vertices): outcomes",
         "",
         "Each embed's output read as written and in poses and vertex orders the self-check does not use; "
-        "\"unread\": not MARKED with the payload confirmed.",
+        '"unread": not MARKED with the payload confirmed.',
         "",
     ]
     for payload in payloads:
@@ -150,16 +185,25 @@ def write(args) -> None:
                 fmt = (lambda x: f"{x:.2f}") if k == "median embed s" else str
                 lines.append(f"| {k} | {fmt(b[k])} | {fmt(a[k])} |")
         lines.append("")
-    lines += ["### Embed time (s, wall, median of the repeats; seeds 0..)", "", "| mesh | vertices | progressive mesh "
-              "| before | after |", "|---|---|---|---|---|"]
-    cost_b = {(r["mesh"], r["progressive"]): r for r in before["rows"] if r["part"] == "cost"}
-    for r in (r for r in after["rows"] if r["part"] == "cost"):
-        b = cost_b.get((r["mesh"], r["progressive"]))
+    lines += [
+        "### Embed time (s, wall, median of the repeats, seeds 0, 1, 2)",
+        "",
+        "\"reads\": one reading of the check's three copies of the output (after; the check's cost when the first "
+        'layout reads back); "layouts": layouts read back per embed.',
+        "",
+        "| mesh | vertices | progressive mesh | before | after | reads | layouts |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    cost_b, cost_a = ({(r["mesh"], r["progressive"]): r for r in d["rows"] if r["part"] == "cost"} for d in runs)
+    for key, r in cost_a.items():  # (the last run of each)
+        b = cost_b.get(key)
+        reads = [x for x in r.get("reads", []) if x is not None]
         lines.append(
             f"| {r['mesh']} | {r['vertices']} | {'yes' if r['progressive'] else 'no'} | "
-            f"{statistics.median(b['times']):.2f} | {statistics.median(r['times']):.2f} |"
-            if b
-            else f"| {r['mesh']} | {r['vertices']} | {r['progressive']} | - | {statistics.median(r['times']):.2f} |"
+            + (f"{statistics.median(b['times']):.2f}" if b else "-")
+            + f" | {statistics.median(r['times']):.2f} | "
+            + (f"{statistics.median(reads):.2f}" if reads else "-")
+            + f" | {', '.join(map(str, r.get('layouts', [])))} |"
         )
     write_section(NAME, "\n".join(lines))
 
@@ -174,9 +218,10 @@ def main() -> int:
     r.add_argument("--poses", type=int, default=4)
     r.add_argument("--payload", default="OWNR-26")
     r.add_argument("--repeats", type=int, default=3)
+    r.add_argument("--part", choices=("all", "outcomes", "cost"), default="all")
     w = sub.add_parser("write")
-    w.add_argument("before")
-    w.add_argument("after")
+    w.add_argument("before", help="the runs before, FILE[,FILE]")
+    w.add_argument("after", help="the runs after, FILE[,FILE]")
     args = p.parse_args()
     (run if args.what == "run" else write)(args)
     return 0

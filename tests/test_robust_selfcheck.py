@@ -46,6 +46,7 @@ def test_an_embed_whose_own_output_read_unconfirmed_now_reads_or_refuses(blob):
     assert _confirmed(*_reposed(res.vertices, res.faces, 40), res.key)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 3, 6])
 def test_the_output_reads_confirmed_as_written_re_posed_and_with_noise(blob, seed):
     V, F = blob
@@ -57,6 +58,7 @@ def test_the_output_reads_confirmed_as_written_re_posed_and_with_noise(blob, see
     assert pmwm.verify(res.vertices, res.faces, res.key).payload == "OWNR-26"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [5, 7])
 def test_the_output_reads_in_poses_the_check_never_tried(blob, seed):
     V, F = blob
@@ -65,6 +67,7 @@ def test_the_output_reads_in_poses_the_check_never_tried(blob, seed):
         assert _confirmed(*_reposed(res.vertices, res.faces, pose), res.key)
 
 
+@pytest.mark.slow
 def test_a_layout_that_does_not_read_is_dealt_again_the_same_way_each_time(blob):
     V, F = blob
     runs = []
