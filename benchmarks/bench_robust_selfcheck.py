@@ -140,7 +140,7 @@ def _summary(rows: list, payload) -> dict:
         "posed": sum(len(r["posed"]) for r in back),
         "posed unread": sum(len(r["posed"]) - sum(r["posed"]) for r in back),
         "returned with a posed copy unread": sum(not all(r["posed"]) for r in back),
-        "second layout": sum(bool(r.get("layouts")) for r in back),
+        "embeds that needed a second layout": sum(bool(r.get("layouts")) for r in back),
         "seeds": f"{min(r['seed'] for r in blob)}-{max(r['seed'] for r in blob)}" if blob else "",
         "median embed s": statistics.median(r["embed_s"] for r in blob) if blob else float("nan"),
     }
