@@ -99,6 +99,7 @@ SECTIONS: tuple[Section, ...] = (
         plots=("curve.png",),
     ),
     Section("fingerprint", "Fingerprinting: tracing and collusion", keep=("Per-copy cost", "Averaging collusion")),
+    Section("robust-selfcheck", "The robust embed reads its own output back", keep=()),
     Section("core", "Speed and size"),
     Section("scale", "One million faces"),
     Section("pm-speed", "Progressive mesh speed", cap=30),

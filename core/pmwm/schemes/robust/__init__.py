@@ -36,6 +36,9 @@ Embedding.
   spent where no reading will look.
 - The site vertex and ``RING`` annulus vertices at keyed angles are protected in the progressive
   mesh, so every level of detail, from the base mesh up, keeps each bump's peak and its surroundings.
+- Read back (``selfcheck``): the embed reads its output with the key it returns, as written, re-posed and
+  re-ordered, and with a little noise; a layout that does not read, MARKED with the payload confirmed and
+  every bit with margin, is dealt again from the secret; none confirmed: a PayloadError, nothing returned.
 
 Reading (on the suspect registered to the key's frame, ``pmwm.register``).
 - Pose: a copy that is not in the key's frame and not in the marked vertex order is registered in every
@@ -78,7 +81,7 @@ surface (never the faces), and 3,000 samples of the marked surface for registrat
 Modules: ``fields`` (site frame, bump and swirl fields, templates, line-surface crossings),
 ``layout`` (the keyed bit assignment), ``code`` (the payload code and its confirmation), ``keydata`` (the typed
 key data, its reader and writer),
-``embed``, ``read``.
+``embed``, ``read``, ``selfcheck`` (the embed reads its own output back).
 """
 
 from __future__ import annotations
