@@ -17,7 +17,7 @@ from ...key import WatermarkKey
 from ...register import POSES, register_poses, similarity_fit
 from ...spatial import nearest
 from ...validate import check_mesh
-from .code import coded_bits, confirm_with
+from .code import median, coded_bits, confirm_with
 from .fields import OUTER, heights, index_templates, profile
 from .keydata import RobustKeyData
 
@@ -29,6 +29,8 @@ IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be
 INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
 SCREEN_PER_BIT = 2  # sites per bit a registered pose is screened on
 FULL_READS = 2  # the strongest screened poses read in full
+OUTLIER_SHARE = 0.05  # prior share of sites whose reading is not their own mark's (site_llr)
+OUTLIER_SPAN = 10.0  # such a reading may be anything over this span, in bump amplitudes
 
 
 ALIGNED = "none (already in the key's frame)"  # RobustDetail.registration of a copy read in place
@@ -221,10 +223,33 @@ def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int) -> np.ndarray:
-    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (NaN soft values are
-    not read; 0 when no site of the bit is)."""
+    """Each bit's score (n_bits,) float64: the chip-signed sum of its readable sites' log-likelihood
+    ratios (``site_llr``; NaN soft values are not read; 0 when no site of the bit is)."""
     ok = np.isfinite(soft)
-    return np.bincount(s.bit[ok], weights=(s.chip * soft / var)[ok], minlength=n_bits)
+    return np.bincount(s.bit[ok], weights=(s.chip * site_llr(soft, var))[ok], minlength=n_bits)
+
+
+def site_llr(soft: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """Per site (S,) float64, the log-likelihood ratio of its chip-signed bit being +1 rather than -1
+    (0 where soft is NaN), for a site that reads its sign times the copy's gain g plus Gaussian noise
+    of variance ``var``, except with probability ``OUTLIER_SHARE``, when it reads anything within
+    ``OUTLIER_SPAN`` bump amplitudes: a bump of another mark on or near the site (a copy marked again
+    by another key), a site torn by the damage. The gain g, which smoothing shrinks, is the median |soft|.
+
+    Where its noise explains the reading, a site weighs 2 g soft / var, the inverse-variance weight;
+    a reading that neither sign explains (|soft| far beyond g) weighs nothing, and no site, however
+    sure it seems, outweighs a few others. The ratio is odd in soft, so a copy without the mark still
+    gives each bit either sign with probability 1/2."""
+    ok = np.isfinite(soft) & np.isfinite(var)
+    x = np.where(ok, soft, 0.0)
+    g = max(median(np.abs(x[ok])), 1e-3) if ok.any() else 1.0
+    sd = np.sqrt(np.where(ok, var, 1.0))
+    # log densities up to the common factor 1 / sqrt(2 pi): the site's own reading of +1 or -1, an outlier
+    own = np.log1p(-OUTLIER_SHARE) - np.log(sd)
+    other = np.log(OUTLIER_SHARE / OUTLIER_SPAN) + 0.5 * np.log(2.0 * np.pi)
+    plus = np.logaddexp(own - 0.5 * ((x - g) / sd) ** 2, other)
+    minus = np.logaddexp(own - 0.5 * ((x + g) / sd) ** 2, other)
+    return np.where(ok, plus - minus, 0.0)
 
 
 @dataclass
