@@ -278,7 +278,8 @@ def main() -> None:
             out.write(json.dumps(head) + "\n")
             while len(rows) < a.copies:  # (a shape too small for the payload adds no row)
                 family = FAMILIES[int(rng.integers(len(FAMILIES)))]
-                rows += one_shape(family, int(rng.integers(1 << 31)), rng, min(a.per_shape, a.copies - len(rows)), out, kinds)
+                shape_seed, n = int(rng.integers(1 << 31)), min(a.per_shape, a.copies - len(rows))
+                rows += one_shape(family, shape_seed, rng, n, out, kinds)
                 print(f"{len(rows)} copies", flush=True)
         print(summary(rows))
     if a.speed:
