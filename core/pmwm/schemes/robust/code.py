@@ -182,13 +182,13 @@ def confirm_with(scores: np.ndarray, key: WatermarkKey, code: Optional[BCHCode])
     reliable = np.abs(agree)
     if x.dtype != np.uint8:
         mag = np.abs(x)
-        ref = median(mag[mag > 0]) if np.any(mag > 0) else 1.0
+        ref = _median(mag[mag > 0]) if np.any(mag > 0) else 1.0
         reliable = np.minimum(1.0, mag / ref)
     ok = bool(agree.sum() > n - d or (reliable * agree).sum() > n - d)
     return (key.bits.copy() if ok else hard[: code.k]), ok, (wrong if ok else 0)
 
 
-def median(x: np.ndarray) -> float:
+def _median(x: np.ndarray) -> float:
     """np.median of x (k,) float64, k >= 1, by partition: np.median imports numpy.ma, which a command-line
     verify otherwise never loads."""
     k = len(x)
