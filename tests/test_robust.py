@@ -615,6 +615,26 @@ def test_overmarked_copy_reads_each_keys_own_payload(bunny, marked, factor):
         assert w.payload in (payload, None)
 
 
+@pytest.mark.parametrize("posed", [False, True])
+def test_a_copy_marked_again_at_3x_reads_both_payloads(posed):
+    """A small CAD flange (6,772 vertices) marked, then marked again by another key at 3x the strength,
+    in place or moved: the owner's key reads the owner's payload, confirmed, and the other key its own,
+    from the same copy. The other mark's bumps land on some of the owner's sites at 3x their height;
+    read as they come, they outweigh the sites' own readings and leave the payload unconfirmed."""
+    from pmwm_bench.corpus import generate
+
+    V, F = generate("cad4", 1)
+    owner = robust_embed(V, F, pmwm.EmbedOptions(payload="OWNR", seed=5, progressive=False))
+    assert key_data(owner.key).code is not None
+    other = robust_embed(
+        owner.vertices, owner.faces, pmwm.EmbedOptions(payload="THIEF", seed=100, strength=6.0, progressive=False)
+    )
+    W, G = attacks.similarity(other.vertices, other.faces, seed=4) if posed else (other.vertices, other.faces)
+    for key, payload in ((owner.key, "OWNR"), (other.key, "THIEF")):
+        v = robust_verify(W, G, key)
+        assert v.marked and v.payload_confirmed and v.payload == payload, (payload, v.p_value, v.bit_errors)
+
+
 def test_keys_without_a_code_still_read_their_marks(bunny, monkeypatch):
     """Keys written before the payload code (format 2: the sites carry the payload bits) keep reading
     their marks; their payload is confirmed only when every bit reads right."""
