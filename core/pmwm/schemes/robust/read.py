@@ -404,9 +404,9 @@ def _read_at(
     full = (s.index_ok if by_index else s.usable).copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
         centre = centre_soft(X, s, by_index)
-        # in the marked vertex order, a site read by index reads by all its vertices: its own vertex alone
-        # cannot tell its bump from another mark's on or near it
-        at_centre = s.centre_ok & np.isfinite(centre) & ~(full if by_index else False)
+        at_centre = s.centre_ok & np.isfinite(centre)
+        if by_index:  # a site read by index reads by all its vertices: its own vertex alone cannot tell
+            at_centre &= ~full  # its bump from another mark's on or near it
         soft[at_centre] = centre[at_centre]
         full &= ~at_centre
     if full.any():
