@@ -377,7 +377,9 @@ def test_noise_on_a_reordered_copy_is_still_read(marked):
         noisy = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=seed)
         v = pmwm.verify(*attacks.reorder(*noisy, seed=seed), marked.key)
         assert v.mode == "registered" and v.detail.heights == "by position"
-        assert v.marked and v.matches >= 0.8 * v.carriers_total, v.matches  # coded bits: see above
+        # coded bits (see above); sites weighing by their likelihood ratio read 1-2 % fewer of them right at
+        # this noise than by inverse variance (docs/decisions/113)
+        assert v.marked and v.matches >= 0.75 * v.carriers_total, v.matches
         assert v.payload in (PAYLOAD, None)
 
 
