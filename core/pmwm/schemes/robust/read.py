@@ -239,8 +239,8 @@ def site_llr(soft: np.ndarray, var: np.ndarray) -> np.ndarray:
     reads anything within ``OUTLIER_SPAN`` bump amplitudes: a bump of another mark on or near the site
     (a copy marked again by another key), a site torn by the damage.
 
-    A site that reads within its gains weighs about as much as its noise lets it (2 soft / var where
-    the noise is large), a sure site no more than about log(1 / OUTLIER_SHARE) (no single site, however
+    A site that reads within its gains weighs about as much as its noise lets it (in proportion to
+    soft / var where the noise is large), a sure site no more than about log(1 / OUTLIER_SHARE) (no single site, however
     sure it seems, outweighs a few others), and a reading that neither sign explains (|soft| beyond
     GAIN_MAX by several noise widths) weighs nothing. The ratio is odd in soft, so on a copy without the
     mark each bit still takes either sign with probability 1/2."""
