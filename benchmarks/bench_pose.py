@@ -17,6 +17,7 @@ bundled bunny for the cases verify is held to (the marked mesh, a reordered copy
 worktree's code and, with ``--compare PATH`` (a checkout's ``core`` folder), with that code in a subprocess.
 
 Run: nice -n 10 python benchmarks/bench_pose.py --copies 200 --out pose.jsonl
+     nice -n 10 python benchmarks/bench_pose.py --copies 60 --damage overmark --seed S   (one damage alone)
      nice -n 10 python benchmarks/bench_pose.py --speed --compare /work/main/core
 """
 
@@ -83,7 +84,9 @@ def damage(V, F, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, np.nd
     raise ValueError(kind)
 
 
-def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: int, out) -> list[dict]:
+def one_shape(
+    family: str, shape_seed: int, rng: np.random.Generator, copies: int, out, kinds: tuple = DAMAGES
+) -> list[dict]:
     V, F = generate(family, shape_seed)
     payload = "".join(rng.choice(list(LETTERS), int(rng.integers(3, 8))))
     key_seed = int(rng.integers(1 << 31))
@@ -96,7 +99,7 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
     rows = []
     for _ in range(copies):
         W, G = res.vertices, res.faces
-        kind = DAMAGES[int(rng.integers(len(DAMAGES)))]
+        kind = kinds[int(rng.integers(len(kinds)))]
         params: dict = {}
         if kind == "overmark":
             f = float(rng.uniform(1.0, 4.0))
@@ -236,6 +239,11 @@ def main() -> None:
     ap.add_argument(
         "--uncoded", action="store_true", help="mark without the payload code (as keys of format 2), to compare"
     )
+    ap.add_argument(
+        "--damage",
+        default=",".join(DAMAGES),
+        help=f"the damages drawn from, comma-separated (default: all of {','.join(DAMAGES)})",
+    )
     ap.add_argument("--speed", action="store_true", help="part 2: verify's speed on the bunny")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--summarize", default=None, help="print the tables of a JSON-lines file of an earlier run")
@@ -258,16 +266,20 @@ def main() -> None:
 
         importlib.import_module("pmwm.schemes.robust.embed").payload_code = lambda k: None
     if a.copies:
+        kinds = tuple(a.damage.split(","))
+        if set(kinds) - set(DAMAGES):
+            ap.error(f"--damage: unknown {sorted(set(kinds) - set(DAMAGES))}; known: {','.join(DAMAGES)}")
         seed = a.seed if a.seed is not None else int.from_bytes(os.urandom(4), "little")
         print(f"run seed {seed} (replay with --seed {seed})", flush=True)
         rng = np.random.default_rng(seed)
         rows: list = []
         with open(a.out, "a") as out:
-            head = {"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM, "uncoded": a.uncoded}
+            head = {"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM, "uncoded": a.uncoded, "damages": kinds}
             out.write(json.dumps(head) + "\n")
             while len(rows) < a.copies:  # (a shape too small for the payload adds no row)
                 family = FAMILIES[int(rng.integers(len(FAMILIES)))]
-                rows += one_shape(family, int(rng.integers(1 << 31)), rng, min(a.per_shape, a.copies - len(rows)), out)
+                shape_seed, n = int(rng.integers(1 << 31)), min(a.per_shape, a.copies - len(rows))
+                rows += one_shape(family, shape_seed, rng, n, out, kinds)
                 print(f"{len(rows)} copies", flush=True)
         print(summary(rows))
     if a.speed:

@@ -377,7 +377,9 @@ def test_noise_on_a_reordered_copy_is_still_read(marked):
         noisy = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=seed)
         v = pmwm.verify(*attacks.reorder(*noisy, seed=seed), marked.key)
         assert v.mode == "registered" and v.detail.heights == "by position"
-        assert v.marked and v.matches >= 0.8 * v.carriers_total, v.matches  # coded bits: see above
+        # coded bits (see above); sites weighing by their likelihood ratio read 1-2 % fewer of them right at
+        # this noise than by inverse variance (docs/decisions/113)
+        assert v.marked and v.matches >= 0.75 * v.carriers_total, v.matches
         assert v.payload in (PAYLOAD, None)
 
 
@@ -613,6 +615,26 @@ def test_overmarked_copy_reads_each_keys_own_payload(bunny, marked, factor):
         assert v.marked and v.payload == payload and v.payload_confirmed, (payload, v.p_value, v.bit_errors)
         w = robust_verify(*attacks.simplify(*attacks.similarity(res_b.vertices, res_b.faces, seed=3), 0.1), key)
         assert w.payload in (payload, None)
+
+
+@pytest.mark.parametrize("posed", [False, True])
+def test_a_copy_marked_again_at_3x_reads_both_payloads(posed):
+    """A small CAD flange (6,772 vertices) marked, then marked again by another key at 3x the strength,
+    in place or moved: the owner's key reads the owner's payload, confirmed, and the other key its own,
+    from the same copy. The other mark's bumps land on some of the owner's sites at 3x their height;
+    read as they come, they outweigh the sites' own readings and leave the payload unconfirmed."""
+    from pmwm_bench.corpus import generate
+
+    V, F = generate("cad4", 1)
+    owner = robust_embed(V, F, pmwm.EmbedOptions(payload="OWNR", seed=5, progressive=False))
+    assert key_data(owner.key).code is not None
+    other = robust_embed(
+        owner.vertices, owner.faces, pmwm.EmbedOptions(payload="THIEF", seed=100, strength=6.0, progressive=False)
+    )
+    W, G = attacks.similarity(other.vertices, other.faces, seed=4) if posed else (other.vertices, other.faces)
+    for key, payload in ((owner.key, "OWNR"), (other.key, "THIEF")):
+        v = robust_verify(W, G, key)
+        assert v.marked and v.payload_confirmed and v.payload == payload, (payload, v.p_value, v.bit_errors)
 
 
 def test_keys_without_a_code_still_read_their_marks(bunny, monkeypatch):

@@ -66,11 +66,16 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
   clean on the marked mesh is read, whether or not its protected ring was found.
 - A copy that sits exactly in the key's frame (the marked mesh, any of its levels of detail, a lossless
   re-export) is read at each protected site vertex alone, exact at every level; where a neighbour's bump
-  spoilt that reading on the marked mesh (small meshes), all samples are read instead.
-- A bit is the sign of the sum of its sites' chip-weighted soft values, each weighted by its inverse
-  variance (maximum-ratio combining; a site in a damaged or cropped region weighs little). A bit
-  with no readable site is an erasure and gets a keyed coin flip, so the binomial p-value of
-  ``pmwm.base.verdict_from_scores`` (over the coded bits) stays exact.
+  spoilt that reading on the marked mesh (small meshes), all samples are read instead, and so are the sites
+  read by index of a copy that also keeps the marked vertex order (the site vertex alone cannot tell its own
+  bump from another mark's on it).
+- A bit is the sign of the sum of its sites' chip-signed log-likelihood ratios (``read.site_llr``): a site
+  reads its sign times a gain in [0, 1.2] plus its noise, or, with a small prior probability, anything (a
+  bump of another key's mark on or near it). Where the noise explains a reading, the site weighs as its
+  inverse variance says (a site in a damaged or cropped region weighs little); a reading neither sign
+  explains weighs nothing, and no site outweighs a few others. A bit with no readable site is an erasure
+  and gets a keyed coin flip, so the binomial p-value of ``pmwm.base.verdict_from_scores`` (over the coded
+  bits) stays exact: the ratio is odd in the reading.
 - The payload is confirmed (``confirm``) when the key's codeword passes the generalised minimum
   distance test on the soft scores: no other codeword can pass it, so a confirmed payload is the one a
   decoder would give. The verdict shows the payload only when it is confirmed.

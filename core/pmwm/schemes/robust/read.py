@@ -30,6 +30,10 @@ INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of
 INDEX_CLOSE = 0.05  # ... or within this share, whatever the faces (noise, smoothing and quantization keep both)
 SCREEN_PER_BIT = 2  # sites per bit a registered pose is screened on
 FULL_READS = 2  # the strongest screened poses read in full
+GAIN_MAX = 1.2  # the largest gain a site's own reading may show, in bump amplitudes (site_llr)
+MODEL_VAR = 0.04  # variance added to a site's own, for what its noise estimate misses (site_llr)
+OUTLIER_SHARE = 0.05  # prior share of sites whose reading is not their own mark's (site_llr)
+OUTLIER_SPAN = 10.0  # such a reading may be anything over this span, in bump amplitudes
 
 
 ALIGNED = "none (already in the key's frame)"  # RobustDetail.registration of a copy read in place
@@ -222,10 +226,46 @@ def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int) -> np.ndarray:
-    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (NaN soft values are
-    not read; 0 when no site of the bit is)."""
+    """Each bit's score (n_bits,) float64: the chip-signed sum of its readable sites' log-likelihood
+    ratios (``site_llr``; NaN soft values are not read; 0 when no site of the bit is)."""
     ok = np.isfinite(soft)
-    return np.bincount(s.bit[ok], weights=(s.chip * soft / var)[ok], minlength=n_bits)
+    return np.bincount(s.bit[ok], weights=(s.chip * site_llr(soft, var))[ok], minlength=n_bits)
+
+
+def site_llr(soft: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """Per site (S,) float64, the log-likelihood ratio of its chip-signed bit being +1 rather than -1
+    (0 where soft is NaN). A site reads its sign times a gain g plus Gaussian noise of variance
+    ``var`` + ``MODEL_VAR``, g anywhere in [0, ``GAIN_MAX``] (smoothing shrinks a mark, an average of
+    copies halves some sites and keeps others), except with probability ``OUTLIER_SHARE``, when it
+    reads anything within ``OUTLIER_SPAN`` bump amplitudes: a bump of another mark on or near the site
+    (a copy marked again by another key), a site torn by the damage.
+
+    A site that reads within its gains weighs about as much as its noise lets it (in proportion to
+    soft / var where the noise is large), a sure site no more than about log(1 / OUTLIER_SHARE) (no single site, however
+    sure it seems, outweighs a few others), and a reading that neither sign explains (|soft| beyond
+    GAIN_MAX by several noise widths) weighs nothing. The ratio is odd in soft, so on a copy without the
+    mark each bit still takes either sign with probability 1/2."""
+    ok = np.isfinite(soft) & np.isfinite(var)
+    x = np.where(ok, soft, 0.0)
+    sd = np.sqrt(np.where(ok, var, 1.0) + MODEL_VAR)
+    own = np.log1p(-OUTLIER_SHARE) - np.log(GAIN_MAX)  # the density of a gain in [0, GAIN_MAX]
+    other = np.log(OUTLIER_SHARE / OUTLIER_SPAN)
+
+    def log_density(z):  # of reading z for a mark of sign +1: the noise density averaged over the gains
+        return own + np.log(np.maximum(_normal_cdf(z / sd) - _normal_cdf((z - GAIN_MAX) / sd), 1e-300))
+
+    return np.where(ok, np.logaddexp(log_density(x), other) - np.logaddexp(log_density(-x), other), 0.0)
+
+
+def _normal_cdf(z: np.ndarray) -> np.ndarray:
+    """The standard normal distribution function at z (any shape), to 1e-7 absolute (Abramowitz and
+    Stegun 7.1.26): ample beside the outliers' density in ``site_llr``, and it spares a command-line
+    verify the import of scipy."""
+    x = np.abs(z) / np.sqrt(2.0)
+    t = 1.0 / (1.0 + 0.3275911 * x)
+    poly = t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429))))
+    half_tail = 0.5 * poly * np.exp(-x * x)  # P(N > |z|)
+    return np.where(z >= 0, 1.0 - half_tail, half_tail)
 
 
 @dataclass
@@ -366,6 +406,8 @@ def _read_at(
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
         centre = centre_soft(X, s, by_index)
         at_centre = s.centre_ok & np.isfinite(centre)
+        if by_index:  # a site read by index reads by all its vertices: its own vertex alone cannot tell
+            at_centre &= ~full  # its bump from another mark's on or near it
         soft[at_centre] = centre[at_centre]
         full &= ~at_centre
     if full.any():
