@@ -98,7 +98,7 @@ class SiteAnalysis:
         # also where no protected ring was found (that ring only matters to coarser levels)
         index_ok = np.isfinite(at_vertices) & (np.abs(at_vertices - sign) < 0.5)
         # and by its swirl (read by vertex index): a neighbour's bump may tilt it on a small mesh
-        swirl_ok = np.abs(swirl_soft(marked, site)[0] - sign) < 0.5
+        swirl_ok = np.abs(swirl_soft(marked, F, site)[0] - sign) < 0.5
         return [usable, centre_ok, index_ok, swirl_ok]
 
     def mark_readable(self, sign: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:

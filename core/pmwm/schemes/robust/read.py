@@ -15,6 +15,7 @@ from ...base import Progress, Verdict, VerdictDetail, decode_text, no_progress, 
 from ...errors import KeyFileError
 from ...key import WatermarkKey
 from ...register import POSES, register_poses, similarity_fit
+from ...smoothing import mean_operator
 from ...spatial import nearest
 from ...validate import check_mesh
 from .code import coded_bits, confirm_with
@@ -23,6 +24,7 @@ from .keydata import RobustKeyData
 
 NAME = "robust"
 TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of the nuisance fit)
+TAU_SMOOTH = 3.0  # prior size of the coefficients of the unmarked mesh's own Laplacians (ridge, by index)
 VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
@@ -153,12 +155,30 @@ def centre_soft(X: np.ndarray, s: RobustKeyData, by_index: bool) -> np.ndarray:
     return np.where(has, h / A, np.nan)
 
 
+def host_laplacians(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
+    """The uniform Laplacian (neighbour mean minus the vertex) of the UNMARKED mesh at each sample vertex,
+    once and twice, in the key's frame, (S, K, 3) each, with the suspect's faces F (m, 3) over X (n, 3)
+    in the key's frame (a copy in the marked vertex order). The unmarked places are the key's where it
+    stores them (every sample of every site), the suspect's elsewhere. Why: Laplacian smoothing moves each
+    vertex of the unmarked surface by about c1 L + c2 L^2 (L the Laplacian), which varies from vertex to
+    vertex with the triangulation and the curvature; fitted as a nuisance, it no longer biases the reading."""
+    sm = s.samples
+    U = np.array(X, np.float64)
+    U[sm.vertex[sm.mask]] = _sample_places(s)[sm.mask]
+    M = mean_operator(np.asarray(F, np.int64).reshape(-1, 3), len(U))
+    L1 = M @ U - U
+    L2 = M @ L1 - L1
+    return L1[sm.vertex], L2[sm.vertex]
+
+
 def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
 
-    y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
-    projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
-    the nuisance is removed where the noise is low and the filter tends to p where it is high.
+    y = height - stored height = a p + nuisance + noise. The nuisance is an offset and a tilt, (1, u/r,
+    v/r), and by index also the unmarked mesh's own Laplacians along the site normal (``host_laplacians``:
+    what smoothing moves). The filter is p minus its projection on the nuisance, ridge-regularised by the
+    site's noise level over each term's prior size ((TAU A)^2, TAU_SMOOTH^2), so the nuisance is removed
+    where the noise is low and the filter tends to p where it is high.
     """
     sm = s.samples
     r, A = s.radius, s.amplitude
@@ -168,8 +188,15 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     # vertex heights (by index) also carry the swirl's part along the site normal
     p_all = index_templates(sm, r, s.swirl / A)[0] if by_index else profile(sm.u, sm.v, r) * sm.mask
     p = p_all * ok
-    B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
-    BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
+    cols = [np.ones_like(sm.u), sm.u / r, sm.v / r]
+    prior = [TAU * A] * 3
+    if by_index:
+        cols += [np.einsum("skj,sj->sk", L, s.normal) for L in host_laplacians(X, F, s)]
+        prior += [TAU_SMOOTH] * 2
+    B = np.stack(cols, axis=2) * ok[..., None]
+    nb = len(cols)
+    BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(nb)
+    ridge = np.diag(1.0 / np.square(prior))
 
     def filt(M):
         coef = np.linalg.solve(M, np.einsum("ski,sk->si", B, p)[..., None])[..., 0]
@@ -181,8 +208,8 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     rest = y - a0[:, None] * p
     c = np.linalg.solve(BtB, np.einsum("ski,sk->si", B, rest)[..., None])[..., 0]
     resid = (rest - np.einsum("ski,si->sk", B, c)) * ok
-    s2 = (resid**2).sum(axis=1) / np.maximum(ok.sum(axis=1) - 4, 1)
-    f, fp = filt(BtB + (s2 / (TAU * A) ** 2)[:, None, None] * np.eye(3))
+    s2 = (resid**2).sum(axis=1) / np.maximum(ok.sum(axis=1) - nb - 1, 1)
+    f, fp = filt(BtB + s2[:, None, None] * ridge)
     with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
         soft = (f * y).sum(axis=1) / fp / A
         var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
@@ -190,24 +217,48 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     return np.where(readable, soft, np.nan), var
 
 
-def swirl_soft(X: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
+def swirl_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, variance) per site of the in-surface swirl, read by vertex index: the sample
-    vertices' tangent-plane shifts fitted as a * swirl + a common shift (a / swirl amplitude)."""
+    vertices' tangent-plane shifts fitted as a * swirl + a common shift + the tangential parts of the
+    unmarked mesh's own Laplacians (``host_laplacians``: smoothing drifts vertices along the surface),
+    those two ridge-regularised as in ``site_soft`` (a / swirl amplitude)."""
     sm = s.samples
     r, B = s.radius, s.swirl
-    D = X[sm.vertex] - _sample_places(s)
-    d = np.stack([np.einsum("skj,sj->sk", D, s.t1), np.einsum("skj,sj->sk", D, s.t2)], axis=2)
+    t1, t2 = s.t1, s.t2
+
+    def tangent(D):
+        return np.stack([np.einsum("skj,sj->sk", D, t1), np.einsum("skj,sj->sk", D, t2)], axis=2)
+
+    d = tangent(X[sm.vertex] - _sample_places(s))
     g = index_templates(sm, r, B / s.amplitude)[1]
     m = sm.mask[..., None]
     n = np.maximum(sm.mask.sum(axis=1), 1)[:, None, None]
-    d = np.where(m, d - (d * m).sum(axis=1, keepdims=True) / n, 0.0)
-    g = np.where(m, g - (g * m).sum(axis=1, keepdims=True) / n, 0.0)
-    gg = np.maximum((g * g).sum(axis=(1, 2)), 1e-300)
-    a = (g * d).sum(axis=(1, 2)) / gg
-    s2 = ((d - a[:, None, None] * g) ** 2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3, 1)
+
+    def centred(a):
+        return np.where(m, a - (a * m).sum(axis=1, keepdims=True) / n, 0.0)
+
+    d, g = centred(d), centred(g)
+    D = np.stack([centred(tangent(L)) for L in host_laplacians(X, F, s)], axis=3)  # (S, K, 2, 2)
+    DtD = np.einsum("skci,skcj->sij", D, D) + 1e-9 * np.eye(2)
+    Dg = np.einsum("skci,skc->si", D, g)
+
+    def filt(lam):
+        coef = np.linalg.solve(DtD + lam[:, None, None] * np.eye(2), Dg[..., None])[..., 0]
+        f = g - np.einsum("skci,si->skc", D, coef)
+        return f, np.maximum((f * g).sum(axis=(1, 2)), 1e-300)
+
+    f0, fg0 = filt(np.zeros(len(g)))
+    a0 = (f0 * d).sum(axis=(1, 2)) / fg0
+    rest = d - a0[:, None, None] * g
+    c = np.linalg.solve(DtD, np.einsum("skci,skc->si", D, rest)[..., None])[..., 0]
+    resid = np.where(m, rest - np.einsum("skci,si->skc", D, c), 0.0)
+    s2 = (resid**2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 5, 1)
+    f, fg = filt(s2 / TAU_SMOOTH**2)
     readable = sm.mask.sum(axis=1) >= 5
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # a damaged key: no weight, no warning
-        return np.where(readable, a / B, np.nan), s2 / gg / B**2 + VAR_FLOOR
+        a = (f * d).sum(axis=(1, 2)) / fg
+        var = s2 * (f * f).sum(axis=(1, 2)) / fg**2 / B**2 + VAR_FLOOR
+        return np.where(readable, a / B, np.nan), var
 
 
 def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
@@ -371,7 +422,7 @@ def _read_at(
         soft_f, var_f = site_soft(X, F, s, by_index)
         soft[full], var[full] = soft_f[full], var_f[full]
         if by_index and s.swirl > 0:  # keys from before the swirl have none
-            soft_t, var_t = swirl_soft(X, s)
+            soft_t, var_t = swirl_soft(X, F, s)
             soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
     heights = ("by vertex index" if by_index else "by position") + (", site vertices first" if aligned else "")
     detail = RobustDetail(heights=heights, sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)), **how)
