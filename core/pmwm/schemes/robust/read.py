@@ -171,14 +171,17 @@ def host_laplacians(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.
     return L1[sm.vertex], L2[sm.vertex]
 
 
-def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
+def site_soft(
+    X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool, laplacians: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
 
     y = height - stored height = a p + nuisance + noise. The nuisance is an offset and a tilt, (1, u/r,
     v/r), and by index also the unmarked mesh's own Laplacians along the site normal (``host_laplacians``:
     what smoothing moves). The filter is p minus its projection on the nuisance, ridge-regularised by the
     site's noise level over each term's prior size ((TAU A)^2, TAU_SMOOTH^2), so the nuisance is removed
-    where the noise is low and the filter tends to p where it is high.
+    where the noise is low and the filter tends to p where it is high. ``laplacians``: ``host_laplacians(X,
+    F, s)`` when the caller has them (by index).
     """
     sm = s.samples
     r, A = s.radius, s.amplitude
@@ -191,7 +194,8 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     cols = [np.ones_like(sm.u), sm.u / r, sm.v / r]
     prior = [TAU * A] * 3
     if by_index:
-        cols += [np.einsum("skj,sj->sk", L, s.normal) for L in host_laplacians(X, F, s)]
+        laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
+        cols += [np.einsum("skj,sj->sk", L, s.normal) for L in laplacians]
         prior += [TAU_SMOOTH] * 2
     B = np.stack(cols, axis=2) * ok[..., None]
     nb = len(cols)
@@ -217,11 +221,13 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     return np.where(readable, soft, np.nan), var
 
 
-def swirl_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
+def swirl_soft(
+    X: np.ndarray, F: np.ndarray, s: RobustKeyData, laplacians: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, variance) per site of the in-surface swirl, read by vertex index: the sample
     vertices' tangent-plane shifts fitted as a * swirl + a common shift + the tangential parts of the
     unmarked mesh's own Laplacians (``host_laplacians``: smoothing drifts vertices along the surface),
-    those two ridge-regularised as in ``site_soft`` (a / swirl amplitude)."""
+    those two ridge-regularised as in ``site_soft`` (a / swirl amplitude). ``laplacians``: as in ``site_soft``."""
     sm = s.samples
     r, B = s.radius, s.swirl
     t1, t2 = s.t1, s.t2
@@ -238,7 +244,8 @@ def swirl_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarr
         return np.where(m, a - (a * m).sum(axis=1, keepdims=True) / n, 0.0)
 
     d, g = centred(d), centred(g)
-    D = np.stack([centred(tangent(L)) for L in host_laplacians(X, F, s)], axis=3)  # (S, K, 2, 2)
+    laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
+    D = np.stack([centred(tangent(L)) for L in laplacians], axis=3)  # (S, K, 2, 2)
     DtD = np.einsum("skci,skcj->sij", D, D) + 1e-9 * np.eye(2)
     Dg = np.einsum("skci,skc->si", D, g)
 
@@ -419,10 +426,11 @@ def _read_at(
         soft[at_centre] = centre[at_centre]
         full &= ~at_centre
     if full.any():
-        soft_f, var_f = site_soft(X, F, s, by_index)
+        laplacians = host_laplacians(X, F, s) if by_index else None
+        soft_f, var_f = site_soft(X, F, s, by_index, laplacians)
         soft[full], var[full] = soft_f[full], var_f[full]
         if by_index and s.swirl > 0:  # keys from before the swirl have none
-            soft_t, var_t = swirl_soft(X, F, s)
+            soft_t, var_t = swirl_soft(X, F, s, laplacians)
             soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
     heights = ("by vertex index" if by_index else "by position") + (", site vertices first" if aligned else "")
     detail = RobustDetail(heights=heights, sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)), **how)
