@@ -196,7 +196,7 @@ def site_soft(
     if by_index:
         laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
         cols += [np.einsum("skj,sj->sk", L, s.normal) for L in laplacians]
-        prior += [TAU_SMOOTH] * 2
+        prior += [TAU_SMOOTH] * len(laplacians)
     B = np.stack(cols, axis=2) * ok[..., None]
     nb = len(cols)
     BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(nb)
@@ -246,11 +246,11 @@ def swirl_soft(
     d, g = centred(d), centred(g)
     laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
     D = np.stack([centred(tangent(L)) for L in laplacians], axis=3)  # (S, K, 2, 2)
-    DtD = np.einsum("skci,skcj->sij", D, D) + 1e-9 * np.eye(2)
+    DtD = np.einsum("skci,skcj->sij", D, D) + 1e-9 * np.eye(len(laplacians))
     Dg = np.einsum("skci,skc->si", D, g)
 
     def filt(lam):
-        coef = np.linalg.solve(DtD + lam[:, None, None] * np.eye(2), Dg[..., None])[..., 0]
+        coef = np.linalg.solve(DtD + lam[:, None, None] * np.eye(len(laplacians)), Dg[..., None])[..., 0]
         f = g - np.einsum("skci,si->skc", D, coef)
         return f, np.maximum((f * g).sum(axis=(1, 2)), 1e-300)
 
@@ -259,7 +259,7 @@ def swirl_soft(
     rest = d - a0[:, None, None] * g
     c = np.linalg.solve(DtD, np.einsum("skci,skc->si", D, rest)[..., None])[..., 0]
     resid = np.where(m, rest - np.einsum("skci,si->skc", D, c), 0.0)
-    s2 = (resid**2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 5, 1)
+    s2 = (resid**2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3 - len(laplacians), 1)
     f, fg = filt(s2 / TAU_SMOOTH**2)
     readable = sm.mask.sum(axis=1) >= 5
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # a damaged key: no weight, no warning
