@@ -11,7 +11,7 @@ from pmwm import attacks
 from pmwm.schemes.robust import embed as robust_embed, verify as robust_verify
 
 
-@pytest.mark.parametrize("family, seed", [("cad4", 1), ("thin", 3)])
+@pytest.mark.parametrize("family, seed", [("cad4", 1), pytest.param("thin", 3, marks=pytest.mark.slow)])
 def test_five_uniform_laplacian_steps_keep_the_payload(family, seed):
     """Small generated parts (a 4-fold flange, thin rods and a fin: a few thousand vertices, so the payload
     goes without the BCH code and one wrong bit leaves it unconfirmed), marked, then smoothed five times
