@@ -202,9 +202,9 @@ def site_soft(
     BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(nb)
     ridge = np.diag(1.0 / np.square(prior))
 
-    def filt(M):
-        coef = np.linalg.solve(M, np.einsum("ski,sk->si", B, p)[..., None])[..., 0]
-        f = (p - np.einsum("ski,si->sk", B, coef)) * ok
+    def filt(M, k=nb):  # the filter against the first k nuisance terms
+        coef = np.linalg.solve(M[:, :k, :k], np.einsum("ski,sk->si", B[..., :k], p)[..., None])[..., 0]
+        f = (p - np.einsum("ski,si->sk", B[..., :k], coef)) * ok
         return f, np.maximum((f * p).sum(axis=1), 1e-300)
 
     f0, fp0 = filt(BtB)  # the full nuisance fit, for the noise level
@@ -217,7 +217,11 @@ def site_soft(
     with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
         soft = (f * y).sum(axis=1) / fp / A
         var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
-    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) & np.isfinite(var)
+    # whether enough of the profile is there to read (samples missing: a crop) is judged against offset and
+    # tilt alone; where the Laplacians resemble the profile (a coarse mesh) the variance says how little is left
+    cover = filt(BtB + s2[:, None, None] * ridge, 3)[1]
+    readable = (ok.sum(axis=1) >= 5) & (cover > MIN_COVER * (p_all**2).sum(axis=1))
+    readable &= np.isfinite(soft) & np.isfinite(var)
     return np.where(readable, soft, np.nan), var
 
 
