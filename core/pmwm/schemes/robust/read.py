@@ -24,7 +24,7 @@ from .keydata import RobustKeyData
 
 NAME = "robust"
 TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of the nuisance fit)
-TAU_SMOOTH = 3.0  # prior size of the coefficients of the unmarked mesh's own Laplacians (ridge, by index)
+LAPLACE_POWERS = 3  # powers of the unmarked mesh's Laplacian fitted by index (what smoothing moves)
 VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
@@ -155,20 +155,45 @@ def centre_soft(X: np.ndarray, s: RobustKeyData, by_index: bool) -> np.ndarray:
     return np.where(has, h / A, np.nan)
 
 
-def host_laplacians(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
-    """The uniform Laplacian (neighbour mean minus the vertex) of the UNMARKED mesh at each sample vertex,
-    once and twice, in the key's frame, (S, K, 3) each, with the suspect's faces F (m, 3) over X (n, 3)
-    in the key's frame (a copy in the marked vertex order). The unmarked places are the key's where it
-    stores them (every sample of every site), the suspect's elsewhere. Why: Laplacian smoothing moves each
-    vertex of the unmarked surface by about c1 L + c2 L^2 (L the Laplacian), which varies from vertex to
-    vertex with the triangulation and the curvature; fitted as a nuisance, it no longer biases the reading."""
+def host_laplacians(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, ...]:
+    """The uniform Laplacian (neighbour mean minus the vertex) of the UNMARKED mesh at each sample vertex, and
+    its powers up to LAPLACE_POWERS, in the key's frame, (S, K, 3) each, with the suspect's faces F (m, 3) over
+    X (n, 3) in the key's frame (a copy in the marked vertex order). The unmarked places are the key's where
+    it stores them (every sample of every site), the suspect's elsewhere. Why: k uniform smoothing steps
+    (I + lam L)^k move the unmarked surface by k lam L + C(k, 2) lam^2 L^2 + ..., which varies from vertex to
+    vertex with the triangulation and the curvature; fitted (``shared_fit``), it no longer biases the reading."""
     sm = s.samples
     U = np.array(X, np.float64)
     U[sm.vertex[sm.mask]] = _sample_places(s)[sm.mask]
     M = mean_operator(np.asarray(F, np.int64).reshape(-1, 3), len(U))
-    L1 = M @ U - U
-    L2 = M @ L1 - L1
-    return L1[sm.vertex], L2[sm.vertex]
+    out = []
+    for _ in range(LAPLACE_POWERS):
+        U = M @ U - U
+        out.append(U[sm.vertex])
+    return tuple(out)
+
+
+def shared_fit(Z: np.ndarray, y: np.ndarray, D: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The coefficients (k,) that every site shares in the least-squares fit of y (S, K) on Z (S, K, z), whose
+    coefficients are each site's own, and D (S, K, k), whose coefficients are the same at every site; samples
+    where ok (S, K) is False are left out. Each site's own terms are projected out of y and D first
+    (Frisch-Waugh), so the shared coefficients are fitted on thousands of samples at once and cost no site
+    any of its filter's energy."""
+    Z = Z * ok[..., None]
+    ZtZ = np.einsum("ski,skj->sij", Z, Z) + 1e-9 * np.eye(Z.shape[2])
+
+    def rest(v):
+        v = v * ok
+        coef = np.linalg.solve(ZtZ, np.einsum("ski,sk->si", Z, v)[..., None])[..., 0]
+        return (v - np.einsum("ski,si->sk", Z, coef)) * ok
+
+    ry = rest(y)
+    rD = np.stack([rest(D[..., j]) for j in range(D.shape[2])], axis=2)
+    G = np.einsum("ski,skj->ij", rD, rD)
+    scale = max(float(np.trace(G)), 1e-300)
+    with np.errstate(invalid="ignore"):
+        c = np.linalg.solve(G + 1e-12 * scale * np.eye(len(G)), np.einsum("ski,sk->i", rD, ry))
+    return np.where(np.isfinite(c), c, 0.0)
 
 
 def site_soft(
@@ -176,12 +201,13 @@ def site_soft(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
 
-    y = height - stored height = a p + nuisance + noise. The nuisance is an offset and a tilt, (1, u/r,
-    v/r), and by index also the unmarked mesh's own Laplacians along the site normal (``host_laplacians``:
-    what smoothing moves). The filter is p minus its projection on the nuisance, ridge-regularised by the
-    site's noise level over each term's prior size ((TAU A)^2, TAU_SMOOTH^2), so the nuisance is removed
-    where the noise is low and the filter tends to p where it is high. ``laplacians``: ``host_laplacians(X,
-    F, s)`` when the caller has them (by index).
+    y = height - stored height = a p + offset + tilt + noise. The filter is p minus its projection on
+    (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so the nuisance is removed
+    where the noise is low and the filter tends to p where it is high. By index, what Laplacian smoothing
+    moved the unmarked surface by along the site normal is taken off y first: c1 L + c2 L^2 + c3 L^3, the
+    unmarked mesh's own Laplacian and its powers (``host_laplacians``; ``laplacians`` when the caller has
+    them) with coefficients shared by every site (``shared_fit``: one smoothing, the same at every vertex),
+    about 0 on a copy that was not smoothed.
     """
     sm = s.samples
     r, A = s.radius, s.amplitude
@@ -191,20 +217,16 @@ def site_soft(
     # vertex heights (by index) also carry the swirl's part along the site normal
     p_all = index_templates(sm, r, s.swirl / A)[0] if by_index else profile(sm.u, sm.v, r) * sm.mask
     p = p_all * ok
-    cols = [np.ones_like(sm.u), sm.u / r, sm.v / r]
-    prior = [TAU * A] * 3
+    B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
     if by_index:
         laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
-        cols += [np.einsum("skj,sj->sk", L, s.normal) for L in laplacians]
-        prior += [TAU_SMOOTH] * len(laplacians)
-    B = np.stack(cols, axis=2) * ok[..., None]
-    nb = len(cols)
-    BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(nb)
-    ridge = np.diag(1.0 / np.square(prior))
+        D = np.stack([np.einsum("skj,sj->sk", L, s.normal) for L in laplacians], axis=2)
+        y = (y - D @ shared_fit(np.concatenate([p[..., None], B], axis=2), y, D, ok)) * ok
+    BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
 
-    def filt(M, k=nb):  # the filter against the first k nuisance terms
-        coef = np.linalg.solve(M[:, :k, :k], np.einsum("ski,sk->si", B[..., :k], p)[..., None])[..., 0]
-        f = (p - np.einsum("ski,si->sk", B[..., :k], coef)) * ok
+    def filt(M):
+        coef = np.linalg.solve(M, np.einsum("ski,sk->si", B, p)[..., None])[..., 0]
+        f = (p - np.einsum("ski,si->sk", B, coef)) * ok
         return f, np.maximum((f * p).sum(axis=1), 1e-300)
 
     f0, fp0 = filt(BtB)  # the full nuisance fit, for the noise level
@@ -212,16 +234,12 @@ def site_soft(
     rest = y - a0[:, None] * p
     c = np.linalg.solve(BtB, np.einsum("ski,sk->si", B, rest)[..., None])[..., 0]
     resid = (rest - np.einsum("ski,si->sk", B, c)) * ok
-    s2 = (resid**2).sum(axis=1) / np.maximum(ok.sum(axis=1) - nb - 1, 1)
-    f, fp = filt(BtB + s2[:, None, None] * ridge)
+    s2 = (resid**2).sum(axis=1) / np.maximum(ok.sum(axis=1) - 4, 1)
+    f, fp = filt(BtB + (s2 / (TAU * A) ** 2)[:, None, None] * np.eye(3))
     with np.errstate(invalid="ignore", over="ignore"):  # a garbled site: no weight, not a NaN score
         soft = (f * y).sum(axis=1) / fp / A
         var = s2 * (f * f).sum(axis=1) / fp**2 / A**2 + VAR_FLOOR
-    # whether enough of the profile is there to read (samples missing: a crop) is judged against offset and
-    # tilt alone; where the Laplacians resemble the profile (a coarse mesh) the variance says how little is left
-    cover = filt(BtB + s2[:, None, None] * ridge, 3)[1]
-    readable = (ok.sum(axis=1) >= 5) & (cover > MIN_COVER * (p_all**2).sum(axis=1))
-    readable &= np.isfinite(soft) & np.isfinite(var)
+    readable = (ok.sum(axis=1) >= 5) & (fp > MIN_COVER * (p_all**2).sum(axis=1)) & np.isfinite(soft) & np.isfinite(var)
     return np.where(readable, soft, np.nan), var
 
 
@@ -229,9 +247,9 @@ def swirl_soft(
     X: np.ndarray, F: np.ndarray, s: RobustKeyData, laplacians: Optional[tuple] = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, variance) per site of the in-surface swirl, read by vertex index: the sample
-    vertices' tangent-plane shifts fitted as a * swirl + a common shift + the tangential parts of the
-    unmarked mesh's own Laplacians (``host_laplacians``: smoothing drifts vertices along the surface),
-    those two ridge-regularised as in ``site_soft`` (a / swirl amplitude). ``laplacians``: as in ``site_soft``."""
+    vertices' tangent-plane shifts fitted as a * swirl + a common shift (a / swirl amplitude), once the
+    tangential part of what Laplacian smoothing moved them by is taken off as in ``site_soft`` (smoothing
+    also drifts vertices along the surface)."""
     sm = s.samples
     r, B = s.radius, s.swirl
     t1, t2 = s.t1, s.t2
@@ -239,37 +257,25 @@ def swirl_soft(
     def tangent(D):
         return np.stack([np.einsum("skj,sj->sk", D, t1), np.einsum("skj,sj->sk", D, t2)], axis=2)
 
-    d = tangent(X[sm.vertex] - _sample_places(s))
-    g = index_templates(sm, r, B / s.amplitude)[1]
     m = sm.mask[..., None]
     n = np.maximum(sm.mask.sum(axis=1), 1)[:, None, None]
 
     def centred(a):
         return np.where(m, a - (a * m).sum(axis=1, keepdims=True) / n, 0.0)
 
-    d, g = centred(d), centred(g)
+    d = centred(tangent(X[sm.vertex] - _sample_places(s)))
+    g = centred(index_templates(sm, r, B / s.amplitude)[1])
     laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
-    D = np.stack([centred(tangent(L)) for L in laplacians], axis=3)  # (S, K, 2, 2)
-    DtD = np.einsum("skci,skcj->sij", D, D) + 1e-9 * np.eye(len(laplacians))
-    Dg = np.einsum("skci,skc->si", D, g)
-
-    def filt(lam):
-        coef = np.linalg.solve(DtD + lam[:, None, None] * np.eye(len(laplacians)), Dg[..., None])[..., 0]
-        f = g - np.einsum("skci,si->skc", D, coef)
-        return f, np.maximum((f * g).sum(axis=(1, 2)), 1e-300)
-
-    f0, fg0 = filt(np.zeros(len(g)))
-    a0 = (f0 * d).sum(axis=(1, 2)) / fg0
-    rest = d - a0[:, None, None] * g
-    c = np.linalg.solve(DtD, np.einsum("skci,skc->si", D, rest)[..., None])[..., 0]
-    resid = np.where(m, rest - np.einsum("skci,si->skc", D, c), 0.0)
-    s2 = (resid**2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3 - len(laplacians), 1)
-    f, fg = filt(s2 / TAU_SMOOTH**2)
+    S, K = sm.mask.shape
+    D = np.stack([centred(tangent(L)) for L in laplacians], axis=3).reshape(S, 2 * K, -1)
+    ok2 = np.repeat(sm.mask, 2, axis=1)
+    d = d - (D @ shared_fit(g.reshape(S, 2 * K, 1), d.reshape(S, 2 * K), D, ok2)).reshape(S, K, 2) * m
+    gg = np.maximum((g * g).sum(axis=(1, 2)), 1e-300)
+    a = (g * d).sum(axis=(1, 2)) / gg
+    s2 = ((d - a[:, None, None] * g) ** 2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3, 1)
     readable = sm.mask.sum(axis=1) >= 5
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # a damaged key: no weight, no warning
-        a = (f * d).sum(axis=(1, 2)) / fg
-        var = s2 * (f * f).sum(axis=(1, 2)) / fg**2 / B**2 + VAR_FLOOR
-        return np.where(readable, a / B, np.nan), var
+        return np.where(readable, a / B, np.nan), s2 / gg / B**2 + VAR_FLOOR
 
 
 def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
