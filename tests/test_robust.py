@@ -158,7 +158,7 @@ def test_readings_by_vertex_index_of_the_marked_mesh_are_exact(bunny, marked):
     coded = coded_bits(marked.bits, s.code)
     sign = s.chip * np.where((coded ^ marked.key.stream("scramble", len(coded)))[s.bit] == 1, 1.0, -1.0)
     bump = site_soft(marked.vertices, marked.faces, s, by_index=True)[0]
-    turn = swirl_soft(marked.vertices, s)[0]
+    turn = swirl_soft(marked.vertices, marked.faces, s)[0]
     assert np.abs(bump - sign)[s.index_ok].max() < 0.01
     assert np.abs(turn - sign)[s.swirl_ok].max() < 0.01
 

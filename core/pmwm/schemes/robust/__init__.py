@@ -53,14 +53,17 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
 - Per site, y = height - stored height is modelled as a * p + offset + tilt + noise; a is estimated
   by the matched filter of p made orthogonal to (1, u, v), ridge-regularised by the site's own noise
   level: at low noise the offset and tilt (registration error, smoothing shrinkage) are removed
-  exactly, at high noise the filter tends to p itself, the optimum for white noise. a / A is the
-  site's soft value (+-1 when intact).
+  exactly, at high noise the filter tends to p itself, the optimum for white noise. By vertex index,
+  what Laplacian smoothing moved the unmarked surface by, vertex by vertex, is taken off first: the
+  unmarked mesh's own uniform Laplacian and its powers at each sample vertex (``read.host_laplacians``:
+  the key's places and the suspect's faces) with coefficients fitted once over all sites
+  (``read.shared_fit``). a / A is the site's soft value (+-1 when intact).
 - By vertex index, the suspect is registered by the similarity that fits the stored places of the
   sample vertices to the suspect's (thousands of known pairs; fitted in that direction because the
   stored places are noiseless, so heavy noise does not shrink the scale), and each site's swirl is
-  read as well: the sample vertices' tangent-plane shifts fitted as a * w' + a common shift, combined
-  with the site's bump reading by inverse variance (its variance is large under smoothing, which also
-  moves vertices along the surface). w' and the height template p' are what marking moved each
+  read as well: the sample vertices' tangent-plane shifts (less the tangential part of what smoothing
+  moved them by, fitted the same way) fitted as a * w' + a common shift, combined with the site's bump
+  reading by inverse variance. w' and the height template p' are what marking moved each
   vertex: the embedder keeps the swirl off each vertex's own normal, so on a curved patch part of
   it runs along the site normal and is read with the bump. Every site whose reading by index was
   clean on the marked mesh is read, whether or not its protected ring was found.

@@ -33,7 +33,7 @@ from .fields import OUTER, index_templates, profile, swirl, tangent_frames
 from .keydata import RobustKeyData, Samples
 from .layout import assign_bits
 from . import selfcheck
-from .read import NAME, centre_soft, site_soft, swirl_soft, verify
+from .read import NAME, centre_soft, host_laplacians, site_soft, swirl_soft, verify
 
 DEFAULT_STRENGTH = 2.0
 SITES_PER_BIT = 6
@@ -90,7 +90,8 @@ class SiteAnalysis:
         one reading or both."""
         F, site = self.faces, self.site
         ring_found = (self.ring >= 0).all(axis=1)
-        at_vertices = site_soft(marked, F, site, by_index=True)[0]
+        laplacians = host_laplacians(marked, F, site)
+        at_vertices = site_soft(marked, F, site, True, laplacians)[0]
         usable, centre_ok = [
             ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
             for soft in (at_vertices, centre_soft(marked, site, True))
@@ -99,7 +100,7 @@ class SiteAnalysis:
         # also where no protected ring was found (that ring only matters to coarser levels)
         index_ok = np.isfinite(at_vertices) & (np.abs(at_vertices - sign) < 0.5)
         # and by its swirl (read by vertex index): a neighbour's bump may tilt it on a small mesh
-        swirl_ok = np.abs(swirl_soft(marked, site)[0] - sign) < 0.5
+        swirl_ok = np.abs(swirl_soft(marked, F, site, laplacians)[0] - sign) < 0.5
         return [usable, centre_ok, index_ok, swirl_ok]
 
     def mark_readable(self, sign: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:

@@ -15,6 +15,7 @@ from ...base import Progress, Verdict, VerdictDetail, decode_text, no_progress, 
 from ...errors import KeyFileError
 from ...key import WatermarkKey, face_fingerprint
 from ...register import POSES, register_poses, similarity_fit
+from ...smoothing import mean_operator
 from ...spatial import nearest
 from ...validate import check_mesh
 from .code import coded_bits, confirm_with
@@ -23,6 +24,7 @@ from .keydata import RobustKeyData
 
 NAME = "robust"
 TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of the nuisance fit)
+LAPLACE_POWERS = 3  # powers of the unmarked mesh's Laplacian fitted by index (what smoothing moves)
 VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
@@ -158,12 +160,59 @@ def centre_soft(X: np.ndarray, s: RobustKeyData, by_index: bool) -> np.ndarray:
     return np.where(has, h / A, np.nan)
 
 
-def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
+def host_laplacians(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, ...]:
+    """The uniform Laplacian (neighbour mean minus the vertex) of the UNMARKED mesh at each sample vertex, and
+    its powers up to LAPLACE_POWERS, in the key's frame, (S, K, 3) each, with the suspect's faces F (m, 3) over
+    X (n, 3) in the key's frame (a copy in the marked vertex order). The unmarked places are the key's where
+    it stores them (every sample of every site), the suspect's elsewhere. Why: k uniform smoothing steps
+    (I + lam L)^k move the unmarked surface by k lam L + C(k, 2) lam^2 L^2 + ..., which varies from vertex to
+    vertex with the triangulation and the curvature; fitted (``shared_fit``), it no longer biases the reading."""
+    sm = s.samples
+    U = np.array(X, np.float64)
+    U[sm.vertex[sm.mask]] = _sample_places(s)[sm.mask]
+    M = mean_operator(np.asarray(F, np.int64).reshape(-1, 3), len(U))
+    out = []
+    for _ in range(LAPLACE_POWERS):
+        U = M @ U - U
+        out.append(U[sm.vertex])
+    return tuple(out)
+
+
+def shared_fit(Z: np.ndarray, y: np.ndarray, D: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The coefficients (k,) that every site shares in the least-squares fit of y (S, K) on Z (S, K, z), whose
+    coefficients are each site's own, and D (S, K, k), whose coefficients are the same at every site; samples
+    where ok (S, K) is False are left out. Each site's own terms are projected out of y and D first
+    (Frisch-Waugh), so the shared coefficients are fitted on thousands of samples at once and cost no site
+    any of its filter's energy."""
+    Z = Z * ok[..., None]
+    ZtZ = np.einsum("ski,skj->sij", Z, Z) + 1e-9 * np.eye(Z.shape[2])
+
+    def rest(v):
+        v = v * ok
+        coef = np.linalg.solve(ZtZ, np.einsum("ski,sk->si", Z, v)[..., None])[..., 0]
+        return (v - np.einsum("ski,si->sk", Z, coef)) * ok
+
+    ry = rest(y)
+    rD = np.stack([rest(D[..., j]) for j in range(D.shape[2])], axis=2)
+    G = np.einsum("ski,skj->ij", rD, rD)
+    scale = max(float(np.trace(G)), 1e-300)
+    with np.errstate(invalid="ignore"):
+        c = np.linalg.solve(G + 1e-12 * scale * np.eye(len(G)), np.einsum("ski,sk->i", rD, ry))
+    return np.where(np.isfinite(c), c, 0.0)
+
+
+def site_soft(
+    X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool, laplacians: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
 
-    y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
-    projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
-    the nuisance is removed where the noise is low and the filter tends to p where it is high.
+    y = height - stored height = a p + offset + tilt + noise. The filter is p minus its projection on
+    (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so the nuisance is removed
+    where the noise is low and the filter tends to p where it is high. By index, what Laplacian smoothing
+    moved the unmarked surface by along the site normal is taken off y first: c1 L + c2 L^2 + c3 L^3, the
+    unmarked mesh's own Laplacian and its powers (``host_laplacians``; ``laplacians`` when the caller has
+    them) with coefficients shared by every site (``shared_fit``: one smoothing, the same at every vertex),
+    about 0 on a copy that was not smoothed.
     """
     sm = s.samples
     r, A = s.radius, s.amplitude
@@ -174,6 +223,10 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     p_all = index_templates(sm, r, s.swirl / A)[0] if by_index else profile(sm.u, sm.v, r) * sm.mask
     p = p_all * ok
     B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
+    if by_index:
+        laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
+        D = np.stack([np.einsum("skj,sj->sk", L, s.normal) for L in laplacians], axis=2)
+        y = (y - D @ shared_fit(np.concatenate([p[..., None], B], axis=2), y, D, ok)) * ok
     BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
 
     def filt(M):
@@ -195,18 +248,33 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     return np.where(readable, soft, np.nan), var
 
 
-def swirl_soft(X: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
+def swirl_soft(
+    X: np.ndarray, F: np.ndarray, s: RobustKeyData, laplacians: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, variance) per site of the in-surface swirl, read by vertex index: the sample
-    vertices' tangent-plane shifts fitted as a * swirl + a common shift (a / swirl amplitude)."""
+    vertices' tangent-plane shifts fitted as a * swirl + a common shift (a / swirl amplitude), once the
+    tangential part of what Laplacian smoothing moved them by is taken off as in ``site_soft`` (smoothing
+    also drifts vertices along the surface)."""
     sm = s.samples
     r, B = s.radius, s.swirl
-    D = X[sm.vertex] - _sample_places(s)
-    d = np.stack([np.einsum("skj,sj->sk", D, s.t1), np.einsum("skj,sj->sk", D, s.t2)], axis=2)
-    g = index_templates(sm, r, B / s.amplitude)[1]
+    t1, t2 = s.t1, s.t2
+
+    def tangent(D):
+        return np.stack([np.einsum("skj,sj->sk", D, t1), np.einsum("skj,sj->sk", D, t2)], axis=2)
+
     m = sm.mask[..., None]
     n = np.maximum(sm.mask.sum(axis=1), 1)[:, None, None]
-    d = np.where(m, d - (d * m).sum(axis=1, keepdims=True) / n, 0.0)
-    g = np.where(m, g - (g * m).sum(axis=1, keepdims=True) / n, 0.0)
+
+    def centred(a):
+        return np.where(m, a - (a * m).sum(axis=1, keepdims=True) / n, 0.0)
+
+    d = centred(tangent(X[sm.vertex] - _sample_places(s)))
+    g = centred(index_templates(sm, r, B / s.amplitude)[1])
+    laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
+    S, K = sm.mask.shape
+    D = np.stack([centred(tangent(L)) for L in laplacians], axis=3).reshape(S, 2 * K, -1)
+    ok2 = np.repeat(sm.mask, 2, axis=1)
+    d = d - (D @ shared_fit(g.reshape(S, 2 * K, 1), d.reshape(S, 2 * K), D, ok2)).reshape(S, K, 2) * m
     gg = np.maximum((g * g).sum(axis=(1, 2)), 1e-300)
     a = (g * d).sum(axis=(1, 2)) / gg
     s2 = ((d - a[:, None, None] * g) ** 2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3, 1)
@@ -411,10 +479,11 @@ def _read_at(
         soft[at_centre] = centre[at_centre]
         full &= ~at_centre
     if full.any():
-        soft_f, var_f = site_soft(X, F, s, by_index)
+        laplacians = host_laplacians(X, F, s) if by_index else None
+        soft_f, var_f = site_soft(X, F, s, by_index, laplacians)
         soft[full], var[full] = soft_f[full], var_f[full]
         if by_index and s.swirl > 0:  # keys from before the swirl have none
-            soft_t, var_t = swirl_soft(X, s)
+            soft_t, var_t = swirl_soft(X, F, s, laplacians)
             soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
     heights = ("by vertex index" if by_index else "by position") + (", site vertices first" if aligned else "")
     detail = RobustDetail(heights=heights, sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)), **how)
