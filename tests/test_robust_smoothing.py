@@ -21,4 +21,3 @@ def test_five_uniform_laplacian_steps_keep_the_payload(family, seed):
     X, G = attacks.smooth_laplacian(res.vertices, res.faces, lam=0.5, iterations=5)
     v = robust_verify(X, G, res.key)
     assert v.marked and v.payload_confirmed and v.payload == "ACME 2026", (v.p_value, v.detail)
-
