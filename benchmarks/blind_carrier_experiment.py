@@ -84,13 +84,18 @@ def save(doc: dict, path: Path) -> None:
 def run_robust(args, o):
     doc = {"command": command(), "commit": commit(), "machine": machine(), "options": asdict(o), "meshes": []}
     doc["started"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
-    out = RESULTS / "blind_carrier_robust.json"
+    out = Path(args.out or RESULTS / "blind_carrier_robust.json")
     pay = kp.payload_of(OWNER, o)
     w = kp.word(OWNER, pay, o)
     for name, V, F in meshes(args.meshes, args.per_family, doc):
         t = time.perf_counter()
         Vm, log = kp.embed_within(V, F, OWNER, pay, o)
         entry = {"mesh": name, "vertices": len(V), "embed_s": time.perf_counter() - t, **log, "attacks": {}}
+        if log.get("refused"):
+            print(name, "refused", log, flush=True)
+            doc["meshes"].append(entry)
+            save(doc, out)
+            continue
         for i, a in enumerate(["none", *ROBUST_ATTACKS]):
             try:
                 Va, Fa = (Vm, F) if a == "none" else bh.ATTACKS[a](Vm, F, args.seed + i)
@@ -113,14 +118,14 @@ def taubin(V, F, steps, lam=0.5, mu=-0.53):
 
 def run_security(args, o):
     doc = {"command": command(), "commit": commit(), "machine": machine(), "options": asdict(o), "meshes": []}
-    out = RESULTS / "blind_carrier_security.json"
+    out = Path(args.out or RESULTS / "blind_carrier_security.json")
     pay = kp.payload_of(OWNER, o)
     w = kp.word(OWNER, pay, o)
     rng = np.random.default_rng(args.seed)
     for name, V, F in meshes(args.meshes, 0, doc):
         Vm, log = kp.embed_within(V, F, OWNER, pay, o)
         base = log["mrms"]
-        entry = {"mesh": name, "mrms": base, "compensation": log["compensation"], "overmark": {}, "strip": []}
+        entry = {"mesh": name, "mrms": base, "step": log["step"], "overmark": {}, "strip": []}
 
         def row(label, Va, cost=None):
             c = metrics.displaced_surface_distance(Vm, Va, F, seed=2)[0] if cost is None else cost
@@ -131,7 +136,7 @@ def run_security(args, o):
 
         for mult in (1.0, 2.0):
             pirate = f"pirate {mult}"
-            po = replace(o, step=o.step * mult, compensation=log["compensation"])
+            po = replace(o, step=log["step"] * mult)
             Vp, _ = kp.embed(Vm, F, pirate, kp.payload_of(pirate, po), po)
             r = row(f"another phrase, step x{mult:g}", Vp)
             pr = kp.read(Vp, F, pirate, po)
@@ -158,7 +163,7 @@ def run_security(args, o):
 
 def run_false_positives(args, o):
     doc = {"command": command(), "commit": commit(), "machine": machine(), "options": asdict(o), "reads": []}
-    out = RESULTS / "blind_carrier_fp.json"
+    out = Path(args.out or RESULTS / "blind_carrier_fp.json")
     for name, V, F in meshes(args.meshes, args.per_family, doc):
         for ph in ("unmarked: " + OWNER, "wrong 1", "wrong 2"):
             r = kp.read(V, F, ph.removeprefix("unmarked: "), o)
@@ -173,6 +178,7 @@ def main(argv=None):
     ap.add_argument("--meshes", nargs="+", default=["report"])
     ap.add_argument("--per-family", type=int, default=0)
     ap.add_argument("--seed", type=int, default=20261207)
+    ap.add_argument("--out", default=None, help="the JSON file (default: benchmarks/results/blind_carrier_WHAT.json)")
     ap.add_argument("--options", default="{}", help="JSON of CarrierOptions fields")
     args = ap.parse_args(argv)
     o = kp.CarrierOptions(**json.loads(args.options))

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import hashlib
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -46,13 +46,15 @@ class CarrierOptions:
     patterns: int = 4
     radius: float = 0.3  # patch radius in RMS radii
     cycles: float = 1.5  # pattern cycles per patch radius
-    step: float = 1.75  # QIM step on R = Z / A
+    step: float = 1.75  # QIM step on R = Z / A (the embedder's)
+    steps: tuple[float, ...] = (1.75, 1.25, 0.875, 0.625, 0.4375)  # the steps an embedder may choose; the reader tries all
     floor: float = 2e-4  # amplitude floor, canonical units (RMS radius 1)
     payload_bits: int = 32
     check_bits: int = 32
     rounds: int = 4
     compensation: float = 1.0  # distortion compensation: share of the way to the lattice point moved
     min_agree: float = 0.2  # normal agreement below which a vertex weighs nothing
+    min_incidence: float = 0.3  # a site counts when its ray meets the patch at a cosine above this
 
     @property
     def bits(self) -> int:
@@ -193,6 +195,9 @@ class Cells:
     shape: np.ndarray  # (P, J) window * normal weight * psi_perp: a cell's displacement per unit
     direction: np.ndarray  # (P, 3) unit displacement direction (the vertex normal, outward for the patch)
     gain: np.ndarray  # (K, J) change of z per unit of a cell's displacement
+    proj: np.ndarray  # (P, J) a cell's weight on a pair's height: z = sum over its pairs of proj * h
+    normal: np.ndarray  # (P, 3) the pair's patch normal (h = (x - site) . normal)
+    area: np.ndarray  # (n,) vertex areas
 
 
 def read_cells(X: np.ndarray, F: np.ndarray, lay: Layout, o: CarrierOptions) -> Cells:
@@ -215,7 +220,7 @@ def read_cells(X: np.ndarray, F: np.ndarray, lay: Layout, o: CarrierOptions) -> 
     shape_w = win * nw
     w = shape_w * area[ii]
     W = np.bincount(kk, weights=w, minlength=K)
-    valid = found & (W > 0)
+    valid = found & (W > 0) & ((n0 * lay.directions).sum(1) > o.min_incidence)  # grazing rays' sites jump
     t1 = lay.axes - (lay.axes * n0).sum(1)[:, None] * n0
     t1 /= np.maximum(np.linalg.norm(t1, axis=1), 1e-300)[:, None]
     t2 = np.cross(n0, t1)
@@ -245,7 +250,34 @@ def read_cells(X: np.ndarray, F: np.ndarray, lay: Layout, o: CarrierOptions) -> 
     )
     direction = normals[ii] * flip[kk, None]
     z[~valid] = 0.0
-    return Cells(z=z, valid=valid, k=kk, i=ii, shape=shape, direction=direction, gain=gain)
+    proj = w[:, None] * perp / Ws[kk, None]
+    return Cells(
+        z=z, valid=valid, k=kk, i=ii, shape=shape, direction=direction, gain=gain, proj=proj, normal=n0[kk], area=area
+    )
+
+
+def cross_gains(cells: Cells, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(G, e): G (K*J, K*J) the change of every cell's z per unit coefficient of every cell's displacement
+    field (linearised: weights, sites and frames held), e (K*J,) each field's energy (area-weighted squared
+    displacement). Overlapping patches' patterns are not orthogonal: the embedder solves with G."""
+    from scipy import sparse
+
+    P, J = cells.proj.shape
+    K = cells.z.shape[0]
+    rows = (cells.k[:, None] * J + np.arange(J)[None, :]).ravel()  # (P*J,) cell of each (pair, pattern)
+    cols_v = np.repeat(cells.i, J)
+    Pm = sparse.csr_matrix((K * J, 3 * n))
+    Dm = sparse.csr_matrix((3 * n, K * J))
+    for a in range(3):
+        Pm = Pm + sparse.csr_matrix(
+            ((cells.proj * cells.normal[:, a : a + 1]).ravel(), (rows, 3 * cols_v + a)), shape=(K * J, 3 * n)
+        )
+        Dm = Dm + sparse.csr_matrix(
+            ((cells.shape * cells.direction[:, a : a + 1]).ravel(), (3 * cols_v + a, rows)), shape=(3 * n, K * J)
+        )
+    G = (Pm @ Dm).toarray()
+    e = np.bincount(rows, weights=(cells.shape**2 * cells.area[cells.i, None]).ravel(), minlength=K * J)
+    return G, e
 
 
 # ----------------------------------------------------------------------------------------------
@@ -309,10 +341,19 @@ def embed(V: np.ndarray, F: np.ndarray, phrase: str, payload: np.ndarray, o: Car
             goal = rd.R + o.compensation * (R_to_target(rd.R, target, lay.dither, o.step) - rd.R)
         dR = goal - rd.R
         dZ = dR * rd.A
-        cnt = np.maximum(rd.count, 1.0)
-        dz_cell = (lay.cell_sign * (dZ / np.sqrt(cnt))[lay.cell_bit]).reshape(o.sites, o.patterns)
-        g = np.where(np.abs(cells.gain) > 1e-12, cells.gain, np.inf)
-        coef = np.where(cells.valid[:, None], dz_cell / g, 0.0)  # (K, J)
+        # least energy: the coefficients of all cells' fields that move every bit's Z by dZ (through the cross
+        # gains of overlapping cells), minimising the fields' energy
+        G, e = cross_gains(cells, len(Vm))
+        cvalid = np.repeat(cells.valid, o.patterns)
+        S = np.zeros((o.bits, len(e)))
+        S[lay.cell_bit, np.arange(len(e))] = lay.cell_sign * cvalid / np.sqrt(np.maximum(rd.count, 1.0))[lay.cell_bit]
+        H = S @ G[:, cvalid]  # (B, valid cells)
+        inv_e = 1.0 / np.maximum(e[cvalid], 1e-12 * e.max())
+        Hw = H * inv_e[None, :]
+        c_valid = Hw.T @ np.linalg.solve(Hw @ H.T + 1e-12 * np.trace(Hw @ H.T) * np.eye(o.bits), dZ)
+        coef = np.zeros(len(e))
+        coef[cvalid] = c_valid
+        coef = coef.reshape(o.sites, o.patterns)
         amp = (cells.shape * coef[cells.k]).sum(1)  # (P,)
         dX = np.stack(
             [np.bincount(cells.i, weights=amp * cells.direction[:, c], minlength=len(Vm)) for c in range(3)], 1
@@ -340,48 +381,50 @@ class Reading:
     margins: np.ndarray
 
 
-def read(V: np.ndarray, F: np.ndarray, phrase: str, o: CarrierOptions, chase: int = 8) -> Reading:
-    """Blind read: every sign choice; in each, the 2^chase words that flip subsets of the ``chase`` least
-    reliable bits; p = 8 * 2^chase * P(Binomial(check_bits, 1/2) >= matches) of the best candidate (the
-    candidates depend on the bits and margins read only, so the union bound holds)."""
+def read(V: np.ndarray, F: np.ndarray, phrase: str, o: CarrierOptions, chase: int = 6) -> Reading:
+    """Blind read: every sign choice and every step of ``o.steps``; in each, the 2^chase words that flip subsets
+    of the ``chase`` least reliable bits; p = 8 * len(steps) * 2^chase * P(Binomial(check_bits, 1/2) >= matches)
+    of the best candidate (the candidates depend on the bits and margins read only, so the union bound holds)."""
     lay = layout(phrase, o)
     V = np.asarray(V, np.float64)
     fr, _ = frame(V, F)
     flips = np.array(list(itertools.product((0, 1), repeat=chase)), np.uint8)  # (2^chase, chase)
     best = None
     for signs in SIGNS:
-        rd = read_bits(read_cells(fr.to_canonical(V, signs), F, lay, o), lay, o)
-        weak = np.argsort(rd.margin, kind="stable")[:chase]
-        cands = np.repeat(rd.bits[None], len(flips), 0)
-        cands[:, weak] ^= flips
-        for cand in cands:
-            expected = word(phrase, cand[: o.payload_bits], o)[o.payload_bits :]
-            m = int((expected == cand[o.payload_bits :]).sum())
-            if best is None or m > best[0]:
-                best = (m, cand, rd, signs)
+        cells = read_cells(fr.to_canonical(V, signs), F, lay, o)
+        for step in o.steps:
+            rd = read_bits(cells, lay, replace(o, step=step))
+            weak = np.argsort(rd.margin, kind="stable")[:chase]
+            cands = np.repeat(rd.bits[None], len(flips), 0)
+            cands[:, weak] ^= flips
+            for cand in cands:
+                expected = word(phrase, cand[: o.payload_bits], o)[o.payload_bits :]
+                m = int((expected == cand[o.payload_bits :]).sum())
+                if best is None or m > best[0]:
+                    best = (m, cand, rd, signs)
     m, cand, rd, signs = best
-    p = min(1.0, len(SIGNS) * len(flips) * binomial_tail(m, o.check_bits))
+    p = min(1.0, len(SIGNS) * len(o.steps) * len(flips) * binomial_tail(m, o.check_bits))
     return Reading(p_value=p, bits=cand, raw=rd.bits, check_matches=m, signs=signs, margins=rd.margin)
 
 
 def embed_within(
     V: np.ndarray, F: np.ndarray, phrase: str, payload: np.ndarray, o: CarrierOptions, budget: float = 0.03
 ) -> tuple[np.ndarray, dict]:
-    """``embed``, then again with distortion compensation scaled down when the MRMS (% of the bbox diagonal,
-    ``pmwm.metrics.displaced_surface_distance``, seed 1) exceeds ``budget``. The log holds the MRMS and the
-    compensation used."""
-    from dataclasses import replace
-
+    """``embed`` at the largest step of ``o.steps`` whose MRMS (% of the bbox diagonal,
+    ``pmwm.metrics.displaced_surface_distance``, seed 1) is within ``budget`` and whose own read-back has every
+    bit right; the unmarked vertices and ``refused`` in the log when none is. The MRMS grows about linearly
+    with the step, so steps predicted above the budget by the first embed are skipped."""
     from pmwm.metrics import displaced_surface_distance
 
-    Vm, log = embed(V, F, phrase, payload, o)
-    mrms = displaced_surface_distance(V, Vm, F, seed=1)[0]
-    comp = o.compensation
-    for _ in range(3):
-        if mrms <= budget:
-            break
-        comp = comp * 0.95 * budget / mrms
-        Vm, log = embed(V, F, phrase, payload, replace(o, compensation=comp))
-        mrms = displaced_surface_distance(V, Vm, F, seed=1)[0]
-    log.update(mrms=float(mrms), compensation=float(comp))
-    return Vm, log
+    tried = []
+    scale = None
+    for step in sorted(o.steps, reverse=True):
+        if scale is not None and scale * step > budget:
+            continue
+        Vm, log = embed(V, F, phrase, payload, replace(o, step=step))
+        mrms = float(displaced_surface_distance(V, Vm, F, seed=1)[0])
+        scale = mrms / step if scale is None else scale
+        tried.append({"step": step, "mrms": mrms, "errors": log["errors"][-1]})
+        if mrms <= budget and log["errors"][-1] == 0:
+            return Vm, {**log, "mrms": mrms, "step": step, "tried": tried}
+    return np.asarray(V, np.float64).copy(), {"refused": True, "mrms": 0.0, "step": None, "tried": tried}
