@@ -147,7 +147,7 @@ def run_security(args, o):
             Vs = Vm
             for j in range(k):
                 ph = rng.bytes(8).hex()
-                Vs, _ = kp.embed(Vs, F, ph, kp.payload_of(ph, o), replace(o, rounds=2))
+                Vs, _ = kp.embed(Vs, F, ph, kp.payload_of(ph, o), replace(o, step=log["step"], rounds=2))
             entry["strip"].append(row(f"re-marked by {k} random phrases", Vs))
         for steps in (1, 3, 10, 30):
             entry["strip"].append(row(f"Taubin {steps} (0.5/-0.53)", taubin(Vm, F, steps)))

@@ -47,7 +47,8 @@ class CarrierOptions:
     radius: float = 0.3  # patch radius in RMS radii
     cycles: float = 1.5  # pattern cycles per patch radius
     step: float = 1.75  # QIM step on R = Z / A (the embedder's)
-    steps: tuple[float, ...] = (1.75, 1.25, 0.875, 0.625, 0.4375)  # the steps an embedder may choose; the reader tries all
+    # the steps an embedder may choose; the reader tries all
+    steps: tuple[float, ...] = (1.75, 1.25, 0.875, 0.625, 0.4375)
     floor: float = 2e-4  # amplitude floor, canonical units (RMS radius 1)
     payload_bits: int = 32
     check_bits: int = 32
