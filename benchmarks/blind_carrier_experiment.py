@@ -116,6 +116,15 @@ def taubin(V, F, steps, lam=0.5, mu=-0.53):
     return V
 
 
+def own_frame_bits(Va, Fa, signs, step, o, w) -> int:
+    """Bits right when read in the marked copy's sign choice at the embedder's step (a diagnostic: how close a
+    failed reading came, which the blind reader itself cannot know)."""
+    lay = kp.layout(OWNER, o)
+    fr, _ = kp.frame(Va, Fa)
+    rd = kp.read_bits(kp.read_cells(fr.to_canonical(Va, signs), Fa, lay, o), lay, replace(o, step=step))
+    return int((rd.bits == w).sum())
+
+
 def run_security(args, o):
     doc = {"command": command(), "commit": commit(), "machine": machine(), "options": asdict(o), "meshes": []}
     out = Path(args.out or RESULTS / "blind_carrier_security.json")
@@ -125,12 +134,14 @@ def run_security(args, o):
     for name, V, F in meshes(args.meshes, 0, doc):
         Vm, log = kp.embed_within(V, F, OWNER, pay, o)
         base = log["mrms"]
+        signs = kp.frame(Vm, F)[1]
         entry = {"mesh": name, "mrms": base, "step": log["step"], "overmark": {}, "strip": []}
 
         def row(label, Va, cost=None):
             c = metrics.displaced_surface_distance(Vm, Va, F, seed=2)[0] if cost is None else cost
             r = {"attack": label, "mrms": float(c), "x_marking": float(c / base)}
             r.update(outcome(kp.read(Va, F, OWNER, o), w))
+            r["own_frame_bits"] = own_frame_bits(Va, F, signs, log["step"], o, w)
             print(name, r, flush=True)
             return r
 
@@ -172,6 +183,81 @@ def run_false_positives(args, o):
         save(doc, out)
 
 
+def short(a: str) -> str:
+    return {
+        "pose+reorder": "pose",
+        "quantization 8 bits": "8-bit",
+        "noise 0.1 % diag": "noise",
+        "Laplacian 5 x 0.5": "Lapl. 5",
+        "simplify 50 % (fast-simplification)": "simp. fs",
+        "simplify 50 % (pymeshlab quadric)": "simp. ml",
+        "subdivision Loop": "Loop",
+        "isotropic remesh (pymeshlab)": "remesh",
+        "crop 10 % plane": "crop 10 %",
+    }.get(a, a)
+
+
+def markdown(paths: list[Path]) -> str:
+    docs = [json.loads(p.read_text()) for p in paths if p.exists()]
+    rob = [d for d in docs if "meshes" in d and d["meshes"] and "attacks" in d["meshes"][0]]
+    sec = [d for d in docs if "meshes" in d and d["meshes"] and "strip" in d["meshes"][0]]
+    fps = [d for d in docs if "reads" in d]
+    out = [
+        "Secure blind carrier prototype (`pmwm_bench.keyed_patches`, `benchmarks/blind_carrier_experiment.py`; "
+        "docs/decisions/140-secure-blind-carrier-prototype.md): keyed patches at keyed ray hits in a key-free "
+        "frame, keyed projections, rational dither modulation; a 64-bit word (32 keyed payload bits, 32 check "
+        "bits); marked within 0.03 % MRMS (step chosen from a public list). A cell reads `bits right of 64 / "
+        "log10 p`; a copy counts as read when p < 1e-6 with every bit right. Not a scheme of pmwm.",
+        "",
+    ]
+    for d in rob:
+        span = f"{d.get('started', '')} - {d.get('finished', 'cut short')}"
+        out += [f"- run `{d['command']}` at commit {d['commit']}, {span}",
+                f"- machine: {d['machine']}"]
+        if d.get("corpus_seeds"):
+            out.append("- generated shapes (os.urandom seeds): " + "; ".join(f"{f}: {', '.join(map(str, v))}"
+                                                                        for f, v in d["corpus_seeds"].items()))
+        out.append("")
+        atts = [a for a in ["none", *ROBUST_ATTACKS]]
+        out += ["| mesh | n | step | MRMS % | " + " | ".join(short(a) for a in atts) + " |",
+                "|---|---|---|---|" + "---|" * len(atts)]
+        for m in d["meshes"]:
+            if m.get("refused"):
+                out.append(f"| {m['mesh']} | {m['vertices']} | refused | " + ", ".join(
+                    f"{t['step']}: {t['mrms']:.3f}" for t in m["tried"]) + " |" + " |" * len(atts))
+                continue
+            cells = []
+            for a in atts:
+                r = m["attacks"].get(a, {})
+                if "bits" not in r:
+                    cells.append("n/a")
+                else:
+                    lp = np.log10(max(r["p"], 1e-300))
+                    cells.append(("**" if r["read"] else "") + f"{r['bits']} / {lp:.1f}" + ("**" if r["read"] else ""))
+            out.append(f"| {m['mesh']} | {m['vertices']} | {m['step']} | {m['mrms']:.4f} | " + " | ".join(cells) + " |")
+        out += ["", "| attack | copies read |", "|---|---|"]
+        for a in atts:
+            rs = [m["attacks"].get(a, {}) for m in d["meshes"]]
+            out.append(f"| {a} | {sum(r.get('read', False) for r in rs)}/{len(rs)} |")
+        out.append("")
+    for d in sec:
+        out += [f"Security: run `{d['command']}` at commit {d['commit']}; machine: {d['machine']}", ""]
+        out += ["| mesh | attack | attacker's MRMS % | x marking's MRMS | owner's bits (own frame) | owner's log10 p "
+                "| read |", "|---|---|---|---|---|---|---|"]
+        for m in d["meshes"]:
+            for r in list(m["overmark"].values()) + m["strip"]:
+                extra = f" (pirate reads: {r['pirate_read']})" if "pirate_read" in r else ""
+                out.append(f"| {m['mesh']} (marking {m['mrms']:.4f} %) | {r['attack']}{extra} | {r['mrms']:.4f} | "
+                           f"{r['x_marking']:.2f} | {r['bits']} ({r.get('own_frame_bits', '-')}) | {np.log10(max(r['p'], 1e-300)):.1f} | {r['read']} |")
+        out.append("")
+    for d in fps:
+        ps = np.array([r["p"] for r in d["reads"]])
+        out += [f"False positives: run `{d['command']}` at commit {d['commit']}: {len(ps)} reads of unmarked "
+                f"meshes with the owner's phrase and with wrong phrases; smallest p {ps.min():.2e}; "
+                f"p < 1e-2: {(ps < 1e-2).sum()}, p < 1e-6: {(ps < 1e-6).sum()}", ""]
+    return "\n".join(out)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", choices=["robust", "security", "false-positives", "markdown"])
@@ -182,9 +268,13 @@ def main(argv=None):
     ap.add_argument("--options", default="{}", help="JSON of CarrierOptions fields")
     args = ap.parse_args(argv)
     o = kp.CarrierOptions(**json.loads(args.options))
-    {"robust": run_robust, "security": run_security, "false-positives": run_false_positives}.get(
-        args.what, lambda a, o: None
-    )(args, o)
+    if args.what == "markdown":
+        names = ["robust", "robust_corpus", "security", "fp"]
+        text = markdown([RESULTS / f"blind_carrier_{n}.json" for n in names])
+        (RESULTS / "blind-carrier.md").write_text(text + "\n")
+        print(text)
+        return
+    {"robust": run_robust, "security": run_security, "false-positives": run_false_positives}[args.what](args, o)
 
 
 if __name__ == "__main__":
