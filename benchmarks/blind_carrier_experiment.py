@@ -247,8 +247,9 @@ def markdown(paths: list[Path]) -> str:
         for m in d["meshes"]:
             for r in list(m["overmark"].values()) + m["strip"]:
                 extra = f" (pirate reads: {r['pirate_read']})" if "pirate_read" in r else ""
+                lp = np.log10(max(r["p"], 1e-300))
                 out.append(f"| {m['mesh']} (marking {m['mrms']:.4f} %) | {r['attack']}{extra} | {r['mrms']:.4f} | "
-                           f"{r['x_marking']:.2f} | {r['bits']} ({r.get('own_frame_bits', '-')}) | {np.log10(max(r['p'], 1e-300)):.1f} | {r['read']} |")
+                           f"{r['x_marking']:.2f} | {r['bits']} ({r.get('own_frame_bits', '-')}) | {lp:.1f} | {r['read']} |")
         out.append("")
     for d in fps:
         ps = np.array([r["p"] for r in d["reads"]])
@@ -269,8 +270,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     o = kp.CarrierOptions(**json.loads(args.options))
     if args.what == "markdown":
-        names = ["robust", "robust_corpus", "security", "fp"]
-        text = markdown([RESULTS / f"blind_carrier_{n}.json" for n in names])
+        text = markdown(sorted(RESULTS.glob("blind_carrier_*.json")))
         (RESULTS / "blind-carrier.md").write_text(text + "\n")
         print(text)
         return
