@@ -248,8 +248,9 @@ def markdown(paths: list[Path]) -> str:
             for r in list(m["overmark"].values()) + m["strip"]:
                 extra = f" (pirate reads: {r['pirate_read']})" if "pirate_read" in r else ""
                 lp = np.log10(max(r["p"], 1e-300))
+                own = r.get("own_frame_bits", "-")
                 out.append(f"| {m['mesh']} (marking {m['mrms']:.4f} %) | {r['attack']}{extra} | {r['mrms']:.4f} | "
-                           f"{r['x_marking']:.2f} | {r['bits']} ({r.get('own_frame_bits', '-')}) | {lp:.1f} | {r['read']} |")
+                           f"{r['x_marking']:.2f} | {r['bits']} ({own}) | {lp:.1f} | {r['read']} |")
         out.append("")
     for d in fps:
         ps = np.array([r["p"] for r in d["reads"]])

@@ -9,9 +9,10 @@ first) and its RMS radius as the unit; the embedder fixes the axes' signs by the
 reader tries all 8 sign choices (mirrors included) and pays 8 in the p-value.
 
 Sites: keyed unit directions from the centroid; a site is the outermost hit of that ray on the surface
-(a function of the surface, not of its sampling). A patch is the surface within ``radius`` of the site,
-weighted by vertex area, a smooth window (1 - (d/r)^2)^2 and the agreement of the vertex normal with the
-patch normal; its tangent frame is the patch normal and a keyed axis projected on the tangent plane.
+(a function of the surface, not of its sampling); sites whose ray meets the patch at a grazing angle are
+left out (their hit jumps). A patch is the surface within ``radius`` of the site, weighted by vertex area, a
+smooth window (1 - (d/r)^2)^2 and the agreement of the vertex normal with the patch normal; its tangent frame
+is the patch normal and a keyed axis projected on the tangent plane.
 
 Cells: per patch ``patterns`` keyed plane waves psi(u, v) = cos(2 pi f w.(u, v) + phi) in the tangent
 coordinates (u, v in patch radii, f = ``cycles`` per radius), each made orthogonal (area weighted) to the
@@ -19,10 +20,13 @@ quadric height field 1, u, v, u^2, uv, v^2; a cell's value z is the weighted pro
 its pattern. Each bit owns M = sites * patterns / bits cells (a keyed assignment) with keyed signs:
 Z = sum(s z) / sqrt(M); A = sqrt(mean(z^2) + floor^2) is the cells' own amplitude, so R = Z / A does
 not change when an attack scales the band (smoothing) uniformly (rational dither modulation). R is
-quantised with step ``step`` and a keyed dither: bit 0 on integers, bit 1 on half-integers.
+quantised with step ``step`` and a keyed dither: bit 0 on integers, bit 1 on half-integers. The embedder
+chooses its step from the public list ``steps`` (the largest within the MRMS budget); the reader tries all.
 
-Embedding moves vertices along their normals by the cells' windowed patterns, the cells of a bit by equal
-shares of the bit's move, and re-reads the whole mesh (frame, sites, cells) ``rounds`` times.
+Embedding moves vertices along their normals by the cells' windowed patterns; overlapping cells are not
+orthogonal, so the coefficients come from a least-energy solve through the cells' cross gains, and the whole
+mesh (frame, sites, cells) is read again ``rounds`` times. Word: payload bits and keyed check bits; the p-value
+is a union bound over sign choices, steps and the Chase candidates of the reading.
 """
 
 from __future__ import annotations
