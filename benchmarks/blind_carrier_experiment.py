@@ -210,6 +210,29 @@ def markdown(paths: list[Path]) -> str:
         "log10 p`; a copy counts as read when p < 1e-6 with every bit right. Not a scheme of pmwm.",
         "",
     ]
+    summary = ["| attack | " + " | ".join(f"{'generated' if d.get('corpus_seeds') else 'report-only data'} "
+                                         f"({len(d['meshes'])})" for d in rob) + " |",
+               "|---|" + "---|" * len(rob)]
+    for a in ["none", *ROBUST_ATTACKS]:
+        counts = [sum(m.get("attacks", {}).get(a, {}).get("read", False) for m in d["meshes"]) for d in rob]
+        summary.append(f"| {a} | " + " | ".join(f"{c}/{len(d['meshes'])}" for c, d in zip(counts, rob)) + " |")
+    for d in rob + sec + fps:
+        span = f", {d.get('started', '')} - {d.get('finished', 'cut short')}" if d in rob else ""
+        out.append(f"- `{d['command']}` at commit {d['commit']}{span}")
+        if d.get("corpus_seeds"):
+            out.append("  generated shapes (os.urandom seeds): " + "; ".join(f"{f}: {', '.join(map(str, v))}"
+                                                                          for f, v in d["corpus_seeds"].items()))
+    if docs:
+        out += [f"- machine: {docs[0]['machine']}; owner phrase fixed; attack seeds 20261207 + i", ""]
+    out += ["Copies read:", ""] + summary + [""]
+    for d in sec:
+        cheapest = min((r for m in d["meshes"] for r in list(m["overmark"].values()) + m["strip"] if not r["read"]),
+                       key=lambda r: r["x_marking"], default=None)
+        if cheapest:
+            x2 = sum(m["overmark"]["x2"]["read"] for m in d["meshes"])
+            out += [f"Security ({', '.join(m['mesh'] for m in d['meshes'])}): the cheapest removal measured without "
+                    f"the phrase: {cheapest['attack']} at {cheapest['x_marking']:.2f} x the marking's MRMS; after an "
+                    f"overmark by another phrase at 2 x the step the owner reads on {x2} of {len(d['meshes'])}.", ""]
     for d in rob:
         span = f"{d.get('started', '')} - {d.get('finished', 'cut short')}"
         out += [f"- run `{d['command']}` at commit {d['commit']}, {span}",

@@ -58,7 +58,7 @@ TUNING = (
 SECTIONS: tuple[Section, ...] = (
     Section("heldout", "Held out: meshes no method was tuned on"),
     Section("pose", "Any pose, any copy: near-symmetric shapes never tuned on"),
-    Section("blind-carrier", "A secure blind carrier prototype (experiment, not a scheme)"),
+    Section("blind-carrier", "A secure blind carrier prototype (experiment, not a scheme)", cap=30),
     Section(
         "robustness",
         "Robustness: both protocols, pmwm against Cho et al. 2007",
