@@ -210,8 +210,12 @@ def markdown(paths: list[Path]) -> str:
         "log10 p`; a copy counts as read when p < 1e-6 with every bit right. Not a scheme of pmwm.",
         "",
     ]
-    summary = ["| attack | " + " | ".join(f"{'generated' if d.get('corpus_seeds') else 'report-only data'} "
-                                         f"({len(d['meshes'])})" for d in rob) + " |",
+    def label(d):
+        o = d["options"]
+        return (f"{'generated' if d.get('corpus_seeds') else 'report-only data'} ({len(d['meshes'])}), "
+                f"{o['sites']} sites r {o['radius']:g}")
+
+    summary = ["| attack | " + " | ".join(label(d) for d in rob) + " |",
                "|---|" + "---|" * len(rob)]
     for a in ["none", *ROBUST_ATTACKS]:
         counts = [sum(m.get("attacks", {}).get(a, {}).get("read", False) for m in d["meshes"]) for d in rob]
