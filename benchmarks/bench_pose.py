@@ -17,6 +17,7 @@ bundled bunny for the cases verify is held to (the marked mesh, a reordered copy
 worktree's code and, with ``--compare PATH`` (a checkout's ``core`` folder), with that code in a subprocess.
 
 Run: nice -n 10 python benchmarks/bench_pose.py --copies 200 --out pose.jsonl
+     nice -n 10 python benchmarks/bench_pose.py --copies 100 --damage simplify --families cad4,cad2
      nice -n 10 python benchmarks/bench_pose.py --speed --compare /work/main/core
 """
 
@@ -83,7 +84,9 @@ def damage(V, F, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, np.nd
     raise ValueError(kind)
 
 
-def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: int, out) -> list[dict]:
+def one_shape(
+    family: str, shape_seed: int, rng: np.random.Generator, copies: int, out, damages: tuple = DAMAGES
+) -> list[dict]:
     V, F = generate(family, shape_seed)
     payload = "".join(rng.choice(list(LETTERS), int(rng.integers(3, 8))))
     key_seed = int(rng.integers(1 << 31))
@@ -96,7 +99,7 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
     rows = []
     for _ in range(copies):
         W, G = res.vertices, res.faces
-        kind = DAMAGES[int(rng.integers(len(DAMAGES)))]
+        kind = damages[int(rng.integers(len(damages)))]
         params: dict = {}
         if kind == "overmark":
             f = float(rng.uniform(1.0, 4.0))
@@ -117,10 +120,12 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
         W, G = attacks.similarity(W, G, seed=int(rng.integers(1 << 31)))
         if kind != "overmark":
             W, G, params = damage(W, G, kind, rng)
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         v = pmwm.verify(W, G, res.key)
-        dt = time.perf_counter() - t
+        dt, dc = time.perf_counter() - t, time.process_time() - c
+        c = time.process_time()
         w = pmwm.verify(W, G, wrong_key)
+        wc = time.process_time() - c
         confirmed = bool(v.payload_confirmed)
         row = {
             "family": family,
@@ -140,6 +145,8 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
             "code": getattr(v.detail, "payload_code", None),
             "poses_read": getattr(v.detail, "poses_read", None),
             "verify_s": round(dt, 3),
+            "verify_cpu_s": round(dc, 3),
+            "wrong_key_cpu_s": round(wc, 3),
             "wrong_key_marked": w.marked,
             "wrong_key_shown": w.payload,
         }
@@ -149,11 +156,17 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, copies: in
     return rows
 
 
+def _spread(rows: list[dict], name: str) -> str:
+    """Median / max of a timing column ('-' for rows of runs that did not record it)."""
+    x = [r[name] for r in rows if name in r]
+    return f"{np.median(x):.2f} / {max(x):.2f}" if x else "-"
+
+
 def summary(rows: list[dict]) -> str:
     lines = [
         "| family | copies | read exactly | marked | wrong payload shown | mirror misreported | "
-        "wrong key marked | median verify s |",
-        "|---|---|---|---|---|---|---|---|",
+        "wrong key marked | verify CPU s, median / max | wrong key CPU s, median / max |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for fam in sorted({r["family"] for r in rows}) + ["all"]:
         rs = [r for r in rows if fam in ("all", r["family"])]
@@ -161,12 +174,14 @@ def summary(rows: list[dict]) -> str:
         lines.append(
             f"| {fam} | {len(rs)} | {sum(r['exact'] for r in rs)} | {sum(r['marked'] for r in rs)} | "
             f"{sum(r['wrong_shown'] or r['wrong_key_shown'] is not None for r in rs)} | {mis} | "
-            f"{sum(r['wrong_key_marked'] for r in rs)} | {np.median([r['verify_s'] for r in rs]):.2f} |"
+            f"{sum(r['wrong_key_marked'] for r in rs)} | {_spread(rs, 'verify_cpu_s')} | "
+            f"{_spread(rs, 'wrong_key_cpu_s')} |"
         )
     lines += ["", "| damage | copies | read exactly |", "|---|---|---|"]
     for kind in DAMAGES:
         rs = [r for r in rows if kind in r["attack"]]
-        lines.append(f"| {kind} | {len(rs)} | {sum(r['exact'] for r in rs)} |")
+        if rs:
+            lines.append(f"| {kind} | {len(rs)} | {sum(r['exact'] for r in rs)} |")
     return "\n".join(lines)
 
 
@@ -236,6 +251,8 @@ def main() -> None:
     ap.add_argument(
         "--uncoded", action="store_true", help="mark without the payload code (as keys of format 2), to compare"
     )
+    ap.add_argument("--families", default=",".join(FAMILIES), help="comma-separated families drawn from")
+    ap.add_argument("--damage", default=",".join(DAMAGES), help="comma-separated damages drawn from")
     ap.add_argument("--speed", action="store_true", help="part 2: verify's speed on the bunny")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--summarize", default=None, help="print the tables of a JSON-lines file of an earlier run")
@@ -263,11 +280,14 @@ def main() -> None:
         rng = np.random.default_rng(seed)
         rows: list = []
         with open(a.out, "a") as out:
+            families, damages = tuple(a.families.split(",")), tuple(a.damage.split(","))
             head = {"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM, "uncoded": a.uncoded}
+            head |= {"families": families, "damages": damages}
             out.write(json.dumps(head) + "\n")
             while len(rows) < a.copies:  # (a shape too small for the payload adds no row)
-                family = FAMILIES[int(rng.integers(len(FAMILIES)))]
-                rows += one_shape(family, int(rng.integers(1 << 31)), rng, min(a.per_shape, a.copies - len(rows)), out)
+                family = families[int(rng.integers(len(families)))]
+                n = min(a.per_shape, a.copies - len(rows))
+                rows += one_shape(family, int(rng.integers(1 << 31)), rng, n, out, damages)
                 print(f"{len(rows)} copies", flush=True)
         print(summary(rows))
     if a.speed:
