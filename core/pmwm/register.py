@@ -6,7 +6,11 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
 
 1. Initial guesses: the identity (most copies are not rotated; PCA is useless on a copy cropped to
    half), and the PCA alignment (centroid, axes, scale from the eigenvalues) with the 8 sign flips of
-   the axes: 4 rotations and 4 mirror images (mirroring a model is one click in any 3D tool).
+   the axes: 4 rotations and 4 mirror images (mirroring a model is one click in any 3D tool). Two axes
+   of about equal spread (a round or square section: a flange, a shaft) leave the turn about the third
+   undetermined, and on a round part with small features ICP hardly turns from where it starts: there
+   the best turns come from the circular cross-correlation of how the surface lies around that axis in
+   the suspect and in the reference (``_angular_starts``, both handedness cases, the axis either way).
 2. Each guess is refined by trimmed similarity ICP, point-to-plane against the reference normals
    (sampling offsets along the surface then cost nothing, unlike point-to-point): the closest
    ``TRIM`` share of pairs drive a linearised least-squares step (scale, rotation, translation).
