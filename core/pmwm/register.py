@@ -79,7 +79,8 @@ ANGLE_SAMPLES = 6000  # suspect samples of the angular signature (the key's 3,00
 ANGLE_BINS = 256  # bins of the angle about the axis
 RING_BINS, HEIGHT_BINS = 8, 8  # bins of the distance from the axis and of the height along it
 ANGLE_BLUR = 2.0  # degrees: the signatures' angular blur (a slightly tilted axis, sampling noise)
-ANGLE_STARTS = 8  # the best turns about an axis of equal spreads (of all four handedness cases) tried as starts
+ANGLE_PEAKS = 8  # the most turns about an axis of equal spreads tried as starts, per handedness case
+ANGLE_SHARE = 0.6  # ... those whose correlation reaches this share of the best one of all four cases
 ANGLE_APART = 12.0  # degrees: two turns of one case closer than this are one peak
 DISTINCT = 0.05  # two poses differ when they place the suspect's PCA frame this far apart (/ reference scale)
 
@@ -294,15 +295,17 @@ def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple[int, ..
 
 def _angular_starts(ref_P: np.ndarray, ref_c, ref_A, ref_s, T: np.ndarray, c, A, s, axis: int) -> list:
     """Similarity starts turning the suspect (samples T (m, 3), PCA frame c, A, s) about its PCA axis ``axis``
-    onto the reference (samples ref_P (n, 3), PCA frame ref_c, ref_A, ref_s), at the ``ANGLE_STARTS`` best
-    turns by the circular cross-correlation of angular signatures (``_signature``).
+    onto the reference (samples ref_P (n, 3), PCA frame ref_c, ref_A, ref_s), at the best turns by the circular
+    cross-correlation of angular signatures (``_signature``).
 
     In both PCA frames, divided by the scale, a point has an angle about the axis, a distance from it and a
     height along it. The reference's coordinates y follow from the suspect's z by y = M z, M a turn by phi
     about the axis, the axis kept or reversed (sigma = +-1), the angle kept or reversed (tau = +-1; M mirrors
     when sigma tau = -1). For each (sigma, tau), the suspect's signature with its angles times tau and heights
-    times sigma is correlated with the reference's over every turn at once (FFT); each correlation's peaks
-    (``ANGLE_APART`` apart), best of all four first, give the turns."""
+    times sigma is correlated with the reference's over every turn at once (FFT); each correlation's best
+    ``ANGLE_PEAKS`` peaks (``ANGLE_APART`` apart) that reach ``ANGLE_SHARE`` of the best of all four give the
+    turns, best first: an n-fold part has n peaks of about equal height per case, and a part with mirror planes
+    has them in two or four cases, of which the mark is in one."""
     i, j = (q for q in range(3) if q != axis)
     th_r, rho_r, h_r = _cylindrical(ref_P, ref_c, ref_A, ref_s, axis)
     th_s, rho_s, h_s = _cylindrical(T, c, A, s, axis)
@@ -315,15 +318,16 @@ def _angular_starts(ref_P: np.ndarray, ref_c, ref_A, ref_s, T: np.ndarray, c, A,
             sus = np.fft.rfft(_signature(tau * th_s, rho_s, sigma * h_s, box), axis=0)
             C = np.fft.irfft(ref * np.conj(sus), n=ANGLE_BINS, axis=0).sum(axis=1)  # C[n] = sum_m ref[m + n] sus[m]
             D = C.copy()
-            for _ in range(ANGLE_STARTS):
+            for _ in range(ANGLE_PEAKS):
                 p = int(np.argmax(D))
                 a, b, d = C[p - 1], C[p], C[(p + 1) % ANGLE_BINS]  # the peak between bins (a parabola)
                 curv = a - 2.0 * b + d
                 peaks.append((b, sigma, tau, p + (0.5 * (a - d) / curv if curv < 0 else 0.0)))
                 D[np.arange(p - apart, p + apart + 1) % ANGLE_BINS] = -np.inf
+    best = max(x[0] for x in peaks)
     k = ref_s / max(s, 1e-300)
     out = []
-    for _, sigma, tau, n in sorted(peaks, key=lambda x: -x[0])[:ANGLE_STARTS]:
+    for _, sigma, tau, n in sorted((x for x in peaks if x[0] >= ANGLE_SHARE * best), key=lambda x: -x[0]):
         phi = 2.0 * np.pi * n / ANGLE_BINS
         M = np.zeros((3, 3))
         M[axis, axis] = sigma
