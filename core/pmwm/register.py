@@ -229,10 +229,11 @@ def register_poses(
         yield from map(pose, given)
     report(0.1, "aligning: from its principal axes")
     starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
-    axes = _equal_spreads(S, c, A)
-    if axes:  # a round or square section: PCA cannot tell the turns about its axis apart, the signatures do
-        T, _ = sample_surface(V, suspect_F, ANGLE_SAMPLES, seed + 1)
-        starts += [x for axis in axes for x in _angular_starts(ref_P, ref_c, ref_A, ref_s, T, c, A, s, axis)]
+    if _equal_spreads(S, c, A):  # a round or square section: PCA cannot tell the turns about its axis apart
+        T, _ = sample_surface(V, suspect_F, ANGLE_SAMPLES, seed + 1)  # (and a finer frame: the signature is
+        frame_T = _pca(T)  # sensitive to the centroid and the axis)
+        for axis in _equal_spreads(T, *frame_T[:2]):
+            starts += _angular_starts(ref_P, ref_c, ref_A, ref_s, T, *frame_T, axis)
     fits = _icp(S[::COARSE_STEP], index, ref_N, [x[1:] for x in starts], ref_s, COARSE_ITERATIONS)
     coarse = sorted(
         [x for x in identity + [(name, *fit) for (name, *_), fit in zip(starts, fits)] if plausible(x[2])],
