@@ -104,10 +104,13 @@ def read_ok(v) -> bool:
     return bool(v.marked and v.payload == PAYLOAD)
 
 
-def run_mesh(name, V, F, phrase, attack_seed, doc, keys):
-    """Embed with both schemes, attack, verify; append the rows to ``doc``."""
+SCHEMES = ("robust", "blind")
+
+
+def run_mesh(name, V, F, phrase, attack_seed, doc, keys, schemes=SCHEMES):
+    """Embed with each of ``schemes``, attack, verify; append the rows to ``doc``."""
     entry = {"mesh": name, "vertices": len(V), "faces": len(F), "schemes": {}}
-    for scheme in ("robust", "blind"):
+    for scheme in schemes:
         t0 = time.perf_counter()
         opts = pmwm.EmbedOptions(
             scheme=scheme, payload=PAYLOAD, progressive=False, passphrase=phrase if scheme == "blind" else None
@@ -184,14 +187,26 @@ def robust_false_positives(originals, keys, others_per_mesh: int = 2):
 
 
 def merged(docs: list) -> dict:
-    """Several runs as one: their meshes side by side, their false-positive counts summed."""
-    doc = {"meshes": [m for d in docs for m in d["meshes"]], "runs": docs}
-    fps = [d["false_positives"] for d in docs if d.get("false_positives")]
-    if fps:
-        doc["false_positives"] = {
-            k: {c: sum(f[k][c] for f in fps) for c in fps[0][k] if c != "command"}
-            for k in ("blind_unmarked", "blind_wrong_phrase", "robust")
-        }
+    """Several runs as one: their meshes side by side, their false-positive counts summed. A run of some schemes
+    alone (``--schemes``) replaces those schemes' figures of the runs listed before it (runs after it add up)."""
+    ran = [tuple(d.get("schemes_run", SCHEMES)) for d in docs]
+    again = {s: min((i for i, r in enumerate(ran) if s in r and len(r) < len(SCHEMES)), default=0) for s in SCHEMES}
+    keep = [{s for s in r if i >= again[s]} for i, r in enumerate(ran)]
+    meshes = []
+    for d, k in zip(docs, keep):
+        meshes += [{**m, "schemes": {s: x for s, x in m["schemes"].items() if s in k}} for m in d["meshes"]]
+    doc = {"meshes": [m for m in meshes if m["schemes"]], "runs": [d for d, k in zip(docs, keep) if k]}
+    fp_keys = {"blind": ("blind_unmarked", "blind_wrong_phrase"), "robust": ("robust",)}
+    fps = {
+        name: [
+            d["false_positives"][name] for d, k in zip(docs, keep) if s in k and name in d.get("false_positives", {})
+        ]
+        for s, names in fp_keys.items()
+        for name in names
+    }
+    doc["false_positives"] = {
+        name: {c: sum(f[c] for f in fs) for c in fs[0] if c != "command"} for name, fs in fps.items() if fs
+    }
     return doc
 
 
@@ -208,7 +223,8 @@ def markdown(doc) -> str:
     ]
     for run in doc.get("runs", [doc]):
         lines += [
-            f"- run `{run['command']}` at commit {run['commit']}, {run['started']} - "
+            f"- run `{run['command']}` ({', '.join(run.get('schemes_run', SCHEMES))}) at commit {run['commit']}, "
+            f"{run['started']} - "
             f"{run.get('finished', 'cut short')}; attack seed {run['attack_seed']}, blind pass phrase "
             f"`{run['phrase']}`; generated shapes (family: seeds from os.urandom): "
             + ("; ".join(f"{f}: {', '.join(map(str, s))}" for f, s in run["corpus_seeds"].items()) or "none")
@@ -216,7 +232,11 @@ def markdown(doc) -> str:
     lines += [f"- machine: {doc.get('runs', [doc])[0]['machine']}", ""]
     head = (
         "| attack | "
-        + " | ".join(f"{s} on {g} ({len(ms)})" for s in ("robust", "blind") for g, ms in groups.items())
+        + " | ".join(
+            f"{s} on {g} ({sum(s in m['schemes'] for m in ms)})"
+            for s in ("robust", "blind")
+            for g, ms in groups.items()
+        )
         + " |"
     )
     lines += [head, "|" + "---|" * (1 + 2 * len(groups))]
@@ -259,9 +279,17 @@ def markdown(doc) -> str:
             lines.append(
                 f"- {s}: marked (p < 1e-6) without the whole payload in {len(wrong)} copies: " + "; ".join(wrong)
             )
-    fp = doc.get("false_positives")
-    if fp:
-        b, bm, r = fp["blind_unmarked"], fp["blind_wrong_phrase"], fp["robust"]
+    fp = doc.get("false_positives") or {}
+    fp_rows = [
+        (lab, fp[k])
+        for k, lab in (
+            ("blind_unmarked", "blind, unmarked shapes x random phrases"),
+            ("blind_wrong_phrase", "blind, marked copies x wrong phrases"),
+            ("robust", "robust, unmarked originals x own key and 2 others"),
+        )
+        if k in fp
+    ]
+    if fp_rows:
         lines += [
             "",
             "False positives (verdicts with p below each level):",
@@ -270,11 +298,7 @@ def markdown(doc) -> str:
             "|---|---|---|---|---|",
             *[
                 f"| {lab} | {c['verifications']} | {c['p<1e-2']} | {c['p<1e-3']} | {c['p<1e-6']} |"
-                for lab, c in (
-                    ("blind, unmarked shapes x random phrases", b),
-                    ("blind, marked copies x wrong phrases", bm),
-                    ("robust, unmarked originals x own key and 2 others", r),
-                )
+                for lab, c in fp_rows
             ],
         ]
     failed = [
@@ -299,6 +323,7 @@ def main(argv=None) -> int:
     ap.add_argument("--families", default="all")
     ap.add_argument("--vertices", type=int, default=0, help="generated shapes' vertices aimed at (0: the seed's)")
     ap.add_argument("--fp-secrets", type=int, default=500)
+    ap.add_argument("--schemes", default=",".join(SCHEMES), help="the schemes to run, e.g. 'robust'")
     ap.add_argument("--out", default=str(RESULTS / "heldout.json"))
     ap.add_argument("--md", default=str(RESULTS / "heldout.md"))
     ap.add_argument("--markdown-only", action="store_true")
@@ -313,7 +338,7 @@ def main(argv=None) -> int:
         return false_positives_again(a)
     if a.markdown_only:
         docs = [json.loads(Path(f).read_text()) for f in [a.out, *a.also]]
-        Path(a.md).write_text(markdown(merged(docs) if a.also else docs[0]))
+        Path(a.md).write_text(markdown(merged(docs)))
         return 0
     names = list(split.REPORT_ONLY) if a.meshes == "report" else [] if a.meshes == "none" else a.meshes.split(",")
     fams = None if a.families == "all" else a.families.split(",")
@@ -329,6 +354,7 @@ def main(argv=None) -> int:
         "vertices_aimed": a.vertices,
         "attack_seed": attack_seed,
         "phrase": phrase,
+        "schemes_run": a.schemes.split(","),
         "meshes": [],
     }
 
@@ -352,19 +378,22 @@ def main(argv=None) -> int:
         )
         shapes.append((name, V, F))
         print(name, len(V), flush=True)
-        entry = run_mesh(name, V, F, phrase, attack_seed, doc, keys)
+        entry = run_mesh(name, V, F, phrase, attack_seed, doc, keys, doc["schemes_run"])
         if "_marked" in entry["schemes"].get("blind", {}):
             marked.append((entry["schemes"]["blind"]["_marked"], F))
         save()
     rng = np.random.default_rng(attack_seed)
-    doc["false_positives"] = {
-        "blind_unmarked": blind_false_positives([(V, F) for _, V, F in shapes], a.fp_secrets, rng),
-        "blind_wrong_phrase": blind_false_positives(marked, a.fp_secrets, rng),
-        "robust": robust_false_positives(shapes, keys),
-    }
+    doc["false_positives"] = {}
+    if "blind" in doc["schemes_run"]:
+        doc["false_positives"]["blind_unmarked"] = blind_false_positives(
+            [(V, F) for _, V, F in shapes], a.fp_secrets, rng
+        )
+        doc["false_positives"]["blind_wrong_phrase"] = blind_false_positives(marked, a.fp_secrets, rng)
+    if "robust" in doc["schemes_run"]:
+        doc["false_positives"]["robust"] = robust_false_positives(shapes, keys)
     doc["finished"] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     save()
-    Path(a.md).write_text(markdown(json.loads(Path(a.out).read_text())))
+    Path(a.md).write_text(markdown(merged([json.loads(Path(a.out).read_text())])))
     print(Path(a.md).read_text())
     return 0
 

@@ -18,6 +18,7 @@ worktree's code and, with ``--compare PATH`` (a checkout's ``core`` folder), wit
 
 Run: nice -n 10 python benchmarks/bench_pose.py --copies 200 --out pose.jsonl
      nice -n 10 python benchmarks/bench_pose.py --copies 100 --damage simplify --families cad4,cad2
+     nice -n 10 python benchmarks/bench_pose.py --copies 60 --damage overmark --seed S   (one damage alone)
      nice -n 10 python benchmarks/bench_pose.py --speed --compare /work/main/core
 """
 
@@ -85,7 +86,7 @@ def damage(V, F, kind: str, rng: np.random.Generator) -> tuple[np.ndarray, np.nd
 
 
 def one_shape(
-    family: str, shape_seed: int, rng: np.random.Generator, copies: int, out, damages: tuple = DAMAGES
+    family: str, shape_seed: int, rng: np.random.Generator, copies: int, out, kinds: tuple = DAMAGES
 ) -> list[dict]:
     V, F = generate(family, shape_seed)
     payload = "".join(rng.choice(list(LETTERS), int(rng.integers(3, 8))))
@@ -99,7 +100,7 @@ def one_shape(
     rows = []
     for _ in range(copies):
         W, G = res.vertices, res.faces
-        kind = damages[int(rng.integers(len(damages)))]
+        kind = kinds[int(rng.integers(len(kinds)))]
         params: dict = {}
         if kind == "overmark":
             f = float(rng.uniform(1.0, 4.0))
@@ -252,7 +253,11 @@ def main() -> None:
         "--uncoded", action="store_true", help="mark without the payload code (as keys of format 2), to compare"
     )
     ap.add_argument("--families", default=",".join(FAMILIES), help="comma-separated families drawn from")
-    ap.add_argument("--damage", default=",".join(DAMAGES), help="comma-separated damages drawn from")
+    ap.add_argument(
+        "--damage",
+        default=",".join(DAMAGES),
+        help=f"the damages drawn from, comma-separated (default: all of {','.join(DAMAGES)})",
+    )
     ap.add_argument("--speed", action="store_true", help="part 2: verify's speed on the bunny")
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--summarize", default=None, help="print the tables of a JSON-lines file of an earlier run")
@@ -275,19 +280,22 @@ def main() -> None:
 
         importlib.import_module("pmwm.schemes.robust.embed").payload_code = lambda k: None
     if a.copies:
+        kinds = tuple(a.damage.split(","))
+        if set(kinds) - set(DAMAGES):
+            ap.error(f"--damage: unknown {sorted(set(kinds) - set(DAMAGES))}; known: {','.join(DAMAGES)}")
         seed = a.seed if a.seed is not None else int.from_bytes(os.urandom(4), "little")
         print(f"run seed {seed} (replay with --seed {seed})", flush=True)
         rng = np.random.default_rng(seed)
         rows: list = []
         with open(a.out, "a") as out:
-            families, damages = tuple(a.families.split(",")), tuple(a.damage.split(","))
-            head = {"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM, "uncoded": a.uncoded}
-            head |= {"families": families, "damages": damages}
+            families = tuple(a.families.split(","))
+            head = {"run_seed": seed, "commit": commit, "shapes": SHAPES_FROM, "uncoded": a.uncoded, "damages": kinds}
+            head["families"] = families
             out.write(json.dumps(head) + "\n")
             while len(rows) < a.copies:  # (a shape too small for the payload adds no row)
                 family = families[int(rng.integers(len(families)))]
-                n = min(a.per_shape, a.copies - len(rows))
-                rows += one_shape(family, int(rng.integers(1 << 31)), rng, n, out, damages)
+                shape_seed, n = int(rng.integers(1 << 31)), min(a.per_shape, a.copies - len(rows))
+                rows += one_shape(family, shape_seed, rng, n, out, kinds)
                 print(f"{len(rows)} copies", flush=True)
         print(summary(rows))
     if a.speed:

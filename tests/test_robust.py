@@ -158,7 +158,7 @@ def test_readings_by_vertex_index_of_the_marked_mesh_are_exact(bunny, marked):
     coded = coded_bits(marked.bits, s.code)
     sign = s.chip * np.where((coded ^ marked.key.stream("scramble", len(coded)))[s.bit] == 1, 1.0, -1.0)
     bump = site_soft(marked.vertices, marked.faces, s, by_index=True)[0]
-    turn = swirl_soft(marked.vertices, s)[0]
+    turn = swirl_soft(marked.vertices, marked.faces, s)[0]
     assert np.abs(bump - sign)[s.index_ok].max() < 0.01
     assert np.abs(turn - sign)[s.swirl_ok].max() < 0.01
 
@@ -377,7 +377,9 @@ def test_noise_on_a_reordered_copy_is_still_read(marked):
         noisy = attacks.noise_paper(marked.vertices, marked.faces, amplitude=0.01, seed=seed)
         v = pmwm.verify(*attacks.reorder(*noisy, seed=seed), marked.key)
         assert v.mode == "registered" and v.detail.heights == "by position"
-        assert v.marked and v.matches >= 0.8 * v.carriers_total, v.matches  # coded bits: see above
+        # coded bits (see above); sites weighing by their likelihood ratio read 1-2 % fewer of them right at
+        # this noise than by inverse variance (docs/decisions/113)
+        assert v.marked and v.matches >= 0.75 * v.carriers_total, v.matches
         assert v.payload in (PAYLOAD, None)
 
 
@@ -644,6 +646,26 @@ def test_overmarked_copy_reads_each_keys_own_payload(bunny, marked, factor):
         assert w.payload in (payload, None)
 
 
+@pytest.mark.parametrize("posed", [False, True])
+def test_a_copy_marked_again_at_3x_reads_both_payloads(posed):
+    """A small CAD flange (6,772 vertices) marked, then marked again by another key at 3x the strength,
+    in place or moved: the owner's key reads the owner's payload, confirmed, and the other key its own,
+    from the same copy. The other mark's bumps land on some of the owner's sites at 3x their height;
+    read as they come, they outweigh the sites' own readings and leave the payload unconfirmed."""
+    from pmwm_bench.corpus import generate
+
+    V, F = generate("cad4", 1)
+    owner = robust_embed(V, F, pmwm.EmbedOptions(payload="OWNR", seed=5, progressive=False))
+    assert key_data(owner.key).code is not None
+    other = robust_embed(
+        owner.vertices, owner.faces, pmwm.EmbedOptions(payload="THIEF", seed=100, strength=6.0, progressive=False)
+    )
+    W, G = attacks.similarity(other.vertices, other.faces, seed=4) if posed else (other.vertices, other.faces)
+    for key, payload in ((owner.key, "OWNR"), (other.key, "THIEF")):
+        v = robust_verify(W, G, key)
+        assert v.marked and v.payload_confirmed and v.payload == payload, (payload, v.p_value, v.bit_errors)
+
+
 def test_keys_without_a_code_still_read_their_marks(bunny, monkeypatch):
     """Keys written before the payload code (format 2: the sites carry the payload bits) keep reading
     their marks; their payload is confirmed only when every bit reads right."""
@@ -656,3 +678,30 @@ def test_keys_without_a_code_still_read_their_marks(bunny, monkeypatch):
     assert json.loads(res.key.to_json())["extra"]["robust_version"] == 2 and key_data(key).code is None
     v = robust_verify(*attacks.similarity(res.vertices, res.faces, seed=1), key)
     assert v.marked and v.payload == PAYLOAD and v.payload_confirmed and v.carriers_total == key.n_bits
+
+
+def _renumbered_locally(V, F, cell: float, seed: int):
+    """The mesh with its vertices re-numbered within cells of size ``cell``: each index now names another
+    vertex of its neighbourhood, as an STL re-export renumbers a mesh whose faces run along its surface."""
+    rng = np.random.default_rng(seed)
+    ids = np.unique(np.floor(V / cell).astype(np.int64), axis=0, return_inverse=True)[1].ravel()
+    perm = np.arange(len(V))
+    for c in np.unique(ids):
+        members = np.flatnonzero(ids == c)
+        perm[members] = rng.permutation(members)
+    new_of_old = np.empty_like(perm)
+    new_of_old[perm] = np.arange(len(V))
+    return V[perm], new_of_old[F]
+
+
+@pytest.mark.parametrize("name", ["blob", "cad_part"])
+def test_a_copy_renumbered_near_its_old_order_is_read_by_position(name):
+    """Vertex indices that each name a neighbour of the marked vertex (the marked mesh's vertex count, its
+    surface unchanged, its faces re-numbered) are not the marked order: reading heights by index there
+    gives noise; the faces show the order was not kept."""
+    V, F = getattr(meshes, name)()
+    res = robust_embed(V, F, pmwm.EmbedOptions(payload=PAYLOAD, seed=11))
+    Va, Fa = _renumbered_locally(res.vertices, res.faces, 0.25 * key_data(res.key).frame.scale, seed=3)
+    v = robust_verify(Va, Fa, res.key)
+    assert v.marked and v.payload == PAYLOAD, (v.p_value, v.detail.heights)
+    assert v.detail.heights.startswith("by position")

@@ -24,6 +24,14 @@ PAYLOAD = "ACME"
 # ----------------------------------------------------------------------------- building test scenes
 
 
+def _embed(src, out, key=None, *more, seed: int = 3, payload=PAYLOAD, quiet: bool = True) -> int:
+    """The exit code of ``pmwm embed --seed SEED SRC -o OUT [--key KEY] [--payload PAYLOAD] MORE... [-q]``."""
+    args = ["embed", "--seed", str(seed), str(src), "-o", str(out)]
+    args += ["--key", str(key)] if key is not None else []
+    args += ["--payload", payload] if payload is not None else []
+    return main(args + [str(m) for m in more] + (["-q"] if quiet else []))
+
+
 def _glb_parts(data: bytes) -> tuple[dict, bytes]:
     """(JSON document, BIN chunk) of a GLB file."""
     n = struct.unpack_from("<I", data, 12)[0]
@@ -106,21 +114,7 @@ def _without_minmax(doc: dict) -> dict:
 def marked_glb(tmp_path_factory):
     d = tmp_path_factory.mktemp("glb")
     scene_glb(d / "scene.glb")
-    rc = main(
-        [
-            "embed",
-            str(d / "scene.glb"),
-            "-o",
-            str(d / "marked.glb"),
-            "--key",
-            str(d / "k.json"),
-            "--payload",
-            PAYLOAD,
-            "--seed",
-            "5",
-            "-q",
-        ]
-    )
+    rc = _embed(d / "scene.glb", d / "marked.glb", d / "k.json", seed=5)
     assert rc == 0
     return d
 
@@ -215,26 +209,7 @@ def test_a_pass_phrase_marks_every_object(tmp_path, capsys):
     s.export(path)
     pp = tmp_path / "pp"
     pp.write_text("a pass phrase for the scene\n")
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(path),
-                "-o",
-                str(tmp_path / "m.glb"),
-                "--scheme",
-                "blind",
-                "--passphrase-file",
-                str(pp),
-                "--payload",
-                PAYLOAD,
-                "-q",
-            ]
-        )
-        == 0
-    )
+    assert _embed(path, tmp_path / "m.glb", None, "--scheme", "blind", "--passphrase-file", pp) == 0
     assert not any(p.name.endswith(".json") for p in tmp_path.iterdir())  # no key file
     capsys.readouterr()
     assert main(["verify", str(tmp_path / "m.glb"), "--passphrase-file", str(pp)]) == 0
@@ -291,24 +266,7 @@ def test_obj_keeps_objects_groups_materials_and_uvs(tmp_path, capsys):
     scene_obj(tmp_path / "scene.obj")
     out = tmp_path / "out"
     out.mkdir()
-    assert (
-        main(
-            [
-                "embed",
-                str(tmp_path / "scene.obj"),
-                "-o",
-                str(out / "m.obj"),
-                "--key",
-                str(out / "k.json"),
-                "--payload",
-                PAYLOAD,
-                "--seed",
-                "2",
-                "-q",
-            ]
-        )
-        == 0
-    )
+    assert _embed(tmp_path / "scene.obj", out / "m.obj", out / "k.json", seed=2) == 0
     before = (tmp_path / "scene.obj").read_bytes().splitlines()
     after = (out / "m.obj").read_bytes().splitlines()
     assert len(before) == len(after)
@@ -421,24 +379,7 @@ def test_gltf_with_external_buffer_is_written_with_its_own(tmp_path, capsys):
     (tmp_path / "scene.gltf").write_text(json.dumps(doc))
     out = tmp_path / "out"
     out.mkdir()
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(tmp_path / "scene.gltf"),
-                "-o",
-                str(out / "m.gltf"),
-                "--key",
-                str(out / "k.json"),
-                "--payload",
-                PAYLOAD,
-                "-q",
-            ]
-        )
-        == 0
-    )
+    assert _embed(tmp_path / "scene.gltf", out / "m.gltf", out / "k.json") == 0
     assert sorted(p.name for p in out.iterdir()) == ["k.json", "m.bin", "m.gltf"]
     assert (tmp_path / "scene.bin").read_bytes() == body  # the input untouched
     assert json.loads((out / "m.gltf").read_text())["buffers"][0]["uri"] == "m.bin"
@@ -449,21 +390,7 @@ def test_gltf_with_external_buffer_is_written_with_its_own(tmp_path, capsys):
 def test_a_scene_goes_back_to_its_own_format(tmp_path, capsys):
     scene_glb(tmp_path / "s.glb", extra_node=False)
     capsys.readouterr()
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(tmp_path / "s.glb"),
-                "-o",
-                str(tmp_path / "m.ply"),
-                "--key",
-                str(tmp_path / "k.json"),
-            ]
-        )
-        == 2
-    )
+    assert _embed(tmp_path / "s.glb", tmp_path / "m.ply", tmp_path / "k.json", payload=None, quiet=False) == 2
     assert "use -o NAME.glb" in capsys.readouterr().err
     assert not (tmp_path / "m.ply").exists() and not (tmp_path / "k.json").exists()
 
@@ -494,23 +421,7 @@ def test_morph_targets_are_kept_and_the_mesh_marked_at_rest(tmp_path, capsys):
 
     path = _edited(tmp_path, "morph.glb", morph)
     capsys.readouterr()
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(path),
-                "-o",
-                str(tmp_path / "m.glb"),
-                "--key",
-                str(tmp_path / "k.json"),
-                "--payload",
-                PAYLOAD,
-            ]
-        )
-        == 0
-    )
+    assert _embed(path, tmp_path / "m.glb", tmp_path / "k.json", quiet=False) == 0
     assert "marked at rest" in capsys.readouterr().err
     doc0, bin0 = _glb_parts(path.read_bytes())
     doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
@@ -595,24 +506,7 @@ def _interleaved_glb(path) -> None:
 
 def test_interleaved_buffers_are_patched_in_place(tmp_path, capsys):
     _interleaved_glb(tmp_path / "i.glb")
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(tmp_path / "i.glb"),
-                "-o",
-                str(tmp_path / "m.glb"),
-                "--key",
-                str(tmp_path / "k.json"),
-                "--payload",
-                PAYLOAD,
-                "-q",
-            ]
-        )
-        == 0
-    )
+    assert _embed(tmp_path / "i.glb", tmp_path / "m.glb", tmp_path / "k.json") == 0
     doc0, bin0 = _glb_parts((tmp_path / "i.glb").read_bytes())
     doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
     assert _without_minmax(doc0) == _without_minmax(doc1)
@@ -631,24 +525,7 @@ def test_gltf_with_embedded_buffers(tmp_path, capsys):
     s.add_geometry(trimesh.Trimesh(*cad_part(), process=False), node_name="A", geom_name="A")
     s.add_geometry(trimesh.Trimesh(*pinched_torus(), process=False), node_name="B", geom_name="B")
     (tmp_path / "s.gltf").write_bytes(trimesh.exchange.gltf.export_gltf(s, embed_buffers=True)["model.gltf"])
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(tmp_path / "s.gltf"),
-                "-o",
-                str(tmp_path / "m.gltf"),
-                "--key",
-                str(tmp_path / "k.json"),
-                "--payload",
-                PAYLOAD,
-                "-q",
-            ]
-        )
-        == 0
-    )
+    assert _embed(tmp_path / "s.gltf", tmp_path / "m.gltf", tmp_path / "k.json") == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k.json", "m.gltf", "s.gltf"]
     assert json.loads((tmp_path / "m.gltf").read_text())["buffers"][0]["uri"].startswith("data:")
     capsys.readouterr()
@@ -688,23 +565,7 @@ def test_skinned_mesh_is_marked_in_its_bind_pose(tmp_path, capsys):
 
     path = _edited(tmp_path, "skin.glb", skin)
     capsys.readouterr()
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(path),
-                "-o",
-                str(tmp_path / "m.glb"),
-                "--key",
-                str(tmp_path / "k.json"),
-                "--payload",
-                PAYLOAD,
-            ]
-        )
-        == 0
-    )
+    assert _embed(path, tmp_path / "m.glb", tmp_path / "k.json", quiet=False) == 0
     assert "Horse: skinned; marked in its bind pose" in capsys.readouterr().err
     assert _without_minmax(_glb_parts(path.read_bytes())[0]) == _without_minmax(
         _glb_parts((tmp_path / "m.glb").read_bytes())[0]
@@ -726,24 +587,7 @@ def test_a_glb_of_one_mesh_is_marked_in_place_with_a_key_of_one_mesh(tmp_path, c
     V, F = blob()
     uv = (V[:, :2] - V[:, :2].min(0)) / np.ptp(V[:, :2], axis=0)
     trimesh.Trimesh(V, F, process=False, visual=trimesh.visual.TextureVisuals(uv=uv)).export(tmp_path / "one.glb")
-    assert (
-        main(
-            [
-                "embed",
-                str(tmp_path / "one.glb"),
-                "-o",
-                str(tmp_path / "m.glb"),
-                "--key",
-                str(tmp_path / "k.json"),
-                "--payload",
-                PAYLOAD,
-                "--seed",
-                "1",
-                "-q",
-            ]
-        )
-        == 0
-    )
+    assert _embed(tmp_path / "one.glb", tmp_path / "m.glb", tmp_path / "k.json", seed=1) == 0
     assert json.loads((tmp_path / "k.json").read_text())["format"] == "pmwm-key"
     doc0, bin0 = _glb_parts((tmp_path / "one.glb").read_bytes())
     doc1, bin1 = _glb_parts((tmp_path / "m.glb").read_bytes())
@@ -758,22 +602,7 @@ def test_a_glb_of_one_mesh_is_marked_in_place_with_a_key_of_one_mesh(tmp_path, c
         == 0
     )  # one mesh, one key: the report as before
     assert f"payload: '{PAYLOAD}'" in capsys.readouterr().out and (tmp_path / "r.html").is_file()
-    assert (
-        main(
-            [
-                "embed",
-                "--seed",
-                "3",
-                str(tmp_path / "one.glb"),
-                "-o",
-                str(tmp_path / "m.ply"),
-                "--key",
-                str(tmp_path / "k2.json"),
-                "-q",
-            ]
-        )
-        == 0
-    )
+    assert _embed(tmp_path / "one.glb", tmp_path / "m.ply", tmp_path / "k2.json", payload=None) == 0
 
 
 def test_a_report_reads_one_mesh_with_one_key(marked_glb, tmp_path, capsys):

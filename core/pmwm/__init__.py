@@ -6,8 +6,8 @@ imports bpy.
 
 __version__ = "0.1.0"
 
-from .api import ber_per_level, embed, read_key, verify, verify_pm
-from .base import KEY_FILE, PASS_PHRASE, EmbedOptions, EmbedResult, Verdict, VerdictDetail
+from .api import ber_per_level, embed, read_key, verify, verify_keys, verify_pm
+from .base import KEY_FILE, PASS_PHRASE, EmbedOptions, EmbedResult, KeysVerdict, Verdict, VerdictDetail
 from .errors import KeyFileError, MeshError, OutputExistsError, PayloadError, PmwmError, PMFormatError
 from .key import WatermarkKey, write_key
 from .meshio import SourceMesh, read_mesh, write_marked, write_mesh
@@ -36,9 +36,11 @@ __all__ = [
     "EmbedOptions",
     "EmbedResult",
     "Verdict",
+    "KeysVerdict",
     "VerdictDetail",
     "embed",
     "verify",
+    "verify_keys",
     "verify_pm",
     "ber_per_level",
     "SCHEMES",

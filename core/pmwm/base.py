@@ -41,6 +41,7 @@ __all__ = [
     "EmbedOptions",
     "EmbedResult",
     "Verdict",
+    "KeysVerdict",
     "VerdictDetail",
     "payload_bits",
     "decode_text",
@@ -192,6 +193,46 @@ class Verdict:
             "carriers_found": self.carriers_found,
             "carriers_total": self.carriers_total,
             "mode": self.mode,
+        }
+
+
+@dataclass
+class KeysVerdict:
+    """The answer of ``pmwm.verify_keys``: one suspect read with several keys, one verdict per key in the
+    keys' order.
+
+    Each verdict is the key's own (``pmwm.verify``'s), with its p-value multiplied by the number of keys
+    tried (``tried``; Bonferroni, ``metrics.union_bound``): the chance that any of them reads a mark by
+    chance stays below the threshold. A verdict is marked, and shows its payload, only after that
+    correction; ``p_single`` (one per key) is each key's p-value before it. Several marked keys mean
+    several marks on one copy (see docs/dispute.md for what settles who marked it first).
+    """
+
+    verdicts: list[Verdict]
+    p_single: list[float]
+
+    @property
+    def tried(self) -> int:
+        """The number of keys read."""
+        return len(self.verdicts)
+
+    @property
+    def marked_keys(self) -> list[int]:
+        """The indices of the keys whose mark the suspect carries (after the correction)."""
+        return [i for i, v in enumerate(self.verdicts) if v.marked]
+
+    def to_dict(self, names: Sequence[str]) -> dict:
+        """JSON-ready data (``pmwm verify --key A --key B --json``): the keys tried, how many read marked,
+        the correction, and each key's verdict (``Verdict.to_dict``) under its name (``names``, one per
+        key) with its p-value before the correction."""
+        return {
+            "keys_tried": self.tried,
+            "keys_marked": len(self.marked_keys),
+            "correction": f"each p_value is the key's own times {self.tried}, the keys tried (Bonferroni)",
+            "verdicts": [
+                {"key": str(name), **v.to_dict(), "p_value_single_key": p}
+                for name, v, p in zip(names, self.verdicts, self.p_single)
+            ],
         }
 
 

@@ -1,7 +1,8 @@
 """The ``pmwm`` command line: embed, verify, decode, info, attack, demo, bench; fingerprint, trace,
 catalogue.
 
-Exit codes follow grep: 0 success (verify: marked), 1 verify: not marked, 2 error.
+Exit codes follow grep: 0 success (verify: marked; with several keys: marked by at least one), 1 verify:
+not marked (by any key), 2 error.
 Errors are one line on stderr, never a traceback; nothing existing is overwritten
 without ``--force`` and an input is never overwritten at all.
 """
@@ -20,7 +21,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import __version__, wording
-from .api import embed, read_key, verify
+from .api import embed, read_key, verify, verify_keys
 from .atomic import atomic_write_bytes
 from .base import PASS_PHRASE, EmbedOptions, Verdict
 from .errors import OutputExistsError, PmwmError
@@ -247,22 +248,24 @@ def _print_verdict(v: Verdict, as_json: bool) -> None:
 
 
 def cmd_verify(a) -> int:
+    key_paths = a.key or []
     if a.report is not None:
         if not a.report.lower().endswith((".html", ".htm")):
             raise UsageError(f"--report {a.report}: give an .html file name")
-        _check_outputs([a.report], [p for p in (a.suspect, a.key) if p is not None], a.force)
-    passphrase = _passphrase(a.passphrase_file) if a.key is None else None
+        _check_outputs([a.report], [a.suspect, *key_paths], a.force)
+    passphrase = _passphrase(a.passphrase_file) if not key_paths else None
     phrase_schemes = " or ".join(keyed_by(PASS_PHRASE))
-    if a.key is not None and a.passphrase_file is not None:
+    if key_paths and a.passphrase_file is not None:
         raise UsageError("give --key or --passphrase-file, not both")
-    if a.key is None and passphrase is None:
+    if not key_paths and passphrase is None:
         raise UsageError(
             f"give --key KEY.json, or a pass phrase for a {phrase_schemes} mark "
             f"(--passphrase-file F or ${PASSPHRASE_ENV})"
         )
     if passphrase is not None and a.report is not None:
         raise UsageError(f"--report needs a key file; a {phrase_schemes} mark has none")
-    keys = read_keys(a.key) if a.key is not None else None  # a scene's key: one per object
+    _distinct_keys(key_paths)
+    key_files = [read_keys(path) for path in key_paths]  # a scene's key: one per object
     if a.suspect.lower().endswith(".pmwm"):
         pm = read_pm(a.suspect)
         records = pm.records_for_vertices(a.vertices) if a.vertices is not None else a.level
@@ -271,6 +274,9 @@ def cmd_verify(a) -> int:
         if a.level is not None or a.vertices is not None:
             raise UsageError("--level/--vertices apply to a .pmwm progressive mesh only")
         objects = read_objects(a.suspect)
+    if len(key_paths) > 1:
+        return _verify_keys(a, key_paths, key_files, objects)
+    keys = key_files[0] if key_files else None
     if a.report is not None and (len(objects) > 1 or len(keys) > 1):
         raise UsageError("--report reads one mesh with the key of one mesh; verify the scene without it")
     v = verify_objects(objects, keys, p_threshold=a.p_threshold, passphrase=passphrase)
@@ -278,11 +284,48 @@ def cmd_verify(a) -> int:
         key, (_, V, F) = keys[0][1], objects[0]
         from .verify_report import write_report
 
-        write_report(a.report, v, key, V, F, suspect_path=a.suspect, key_path=a.key, force=a.force)
+        write_report(a.report, v, key, V, F, suspect_path=a.suspect, key_path=a.key[0], force=a.force)
     _print_verdict(v, a.json)
     if a.report is not None and not a.json:
         print(f"report -> {a.report}")
     return EXIT_OK if v.marked else EXIT_NOT_MARKED
+
+
+def _distinct_keys(paths: Sequence[str]) -> None:
+    """Refuse a key file named twice (it would be counted twice in the correction for the keys tried)."""
+    seen = set()
+    for path in paths:
+        real = os.path.realpath(path)
+        if real in seen:
+            raise UsageError(f"the key file {path} is given twice; give each --key once")
+        seen.add(real)
+
+
+def _verify_keys(a, key_paths: list[str], key_files: list, objects: list) -> int:
+    """``pmwm verify SUSPECT --key A --key B ...``: the suspect, one mesh read once, with each key
+    (``pmwm.verify_keys``): each key's verdict, the correction for the keys tried, and whose marks the
+    copy carries. Exit 0 when at least one key reads marked, else 1."""
+    scenes = [path for path, keys in zip(key_paths, key_files) if len(keys) > 1]
+    if scenes or len(objects) > 1:
+        what = f"{scenes[0]} is the key of a scene" if scenes else f"{a.suspect} holds {len(objects)} objects"
+        raise UsageError(f"several --key read one mesh; {what}: verify a scene with one key at a time")
+    keys = [keys[0][1] for keys in key_files]
+    _, V, F = objects[0]
+    kv = verify_keys(V, F, keys, p_threshold=a.p_threshold)
+    if a.report is not None:
+        from .verify_report import write_keys_report
+
+        base = [os.path.basename(p) for p in key_paths]
+        names = base if len(set(base)) == len(base) else key_paths
+        write_keys_report(a.report, kv, keys, names, V, F, suspect_path=a.suspect, key_paths=key_paths, force=a.force)
+    if a.json:
+        print(json.dumps(kv.to_dict(key_paths)))
+    else:
+        for line in wording.keys_lines(kv, key_paths):
+            print(line)
+        if a.report is not None:
+            print(f"report -> {a.report}")
+    return EXIT_OK if kv.marked_keys else EXIT_NOT_MARKED
 
 
 def cmd_decode(a) -> int:
@@ -623,14 +666,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("verify", help="check a suspect mesh or .pmwm for the mark")
     v.add_argument("suspect")
-    v.add_argument("--key", help=f"the key file of the mark (not for a {' or '.join(keyed_by(PASS_PHRASE))} mark)")
+    v.add_argument(
+        "--key",
+        action="append",
+        help=f"the key file of the mark (not for a {' or '.join(keyed_by(PASS_PHRASE))} mark); give it again "
+        "for each further key: one verdict per key, each p-value times the keys tried",
+    )
     v.add_argument(
         "--passphrase-file",
         metavar="F",
         help=f"read a {' or '.join(keyed_by(PASS_PHRASE))} mark with the pass phrase in F's first line "
         f"(else ${PASSPHRASE_ENV})",
     )
-    v.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    v.add_argument(
+        "--json", action="store_true", help="one JSON object on stdout (several keys: one holding each key's verdict)"
+    )
     v.add_argument("--level", type=int, help="(.pmwm) records to apply")
     v.add_argument("--vertices", type=int, help="(.pmwm) level of detail by vertex count")
     v.add_argument("--p-threshold", type=float, default=1e-6)

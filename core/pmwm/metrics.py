@@ -84,6 +84,12 @@ def binomial_tail(k: int, n: int, p: float = 0.5) -> float:
     return float(min(1.0, math.exp(top) * np.exp(logs - top).sum()))
 
 
+def union_bound(p: float, tries: int) -> float:
+    """The p-value of the best of ``tries`` readings, each of p-value ``p`` at best: min(1, p * tries)
+    (Bonferroni; holds whatever the dependence between the readings)."""
+    return float(min(1.0, p * max(int(tries), 1)))
+
+
 # ----------------------------------------------------------------------------------------------
 # vertex distortion
 

@@ -10,6 +10,10 @@ from three views with the places the mark was read highlighted (``Verdict.places
 by a small numpy z-buffer rasteriser and written as base64 PNG (zlib), so the report needs neither
 Blender nor a plotting library, and loads nothing from the network (no script, no external resource).
 
+A suspect read with several keys (``pmwm.verify_keys``) gets one report (``write_keys_report``): a
+sentence at the top saying whose marks the copy carries, the correction for the keys tried, then one
+section per key drawn as the report of one verdict.
+
 It never holds the key's secret. Its pictures do show where the mark was read on the suspect.
 """
 
@@ -21,17 +25,26 @@ import html
 import os
 import struct
 import zlib
-from typing import Optional
+from typing import Optional, Sequence
 
 import numpy as np
 
 from . import __version__, wording
 from .adjacency import unique_values
 from .atomic import atomic_write_bytes, file_sha256
-from .base import Progress, Verdict, no_progress
+from .base import KeysVerdict, Progress, Verdict, no_progress
 from .key import WatermarkKey, mesh_sha256
 
-__all__ = ["build_report", "write_report", "render_views", "png_bytes", "p_value_in_words"]
+__all__ = [
+    "build_report",
+    "write_report",
+    "build_keys_report",
+    "write_keys_report",
+    "keys_summary_in_words",
+    "render_views",
+    "png_bytes",
+    "p_value_in_words",
+]
 
 VIEW_SIZE = 360  # pixels of each picture (rendered at twice that, then averaged 2x2)
 CHUNK_SAMPLES = 500_000  # triangle samples the rasteriser draws between two progress calls
@@ -316,40 +329,42 @@ footer{margin-top:2em;font-size:.8em;color:#666}
 """
 
 
-def build_report(
-    verdict: Verdict,
+def _suspect_hash(suspect_path, vertices, faces) -> tuple[str, str]:
+    """(label, SHA-256) of the suspect file, or of the mesh data when there is no file."""
+    if suspect_path is not None:
+        return (f"SHA-256 of the file {os.path.basename(os.fspath(suspect_path))}", file_sha256(suspect_path))
+    return (
+        "SHA-256 of the mesh data (vertex positions as float32, then triangles as int64)",
+        mesh_sha256(vertices, faces),
+    )
+
+
+def _section(
+    v: Verdict,
     key: WatermarkKey,
     vertices,
     faces,
     *,
-    suspect_path=None,
-    key_path=None,
-    suspect_name: Optional[str] = None,
-    when: Optional[_dt.datetime] = None,
-    progress: Progress = None,
+    name: str,
+    suspect_hash: tuple[str, str],
+    key_path,
+    when: _dt.datetime,
+    progress: Progress,
+    suffix: str = "",
+    level: int = 2,
+    after_meaning: str = "",
+    extra_rows: tuple[tuple[str, str], ...] = (),
 ) -> str:
-    """The report's HTML text (see the module docstring). suspect_path / key_path: the files read (their
-    SHA-256 is reported); without suspect_path, the SHA-256 of the mesh data (``mesh_sha256``).
-    ``progress(fraction, message)`` is called at each step and while the pictures are drawn (at least
-    every CHUNK_SAMPLES triangle samples), ending at 1.0."""
-    report = progress or no_progress
-    report(0.0, "hashing the suspect and the key")
-    v = verdict
-    when = when or _dt.datetime.now(_dt.timezone.utc)
-    name = suspect_name or (os.path.basename(os.fspath(suspect_path)) if suspect_path else "suspect mesh")
-    if suspect_path is not None:
-        suspect_hash = (f"SHA-256 of the file {os.path.basename(os.fspath(suspect_path))}", file_sha256(suspect_path))
-    else:
-        suspect_hash = (
-            "SHA-256 of the mesh data (vertex positions as float32, then triangles as int64)",
-            mesh_sha256(vertices, faces),
-        )
+    """One verdict's part of a report: the verdict box, its meaning, the details, the bit chart and the
+    pictures. ``suffix`` makes its element ids unique in a report of several keys; ``level`` is the
+    level of its headings; ``after_meaning`` (plain text) follows the meaning; ``extra_rows`` (label,
+    plain value) follow the verdict's rows. ``progress(fraction, message)`` from 0 to 1."""
+    report = progress
     key_hash = (
         (f"SHA-256 of the key file {os.path.basename(os.fspath(key_path))}", file_sha256(key_path))
         if key_path is not None
         else None
     )
-
     conf, state = _bit_states(v, key)
     places = np.zeros((0, 3)) if v.places is None else np.asarray(v.places)
     place_bits = np.zeros(0, np.int64) if v.place_bits is None else np.asarray(v.place_bits, np.int64)
@@ -374,6 +389,7 @@ def build_report(
         ("Suspect", e(name) + f" ({len(np.asarray(vertices))} vertices, {len(np.asarray(faces))} triangles)"),
         ("Scheme", e(key.scheme)),
         *((e(label), cell(label, value)) for label, value in wording.rows(v)),
+        *((e(label), e(value)) for label, value in extra_rows),
         (e(suspect_hash[0]), f'<span class="hash">{suspect_hash[1]}</span>'),
     ]
     if key_hash:
@@ -405,35 +421,166 @@ def build_report(
             "This scheme reads the mark from the whole surface at once (the distribution of vertex distances "
             "from the centre), not at places: the pictures show the suspect alone."
         )
-
-    text = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>pmwm verification report: {e(name)}: {state_text}</title>
-<style>{_CSS}</style></head>
-<body>
-<h1>Watermark verification report</h1>
-<p>{e(name)}, checked against a pmwm key.</p>
-<div id="verdict" class="verdict {"marked" if v.marked else "notmarked"}">{state_text}</div>
-<p id="meaning">{e(p_value_in_words(v))}</p>
-<h2>Details</h2>
+    meaning = p_value_in_words(v) + (" " + after_meaning if after_meaning else "")
+    h = f"h{level}"
+    text = f"""<div id="verdict{suffix}" class="verdict {"marked" if v.marked else "notmarked"}">{state_text}</div>
+<p id="meaning{suffix}">{e(meaning)}</p>
+<{h}>Details</{h}>
 <table>{table}</table>
-<details id="numbers"><summary>How it was read, in numbers</summary>
+<details id="numbers{suffix}"><summary>How it was read, in numbers</summary>
 <table>{numbers}</table>
 </details>
-<h2>Confidence of each bit</h2>
+<{h}>Confidence of each bit</{h}>
 <p>Each bar is one of the {v.carriers_total} payload bits ({n_read} read): up and green when the bit read is the key's,
 down and red when it is not, a grey tick when it could not be read. Its height is the strength of the reading relative
 to the median bit (1 = a typical bit); a bar near zero is a weak reading.</p>
 {_chart_svg(conf, state)}
-<h2>Where the mark was read</h2>
+<{h}>Where the mark was read</{h}>
 <p>{where}</p>
 <div class="views">{figures}</div>
-<footer>Made by pmwm {e(__version__)} on {when.astimezone(_dt.timezone.utc).strftime("%Y-%m-%d")}. The key file itself
+"""
+    return text
+
+
+def _page(title: str, intro: str, body: str, when: _dt.datetime) -> str:
+    """The whole HTML page: head, title, the first paragraph(s) ``intro`` (HTML), ``body`` (HTML), footer."""
+    e = html.escape
+    day = when.astimezone(_dt.timezone.utc).strftime("%Y-%m-%d")
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{e(title)}</title>
+<style>{_CSS}</style></head>
+<body>
+<h1>Watermark verification report</h1>
+{intro}
+{body}<footer>Made by pmwm {e(__version__)} on {day}. The key file itself
 is secret and not part of this report; its SHA-256 above identifies it. Anyone holding the key and the suspect file
 can repeat this check with <code>pmwm verify SUSPECT --key KEY</code>.</footer>
 </body></html>
 """
+
+
+def _suspect_name(suspect_name: Optional[str], suspect_path) -> str:
+    return suspect_name or (os.path.basename(os.fspath(suspect_path)) if suspect_path else "suspect mesh")
+
+
+def build_report(
+    verdict: Verdict,
+    key: WatermarkKey,
+    vertices,
+    faces,
+    *,
+    suspect_path=None,
+    key_path=None,
+    suspect_name: Optional[str] = None,
+    when: Optional[_dt.datetime] = None,
+    progress: Progress = None,
+) -> str:
+    """The report's HTML text (see the module docstring). suspect_path / key_path: the files read (their
+    SHA-256 is reported); without suspect_path, the SHA-256 of the mesh data (``mesh_sha256``).
+    ``progress(fraction, message)`` is called at each step and while the pictures are drawn (at least
+    every CHUNK_SAMPLES triangle samples), ending at 1.0."""
+    report = progress or no_progress
+    report(0.0, "hashing the suspect and the key")
+    when = when or _dt.datetime.now(_dt.timezone.utc)
+    name = _suspect_name(suspect_name, suspect_path)
+    body = _section(
+        verdict,
+        key,
+        vertices,
+        faces,
+        name=name,
+        suspect_hash=_suspect_hash(suspect_path, vertices, faces),
+        key_path=key_path,
+        when=when,
+        progress=report,
+    )
+    state_text = "MARKED" if verdict.marked else "NOT MARKED"
+    text = _page(
+        f"pmwm verification report: {name}: {state_text}",
+        f"<p>{html.escape(name)}, checked against a pmwm key.</p>",
+        body,
+        when,
+    )
+    report(1.0, "report drawn")
+    return text
+
+
+def keys_summary_in_words(kv: KeysVerdict, names: Sequence[str]) -> str:
+    """The report's first sentence for a suspect read with several keys: whose marks it carries."""
+    many = wording.keys_summary(kv, names)
+    if many is not None:
+        return many[0].upper() + many[1:] + "."
+    marked = kv.marked_keys
+    if marked:
+        i = marked[0]
+        return (
+            f"This copy carries the mark of 1 of the {kv.tried} keys: {names[i]} "
+            f"(payload {wording.payload_value(kv.verdicts[i])})."
+        )
+    return f"This copy carries the mark of none of the {kv.tried} keys."
+
+
+def build_keys_report(
+    kv: KeysVerdict,
+    keys: Sequence[WatermarkKey],
+    names: Sequence[str],
+    vertices,
+    faces,
+    *,
+    suspect_path=None,
+    key_paths: Optional[Sequence] = None,
+    suspect_name: Optional[str] = None,
+    when: Optional[_dt.datetime] = None,
+    progress: Progress = None,
+) -> str:
+    """The report of one suspect read with several keys (``pmwm.verify_keys``): a summary sentence at the
+    top (whose marks the copy carries, ``keys_summary_in_words``), the correction for the keys tried,
+    then one section per key, in the keys' order, as ``build_report`` draws one verdict. ``names``: one
+    per key, as the report names them; ``key_paths``: the key files (their SHA-256 is reported), one per
+    key. ``progress(fraction, message)`` as in ``build_report``."""
+    report = progress or no_progress
+    report(0.0, "hashing the suspect and the keys")
+    when = when or _dt.datetime.now(_dt.timezone.utc)
+    name = _suspect_name(suspect_name, suspect_path)
+    suspect_hash = _suspect_hash(suspect_path, vertices, faces)
+    paths = list(key_paths) if key_paths is not None else [None] * kv.tried
+    e = html.escape
+    sections = []
+    n = kv.tried
+    for i, (v, key) in enumerate(zip(kv.verdicts, keys)):
+        marginal = wording.keys_marginal(kv, i)
+        after = (
+            f"That p-value is this key's own, p = {kv.p_single[i]:.3g}, times {n}, the keys tried."
+            + (" " + marginal[0].upper() + marginal[1:] + "." if marginal else "")
+            if n > 1
+            else ""
+        )
+        body = _section(
+            v,
+            key,
+            vertices,
+            faces,
+            name=name,
+            suspect_hash=suspect_hash,
+            key_path=paths[i],
+            when=when,
+            progress=lambda f, m, i=i: report((i + f) / n, f"key {i + 1} of {n}: {m}"),
+            suffix=f"-{i + 1}",
+            level=3,
+            after_meaning=after,
+            extra_rows=(("p-value of this key alone", f"{kv.p_single[i]:.3g}"),) if n > 1 else (),
+        )
+        sections.append(f'<section id="key-{i + 1}">\n<h2>Key {i + 1} of {n}: {e(names[i])}</h2>\n{body}</section>\n')
+    correction = wording.keys_correction(kv)
+    intro = (
+        f"<p>{e(name)}, checked against {n} pmwm keys.</p>\n"
+        f'<p id="summary"><strong>{e(keys_summary_in_words(kv, names))}</strong></p>\n'
+        + (f'<p id="correction">{e(correction[0].upper() + correction[1:])}.</p>\n' if correction else "")
+    )
+    marked = len(kv.marked_keys)
+    text = _page(f"pmwm verification report: {name}: marked by {marked} of {n} keys", intro, "".join(sections), when)
     report(1.0, "report drawn")
     return text
 
@@ -453,16 +600,59 @@ def write_report(
 ) -> None:
     """Write ``build_report(...)`` to ``path`` atomically (an existing file only with ``force``);
     ``progress(fraction, message)`` as in ``build_report``, reaching 1.0 once the file is written."""
-    report = progress or no_progress
-    text = build_report(
-        verdict,
-        key,
-        vertices,
-        faces,
-        suspect_path=suspect_path,
-        key_path=key_path,
-        suspect_name=suspect_name,
-        progress=lambda f, m: report(0.99 * f, m),
+    _write(
+        path,
+        lambda report: build_report(
+            verdict,
+            key,
+            vertices,
+            faces,
+            suspect_path=suspect_path,
+            key_path=key_path,
+            suspect_name=suspect_name,
+            progress=report,
+        ),
+        force,
+        progress,
     )
+
+
+def write_keys_report(
+    path,
+    kv: KeysVerdict,
+    keys: Sequence[WatermarkKey],
+    names: Sequence[str],
+    vertices,
+    faces,
+    *,
+    suspect_path=None,
+    key_paths: Optional[Sequence] = None,
+    suspect_name: Optional[str] = None,
+    force: bool = False,
+    progress: Progress = None,
+) -> None:
+    """Write ``build_keys_report(...)`` to ``path`` as ``write_report`` writes one verdict's report."""
+    _write(
+        path,
+        lambda report: build_keys_report(
+            kv,
+            keys,
+            names,
+            vertices,
+            faces,
+            suspect_path=suspect_path,
+            key_paths=key_paths,
+            suspect_name=suspect_name,
+            progress=report,
+        ),
+        force,
+        progress,
+    )
+
+
+def _write(path, build, force: bool, progress: Progress) -> None:
+    """Write the text ``build(progress)`` gives to ``path`` atomically; progress reaches 1.0 once written."""
+    report = progress or no_progress
+    text = build(lambda f, m: report(0.99 * f, m))
     atomic_write_bytes(path, text.encode("utf-8"), force=force)
     report(1.0, "report written")

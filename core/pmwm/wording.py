@@ -1,6 +1,8 @@
 """The verdict in words, written once for every front end: the command line prints ``lines``, the
 add-on shows ``headline`` and ``payload_line`` (and ``payload_value`` in its panel), the HTML report
-tables ``rows`` and, in a collapsible section, ``technical_rows``.
+tables ``rows`` and, in a collapsible section, ``technical_rows``. A suspect read with several keys
+(``KeysVerdict``) is said by ``keys_lines``, each key's verdict in the same words under the key's name,
+then the correction for the keys tried and ``keys_summary`` when several keys' marks are on the copy.
 
 A payload is shown only when the verdict confirms it (``Verdict.payload_confirmed``): a marked
 verdict whose payload is not confirmed says how many bits differ, never the text it read. What is
@@ -9,9 +11,24 @@ particular to a scheme comes from its ``Verdict.detail`` (``pmwm.base.VerdictDet
 
 from __future__ import annotations
 
-from .base import Verdict
+from typing import Optional, Sequence
 
-__all__ = ["headline", "payload_line", "payload_value", "lines", "rows", "technical_rows"]
+from .base import KeysVerdict, Verdict
+
+__all__ = [
+    "headline",
+    "payload_line",
+    "payload_value",
+    "lines",
+    "rows",
+    "technical_rows",
+    "keys_lines",
+    "keys_summary",
+    "keys_correction",
+    "keys_marginal",
+]
+
+DISPUTE_DOC = "docs/dispute.md"
 
 
 def _state(v: Verdict) -> str:
@@ -85,3 +102,58 @@ def technical_rows(v: Verdict) -> list[tuple[str, str]]:
         ("payload confirmed", "yes" if v.payload_confirmed else "no"),
         *v.detail.numbers(),
     ]
+
+
+# --------------------------------------------------------------------------- several keys
+
+
+def _short_payload(v: Verdict) -> str:
+    if v.payload_confirmed:
+        return repr(v.payload) if v.payload is not None else v.bits
+    return "unconfirmed"
+
+
+def keys_summary(kv: KeysVerdict, names: Sequence[str]) -> Optional[str]:
+    """ "this copy carries the marks of N of M keys: A (payload 'OWNR'), B (payload unconfirmed); ..." when
+    at least two keys read marked (``names``: one per key), else None."""
+    marked = kv.marked_keys
+    if len(marked) < 2:
+        return None
+    who = ", ".join(f"{names[i]} (payload {_short_payload(kv.verdicts[i])})" for i in marked)
+    return (
+        f"this copy carries the marks of {len(marked)} of {kv.tried} keys: {who}; several owners' marks are on it, "
+        f"and the files each side kept settle who marked it first ({DISPUTE_DOC})"
+    )
+
+
+def keys_correction(kv: KeysVerdict) -> Optional[str]:
+    """What the correction for the keys tried does, when more than one key was tried, else None."""
+    if kv.tried < 2:
+        return None
+    return (
+        f"each p-value is the key's own times {kv.tried}, the keys tried (Bonferroni): trying {kv.tried} keys "
+        f"on one copy makes a chance 'marked' up to {kv.tried} times likelier"
+    )
+
+
+def keys_marginal(kv: KeysVerdict, i: int) -> Optional[str]:
+    """For key ``i`` below the threshold on its own but not after the correction: a sentence saying so;
+    else None."""
+    v, p = kv.verdicts[i], kv.p_single[i]
+    if v.marked or not p < v.p_threshold:
+        return None
+    return (
+        f"p = {p:.3g} with this key alone, below the threshold, but not after the correction for {kv.tried} keys: "
+        "a marginal reading; verify with this key alone only if it was the one in question before reading"
+    )
+
+
+def keys_lines(kv: KeysVerdict, names: Sequence[str]) -> list[str]:
+    """Everything the command line prints for a suspect read with several keys (``names``: one per key):
+    each key's ``lines`` under its name, a marginal reading said, then the correction and the summary."""
+    out = []
+    for i, (name, v) in enumerate(zip(names, kv.verdicts)):
+        first, *rest = lines(v)
+        marginal = keys_marginal(kv, i)
+        out += [f"{name}: {first}", *(f"  {line}" for line in rest), *([f"  {marginal}"] if marginal else [])]
+    return out + [line for line in (keys_correction(kv), keys_summary(kv, names)) if line]

@@ -52,7 +52,7 @@ class TraceResult:
 
 
 def site_readings(vertices, faces, fk: FingerprintKey) -> tuple[np.ndarray, str, RobustDetail]:
-    """Each site's weighted soft value x (S,) float64 (soft / variance, 0 where unread) of a suspect
+    """Each site's log-likelihood ratio x (S,) float64 (``robust.read.site_llr``, 0 where unread) of a suspect
     (any pose, order, resolution), how it was aligned, and the reader's details (the reading of the
     first pose the reader proposes; ``trace`` reads every pose worth reading)."""
     reading = next(readings(vertices, faces, fk.key))

@@ -28,6 +28,7 @@ import numpy as np
 from ..api import embed, load_key_data, verify
 from ..base import EmbedOptions, EmbedResult, Progress, Verdict, VerdictDetail, no_progress
 from ..errors import KeyFileError, MeshError, PayloadError, PmwmError
+from ..metrics import union_bound
 from ..key import (
     scene_objects,
     WatermarkKey,
@@ -89,12 +90,6 @@ class AssetMarking:
     @property
     def marked(self) -> list[np.ndarray]:
         return [r.vertices for r in self.results]
-
-
-def union_bound(p: float, tries: int) -> float:
-    """The p-value of the best of ``tries`` readings, each of p-value ``p`` at best: min(1, p * tries)
-    (Bonferroni; holds whatever the dependence between the readings)."""
-    return float(min(1.0, p * max(int(tries), 1)))
 
 
 def embed_objects(

@@ -1,7 +1,7 @@
 """The blind embed's check of its own output: a mark that does not read back is never written.
 
 Before the embedder returns, it reads the marked mesh as it will be written (float32) and a few light
-copies of it, each as a user's file might come back (``light_copies``: a re-export in another pose and
+copies of it, each as a user's file might come back (``pmwm.readback.light_copies``: a re-export in another pose and
 vertex order, a small noise), with the pass phrase, and asks for the whole payload, confirmed. When a
 copy does not read, a calibrated margin is raised step by step (``RAISE``) while the marking's MRMS
 stays within ``MAX_MRMS`` % of the bounding-box diagonal; an explicit strength is kept as given. If no
@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ... import attacks, metrics
+from ... import metrics
 from ...base import Verdict
 from ...errors import PayloadError
-from ...key import derive_seed
+from ...readback import LIGHT_NOISE, light_copies
 from .word import PAYLOAD_BITS
 
 __all__ = ["LIGHT_NOISE", "MAX_MRMS", "RAISE", "Mark", "ensure", "failed_copy", "light_copies"]
@@ -30,7 +30,6 @@ __all__ = ["LIGHT_NOISE", "MAX_MRMS", "RAISE", "Mark", "ensure", "failed_copy", 
 MAX_MRMS = 0.03  # % of the bbox diagonal: the most a raised margin may cost (surface distance)
 RAISE = 1.3  # a margin that does not read back is multiplied by this, step by step
 MAX_MARGIN = 0.45  # below the bin half-width (0.5): a bin mean cannot move further
-LIGHT_NOISE = 0.0005  # noise copy: uniform in +- this fraction of the mean distance to the centroid
 MRMS_SAMPLES = 5000
 SHORTEST = PAYLOAD_BITS[0]
 
@@ -49,19 +48,6 @@ class Mark:
     bits: str
     text: str | None
     secret: str
-
-
-def light_copies(marked: np.ndarray, faces: np.ndarray, secret: str):
-    """(name, vertices, faces) of the copies the check reads, cheapest first: the mesh as written, the
-    mesh re-exported in a random pose and order (float32), and the mesh with a small noise."""
-    yield "the mesh as written", marked, faces
-    Vp, Fp = attacks.similarity(marked, faces, seed=derive_seed(secret, "selfcheck-pose"))
-    Vp, Fp = attacks.reorder(Vp, Fp, seed=derive_seed(secret, "selfcheck-order"))
-    yield "a re-export in another pose and vertex order", Vp.astype(np.float32).astype(np.float64), Fp
-    yield (
-        "a copy with 0.05 % noise",
-        *attacks.noise_benchmark(marked, faces, LIGHT_NOISE, seed=derive_seed(secret, "selfcheck-noise")),
-    )
 
 
 def failed_copy(m: Mark, marked: np.ndarray) -> str | None:

@@ -36,6 +36,9 @@ Embedding.
   spent where no reading will look.
 - The site vertex and ``RING`` annulus vertices at keyed angles are protected in the progressive
   mesh, so every level of detail, from the base mesh up, keeps each bump's peak and its surroundings.
+- Read back (``selfcheck``): the embed reads its output with the key it returns, as written, re-posed and
+  re-ordered, and with a little noise; a layout that does not read, MARKED with the payload confirmed and
+  every bit with margin, is dealt again from the secret; none confirmed: a PayloadError, nothing returned.
 
 Reading (on the suspect registered to the key's frame, ``pmwm.register``).
 - Pose: a copy that is not in the key's frame and not in the marked vertex order is registered in every
@@ -50,24 +53,32 @@ Reading (on the suspect registered to the key's frame, ``pmwm.register``).
 - Per site, y = height - stored height is modelled as a * p + offset + tilt + noise; a is estimated
   by the matched filter of p made orthogonal to (1, u, v), ridge-regularised by the site's own noise
   level: at low noise the offset and tilt (registration error, smoothing shrinkage) are removed
-  exactly, at high noise the filter tends to p itself, the optimum for white noise. a / A is the
-  site's soft value (+-1 when intact).
+  exactly, at high noise the filter tends to p itself, the optimum for white noise. By vertex index,
+  what Laplacian smoothing moved the unmarked surface by, vertex by vertex, is taken off first: the
+  unmarked mesh's own uniform Laplacian and its powers at each sample vertex (``read.host_laplacians``:
+  the key's places and the suspect's faces) with coefficients fitted once over all sites
+  (``read.shared_fit``). a / A is the site's soft value (+-1 when intact).
 - By vertex index, the suspect is registered by the similarity that fits the stored places of the
   sample vertices to the suspect's (thousands of known pairs; fitted in that direction because the
   stored places are noiseless, so heavy noise does not shrink the scale), and each site's swirl is
-  read as well: the sample vertices' tangent-plane shifts fitted as a * w' + a common shift, combined
-  with the site's bump reading by inverse variance (its variance is large under smoothing, which also
-  moves vertices along the surface). w' and the height template p' are what marking moved each
+  read as well: the sample vertices' tangent-plane shifts (less the tangential part of what smoothing
+  moved them by, fitted the same way) fitted as a * w' + a common shift, combined with the site's bump
+  reading by inverse variance. w' and the height template p' are what marking moved each
   vertex: the embedder keeps the swirl off each vertex's own normal, so on a curved patch part of
   it runs along the site normal and is read with the bump. Every site whose reading by index was
   clean on the marked mesh is read, whether or not its protected ring was found.
 - A copy that sits exactly in the key's frame (the marked mesh, any of its levels of detail, a lossless
   re-export) is read at each protected site vertex alone, exact at every level; where a neighbour's bump
-  spoilt that reading on the marked mesh (small meshes), all samples are read instead.
-- A bit is the sign of the sum of its sites' chip-weighted soft values, each weighted by its inverse
-  variance (maximum-ratio combining; a site in a damaged or cropped region weighs little). A bit
-  with no readable site is an erasure and gets a keyed coin flip, so the binomial p-value of
-  ``pmwm.base.verdict_from_scores`` (over the coded bits) stays exact.
+  spoilt that reading on the marked mesh (small meshes), all samples are read instead, and so are the sites
+  read by index of a copy that also keeps the marked vertex order (the site vertex alone cannot tell its own
+  bump from another mark's on it).
+- A bit is the sign of the sum of its sites' chip-signed log-likelihood ratios (``read.site_llr``): a site
+  reads its sign times a gain in [0, 1.2] plus its noise, or, with a small prior probability, anything (a
+  bump of another key's mark on or near it). Where the noise explains a reading, the site weighs as its
+  inverse variance says (a site in a damaged or cropped region weighs little); a reading neither sign
+  explains weighs nothing, and no site outweighs a few others. A bit with no readable site is an erasure
+  and gets a keyed coin flip, so the binomial p-value of ``pmwm.base.verdict_from_scores`` (over the coded
+  bits) stays exact: the ratio is odd in the reading.
 - The payload is confirmed (``confirm``) when the key's codeword passes the generalised minimum
   distance test on the soft scores: no other codeword can pass it, so a confirmed payload is the one a
   decoder would give. The verdict shows the payload only when it is confirmed.
@@ -78,7 +89,7 @@ surface (never the faces), and 3,000 samples of the marked surface for registrat
 Modules: ``fields`` (site frame, bump and swirl fields, templates, line-surface crossings),
 ``layout`` (the keyed bit assignment), ``code`` (the payload code and its confirmation), ``keydata`` (the typed
 key data, its reader and writer),
-``embed``, ``read``.
+``embed``, ``read``, ``selfcheck`` (the embed reads its own output back).
 """
 
 from __future__ import annotations

@@ -32,7 +32,8 @@ from .code import BCHCode, coded_bits, payload_code
 from .fields import OUTER, index_templates, profile, swirl, tangent_frames
 from .keydata import RobustKeyData, Samples
 from .layout import assign_bits
-from .read import NAME, centre_soft, site_soft, swirl_soft
+from . import selfcheck
+from .read import NAME, centre_soft, host_laplacians, site_soft, swirl_soft, verify
 
 DEFAULT_STRENGTH = 2.0
 SITES_PER_BIT = 6
@@ -89,7 +90,8 @@ class SiteAnalysis:
         one reading or both."""
         F, site = self.faces, self.site
         ring_found = (self.ring >= 0).all(axis=1)
-        at_vertices = site_soft(marked, F, site, by_index=True)[0]
+        laplacians = host_laplacians(marked, F, site)
+        at_vertices = site_soft(marked, F, site, True, laplacians)[0]
         usable, centre_ok = [
             ring_found & np.isfinite(soft) & (np.abs(soft - sign) < 0.5)
             for soft in (at_vertices, centre_soft(marked, site, True))
@@ -98,7 +100,7 @@ class SiteAnalysis:
         # also where no protected ring was found (that ring only matters to coarser levels)
         index_ok = np.isfinite(at_vertices) & (np.abs(at_vertices - sign) < 0.5)
         # and by its swirl (read by vertex index): a neighbour's bump may tilt it on a small mesh
-        swirl_ok = np.abs(swirl_soft(marked, site)[0] - sign) < 0.5
+        swirl_ok = np.abs(swirl_soft(marked, F, site, laplacians)[0] - sign) < 0.5
         return [usable, centre_ok, index_ok, swirl_ok]
 
     def mark_readable(self, sign: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], np.ndarray, np.ndarray]:
@@ -287,15 +289,19 @@ def place_sites(
     )
 
 
-def lay_out(places: SitePlaces, secret: str) -> SiteAnalysis:
-    """The second half of ``analyse``: the keyed bit layout and chips, the bump and swirl fields."""
+def lay_out(places: SitePlaces, secret: str, attempt: int = 0, unread: Optional[np.ndarray] = None) -> SiteAnalysis:
+    """The second half of ``analyse``: the keyed bit layout and chips, the bump and swirl fields.
+    ``attempt`` > 0 draws another layout of the same sites from the secret (``selfcheck``); ``unread``
+    (S,) bool: sites a registered copy did not read in an earlier attempt, so that the layout deals each
+    bit some site that reads (``layout.assign_bits``)."""
     pl = places
     P, si, r, A, At = pl.vertices[pl.sites], pl.sample_site, pl.radius, pl.amplitude, pl.swirl
     # keyed bit assignment (even readable energy per bit) and chips
     tp, tg = index_templates(pl.samples, r, At / A)
     energy = A * A * (tp * tp).sum(axis=1) + At * At * (tg * tg).sum(axis=(1, 2))
-    bit_of = assign_bits(P, pl.n_bits, pl.per_bit, derive_seed(secret, "robust-assign"), energy)
-    rng = np.random.default_rng(derive_seed(secret, "robust-chips"))
+    again = f":{attempt}" if attempt else ""  # (the first layout's labels are those of every earlier key)
+    bit_of = assign_bits(P, pl.n_bits, pl.per_bit, derive_seed(secret, "robust-assign" + again), energy, unread)
+    rng = np.random.default_rng(derive_seed(secret, "robust-chips" + again))
     order = np.lexsort((rng.random(len(P)), bit_of))  # each bit's sites in a keyed order
     rank = np.arange(len(P)) - np.searchsorted(bit_of[order], bit_of[order])
     chip = np.empty(len(P))
@@ -393,30 +399,47 @@ def _embed(vertices, faces, options, progress, sites_per_bit, radius_edges) -> E
         places, code = _coded_sites(V, F, secret, job.strength, nb, sites_per_bit, radius_edges, report, adj)
         if build:  # (the vertices to protect only when something is built)
             protect.set(places.protected())
-        an = lay_out(places, secret)
-        site, sites = an.site, an.sites
         coded = coded_bits(bits, code)
         w = coded ^ keyed_bits(secret, "scramble", len(coded))
-        sign = site.chip * np.where(w[site.bit] == 1, 1.0, -1.0)
-        marked, (usable, centre_ok, index_ok, swirl_ok), _, _ = an.mark_readable(sign)
-        report(0.2, "sites marked")
-        frame = surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
-        first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
-        data = dataclasses.replace(
-            site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok, frame=frame, code=code
+
+        def mark(attempt: int, unread: Optional[np.ndarray]) -> selfcheck.Marking:
+            an = lay_out(places, secret, attempt, unread)
+            site = an.site
+            sign = site.chip * np.where(w[site.bit] == 1, 1.0, -1.0)
+            marked, (usable, centre_ok, index_ok, swirl_ok), _, _ = an.mark_readable(sign)
+            frame = surface_frame(marked, F, REF_POINTS, derive_seed(secret, "robust-frame") % (2**31))
+            first_site = np.array([np.flatnonzero(site.bit == b)[0] for b in range(nb)])
+            data = dataclasses.replace(
+                site, usable=usable, centre_ok=centre_ok, swirl_ok=swirl_ok, index_ok=index_ok, frame=frame, code=code
+            )
+            # the key read back from its stored form, so that it reads exactly as the key file will
+            key_of = mesh_key(
+                job, NAME, marked, adj, an.sites[first_site], data=RobustKeyData.from_extra(data.to_extra(), nb, len(V))
+            )
+            return selfcheck.Marking(marked, key_of, ~usable)
+
+        report(0.2, "marking the sites and reading them back")  # (else another layout, or a PayloadError)
+        marking = selfcheck.ensure(
+            mark, F, verify, _payload_words(job), _advice(job), lambda message: report(0.2, message)
         )
+        marked = marking.vertices
 
         def marked_pm() -> ProgressiveMesh:  # awaited last: the key's other fields are made meanwhile
             pm, _ = building.result(lambda f, msg: report(0.25 + 0.7 * f, msg))
             return with_positions(pm, marked)
 
-        # the key read back from its stored form, so that it reads exactly as the key file will
-        return finish_embed(
-            job,
-            marked,
-            marked_pm if build else None,
-            sites,
-            mesh_key(
-                job, NAME, marked, adj, sites[first_site], data=RobustKeyData.from_extra(data.to_extra(), nb, len(V))
-            ),
-        )
+        return finish_embed(job, marked, marked_pm if build else None, places.sites, marking.key_of)
+
+
+def _payload_words(job) -> str:
+    """The payload's size in words, for a refusal: "a 9-byte payload" or "a 64-bit payload"."""
+    if job.payload_kind == "text" and job.options.payload is not None:
+        return f"a {len(job.options.payload.encode('utf-8'))}-byte payload"
+    return f"a {len(job.bits)}-bit payload"
+
+
+def _advice(job) -> str:
+    """What to try when the mark does not read back: a higher strength when it was set below the default, a
+    shorter payload, a finer mesh."""
+    weak = f"a higher --strength ({DEFAULT_STRENGTH:g} by default), " if job.strength < DEFAULT_STRENGTH else ""
+    return f"{weak}a shorter payload, or a mesh with more vertices (subdivide it)"

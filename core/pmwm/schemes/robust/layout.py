@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import bisect
 import itertools
+from typing import Optional
 
 import numpy as np
 
@@ -13,13 +14,16 @@ CUT_KEEP_MIN = 2  # sites a bit should keep under each tested cut
 SWAP_ROUNDS = 20  # swap attempts per site in that check
 
 
-def assign_bits(P: np.ndarray, n_bits: int, per_bit: int, seed: int, energy: np.ndarray) -> np.ndarray:
+def assign_bits(
+    P: np.ndarray, n_bits: int, per_bit: int, seed: int, energy: np.ndarray, unread: Optional[np.ndarray] = None
+) -> np.ndarray:
     """Bit index of each site, so that a plane cutting off up to half the sites leaves every bit
     some: pairs of roughly opposite sites (about the centroid) are dealt to bits, richest first in a
     keyed snake order of the bits, then keyed swaps between bits remove the (bit, cut) pairs where a
     bit keeps fewer than ``CUT_KEEP_MIN`` sites, over ``CUT_TESTS`` plane directions cutting 50 % and
     60 % of the sites; then swaps that keep those cuts even out the bits' readable energies
-    (``energy`` per site)."""
+    (``energy`` per site). ``unread`` (sites,) bool: sites known not to read (an earlier marking's);
+    a bit left with only such sites then swaps one for a site that reads (``_readable_in_every_bit``)."""
     n = len(P)
     rng = np.random.default_rng(seed)
     u = P - P.mean(axis=0)
@@ -45,7 +49,27 @@ def assign_bits(P: np.ndarray, n_bits: int, per_bit: int, seed: int, energy: np.
     pair_energy = np.array([energy[pair].sum() for pair in pairs])
     for k, q in enumerate(np.lexsort((rng.random(len(pairs)), -pair_energy))):
         bit[pairs[q]] = snake[k]
-    return _spread_over_cuts(P, bit, n_bits, rng, energy)
+    bit = _spread_over_cuts(P, bit, n_bits, rng, energy)
+    return bit if unread is None else _readable_in_every_bit(bit, n_bits, np.asarray(unread, bool), rng)
+
+
+def _readable_in_every_bit(bit: np.ndarray, n_bits: int, unread: np.ndarray, rng) -> np.ndarray:
+    """``bit`` (sites,) int64 with every bit whose sites are all ``unread`` (sites,) bool given a site
+    that reads: one of its sites swapped, in a keyed order, for a reading site of a bit that keeps
+    another (the cuts may lose a little; a bit that reads nowhere is lost to every copy). One step
+    per such bit (a few), not per site."""
+    bit = bit.copy()
+    reads = np.bincount(bit, weights=~unread, minlength=n_bits)
+    for b in rng.permutation(np.flatnonzero(reads == 0)):
+        donors = np.flatnonzero(~unread & (reads[bit] >= 2))
+        mine = np.flatnonzero(bit == b)
+        if len(donors) == 0 or len(mine) == 0:
+            break
+        i, j = mine[int(rng.integers(len(mine)))], donors[int(rng.integers(len(donors)))]
+        reads[bit[j]] -= 1
+        reads[b] += 1
+        bit[i], bit[j] = bit[j], b
+    return bit
 
 
 def _spread_over_cuts(P: np.ndarray, bit: np.ndarray, n_bits: int, rng, energy: np.ndarray) -> np.ndarray:

@@ -13,8 +13,9 @@ import numpy as np
 
 from ...base import Progress, Verdict, VerdictDetail, decode_text, no_progress, verdict_from_scores
 from ...errors import KeyFileError
-from ...key import WatermarkKey
+from ...key import WatermarkKey, face_fingerprint
 from ...register import POSES, register_poses, similarity_fit
+from ...smoothing import mean_operator
 from ...spatial import nearest
 from ...validate import check_mesh
 from .code import coded_bits, confirm_with
@@ -23,13 +24,19 @@ from .keydata import RobustKeyData
 
 NAME = "robust"
 TAU = 0.5  # prior size of a site's offset/tilt, in bump amplitudes (ridge of the nuisance fit)
+LAPLACE_POWERS = 3  # powers of the unmarked mesh's Laplacian fitted by index (what smoothing moves)
 VAR_FLOOR = 0.01  # floor of a site's soft-value variance (an intact site is not infinitely sure)
 MIN_COVER = 0.3  # a site needs this share of its filter energy readable
 IN_PLACE_SHARE = 0.1  # share of site vertices exactly in place for a copy to be read in the key's frame
-INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size
+INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of the size and the faces are kept
+INDEX_CLOSE = 0.05  # ... or within this share, whatever the faces (noise, smoothing and quantization keep both)
 SCREEN_PER_BIT = 2  # sites per bit a registered pose is screened on
 FULL_READS = 2  # the strongest screened poses read in full
 CLEAR = 0.5  # a screened pose whose strength reaches this share of the largest possible is read in full at once
+GAIN_MAX = 1.2  # the largest gain a site's own reading may show, in bump amplitudes (site_llr)
+MODEL_VAR = 0.04  # variance added to a site's own, for what its noise estimate misses (site_llr)
+OUTLIER_SHARE = 0.05  # prior share of sites whose reading is not their own mark's (site_llr)
+OUTLIER_SPAN = 10.0  # such a reading may be anything over this span, in bump amplitudes
 
 
 ALIGNED = "none (already in the key's frame)"  # RobustDetail.registration of a copy read in place
@@ -154,12 +161,59 @@ def centre_soft(X: np.ndarray, s: RobustKeyData, by_index: bool) -> np.ndarray:
     return np.where(has, h / A, np.nan)
 
 
-def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) -> tuple[np.ndarray, np.ndarray]:
+def host_laplacians(X: np.ndarray, F: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, ...]:
+    """The uniform Laplacian (neighbour mean minus the vertex) of the UNMARKED mesh at each sample vertex, and
+    its powers up to LAPLACE_POWERS, in the key's frame, (S, K, 3) each, with the suspect's faces F (m, 3) over
+    X (n, 3) in the key's frame (a copy in the marked vertex order). The unmarked places are the key's where
+    it stores them (every sample of every site), the suspect's elsewhere. Why: k uniform smoothing steps
+    (I + lam L)^k move the unmarked surface by k lam L + C(k, 2) lam^2 L^2 + ..., which varies from vertex to
+    vertex with the triangulation and the curvature; fitted (``shared_fit``), it no longer biases the reading."""
+    sm = s.samples
+    U = np.array(X, np.float64)
+    U[sm.vertex[sm.mask]] = _sample_places(s)[sm.mask]
+    M = mean_operator(np.asarray(F, np.int64).reshape(-1, 3), len(U))
+    out = []
+    for _ in range(LAPLACE_POWERS):
+        U = M @ U - U
+        out.append(U[sm.vertex])
+    return tuple(out)
+
+
+def shared_fit(Z: np.ndarray, y: np.ndarray, D: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The coefficients (k,) that every site shares in the least-squares fit of y (S, K) on Z (S, K, z), whose
+    coefficients are each site's own, and D (S, K, k), whose coefficients are the same at every site; samples
+    where ok (S, K) is False are left out. Each site's own terms are projected out of y and D first
+    (Frisch-Waugh), so the shared coefficients are fitted on thousands of samples at once and cost no site
+    any of its filter's energy."""
+    Z = Z * ok[..., None]
+    ZtZ = np.einsum("ski,skj->sij", Z, Z) + 1e-9 * np.eye(Z.shape[2])
+
+    def rest(v):
+        v = v * ok
+        coef = np.linalg.solve(ZtZ, np.einsum("ski,sk->si", Z, v)[..., None])[..., 0]
+        return (v - np.einsum("ski,si->sk", Z, coef)) * ok
+
+    ry = rest(y)
+    rD = np.stack([rest(D[..., j]) for j in range(D.shape[2])], axis=2)
+    G = np.einsum("ski,skj->ij", rD, rD)
+    scale = max(float(np.trace(G)), 1e-300)
+    with np.errstate(invalid="ignore"):
+        c = np.linalg.solve(G + 1e-12 * scale * np.eye(len(G)), np.einsum("ski,sk->i", rD, ry))
+    return np.where(np.isfinite(c), c, 0.0)
+
+
+def site_soft(
+    X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool, laplacians: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, its variance) per site; soft ~ +-1 when intact, NaN when unreadable.
 
-    y = height - stored height = a p + (offset + tilt) + noise. The filter is p minus its
-    projection on (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so
-    the nuisance is removed where the noise is low and the filter tends to p where it is high.
+    y = height - stored height = a p + offset + tilt + noise. The filter is p minus its projection on
+    (1, u/r, v/r), ridge-regularised by the site's noise level over (TAU A)^2, so the nuisance is removed
+    where the noise is low and the filter tends to p where it is high. By index, what Laplacian smoothing
+    moved the unmarked surface by along the site normal is taken off y first: c1 L + c2 L^2 + c3 L^3, the
+    unmarked mesh's own Laplacian and its powers (``host_laplacians``; ``laplacians`` when the caller has
+    them) with coefficients shared by every site (``shared_fit``: one smoothing, the same at every vertex),
+    about 0 on a copy that was not smoothed.
     """
     sm = s.samples
     r, A = s.radius, s.amplitude
@@ -170,6 +224,10 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     p_all = index_templates(sm, r, s.swirl / A)[0] if by_index else profile(sm.u, sm.v, r) * sm.mask
     p = p_all * ok
     B = np.stack([np.ones_like(sm.u), sm.u / r, sm.v / r], axis=2) * ok[..., None]
+    if by_index:
+        laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
+        D = np.stack([np.einsum("skj,sj->sk", L, s.normal) for L in laplacians], axis=2)
+        y = (y - D @ shared_fit(np.concatenate([p[..., None], B], axis=2), y, D, ok)) * ok
     BtB = np.einsum("ski,skj->sij", B, B) + 1e-9 * np.eye(3)
 
     def filt(M):
@@ -191,18 +249,33 @@ def site_soft(X: np.ndarray, F: np.ndarray, s: RobustKeyData, by_index: bool) ->
     return np.where(readable, soft, np.nan), var
 
 
-def swirl_soft(X: np.ndarray, s: RobustKeyData) -> tuple[np.ndarray, np.ndarray]:
+def swirl_soft(
+    X: np.ndarray, F: np.ndarray, s: RobustKeyData, laplacians: Optional[tuple] = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(soft value, variance) per site of the in-surface swirl, read by vertex index: the sample
-    vertices' tangent-plane shifts fitted as a * swirl + a common shift (a / swirl amplitude)."""
+    vertices' tangent-plane shifts fitted as a * swirl + a common shift (a / swirl amplitude), once the
+    tangential part of what Laplacian smoothing moved them by is taken off as in ``site_soft`` (smoothing
+    also drifts vertices along the surface)."""
     sm = s.samples
     r, B = s.radius, s.swirl
-    D = X[sm.vertex] - _sample_places(s)
-    d = np.stack([np.einsum("skj,sj->sk", D, s.t1), np.einsum("skj,sj->sk", D, s.t2)], axis=2)
-    g = index_templates(sm, r, B / s.amplitude)[1]
+    t1, t2 = s.t1, s.t2
+
+    def tangent(D):
+        return np.stack([np.einsum("skj,sj->sk", D, t1), np.einsum("skj,sj->sk", D, t2)], axis=2)
+
     m = sm.mask[..., None]
     n = np.maximum(sm.mask.sum(axis=1), 1)[:, None, None]
-    d = np.where(m, d - (d * m).sum(axis=1, keepdims=True) / n, 0.0)
-    g = np.where(m, g - (g * m).sum(axis=1, keepdims=True) / n, 0.0)
+
+    def centred(a):
+        return np.where(m, a - (a * m).sum(axis=1, keepdims=True) / n, 0.0)
+
+    d = centred(tangent(X[sm.vertex] - _sample_places(s)))
+    g = centred(index_templates(sm, r, B / s.amplitude)[1])
+    laplacians = host_laplacians(X, F, s) if laplacians is None else laplacians
+    S, K = sm.mask.shape
+    D = np.stack([centred(tangent(L)) for L in laplacians], axis=3).reshape(S, 2 * K, -1)
+    ok2 = np.repeat(sm.mask, 2, axis=1)
+    d = d - (D @ shared_fit(g.reshape(S, 2 * K, 1), d.reshape(S, 2 * K), D, ok2)).reshape(S, K, 2) * m
     gg = np.maximum((g * g).sum(axis=(1, 2)), 1e-300)
     a = (g * d).sum(axis=(1, 2)) / gg
     s2 = ((d - a[:, None, None] * g) ** 2).sum(axis=(1, 2)) / np.maximum(2 * sm.mask.sum(axis=1) - 3, 1)
@@ -222,10 +295,46 @@ def _combine(soft_a, var_a, soft_b, var_b) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bit_scores(soft: np.ndarray, var: np.ndarray, s: RobustKeyData, n_bits: int) -> np.ndarray:
-    """Inverse-variance weighted, chip-signed sum of each bit's readable sites (NaN soft values are
-    not read; 0 when no site of the bit is)."""
+    """Each bit's score (n_bits,) float64: the chip-signed sum of its readable sites' log-likelihood
+    ratios (``site_llr``; NaN soft values are not read; 0 when no site of the bit is)."""
     ok = np.isfinite(soft)
-    return np.bincount(s.bit[ok], weights=(s.chip * soft / var)[ok], minlength=n_bits)
+    return np.bincount(s.bit[ok], weights=(s.chip * site_llr(soft, var))[ok], minlength=n_bits)
+
+
+def site_llr(soft: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """Per site (S,) float64, the log-likelihood ratio of its chip-signed bit being +1 rather than -1
+    (0 where soft is NaN). A site reads its sign times a gain g plus Gaussian noise of variance
+    ``var`` + ``MODEL_VAR``, g anywhere in [0, ``GAIN_MAX``] (smoothing shrinks a mark, an average of
+    copies halves some sites and keeps others), except with probability ``OUTLIER_SHARE``, when it
+    reads anything within ``OUTLIER_SPAN`` bump amplitudes: a bump of another mark on or near the site
+    (a copy marked again by another key), a site torn by the damage.
+
+    A site that reads within its gains weighs about as much as its noise lets it (in proportion to
+    soft / var where the noise is large), a sure site no more than about log(1 / OUTLIER_SHARE) (no single site, however
+    sure it seems, outweighs a few others), and a reading that neither sign explains (|soft| beyond
+    GAIN_MAX by several noise widths) weighs nothing. The ratio is odd in soft, so on a copy without the
+    mark each bit still takes either sign with probability 1/2."""
+    ok = np.isfinite(soft) & np.isfinite(var)
+    x = np.where(ok, soft, 0.0)
+    sd = np.sqrt(np.where(ok, var, 1.0) + MODEL_VAR)
+    own = np.log1p(-OUTLIER_SHARE) - np.log(GAIN_MAX)  # the density of a gain in [0, GAIN_MAX]
+    other = np.log(OUTLIER_SHARE / OUTLIER_SPAN)
+
+    def log_density(z):  # of reading z for a mark of sign +1: the noise density averaged over the gains
+        return own + np.log(np.maximum(_normal_cdf(z / sd) - _normal_cdf((z - GAIN_MAX) / sd), 1e-300))
+
+    return np.where(ok, np.logaddexp(log_density(x), other) - np.logaddexp(log_density(-x), other), 0.0)
+
+
+def _normal_cdf(z: np.ndarray) -> np.ndarray:
+    """The standard normal distribution function at z (any shape), to 1e-7 absolute (Abramowitz and
+    Stegun 7.1.26): ample beside the outliers' density in ``site_llr``, and it spares a command-line
+    verify the import of scipy."""
+    x = np.abs(z) / np.sqrt(2.0)
+    t = 1.0 / (1.0 + 0.3275911 * x)
+    poly = t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429))))
+    half_tail = 0.5 * poly * np.exp(-x * x)  # P(N > |z|)
+    return np.where(z >= 0, 1.0 - half_tail, half_tail)
 
 
 @dataclass
@@ -281,7 +390,7 @@ def readings(
         # the marked vertices in their order (noise, smoothing, quantization, any pose, a mirror): the
         # similarity fit of the sample vertices is the registration, no ICP needed
         X, back, mirrored = _refined(V, s, back)
-    if _same_vertices(X, s, key):
+    if _same_vertices(X, F, s, key):
         report(0.7, "reading the sites")
         yield _read_at(X, F, s, key, back, False, {"registration": BY_INDEX, "mirrored": mirrored})
         return
@@ -320,7 +429,7 @@ def _posed(posed, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> Reading
         "scale": float(info.scale),
         "mirrored": bool(info.mirrored),
     }
-    if _same_vertices(X, s, key):
+    if _same_vertices(X, F, s, key):
         X, back, _ = _refined(X, s, back)
     return _read_at(X, F, s, key, back, False, how, poses=POSES)
 
@@ -366,19 +475,22 @@ def _read_at(
     """The reading of the suspect X (n, 3), F (m, 3) in the key's frame; ``back`` maps the key's frame to
     the suspect's; ``aligned``: X sits exactly in the key's frame; ``how``: RobustDetail's registration
     fields (registration, and residual, scale, mirrored where known)."""
-    by_index = _same_vertices(X, s, key)
+    by_index = _same_vertices(X, F, s, key)
     soft, var = np.full(len(s.bit), np.nan), np.full(len(s.bit), VAR_FLOOR)
     full = (s.index_ok if by_index else s.usable).copy()
     if aligned:  # exact at the site vertex, where that reading was right on the marked mesh
         centre = centre_soft(X, s, by_index)
         at_centre = s.centre_ok & np.isfinite(centre)
+        if by_index:  # a site read by index reads by all its vertices: its own vertex alone cannot tell
+            at_centre &= ~full  # its bump from another mark's on or near it
         soft[at_centre] = centre[at_centre]
         full &= ~at_centre
     if full.any():
-        soft_f, var_f = site_soft(X, F, s, by_index)
+        laplacians = host_laplacians(X, F, s) if by_index else None
+        soft_f, var_f = site_soft(X, F, s, by_index, laplacians)
         soft[full], var[full] = soft_f[full], var_f[full]
         if by_index and s.swirl > 0:  # keys from before the swirl have none
-            soft_t, var_t = swirl_soft(X, s)
+            soft_t, var_t = swirl_soft(X, F, s, laplacians)
             soft, var = _combine(soft, var, np.where(full & s.swirl_ok, soft_t, np.nan), var_t)
     heights = ("by vertex index" if by_index else "by position") + (", site vertices first" if aligned else "")
     detail = RobustDetail(heights=heights, sites_read=int(np.isfinite(soft).sum()), sites_total=int(len(soft)), **how)
@@ -473,14 +585,22 @@ def _verdict(reading: Reading, key: WatermarkKey, p_threshold: float) -> Verdict
     return verdict
 
 
-def _same_vertices(X: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> bool:
-    """True when the suspect has the marked mesh's vertices in their order (noise, smoothing and
-    quantization keep it): the sample vertices lie near their stored places."""
+def _same_vertices(X: np.ndarray, F: np.ndarray, s: RobustKeyData, key: WatermarkKey) -> bool:
+    """True when the suspect X (n, 3), F (m, 3) has the marked mesh's vertices in their order (noise,
+    smoothing and quantization keep it): its sample vertices lie close to their stored places, or near them
+    and the faces are the marked mesh's. A copy re-numbered along its faces (an STL re-export) puts each
+    index near its old place without keeping it: its faces tell."""
     if len(X) != key.n_vertices:
         return False
     sm = s.samples
     dist = np.linalg.norm(X[sm.vertex] - _sample_places(s), axis=2)[sm.mask]
-    return bool(len(dist) and np.median(dist) < INDEX_MATCH * s.frame.scale)
+    if not len(dist):
+        return False
+    median = np.median(dist)
+    if median < INDEX_CLOSE * s.frame.scale:
+        return True
+    kept = {key.faces_fingerprint, key.pm_faces_fingerprint} - {""}
+    return bool(median < INDEX_MATCH * s.frame.scale and face_fingerprint(F) in kept)
 
 
 def _sample_places(s: RobustKeyData) -> np.ndarray:
