@@ -6,7 +6,11 @@ simplification or subdivision do not move them). ``register`` maps a suspect int
 
 1. Initial guesses: the identity (most copies are not rotated; PCA is useless on a copy cropped to
    half), and the PCA alignment (centroid, axes, scale from the eigenvalues) with the 8 sign flips of
-   the axes: 4 rotations and 4 mirror images (mirroring a model is one click in any 3D tool).
+   the axes: 4 rotations and 4 mirror images (mirroring a model is one click in any 3D tool). Two axes
+   of about equal spread (a round or square section: a flange, a shaft) leave the turn about the third
+   undetermined, and on a round part with small features ICP hardly turns from where it starts: there
+   the best turns come from the circular cross-correlation of how the surface lies around that axis in
+   the suspect and in the reference (``_angular_starts``, both handedness cases, the axis either way).
 2. Each guess is refined by trimmed similarity ICP, point-to-plane against the reference normals
    (sampling offsets along the surface then cost nothing, unlike point-to-point): the closest
    ``TRIM`` share of pairs drive a linearised least-squares step (scale, rotation, translation).
@@ -42,6 +46,7 @@ changed (``pmwm.spatial.MovingNearest``: the same answers).
 from __future__ import annotations
 
 from dataclasses import dataclass
+import itertools
 from typing import Iterator
 
 import numpy as np
@@ -69,7 +74,14 @@ SIGNS = ((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1), (-1, -1, -1), (-1, 1,
 POSES = 32  # the most poses a reader tries (it pays for them in its p-value): a round part's eighths of a turn
 POSE_RATIO = 1.5  # a refined pose whose residual is within this factor of the best one's is plausible
 COARSE_RATIO = 1.4  # the coarse fits within this factor of the best one's are refined
-EQUAL_SPREAD = 1.15  # two PCA axes whose spreads differ by less than this factor get quarter-turn starts
+EQUAL_SPREAD = 1.15  # two PCA axes whose spreads differ by less than this factor: turns about the third are searched
+ANGLE_SAMPLES = 6000  # suspect samples of the angular signature (the key's 3,000 are the reference's)
+ANGLE_BINS = 256  # bins of the angle about the axis
+RING_BINS, HEIGHT_BINS = 8, 8  # bins of the distance from the axis and of the height along it
+ANGLE_BLUR = 2.0  # degrees: the signatures' angular blur (a slightly tilted axis, sampling noise)
+ANGLE_PEAKS = 8  # the most turns about an axis of equal spreads tried as starts, per handedness case
+ANGLE_SHARE = 0.6  # ... those whose correlation reaches this share of the best one of all four cases
+ANGLE_APART = 12.0  # degrees: two turns of one case closer than this are one peak
 DISTINCT = 0.05  # two poses differ when they place the suspect's PCA frame this far apart (/ reference scale)
 
 
@@ -216,7 +228,12 @@ def register_poses(
         given = refine(identity)[:1]
         yield from map(pose, given)
     report(0.1, "aligning: from its principal axes")
-    starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s, _equal_spreads(S, c, A))
+    starts = _pca_starts("pca", ref_c, ref_A, ref_s, c, A, s)
+    if _equal_spreads(S, c, A):  # a round or square section: PCA cannot tell the turns about its axis apart
+        T, _ = sample_surface(V, suspect_F, ANGLE_SAMPLES, seed + 1)  # (and a finer frame: the signature is
+        frame_T = _pca(T)  # sensitive to the centroid and the axis)
+        for axis in _equal_spreads(T, *frame_T[:2]):
+            starts += _angular_starts(ref_P, ref_c, ref_A, ref_s, T, *frame_T, axis)
     fits = _icp(S[::COARSE_STEP], index, ref_N, [x[1:] for x in starts], ref_s, COARSE_ITERATIONS)
     coarse = sorted(
         [x for x in identity + [(name, *fit) for (name, *_), fit in zip(starts, fits)] if plausible(x[2])],
@@ -253,37 +270,112 @@ def register_poses(
     report(1.0, "aligned")
 
 
-def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s, turns: tuple = ()) -> list:
+def _pca_starts(label: str, ref_c, ref_A, ref_s, c, A, s) -> list:
     """Similarity starts mapping a PCA frame (c, A, s) onto a reference one, for the 8 sign flips (both
-    frames are right-handed: the flips of an odd number of axes mirror), and the same after the turns
-    (i, j, angle) of the frame in the plane of its axes i and j (axes of about equal spread, whose
-    directions PCA cannot tell apart: a square or round section)."""
-    out = []
+    frames are right-handed: the flips of an odd number of axes mirror)."""
     k = ref_s / max(s, 1e-300)
-    for turn in ((), *turns):
-        B = A.copy()
-        if turn:
-            i, j, a = turn
-            B[i], B[j] = np.cos(a) * A[i] + np.sin(a) * A[j], np.cos(a) * A[j] - np.sin(a) * A[i]
-        for signs in SIGNS:
-            R = ref_A.T @ np.diag(signs) @ B  # rows of B are the axes
-            name = f"{label}{signs}" if not turn else f"{label}{signs}+{round(np.degrees(turn[2]))}"
-            out.append((name, R, k, ref_c - k * R @ c))
+    out = []
+    for signs in SIGNS:
+        R = ref_A.T @ np.diag(signs) @ A  # rows of A are the axes
+        out.append((f"{label}{signs}", R, k, ref_c - k * R @ c))
     return out
 
 
-def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple:
-    """The turns (i, j, angle) worth starting from for the points P (n, 3) of PCA frame (c, A): for each pair
-    of axes whose spreads differ by less than ``EQUAL_SPREAD``, the turns in their plane by 45, 90 and 135
-    degrees (with the sign flips' half turns: every eighth of a turn, for a round part with 4-fold features)."""
+def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple[int, ...]:
+    """The PCA axes (indices into the rows of A) about which the points P (n, 3) of PCA frame (c, A) may
+    be turned by any angle without PCA telling: the third axis of each pair of axes whose spreads differ by
+    less than ``EQUAL_SPREAD`` (a round or square section)."""
     sd = np.sqrt(np.maximum(((P - c) @ A.T).var(axis=0), 1e-300))
     return tuple(
-        (i, j, np.pi * q / 4)
+        3 - i - j
         for i in range(3)
         for j in range(i + 1, 3)
         if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j])
-        for q in (1, 2, 3)
     )
+
+
+def _angular_starts(ref_P: np.ndarray, ref_c, ref_A, ref_s, T: np.ndarray, c, A, s, axis: int) -> list:
+    """Similarity starts turning the suspect (samples T (m, 3), PCA frame c, A, s) about its PCA axis ``axis``
+    onto the reference (samples ref_P (n, 3), PCA frame ref_c, ref_A, ref_s), at the best turns by the circular
+    cross-correlation of angular signatures (``_signature``).
+
+    In both PCA frames, divided by the scale, a point has an angle about the axis, a distance from it and a
+    height along it. The reference's coordinates y follow from the suspect's z by y = M z, M a turn by phi
+    about the axis, the axis kept or reversed (sigma = +-1), the angle kept or reversed (tau = +-1; M mirrors
+    when sigma tau = -1). For each (sigma, tau), the suspect's signature with its angles times tau and heights
+    times sigma is correlated with the reference's over every turn at once (FFT); each correlation's best
+    ``ANGLE_PEAKS`` peaks (``ANGLE_APART`` apart) that reach ``ANGLE_SHARE`` of the best of all four give the
+    turns, best first: an n-fold part has n peaks of about equal height per case, and a part with mirror planes
+    has them in two or four cases, of which the mark is in one."""
+    i, j = (q for q in range(3) if q != axis)
+    th_r, rho_r, h_r = _cylindrical(ref_P, ref_c, ref_A, ref_s, axis)
+    th_s, rho_s, h_s = _cylindrical(T, c, A, s, axis)
+    box = (float(rho_r.max()), float(h_r.min()), float(h_r.max()))
+    ref = np.fft.rfft(_signature(th_r, rho_r, h_r, box), axis=0)
+    apart = int(ANGLE_APART * ANGLE_BINS / 360.0)
+    peaks = []  # (correlation, sigma, tau, angle in bins)
+    for sigma in (1, -1):
+        for tau in (1, -1):
+            sus = np.fft.rfft(_signature(tau * th_s, rho_s, sigma * h_s, box), axis=0)
+            C = np.fft.irfft(ref * np.conj(sus), n=ANGLE_BINS, axis=0).sum(axis=1)  # C[n] = sum_m ref[m + n] sus[m]
+            D = C.copy()
+            for _ in range(ANGLE_PEAKS):
+                p = int(np.argmax(D))
+                a, b, d = C[p - 1], C[p], C[(p + 1) % ANGLE_BINS]  # the peak between bins (a parabola)
+                curv = a - 2.0 * b + d
+                peaks.append((b, sigma, tau, p + (0.5 * (a - d) / curv if curv < 0 else 0.0)))
+                D[np.arange(p - apart, p + apart + 1) % ANGLE_BINS] = -np.inf
+    best = max(x[0] for x in peaks)
+    k = ref_s / max(s, 1e-300)
+    out = []
+    for _, sigma, tau, n in sorted((x for x in peaks if x[0] >= ANGLE_SHARE * best), key=lambda x: -x[0]):
+        phi = 2.0 * np.pi * n / ANGLE_BINS
+        M = np.zeros((3, 3))
+        M[axis, axis] = sigma
+        M[i, i], M[i, j], M[j, i], M[j, j] = np.cos(phi), -tau * np.sin(phi), np.sin(phi), tau * np.cos(phi)
+        R = ref_A.T @ M @ A
+        out.append((f"turn{axis}({sigma},{tau})@{round(np.degrees(phi)) % 360}", R, k, ref_c - k * R @ c))
+    return out
+
+
+def _cylindrical(P: np.ndarray, c, A, s, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Angle about the PCA axis ``axis``, distance from it and height along it of the points P (n, 3) in
+    the PCA frame (c, A, s), divided by the scale: three (n,) float64."""
+    i, j = (q for q in range(3) if q != axis)
+    Z = (P - c) @ A.T / s
+    return np.arctan2(Z[:, j], Z[:, i]), np.hypot(Z[:, i], Z[:, j]), Z[:, axis]
+
+
+def _signature(theta: np.ndarray, rho: np.ndarray, h: np.ndarray, box: tuple[float, float, float]) -> np.ndarray:
+    """How the points (angle, distance, height) (n,) each lie around an axis: their density over
+    ``ANGLE_BINS`` angles x (``RING_BINS`` distances in [0, box[0]] x ``HEIGHT_BINS`` heights in
+    [box[1], box[2]]), each point spread linearly over its 8 nearest bins (a point on a flat face must not
+    jump a bin for a small shift), blurred by ``ANGLE_BLUR`` along the angle, less each column's mean over
+    the angles (what is round carries no turn): (ANGLE_BINS, RING_BINS * HEIGHT_BINS) float64."""
+    x = theta / (2.0 * np.pi) % 1.0 * ANGLE_BINS
+    a0 = np.floor(x).astype(np.int64)
+    wa = x - a0
+    a0 %= ANGLE_BINS
+    corners = []
+    for value, lo, hi, n in ((rho, 0.0, box[0], RING_BINS), (h, box[1], box[2], HEIGHT_BINS)):
+        u = np.clip((value - lo) / max(hi - lo, 1e-300) * (n - 1), 0.0, n - 1 - 1e-9)
+        b = np.floor(u).astype(np.int64)
+        corners.append(((b, 1.0 - (u - b)), (b + 1, u - b)))
+    cell, weight = [], []
+    for (r, wr), (q, wq) in itertools.product(*corners):
+        for a, w in ((a0, 1.0 - wa), ((a0 + 1) % ANGLE_BINS, wa)):
+            cell.append(a * (RING_BINS * HEIGHT_BINS) + r * HEIGHT_BINS + q)
+            weight.append(w * wr * wq)
+    H = np.bincount(
+        np.concatenate(cell), np.concatenate(weight), minlength=ANGLE_BINS * RING_BINS * HEIGHT_BINS
+    ).reshape(ANGLE_BINS, RING_BINS * HEIGHT_BINS)
+    f = np.fft.rfftfreq(ANGLE_BINS, 1.0 / ANGLE_BINS)  # cycles per turn
+    H = np.fft.irfft(
+        np.fft.rfft(H, axis=0) * np.exp(-0.5 * (2.0 * np.pi * f * ANGLE_BLUR / 360.0) ** 2)[:, None],
+        n=ANGLE_BINS,
+        axis=0,
+    )
+    return H - H.mean(axis=0)
 
 
 def _cut_starts(ref_P: np.ndarray, S: np.ndarray, c, A, s) -> list:

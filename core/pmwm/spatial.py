@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import os
 import sys
 import threading
 from typing import TYPE_CHECKING
@@ -88,7 +89,12 @@ def _tree(P: np.ndarray, leafsize: int = 32) -> "cKDTree":
 
 
 def _pykdtree():
-    """pykdtree's KDTree class, or None where it is not installed (inside Blender: module docstring)."""
+    """pykdtree's KDTree class, or None where it is not installed (inside Blender: module docstring).
+
+    Its OpenMP threads wait for work passively (``OMP_WAIT_POLICY``, unless the caller set it): the
+    registration asks hundreds of small queries, and threads that spin between them on a busy machine
+    cost 5-20 times the queries' own time (docs/decisions/116-verify-speed-of-symmetric-parts.md)."""
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # read once, when pykdtree's OpenMP runtime loads
     try:
         from pykdtree.kdtree import KDTree
     except ImportError:

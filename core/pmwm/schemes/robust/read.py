@@ -32,6 +32,7 @@ INDEX_MATCH = 0.3  # index reading when sample vertices are within this share of
 INDEX_CLOSE = 0.05  # ... or within this share, whatever the faces (noise, smoothing and quantization keep both)
 SCREEN_PER_BIT = 2  # sites per bit a registered pose is screened on
 FULL_READS = 2  # the strongest screened poses read in full
+CLEAR = 0.5  # a screened pose whose strength reaches this share of the largest possible is read in full at once
 GAIN_MAX = 1.2  # the largest gain a site's own reading may show, in bump amplitudes (site_llr)
 MODEL_VAR = 0.04  # variance added to a site's own, for what its noise estimate misses (site_llr)
 OUTLIER_SHARE = 0.05  # prior share of sites whose reading is not their own mark's (site_llr)
@@ -371,10 +372,11 @@ def readings(
 
     A copy in the key's frame or in the marked vertex order has one pose. After registration there may
     be several (a symmetric shape, a mirror image): each is first screened on a third of the sites
-    (``SCREEN_PER_BIT`` per bit) and ranked by ``strength`` (per-bit scores (N,) -> how strongly they
-    show the caller's mark; None: the poses' own order), and the ``FULL_READS`` strongest are read in
-    full. Every registered reading pays for ``POSES`` poses (``pose_bound``), whichever were read.
-    ``progress(fraction, message)`` at its stages (up to 0.9)."""
+    (``SCREEN_PER_BIT`` per bit), by increasing residual, and ranked by ``strength`` (per-bit scores (N,) ->
+    how strongly they show the caller's mark, at most sqrt(N); None: the poses' own order); a pose whose
+    strength reaches ``CLEAR`` sqrt(N) is read in full at once (a caller that finds its mark there stops the
+    screening), then the strongest are, ``FULL_READS`` full readings in all. Every registered reading pays for
+    ``POSES`` poses (``pose_bound``), whichever were read. ``progress(fraction, message)`` at its stages (up to 0.9)."""
     report = progress or no_progress
     report(0.0, "loading the suspect")
     s = key_data(key)
@@ -401,11 +403,16 @@ def readings(
     rest = ([first] if first is not None else []) + list(poses)
     if len(rest) > 1 and strength is not None:
         screen = _subset(s, _screen_sites(s))
-        ranks = [
-            strength(_read_at(X, F, screen, key, _identity, False, {"registration": "screening"}).scores)
-            for X, _ in rest
-        ]
-        rest = [rest[i] for i in np.argsort(-np.asarray(ranks), kind="stable")[:FULL_READS]]
+        ranks, read = [], []
+        for i, (X, _) in enumerate(rest):  # by increasing residual: the likeliest pose first
+            scores = _read_at(X, F, screen, key, _identity, False, {"registration": "screening"}).scores
+            ranks.append(strength(scores))
+            if ranks[-1] >= CLEAR * np.sqrt(len(scores)) and len(read) < FULL_READS:  # clearly the mark's pose
+                read.append(i)
+                report(0.7, "reading the sites")
+                yield _posed(rest[i], F, s, key)  # (the caller stops here when it is marked and confirmed)
+        order = [i for i in np.argsort(-np.asarray(ranks), kind="stable") if i not in read]
+        rest = [rest[i] for i in order[: FULL_READS - len(read)]]
     report(0.7, "reading the sites")
     for posed in rest:
         yield _posed(posed, F, s, key)
