@@ -287,10 +287,7 @@ def _equal_spreads(P: np.ndarray, c: np.ndarray, A: np.ndarray) -> tuple[int, ..
     less than ``EQUAL_SPREAD`` (a round or square section)."""
     sd = np.sqrt(np.maximum(((P - c) @ A.T).var(axis=0), 1e-300))
     return tuple(
-        3 - i - j
-        for i in range(3)
-        for j in range(i + 1, 3)
-        if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j])
+        3 - i - j for i in range(3) for j in range(i + 1, 3) if max(sd[i], sd[j]) < EQUAL_SPREAD * min(sd[i], sd[j])
     )
 
 
