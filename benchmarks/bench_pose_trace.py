@@ -5,7 +5,8 @@ printed), each analysed once for fingerprinting with a registry of ``--recipient
 one copy (or the average of two, a collusion), puts it in a random pose (rotation, scale, translation),
 mirrors it across a coordinate plane half the time, and applies one damage drawn as ``bench_pose`` draws them
 (simplification 10-50 %, noise, Laplacian smoothing, quantization, a chain). ``pmwm.fingerprint``'s reading and
-accusation then name recipients at p < 1e-6. Counted: the leakers named, innocents named (the target is none).
+accusation (``pmwm.fingerprint.trace``: every plausible pose, the union bound paid) then name recipients at
+p < 1e-6. Counted: the leakers named, innocents named (the target is none).
 
 Run: nice -n 10 python benchmarks/bench_pose_trace.py --trials 200 --out pose_trace.jsonl
 """
@@ -25,9 +26,9 @@ sys.path.insert(0, str(HERE))
 
 from pmwm import attacks  # noqa: E402
 from pmwm.fingerprint import FingerprintOptions, analyse_asset  # noqa: E402
-from pmwm.fingerprint.codes import accuse, codewords  # noqa: E402
-from pmwm.fingerprint.registry import FingerprintKey  # noqa: E402
-from pmwm.fingerprint.trace import site_readings  # noqa: E402
+from pmwm.fingerprint.codes import codewords, pack_codeword  # noqa: E402
+from pmwm.fingerprint.registry import FingerprintKey, Registry, RegistryEntry  # noqa: E402
+from pmwm.fingerprint.trace import trace  # noqa: E402
 
 from bench_pose import FAMILIES, damage, mirror  # noqa: E402
 from pmwm_bench import corpus  # noqa: E402
@@ -42,6 +43,8 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, trials: in
     fk = FingerprintKey(an.key, an.options, an.asset_sha256)
     ids = [f"r{i:05d}" for i in range(n_recipients)]
     C = codewords(an.key.secret, ids, an.n_sites)
+    registry = Registry.for_key(fk)
+    registry.entries = {r: RegistryEntry(pack_codeword(c)) for r, c in zip(ids, C)}
     rows = []
     for _ in range(trials):
         who = [int(i) for i in rng.choice(n_recipients, size=1 if rng.random() < 0.7 else 2, replace=False)]
@@ -51,9 +54,9 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, trials: in
             W, G = mirror(W, G, rng)
         W, G = attacks.similarity(W, G, seed=int(rng.integers(1 << 31)))
         W, G, params = damage(W, G, KINDS[int(rng.integers(len(KINDS)))], rng)
-        x, mode, extra = site_readings(W, G, fk)
-        acc, T, _p = accuse(x, ids, C)
-        named = {ids.index(a.recipient) for a in acc}
+        r = trace(W, G, fk, registry)
+        T = r.scores
+        named = {ids.index(a.recipient) for a in r.accused}
         row = {
             "family": family,
             "shape_seed": shape_seed,
@@ -64,6 +67,8 @@ def one_shape(family: str, shape_seed: int, rng: np.random.Generator, trials: in
             "innocents_named": len(named - set(who)),
             "max_leaker_score": float(T[who].max()),
             "max_innocent_score": float(np.delete(T, who).max()),
+            "poses_read": r.detail.poses_read if r.detail else None,
+            "mirror_said": r.detail.mirrored if r.detail else None,
         }
         rows.append(row)
         out.write(json.dumps(row) + "\n")
