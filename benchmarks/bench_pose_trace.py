@@ -24,6 +24,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
+import pmwm  # noqa: E402
 from pmwm import attacks  # noqa: E402
 from pmwm.fingerprint import FingerprintOptions, analyse_asset  # noqa: E402
 from pmwm.fingerprint.codes import codewords, pack_codeword  # noqa: E402
@@ -39,7 +40,11 @@ KINDS = ("simplify", "noise", "smooth", "quantize", "chain")
 def one_shape(family: str, shape_seed: int, rng: np.random.Generator, trials: int, n_recipients: int, out):
     """``trials`` leaks of one marked shape, each a row written to ``out``."""
     V, F = corpus.generate(family, shape_seed)
-    an = analyse_asset(V, F, FingerprintOptions(seed=int(rng.integers(1 << 31))), progressive=False)
+    try:
+        an = analyse_asset(V, F, FingerprintOptions(seed=int(rng.integers(1 << 31))), progressive=False)
+    except pmwm.PayloadError as exc:  # a shape too small for the sites: recorded, not counted
+        out.write(json.dumps({"family": family, "shape_seed": shape_seed, "refused": str(exc)}) + "\n")
+        return []
     fk = FingerprintKey(an.key, an.options, an.asset_sha256)
     ids = [f"r{i:05d}" for i in range(n_recipients)]
     C = codewords(an.key.secret, ids, an.n_sites)
