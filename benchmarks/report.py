@@ -102,7 +102,7 @@ SECTIONS: tuple[Section, ...] = (
     Section("robust-selfcheck", "The robust embed reads its own output back", keep=()),
     Section("core", "Speed and size"),
     Section("scale", "One million faces"),
-    Section("pm-speed", "Progressive mesh speed", cap=30),
+    Section("pm-speed", "Progressive mesh speed", cap=18),
     Section("verify-speed-cli", "Verify speed, `pmwm verify` as the user runs it"),
     Section("verify-speed-blind-cli", "Verify speed of the blind scheme, `pmwm verify` as the user runs it"),
     Section("addon", "The Blender add-on against the core"),
