@@ -135,7 +135,7 @@ def _crossings(rel, si, t1, t2, normal, uv, key, by_u, band: float, reach: float
     y = np.einsum("pvj,pj->pv", rel, np.take(t2, si, axis=0))
     z = np.einsum("pvj,pj->pv", rel, np.take(normal, si, axis=0))
     det = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
-    ok = np.abs(det) > 1e-30
+    ok = np.abs(det) > 1e-30 * reach * reach  # a face of no area seen along the line (any unit of length)
     si, x, y, z, det = si[ok], x[ok], y[ok], z[ok], det[ok]
     # candidates: the samples whose u is within the face's u range (widened far beyond the
     # tolerance below, so that no crossing is missed)
