@@ -531,9 +531,7 @@ def _strongest(
 ) -> tuple[Reading, Verdict]:
     """The reading of smallest p-value and its verdict; the readings stop at the first marked one whose
     payload is confirmed."""
-    code = key_data(key).code
-    coded = coded_bits(key.bits, code)
-    expected = 2.0 * (coded ^ key.stream("scramble", len(coded))).astype(np.float64) - 1.0
+    expected = expected_signs(key)
 
     def strength(scores: np.ndarray) -> float:  # how strongly per-bit scores show the key's coded bits
         return float(expected @ scores / max(np.sqrt(scores @ scores), 1e-300))
@@ -548,6 +546,13 @@ def _strongest(
     (progress or no_progress)(0.9, "deciding")
     best[1].detail = dataclasses.replace(best[1].detail, poses_read=n)
     return best
+
+
+def expected_signs(key: WatermarkKey) -> np.ndarray:
+    """(N,) float64 +-1: the sign each coded bit's score has in a copy carrying the key's mark (its coded
+    payload bits, scrambled by the key's stream)."""
+    coded = coded_bits(key.bits, key_data(key).code)
+    return 2.0 * (coded ^ key.stream("scramble", len(coded))).astype(np.float64) - 1.0
 
 
 def confirm(bits_read_or_scores: np.ndarray, key: WatermarkKey) -> tuple[np.ndarray, bool, int]:

@@ -33,8 +33,7 @@ from ...base import KeyOf, Verdict
 from ...errors import PayloadError
 from ...key import WatermarkKey
 from ...readback import light_copies
-from .code import coded_bits
-from .read import confirm, key_data
+from .read import confirm, expected_signs, key_data
 
 __all__ = ["ATTEMPTS", "MARGIN", "Marking", "ensure", "failed_copy", "misread_sites", "weak_bits"]
 
@@ -82,9 +81,7 @@ def weak_bits(key: WatermarkKey, verdict: Verdict) -> np.ndarray:
     """(N,) bool: the coded bits that ``verdict`` erased, read wrong, or read right by less than ``MARGIN``
     times the median score (its per-bit scores against the key's coded, scrambled bits): a copy in another
     pose may read such a bit wrong."""
-    data = key_data(key)
-    coded = coded_bits(key.bits, data.code)
-    expected = 2.0 * (coded ^ key.stream("scramble", len(coded))) - 1.0
+    expected = expected_signs(key)
     scores = np.asarray(verdict.scores, np.float64)
     return scores * expected <= MARGIN * np.median(np.abs(scores))
 
