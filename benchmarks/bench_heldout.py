@@ -125,6 +125,7 @@ def run_mesh(name, V, F, phrase, attack_seed, doc, keys, schemes=SCHEMES):
             "embed_s": time.perf_counter() - t0,
             "mrms": metrics.surface_distance(V, F, res.vertices, res.faces, 20000, seed=1)[0],
             "attacks": {},
+            "notes": list(res.notes),
         }
         if scheme == "robust":
             keys.append((name, res.key))
@@ -141,7 +142,12 @@ def run_mesh(name, V, F, phrase, attack_seed, doc, keys, schemes=SCHEMES):
                 continue
             try:
                 v = verify(Va, Fa)
-                out["attacks"][label] = {"read": read_ok(v), "p": float(v.p_value), "marked": bool(v.marked)}
+                out["attacks"][label] = {
+                    "read": read_ok(v),
+                    "p": float(v.p_value),
+                    "marked": bool(v.marked),
+                    "reader": type(v.detail).__name__,
+                }
             except PmwmError as exc:
                 out["attacks"][label] = {"read": False, "error": str(exc)[:200]}
         n_read = sum(a.get("read", False) for a in out["attacks"].values())

@@ -60,7 +60,7 @@ def bunny():
 @pytest.fixture(scope="module")
 def marked(bunny):
     v, f = bunny
-    return pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3))
+    return pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind-histogram", payload="Acme", passphrase=PHRASE, seed=3))
 
 
 def bitstring(n: int, seed: int) -> str:
@@ -73,7 +73,7 @@ def test_text_payload_read_with_the_pass_phrase_alone(marked):
     # all 32 check bits; the union bound over 2 kinds x 1024 Chase candidates per frame read (own, and
     # refined if it moved), of the one length the mark's energy names
     assert v.detail.frames in (1, 2) and v.detail.chase_bits == 10
-    assert v.p_value == pytest.approx(v.detail.frames * 2 * 1024 * 2.0**-32)
+    assert v.p_value == pytest.approx(plan.histogram_p_value(v.detail.frames * 2 * 1024 * 2.0**-32))
     assert v.p_value < 1e-6
     assert v.detail.payload_kind == "text" and v.detail.payload_bits == 32
 
@@ -109,10 +109,10 @@ def test_a_pass_phrase_scheme_returns_no_key_and_takes_none(marked):
     """The blind embed returns no key (nothing to keep but the pass phrase); a key naming the blind scheme is
     refused; a key and a pass phrase together, or neither, are refused."""
     assert marked.key is None and 0.03 <= marked.strength <= 0.2
-    assert pmwm.SCHEMES["blind"].keying == pmwm.PASS_PHRASE
-    assert {s.keying for n, s in pmwm.SCHEMES.items() if n != "blind"} == {pmwm.KEY_FILE}
+    assert pmwm.SCHEMES["blind"].keying == pmwm.SCHEMES["blind-histogram"].keying == pmwm.PASS_PHRASE
+    assert {s.keying for n, s in pmwm.SCHEMES.items() if not n.startswith("blind")} == {pmwm.KEY_FILE}
     other = pmwm.embed(*meshes.blob(), pmwm.EmbedOptions(payload="Acme", seed=1, progressive=False)).key
-    blind_key = dataclasses.replace(other, scheme="blind")
+    blind_key = dataclasses.replace(other, scheme="blind-histogram")
     with pytest.raises(pmwm.KeyFileError, match="pass phrase"):
         pmwm.verify(marked.vertices, marked.faces, blind_key)
     with pytest.raises(PayloadError, match="not both"):
@@ -446,10 +446,12 @@ def test_default_strength_spends_the_distortion_budget(bunny, marked):
     mrms = pmwm.metrics.surface_distance(*bunny, marked.vertices, marked.faces, 20000, seed=1)[0]
     assert mrms == pytest.approx(blind.TARGET_MRMS, rel=0.1)
     V, F = meshes.blob()
-    cal = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, progressive=False))
+    cal = pmwm.embed(
+        V, F, pmwm.EmbedOptions(scheme="blind-histogram", payload="x", passphrase=PHRASE, progressive=False)
+    )
     mrms = pmwm.metrics.surface_distance(V, F, cal.vertices, cal.faces, 20000, seed=1)[0]
     assert mrms == pytest.approx(blind.TARGET_MRMS, rel=0.1)
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, strength=0.1))
+    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind-histogram", payload="x", passphrase=PHRASE, strength=0.1))
     assert res.strength == 0.1
     assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "x"
 
@@ -512,7 +514,7 @@ def test_an_asset_cut_flat_before_marking_is_read_without_the_crop_search(bunny)
     above)."""
     V, F = A.crop_plane(*bunny, fraction=0.1, seed=7)
     res = pmwm.embed(
-        V, F, pmwm.EmbedOptions(scheme="blind", payload="Flat", passphrase=PHRASE, seed=5, progressive=False)
+        V, F, pmwm.EmbedOptions(scheme="blind-histogram", payload="Flat", passphrase=PHRASE, seed=5, progressive=False)
     )
     assert crop.cut_planes(res.vertices, F, res.vertices.mean(0))  # the asset has a planar cut
     for X, G in [
@@ -601,7 +603,7 @@ def small_marked(bunny):
     """The bunny simplified to 13,935 vertices (about the Venus head's count), marked."""
     V, F = A.simplify(*bunny, ratio=0.6)
     return pmwm.embed(
-        V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False)
+        V, F, pmwm.EmbedOptions(scheme="blind-histogram", payload="Acme", passphrase=PHRASE, seed=3, progressive=False)
     )
 
 
@@ -653,7 +655,7 @@ def test_a_subdivided_mesh_marked_as_it_is_is_read_as_it_is(bunny, attack, schem
     steps smoothed)."""
     V, F = A.subdivide(*A.simplify(*bunny, ratio=0.8), scheme)
     res = pmwm.embed(
-        V, F, pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=4, progressive=False)
+        V, F, pmwm.EmbedOptions(scheme="blind-histogram", payload="Acme", passphrase=PHRASE, seed=4, progressive=False)
     )
     S = (res.vertices, res.faces) if attack is None else attack(res.vertices, res.faces)
     own = frames.read_statistics_frames(*S, [L + word.CHECK_BITS for L in word.PAYLOAD_BITS])
@@ -818,7 +820,7 @@ def test_one_pass_phrase_many_meshes_each_its_own_payload(bunny):
     v, f = bunny
     copies = {}
     for name, (V, F) in {"bunny": (v, f), "cap": meshes.open_cap()}.items():
-        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", passphrase=PHRASE, n_bits=32))
+        res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind-histogram", passphrase=PHRASE, n_bits=32))
         copies[name] = res
     payloads = {n: "".join(map(str, r.bits.tolist())) for n, r in copies.items()}
     assert payloads["bunny"] != payloads["cap"]  # a fresh random payload per mesh
@@ -834,7 +836,9 @@ def test_explicit_bits_of_every_length_read_back_or_are_refused(bunny, n):
     shortest payload is always accepted on the bunny)."""
     bits = bitstring(n, n)
     try:
-        res = pmwm.embed(*bunny, pmwm.EmbedOptions(scheme="blind", bits=bits, passphrase=PHRASE, base_ratio=0.5))
+        res = pmwm.embed(
+            *bunny, pmwm.EmbedOptions(scheme="blind-histogram", bits=bits, passphrase=PHRASE, base_ratio=0.5)
+        )
     except PayloadError as exc:
         assert n > word.PAYLOAD_BITS[0] and "does not read back" in str(exc) and "\n" not in str(exc)
         return
@@ -865,15 +869,15 @@ def test_progressive_mesh_full_level_reads(marked):
 def test_bad_input_gives_one_clear_error(bunny):
     v, f = bunny
     with pytest.raises(PayloadError, match="pass phrase"):
-        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x"))
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind-histogram", payload="x"))
     with pytest.raises(PayloadError, match="pass phrase"):
-        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=""))
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind-histogram", payload="x", passphrase=""))
     with pytest.raises(PayloadError, match="at most 28 bytes"):
-        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x" * 30, passphrase=PHRASE))
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind-histogram", payload="x" * 30, passphrase=PHRASE))
     with pytest.raises(PayloadError, match="32, 64, 96, 224"):
-        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", bits="0101", passphrase=PHRASE))
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind-histogram", bits="0101", passphrase=PHRASE))
     with pytest.raises(PayloadError, match="below 0.5"):
-        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind", payload="x", passphrase=PHRASE, strength=0.6))
+        pmwm.embed(v, f, pmwm.EmbedOptions(scheme="blind-histogram", payload="x", passphrase=PHRASE, strength=0.6))
     with pytest.raises(MeshError):
         pmwm.verify(np.zeros((3, 3)), np.array([[0, 1, 2]]), passphrase=PHRASE)
 
@@ -985,7 +989,7 @@ def test_a_noisy_copy_is_read_after_a_few_steps_of_smoothing(marked, small_marke
     assert v.detail.mesh == f"smoothing:-{READER.denoise.steps}"
     assert blind.mesh_read(v.detail.mesh) == "read after 3 steps of Laplacian smoothing (0.1 each) against noise"
     assert v.detail.frames in (2, 3, 4) and v.detail.chase_bits == plan.chase_bits(v.detail.frames)
-    assert v.p_value == pytest.approx(v.detail.frames * 2 * 2.0**v.detail.chase_bits * 2.0**-32)
+    assert v.p_value == pytest.approx(plan.histogram_p_value(v.detail.frames * 2 * 2.0**v.detail.chase_bits * 2.0**-32))
     assert v.p_value < 1e-6
     plain = blind.verify(V, F, PHRASE, config=READER.without("denoised", "reserve"))  # (the same frames)
     assert not (plain.marked and plain.payload == "Acme")
@@ -1005,7 +1009,7 @@ def test_a_noisy_copy_is_read_in_a_denoised_frame_searched_on_every_vertex(bunny
         v,
         f,
         pmwm.EmbedOptions(
-            scheme="blind",
+            scheme="blind-histogram",
             passphrase=phrase,
             payload="studio",
             seed=case,
@@ -1041,7 +1045,7 @@ def test_a_copy_on_a_coarse_grid_not_read_is_guessed_in_its_smoothed_copy(bunny)
             v,
             f,
             pmwm.EmbedOptions(
-                scheme="blind",
+                scheme="blind-histogram",
                 payload="Acme",
                 passphrase=phrase,
                 seed=case,
@@ -1073,7 +1077,7 @@ def test_cli_prints_no_payload_bits_when_it_reads_no_mark(bunny, tmp_path):
         v,
         f,
         pmwm.EmbedOptions(
-            scheme="blind",
+            scheme="blind-histogram",
             payload="Acme",
             passphrase="guess test 3",
             seed=3,
@@ -1238,7 +1242,11 @@ def test_a_blind_embedding_keeps_nothing_of_the_mesh_but_the_pass_phrase_reads_i
     progressive mesh) return no key, and the pass phrase alone reads both marks."""
     for (V, F), pm in ((meshes.blob(), True), (meshes.cad_part(), False)):
         res = pmwm.embed(
-            V, F, pmwm.EmbedOptions(scheme="blind", passphrase=PHRASE, payload="Acme", strength=0.1, progressive=pm)
+            V,
+            F,
+            pmwm.EmbedOptions(
+                scheme="blind-histogram", passphrase=PHRASE, payload="Acme", strength=0.1, progressive=pm
+            ),
         )
         assert (res.pm is not None) == pm and res.key is None and res.strength == 0.1
         assert pmwm.verify(res.vertices, res.faces, passphrase=PHRASE).payload == "Acme"

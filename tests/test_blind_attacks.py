@@ -36,7 +36,7 @@ def bench():
 def test_the_blind_mark_is_stripped_without_the_phrase_and_overwritten_by_another(bench):
     V, F = meshes.cad_part()
     M = pmwm.embed(
-        V, F, pmwm.EmbedOptions(scheme="blind", passphrase=OWNER, payload=PAYLOAD, progressive=False, seed=3)
+        V, F, pmwm.EmbedOptions(scheme="blind-histogram", passphrase=OWNER, payload=PAYLOAD, progressive=False, seed=3)
     ).vertices
     mark = bench.mrms(V, M, F)
     assert bench.read(M, F, OWNER, PAYLOAD)["payload_ok"]

@@ -25,7 +25,9 @@ def bunny():
 
 def test_a_default_embed_reads_back_from_every_light_copy(bunny):
     V, F = bunny
-    res = pmwm.embed(V, F, pmwm.EmbedOptions(scheme="blind", payload="ACME-2026", passphrase=PHRASE, progressive=False))
+    res = pmwm.embed(
+        V, F, pmwm.EmbedOptions(scheme="blind-histogram", payload="ACME-2026", passphrase=PHRASE, progressive=False)
+    )
     secret = word.derive_secret(PHRASE)
     names = []
     for name, Vc, Fc in selfcheck.light_copies(res.vertices, res.faces, secret):
@@ -41,7 +43,9 @@ def test_a_mark_too_weak_to_read_back_is_refused_in_one_line(bunny):
         pmwm.embed(
             V,
             F,
-            pmwm.EmbedOptions(scheme="blind", payload="OWNR", passphrase=PHRASE, strength=0.002, progressive=False),
+            pmwm.EmbedOptions(
+                scheme="blind-histogram", payload="OWNR", passphrase=PHRASE, strength=0.002, progressive=False
+            ),
         )
     msg = str(err.value)
     assert "\n" not in msg and "does not read back" in msg and "--strength" in msg and "nothing written" in msg
@@ -71,7 +75,7 @@ def test_cli_refuses_a_mark_that_does_not_read_back_and_writes_nothing(tmp_path)
             "-o",
             str(out),
             "--scheme",
-            "blind",
+            "blind-histogram",
             "--payload",
             "OWNR",
             "--strength",

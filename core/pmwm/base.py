@@ -114,6 +114,7 @@ class EmbedResult:
     vsnr_db: float
     rmse: float
     strength: float = float("nan")
+    notes: tuple[str, ...] = ()  # what the user should know of this marking (the command line prints them)
 
 
 @dataclass(frozen=True)

@@ -197,6 +197,9 @@ def cmd_embed(a) -> int:
     if not a.quiet:
         for w in (src or asset).warnings:
             print(f"warning: {w}", file=sys.stderr)
+        for name, r in zip(marking.names, marking.results):
+            for note in r.notes:
+                print(f"note: {name + ': ' if len(marking.results) > 1 else ''}{note}", file=sys.stderr)
         if asset is not None and len(objects) > 1:
             print(
                 f"marked {len(res.bits)} bits in each of the {len(objects)} objects of {a.input} ("

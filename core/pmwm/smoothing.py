@@ -29,7 +29,7 @@ import numpy as np
 
 from .adjacency import edge_face_counts, numpy_sparse, stable_order
 
-__all__ = ["neighbour_pairs", "mean_operator", "NeighbourMean", "unsmoothing_steps", "smoothed"]
+__all__ = ["neighbour_pairs", "mean_operator", "cotangent_operator", "NeighbourMean", "unsmoothing_steps", "smoothed"]
 
 
 def neighbour_pairs(
@@ -68,6 +68,31 @@ def mean_operator(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndar
     from scipy.sparse import coo_matrix
 
     return coo_matrix((weight, (rows, cols)), shape=(n, n)).tocsr()
+
+
+def cotangent_operator(vertices: np.ndarray, faces: np.ndarray):
+    """The cotangent-weighted neighbour mean (n, n), scipy CSR: row i averages vertex i's neighbours with
+    weights cot(alpha) + cot(beta) of the angles facing each edge (negative cotangents taken as 0), the
+    smoothing of MeshLab's Laplacian with cotangent weights; a vertex with no weight keeps itself."""
+    from scipy.sparse import coo_matrix, diags
+
+    V = np.asarray(vertices, np.float64)
+    F = np.asarray(faces, np.int64)
+    n = len(V)
+    rows, cols, weights = [], [], []
+    for i in range(3):
+        a, b, c = F[:, i], F[:, (i + 1) % 3], F[:, (i + 2) % 3]
+        e1, e2 = V[b] - V[a], V[c] - V[a]
+        cross = np.linalg.norm(np.cross(e1, e2), axis=1)
+        cot = np.clip(np.einsum("ij,ij->i", e1, e2) / np.maximum(cross, 1e-300), 0.0, 1e3)  # the angle at a
+        rows += [b, c]
+        cols += [c, b]
+        weights += [cot, cot]
+    W = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+    total = np.asarray(W.sum(axis=1)).ravel()
+    alone = total == 0
+    total[alone] = 1.0
+    return (diags(1.0 / total) @ W + diags(alone.astype(np.float64))).tocsr()
 
 
 @dataclass(frozen=True)

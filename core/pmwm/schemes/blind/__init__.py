@@ -1,5 +1,11 @@
 """The blind scheme ("blind"): a pass phrase and the suspect mesh are all the reader needs.
 
+Two carriers, one reader: ``blind`` marks with keyed waves, ``blind-histogram`` (the baseline) with the
+histogram of the vertices' distances to the centroid; ``verify`` reads both, keyed waves first, each with its
+share of the p-value's budget (``plan.WAVES_SHARE``).
+
+- ``solid``: the solid's frame (centroid, axes, RMS radius); ``waves``: the keyed waves, their integrals over
+  the solid and the marking; ``waveread``: the keyed-waves reading (hypotheses, lattice fit, decoding).
 - ``word``: the pass phrase (scrypt), the payload and its keyed check, the keyed layout, the candidates.
 - ``radial``: the carrier, the distribution of the vertices' distances to the surface centroid in equal bins
   (Cho et al.'s method I over an area-quantile range, with an edge-preserving push), and the frame refinement.
@@ -19,13 +25,13 @@ algorithm: docs/schemes/blind.md; the measurements behind its choices: docs/deci
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import numpy as np
 
 from ... import metrics
-from ...background import Background, beside, silent
+from ...background import beside
 from ...base import (
     PASS_PHRASE,
     EmbedOptions,
@@ -41,12 +47,15 @@ from ...errors import KeyFileError, MeshError, PayloadError
 from ...key import WatermarkKey, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...validate import check_mesh
-from . import frames, plan, radial, selfcheck, word
+from . import frames, plan, radial, selfcheck, waveread, waves, word
 from .config import READER, ReaderConfig
 from .detail import BlindDetail, mesh_read
+from .solid import solid_frame
 
 __all__ = [
     "SCHEME",
+    "HISTOGRAM_SCHEME",
+    "WAVES_BUDGET",
     "DEFAULT_ALPHA",
     "BINS_PER_BIT",
     "read",
@@ -69,6 +78,9 @@ CALIBRATION_ROUNDS = 2  # rescales of the margin towards TARGET_MRMS
 ALPHA_RANGE = (0.03, 0.2)  # the calibrated margin stays in this range
 BINS_PER_BIT = 1
 NAME = "blind"
+HISTOGRAM_NAME = "blind-histogram"
+WAVES_BUDGET = 0.03  # keyed waves: the MRMS (% of the bbox diagonal) the marking may cost; the default strength
+MRMS_SAMPLES = 5000
 
 
 def _n_bins(n_word: int) -> int:
@@ -77,9 +89,124 @@ def _n_bins(n_word: int) -> int:
 
 def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
     """Mark a mesh, vertices (n, 3) float64, faces (m, 3) int64 (kept), with the pass phrase of
-    ``options``; the payload is ``options.payload`` (text), ``options.bits`` or ``options.n_bits``
-    random bits (from ``options.seed``)."""
+    ``options`` in keyed waves (``waves``); the payload is ``options.payload`` (text of at most 12 bytes),
+    ``options.bits`` or ``options.n_bits`` random bits (32, 64 or 96, from ``options.seed``); the strength
+    is the most MRMS the marking may cost (% of the bounding-box diagonal, default ``WAVES_BUDGET``): the
+    largest public step within it whose marked mesh reads back from its light copies. Where keyed waves
+    cannot (a longer payload, an open sheet, no step that reads back), the mesh is marked with the baseline
+    carrier (``embed_histogram``, its own read-back check) and ``EmbedResult.notes`` says so."""
     opts = options or EmbedOptions(scheme=NAME)
+    passphrase = getattr(opts, "passphrase", None)
+    if passphrase is None:
+        raise PayloadError(
+            "the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file or PMWM_PASSPHRASE)"
+        )
+    word.check_passphrase(passphrase)
+    job = start_embed(
+        vertices,
+        faces,
+        EmbedOptions(
+            bits="0",
+            strength=opts.strength,
+            base_ratio=opts.base_ratio,
+            seed=opts.seed,
+            scheme=NAME,
+            progressive=opts.progressive,
+        ),
+        progress,
+        NAME,
+        WAVES_BUDGET,
+    )
+    payload, kind = word.payload_of(
+        opts.payload, opts.bits, opts.n_bits, lambda n: keyed_bits(job.secret, "blind-random-payload", n)
+    )
+    V, F = job.vertices, job.faces
+    secret = word.derive_secret(passphrase)
+    job.report(0.0, "marking keyed waves")
+    try:
+        marked, job.strength = _marked_waves(V, F, secret, payload, kind, job.strength)
+    except _Refused as exc:
+        # the baseline carrier marks what the keyed waves cannot (with its own read-back check), and says so
+        res = embed_histogram(vertices, faces, replace(opts, scheme=HISTOGRAM_NAME, strength=None), progress)
+        return replace(
+            res,
+            notes=res.notes
+            + (
+                f"{exc}; marked with the baseline histogram carrier instead "
+                f"(scheme {HISTOGRAM_NAME}: less robust, see docs/schemes/blind.md)",
+            ),
+        )
+    build = job.options.progressive
+    base = base_vertex_count(opts.base_ratio, len(V))
+    with beside(build, build_progressive_mesh, V, F, base_vertices=base) as building:
+
+        def marked_pm() -> ProgressiveMesh:
+            pm, _ = building.result(lambda f, m: job.report(0.1 + 0.85 * f, m))
+            return with_positions(pm, marked)
+
+        job.bits = payload
+        return finish_embed(job, marked, marked_pm if build else None, np.zeros(0, np.int64), None)
+
+
+class _Refused(PayloadError):
+    """The keyed waves cannot carry this payload on this mesh (its message says why)."""
+
+
+def _marked_waves(V, F, secret: str, payload: np.ndarray, kind: str, budget: float) -> tuple[np.ndarray, float]:
+    """(marked vertices (n, 3), their MRMS %): the largest public step (``waves.STEPS``) whose marking costs at
+    most ``budget`` % MRMS and reads back from every light copy (``selfcheck.failed_copy``), trying larger
+    steps within the budget when one does not read. Raises PayloadError (one line) when none does."""
+    if len(payload) not in waveread.LENGTHS:
+        raise _Refused(
+            f"keyed waves carry {', '.join(map(str, waveread.LENGTHS))} payload bits (text of at most "
+            f"{waveread.LENGTHS[-1] // 8} bytes), not {len(payload)}"
+        )
+    w = waveread.word_of(secret, kind, payload)
+    spread = waves.spread_of(secret, len(w))
+    bits = w ^ spread.scramble
+    keyed = waves.waves_of(secret)
+    try:
+        solid_frame(V, F)
+    except ValueError as exc:
+        raise _Refused(f"keyed waves mark a solid: {exc}") from None
+    marked: dict[float, np.ndarray] = {}
+    mrms: dict[float, float] = {}
+
+    def at(step: float) -> float:
+        if step not in marked:
+            marked[step] = waves.mark(V, F, keyed, spread, bits, step)
+            mrms[step] = float(metrics.displaced_surface_distance(V, marked[step], F, MRMS_SAMPLES, seed=0)[0])
+        return mrms[step]
+
+    probe = waves.STEPS[len(waves.STEPS) // 2]
+    guess = probe * budget / max(at(probe), 1e-300)  # (the MRMS grows about linearly with the step)
+    order = sorted((s for s in waves.STEPS if s <= 1.1 * guess), reverse=True)
+    order += sorted((s for s in waves.STEPS if s > 1.1 * guess))  # (when the first do not read back)
+    check = selfcheck.Mark(
+        V,
+        F,
+        lambda a: marked[a],
+        lambda V2, F2: waveread.read(V2, F2, secret),
+        "".join(map(str, payload.tolist())),
+        word.text_of(payload) if kind == "text" else None,
+        secret,
+    )
+    failed = "the mesh as written"
+    for step in order:
+        if at(step) > budget:
+            continue
+        failed = selfcheck.failed_copy(check, marked[step].astype(np.float32).astype(np.float64))
+        if failed is None:
+            return marked[step], mrms[step]
+    raise _Refused(f"keyed waves do not read back from {failed} within {budget:g} % MRMS")
+
+
+def embed_histogram(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
+    """Mark a mesh, vertices (n, 3) float64, faces (m, 3) int64 (kept), with the pass phrase of
+    ``options`` in the histogram of distances (the baseline carrier, scheme ``blind-histogram``); the
+    payload is ``options.payload`` (text), ``options.bits`` or ``options.n_bits`` random bits (from
+    ``options.seed``)."""
+    opts = options or EmbedOptions(scheme=HISTOGRAM_NAME)
     passphrase = getattr(opts, "passphrase", None)
     if passphrase is None:
         raise PayloadError(
@@ -95,11 +222,11 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
             strength=opts.strength,
             base_ratio=opts.base_ratio,
             seed=opts.seed,
-            scheme=NAME,
+            scheme=HISTOGRAM_NAME,
             progressive=opts.progressive,
         ),
         progress,
-        NAME,
+        HISTOGRAM_NAME,
         DEFAULT_ALPHA,
     )
     if not job.strength < 0.5:
@@ -364,18 +491,24 @@ def verify(
     config: ReaderConfig = READER,
     progress: Progress = None,
 ) -> Verdict:
-    """``read`` with the secret of ``passphrase``, derived in a worker thread beside the bins' statistics,
-    which need none: hashlib's scrypt (``word.SCRYPT``) releases the GIL, so the derivation costs the
-    reading no time on two cores. ``progress(fraction, message)`` at the frames read (``bin_statistics``)
-    and the word's decision, ending at 1.0."""
+    """The verdict of a suspect with the pass phrase: the keyed-waves reading (``waveread.read``) first, and
+    when it finds no mark the histogram's (``read``, the baseline carrier's marks), each paying its share of
+    the budget (``plan.waves_p_value``, ``plan.histogram_p_value``); the verdict with the smaller p-value
+    when neither reads. ``progress(fraction, message)`` at the stages read, ending at 1.0."""
     report = progress or no_progress
     word.check_passphrase(passphrase)
-    with Background(silent(word.derive_secret), passphrase) as deriving:
-        stats = bin_statistics(vertices, faces, config, lambda f, m: report(0.9 * f, m))
-        report(0.9, "reading the word")
-        verdict = decide(stats, deriving.result(), p_threshold, config)
+    secret = word.derive_secret(passphrase)
+    report(0.0, "reading keyed waves")
+    waved = waveread.read(vertices, faces, secret, p_threshold)
+    if waved.marked:
+        report(1.0, "read")
+        return waved
+    stats = bin_statistics(vertices, faces, config, lambda f, m: report(0.1 + 0.8 * f, m))
+    report(0.9, "reading the word")
+    verdict = decide(stats, secret, p_threshold * (1.0 - plan.WAVES_SHARE), config)
+    verdict = replace(verdict, p_value=plan.histogram_p_value(verdict.p_value), p_threshold=p_threshold)
     report(1.0, "read")
-    return verdict
+    return verdict if verdict.marked or verdict.p_value <= waved.p_value else waved
 
 
 def load_key_data(key: WatermarkKey) -> None:
@@ -385,10 +518,20 @@ def load_key_data(key: WatermarkKey) -> None:
 
 SCHEME = Scheme(
     NAME,
-    DEFAULT_ALPHA,
+    WAVES_BUDGET,
     embed,
     verify,
     load_key_data,
-    "read with a pass phrase alone (no key file); the distribution of vertex norms",
+    "read with a pass phrase alone (no key file); keyed waves in the solid's shape",
+    PASS_PHRASE,
+)
+
+HISTOGRAM_SCHEME = Scheme(
+    HISTOGRAM_NAME,
+    DEFAULT_ALPHA,
+    embed_histogram,
+    verify,
+    load_key_data,
+    "the blind scheme's baseline carrier: the distribution of vertex norms, read with the pass phrase",
     PASS_PHRASE,
 )

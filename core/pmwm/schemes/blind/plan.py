@@ -38,6 +38,8 @@ P_BEST = 1e-6  # the p-value of a reading with every check bit right stays below
 
 SHARED, REST, MESH = "shared", "rest", "mesh"
 
+WAVES_SHARE = 1e-4  # the keyed-waves reading's share of a verdict's false-positive budget (the histogram's: the rest)
+
 
 @dataclass(frozen=True)
 class Stage:
@@ -143,6 +145,20 @@ def p_value(p_one: float, frame_stages: Sequence[str]) -> float:
     """A verdict's p-value: the union bound over the candidates of the frames read (their stages,
     ``frame_stages``) times the best candidate's own tail probability ``p_one``, at most 1."""
     return float(min(1.0, union_bound(frame_stages) * p_one))
+
+
+def waves_p_value(p_one: float, hypotheses: int) -> float:
+    """The p-value of a keyed-waves reading (``waveread``): its union bound, ``hypotheses`` (every sign
+    choice, mesh, step, length, kind and Chase candidate it weighed) times the best candidate's own tail
+    probability ``p_one``, over its share ``WAVES_SHARE`` of the budget; at most 1."""
+    return float(min(1.0, hypotheses * p_one / WAVES_SHARE))
+
+
+def histogram_p_value(p: float) -> float:
+    """A histogram reading's p-value (``p_value``) over its share, 1 - ``WAVES_SHARE``, of the budget:
+    a pass phrase's verdict reads both carriers, and marked at p < alpha by either it is a false positive
+    with probability at most alpha."""
+    return float(min(1.0, p / (1.0 - WAVES_SHARE)))
 
 
 def table(config) -> list[str]:

@@ -114,19 +114,22 @@ def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[
     return np.asarray(random_bits(n_bits), np.uint8), "bits"
 
 
-def check_bits(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
-    """The keyed check of a payload (L,) uint8 of a kind, (CHECK_BITS,) uint8, or of each of the payloads
-    (k, L), (k, CHECK_BITS): the first bits of SHA-256(secret, kind, payload) (a MAC). hashlib directly,
-    the key's part hashed once (the reader computes thousands of these per suspect)."""
+def check_bits(
+    secret: str, kind: str, payload: np.ndarray, n_check: int = CHECK_BITS, label: str = "blind-check"
+) -> np.ndarray:
+    """The keyed check of a payload (L,) uint8 of a kind, (n_check,) uint8, or of each of the payloads
+    (k, L), (k, n_check): the first bits of SHA-256(secret, label, kind, payload) (a MAC; n_check a multiple
+    of 8, at most 256; each carrier its own ``label``). hashlib directly, the key's part hashed once (the
+    reader computes thousands of these per suspect)."""
     rows = np.atleast_2d(np.asarray(payload, dtype=np.uint8))
-    head = hashlib.sha256(f"{secret}:blind-check:{kind}:".encode())
+    head = hashlib.sha256(f"{secret}:{label}:{kind}:".encode())
     tail = rows.shape[1].to_bytes(2, "little")
     tags = bytearray()
     for row in np.packbits(rows, axis=1):
         h = head.copy()
         h.update(row.tobytes() + tail)
-        tags += h.digest()[: CHECK_BITS // 8]
-    bits = np.unpackbits(np.frombuffer(bytes(tags), np.uint8)).reshape(len(rows), CHECK_BITS)
+        tags += h.digest()[: n_check // 8]
+    bits = np.unpackbits(np.frombuffer(bytes(tags), np.uint8)).reshape(len(rows), n_check)
     return bits if np.ndim(payload) == 2 else bits[0]
 
 

@@ -28,7 +28,8 @@ from ...key import derive_seed, keyed_bits
 from ...progressive import ProgressiveMesh, base_vertex_count, build_progressive_mesh, with_positions
 from ...register import surface_frame
 from ...spatial import loading_engine, min_spacing, pairs_within
-from .code import BCHCode, coded_bits, payload_code
+from ...bch import BCHCode, payload_code
+from .code import coded_bits
 from .fields import OUTER, index_templates, profile, swirl, tangent_frames
 from .keydata import RobustKeyData, Samples
 from .layout import assign_bits

@@ -13,7 +13,7 @@ import numpy as np
 
 from ...errors import KeyFileError
 from ...register import SurfaceFrame
-from .code import BCHCode
+from ...bch import BCHCode
 from .fields import tangent_frames
 
 EXTRA_VERSION = 3  # written when the payload has a code; keys without one are written as version 2

@@ -1,0 +1,246 @@
+"""The reading of the keyed-waves carrier (``waves``): hypotheses, the lattice fit, decoding, the p-value.
+
+A hypothesis is a sign choice of the solid's frame (``solid.sign_choices``, chosen without the pass
+phrase), a mesh (the suspect, or the suspect with ``tau`` steps of uniform or cotangent Laplacian smoothing
+(lambda 0.5) undone: z extrapolated to second order from one and two steps of the suspect's own smoothing,
+``UNDO_STEPS``), a public step (``waves.STEPS``) and a payload length (``LENGTHS``). The lattice fit,
+mean cos(4 pi (z / Delta - d)) over the word's projections, is near 1 where the hypothesis is the
+embedder's and near 0 elsewhere; it ranks them, and the best ``DECODED`` are decoded: the hard decisions,
+then the 2^``CHASE_BITS`` most likely sets of flipped bits (``word.likely_flips``), each corrected by the
+word's BCH code (``CORRECTS`` wrong bits, ``pmwm.bch``) and checked by its ``CHECK_BITS`` keyed check bits,
+both payload kinds. The fit uses the key, so the p-value pays for
+every hypothesis there was, decoded or not (``plan.waves_p_value``): their count times 2 kinds times
+2^CHASE_BITS, times P(Binomial(CHECK_BITS, 1/2) >= check bits matched).
+
+The suspect as it is comes first, then its smoothing undone; a sign choice's readings end at the first
+marked one. The algorithm: docs/schemes/blind.md; measurements: docs/decisions/141-keyed-waves-prototype.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator, Optional
+
+import numpy as np
+
+from ... import metrics
+from ...base import Verdict, VerdictDetail
+from ...bch import BCHCode, bch, decode
+from ...errors import MeshError
+from ...smoothing import cotangent_operator, mean_operator
+from ...validate import check_mesh
+from . import plan, waves, word
+from .solid import Frame, sign_choices, solid_frame
+
+__all__ = ["CHECK_BITS", "LENGTHS", "UNDO_STEPS", "WavesDetail", "hypotheses", "read", "word_of"]
+
+CHECK_BITS = 64
+CHECK_LABEL = "blind-waves-check"
+LENGTHS = (32, 64, 96)  # payload bits the carrier holds (text of up to 4, 8 or 12 bytes)
+UNDO_STEPS = tuple(0.5 * k for k in range(1, 25))  # smoothing steps (lambda 0.5) the reader may undo
+UNDO_LAM = 0.5
+UNDO_KINDS = ("uniform", "cotangent")
+CHASE_BITS = 6
+DECODED = 4  # hypotheses decoded per set of meshes read (the best lattice fits)
+CORRECTS = 8  # the BCH code over payload + check corrects this many wrong bits
+
+
+def code_of(length: int) -> BCHCode:
+    """The BCH code of a word of ``length`` payload bits and the CHECK_BITS check bits."""
+    return bch(8, CORRECTS, length + CHECK_BITS)
+
+
+def word_of(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
+    """The word written, (n,) uint8: the BCH codeword (``code_of``) of the payload and its keyed check bits."""
+    check = word.check_bits(secret, kind, payload, CHECK_BITS, CHECK_LABEL)
+    return code_of(len(payload)).encode(np.concatenate([payload, check]).astype(np.uint8))
+
+
+def hypotheses(n_signs: int) -> int:
+    """Every candidate word a reading weighs with ``n_signs`` sign choices (the union bound's count)."""
+    meshes = 1 + len(UNDO_KINDS) * len(UNDO_STEPS)
+    return n_signs * meshes * len(waves.STEPS) * len(LENGTHS) * len(word.KINDS) * 2**CHASE_BITS
+
+
+@dataclass(frozen=True)
+class WavesDetail(VerdictDetail):
+    """How the keyed-waves reader read a suspect: payload_bits + check_bits, the sign choice of the frame
+    (1-based, of ``signs`` tried), ``mesh`` ("suspect" or "uniform:tau" / "cotangent:tau", the smoothing
+    undone), the step, the hypotheses paid for; payload_kind and word only when the mark was read."""
+
+    counted = "check bits"
+
+    payload_bits: int
+    check_bits: int
+    sign: int
+    signs: int
+    mesh: str
+    step: float
+    hypotheses: int
+    payload_kind: Optional[str] = None
+    word: Optional[str] = None
+
+    def headline_note(self, verdict: Verdict) -> str:
+        if verdict.payload_confirmed:
+            return f"{self.payload_bits}-bit payload read (blind)"
+        return "no payload read (blind)"
+
+    def _undone(self) -> str:
+        if self.mesh == "suspect":
+            return ""
+        kind, steps = self.mesh.split(":")
+        return f"read with {steps} steps of {kind} Laplacian smoothing ({UNDO_LAM:g} each) undone"
+
+    def notes(self) -> list[str]:
+        return [self._undone()] if self._undone() else []
+
+    def in_words(self) -> list[tuple[str, str]]:
+        rows = [
+            (
+                "How it was read",
+                "from keyed waves in the solid's shape, with the pass phrase alone (no key file)",
+            )
+        ]
+        if self._undone():
+            rows.append(("Read on", self._undone()))
+        return rows
+
+    def numbers(self) -> list[tuple[str, str]]:
+        return [
+            ("carrier", "keyed waves"),
+            ("word", f"{self.payload_bits} payload + {self.check_bits} check bits"),
+            ("code", code_of(self.payload_bits).name if self.payload_bits else "-"),
+            ("payload kind", self.payload_kind or "-"),
+            ("mesh read", self.mesh),
+            ("frame signs", f"{self.sign} of {self.signs}"),
+            ("step", f"{self.step:.3g}"),
+            ("hypotheses", str(self.hypotheses)),
+        ]
+
+
+@dataclass
+class _Reading:
+    p_one: float
+    matches: int
+    length: int
+    kind: str
+    candidate: np.ndarray  # (L + CHECK_BITS,) the word after the search
+    score: np.ndarray  # (L + CHECK_BITS,) sign = the scrambled bit read
+    sign: int
+    mesh: str
+    step: float
+
+
+def _undone(
+    V: np.ndarray, F: np.ndarray, w: waves.Waves, frame: Frame, y0: np.ndarray
+) -> Iterator[tuple[str, np.ndarray]]:
+    """(mesh, y (P,)) of the suspect with smoothing undone, to second order in the steps."""
+    for kind in UNDO_KINDS:
+        op = mean_operator(F, len(V)) if kind == "uniform" else cotangent_operator(V, F)
+        V1 = V + UNDO_LAM * (op @ V - V)
+        V2 = V1 + UNDO_LAM * (op @ V1 - V1)
+        y1 = waves.integrals(solid_frame(V1, F).aligned(frame).local(V1), F, w)
+        y2 = waves.integrals(solid_frame(V2, F).aligned(frame).local(V2), F, w)
+        d1, d2 = y1 - y0, y2 - 2 * y1 + y0
+        for tau in UNDO_STEPS:
+            yield f"{kind}:{tau:g}", y0 - tau * d1 + tau * (tau + 1) / 2 * d2
+
+
+def _decode(meshes, spreads, secret: str, sign: int) -> Optional[_Reading]:
+    """The best reading among the DECODED best lattice fits over ``meshes`` [(mesh, y)] x steps x lengths."""
+    fits = []
+    for mesh, y in meshes:
+        for L, spread in spreads.items():
+            z = spread.vectors @ y
+            for step in waves.STEPS:
+                e = z / step - spread.dither
+                fits.append((float(np.mean(np.cos(4 * np.pi * e))), mesh, L, step, np.cos(2 * np.pi * e)))
+    fits.sort(key=lambda h: -h[0])
+    best = None
+    for _, mesh, L, step, score in fits[:DECODED]:
+        spread, code = spreads[L], code_of(L)
+        got = (score < 0).astype(np.uint8)
+        for flips in (np.zeros((1, len(got)), np.uint8), word.likely_flips(np.abs(score), 2**CHASE_BITS)[1:]):
+            for cand in (got[None] ^ flips) ^ spread.scramble:
+                fixed = decode(code, cand)
+                if fixed is None:
+                    continue
+                for kind in word.KINDS:
+                    check = word.check_bits(secret, kind, fixed[:L], CHECK_BITS, CHECK_LABEL)
+                    m = int(np.sum(fixed[L : L + CHECK_BITS] == check))
+                    p = metrics.binomial_tail(m, CHECK_BITS)
+                    if best is None or p < best.p_one:
+                        best = _Reading(p, m, L, kind, fixed, -score, sign, mesh, step)
+                    if m == CHECK_BITS:
+                        return best
+    return best
+
+
+def read(vertices, faces, secret: str, p_threshold: float = 1e-6, signs: Optional[int] = None) -> Verdict:
+    """The keyed-waves reading of a suspect, vertices (n, 3), faces (m, 3), with a secret
+    (``word.derive_secret``): its verdict, p-value ``plan.waves_p_value`` (over every sign choice of
+    ``solid.sign_choices``, though a marked reading stops early). ``signs``: try only the first so many
+    sign choices (experiments' speed: a reading that can miss marks, never find more; the p-value still
+    pays for all)."""
+    V, F = check_mesh(vertices, faces)
+    if len(F) == 0:
+        raise MeshError("the suspect has no faces; the blind scheme reads a surface")
+    w = waves.waves_of(secret)
+    spreads = {L: waves.spread_of(secret, code_of(L).n) for L in LENGTHS}
+    try:
+        base = solid_frame(V, F)
+    except ValueError:
+        return _verdict(None, 1, p_threshold)
+    choices = sign_choices(base)
+    n_hyp = hypotheses(len(choices))
+    best = None
+    for si, signs_k in enumerate(choices[:signs] if signs else choices):
+        frame = base.flipped(signs_k)
+        y0 = waves.integrals(frame.local(V), F, w)
+        for meshes in (lambda: [("suspect", y0)], lambda: _undone(V, F, w, frame, y0)):
+            r = _decode(meshes(), spreads, secret, si)
+            if r is not None and (best is None or r.p_one < best.p_one):
+                best = r
+            if best is not None and plan.waves_p_value(best.p_one, n_hyp) < p_threshold:
+                return _verdict(best, len(choices), p_threshold)
+    return _verdict(best, len(choices), p_threshold)
+
+
+def _verdict(r: Optional[_Reading], n_signs: int, p_threshold: float) -> Verdict:
+    n_hyp = hypotheses(n_signs)
+    if r is None:  # (no solid: an open sheet has no frame)
+        detail = WavesDetail(0, CHECK_BITS, 0, 0, "suspect", 0.0, n_hyp)
+        return Verdict(False, 1.0, "", None, 0, CHECK_BITS, 0.0, 0, CHECK_BITS, "blind", p_threshold, False, detail)
+    p = plan.waves_p_value(r.p_one, n_hyp)
+    marked = bool(p < p_threshold)
+    L = r.length
+    payload = r.candidate[:L]
+    detail = WavesDetail(
+        L,
+        CHECK_BITS,
+        r.sign + 1,
+        n_signs,
+        r.mesh,
+        r.step,
+        n_hyp,
+        r.kind if marked else None,
+        "".join(map(str, r.candidate.tolist())) if marked else None,
+    )
+    return Verdict(
+        marked=marked,
+        p_value=p,
+        bits="".join(map(str, payload.tolist())) if marked else "",
+        payload=word.text_of(payload) if marked and r.kind == "text" else None,
+        matches=r.matches,
+        bit_errors=CHECK_BITS - r.matches,
+        correlation=float(2 * r.matches / CHECK_BITS - 1),
+        carriers_found=CHECK_BITS,
+        carriers_total=CHECK_BITS,
+        mode="blind",
+        p_threshold=p_threshold,
+        payload_confirmed=marked,
+        detail=detail,
+        scores=r.score,
+        places=np.zeros((0, 3)),
+        place_bits=np.zeros(0, np.int64),
+    )
