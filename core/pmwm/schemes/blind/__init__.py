@@ -127,15 +127,15 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
         marked, job.strength = _marked_waves(V, F, secret, payload, kind, job.strength)
     except _Refused as exc:
         # the baseline carrier marks what the keyed waves cannot (with its own read-back check), and says so
-        res = embed_histogram(vertices, faces, replace(opts, scheme=HISTOGRAM_NAME, strength=None), progress)
-        return replace(
-            res,
-            notes=res.notes
-            + (
-                f"{exc}; marked with the baseline histogram carrier instead "
-                f"(scheme {HISTOGRAM_NAME}: less robust, see docs/schemes/blind.md)",
-            ),
+        try:
+            res = embed_histogram(vertices, faces, replace(opts, scheme=HISTOGRAM_NAME, strength=None), progress)
+        except PayloadError as base_exc:
+            raise PayloadError(f"{exc}, and the baseline carrier: {base_exc}") from None
+        note = (
+            f"{exc}; marked with the baseline histogram carrier instead (scheme {HISTOGRAM_NAME}: less robust, "
+            "see docs/schemes/blind.md)"
         )
+        return replace(res, notes=res.notes + (note,))
     build = job.options.progressive
     base = base_vertex_count(opts.base_ratio, len(V))
     with beside(build, build_progressive_mesh, V, F, base_vertices=base) as building:

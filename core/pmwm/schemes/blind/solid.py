@@ -25,12 +25,16 @@ SKEW_TRUSTED = 0.05  # |third moment| / (area * sigma^3) below this: both signs 
 @dataclass(frozen=True)
 class Frame:
     """centre (3,), axes (3, 3) (columns, the largest spread first, signed), scale (the solid's RMS radius,
-    > 0), and skew (3,): each axis's normalised third moment (its sign is the axis's)."""
+    > 0), skew (3,): each axis's normalised third moment (its sign is the axis's), and orientation (+-1): the
+    sign of the solid's volume in frame coordinates (-1 when the faces turn inwards there: a mirrored copy
+    whose faces were turned to face out again, or a mesh whose faces face in), by which integrals over the
+    solid are multiplied so that they do not depend on it."""
 
     centre: np.ndarray
     axes: np.ndarray
     scale: float
     skew: np.ndarray
+    orientation: float = 1.0
 
     def local(self, vertices: np.ndarray) -> np.ndarray:
         """vertices (n, 3) in the frame: centred, turned to the axes, divided by the scale."""
@@ -43,7 +47,7 @@ class Frame:
     def flipped(self, signs: np.ndarray) -> "Frame":
         """The same frame with axis k multiplied by signs[k] (+-1)."""
         s = np.asarray(signs, np.float64)
-        return Frame(self.centre, self.axes * s, self.scale, self.skew * s)
+        return Frame(self.centre, self.axes * s, self.scale, self.skew * s, self.orientation * float(np.prod(s)))
 
     def aligned(self, like: "Frame") -> "Frame":
         """This frame with each axis signed as ``like``'s (a slightly moved copy read in the same choice)."""
@@ -86,7 +90,8 @@ def solid_frame(vertices: np.ndarray, faces: np.ndarray) -> Frame:
     scale = float(np.sqrt(w.sum()))
     if not scale > 0:
         raise ValueError("the solid has no extent")
-    return Frame(cen, R * signs, scale, skew * signs)
+    axes = R * signs
+    return Frame(cen, axes, scale, skew * signs, float(np.sign(vol) * np.sign(np.linalg.det(axes))))
 
 
 def sign_choices(frame: Frame) -> list[np.ndarray]:

@@ -139,8 +139,8 @@ def _undone(
         op = mean_operator(F, len(V)) if kind == "uniform" else cotangent_operator(V, F)
         V1 = V + UNDO_LAM * (op @ V - V)
         V2 = V1 + UNDO_LAM * (op @ V1 - V1)
-        y1 = waves.integrals(solid_frame(V1, F).aligned(frame).local(V1), F, w)
-        y2 = waves.integrals(solid_frame(V2, F).aligned(frame).local(V2), F, w)
+        y1 = waves.solid_integrals(V1, F, w, solid_frame(V1, F).aligned(frame))
+        y2 = waves.solid_integrals(V2, F, w, solid_frame(V2, F).aligned(frame))
         d1, d2 = y1 - y0, y2 - 2 * y1 + y0
         for tau in UNDO_STEPS:
             yield f"{kind}:{tau:g}", y0 - tau * d1 + tau * (tau + 1) / 2 * d2
@@ -196,7 +196,7 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6, signs: Optiona
     best = None
     for si, signs_k in enumerate(choices[:signs] if signs else choices):
         frame = base.flipped(signs_k)
-        y0 = waves.integrals(frame.local(V), F, w)
+        y0 = waves.solid_integrals(V, F, w, frame)
         for meshes in (lambda: [("suspect", y0)], lambda: _undone(V, F, w, frame, y0)):
             r = _decode(meshes(), spreads, secret, si)
             if r is not None and (best is None or r.p_one < best.p_one):

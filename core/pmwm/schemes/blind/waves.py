@@ -25,7 +25,19 @@ import numpy as np
 
 from .solid import Frame, solid_frame
 
-__all__ = ["BAND", "N_WAVES", "STEPS", "Waves", "Spread", "waves_of", "spread_of", "integrals", "projections", "mark"]
+__all__ = [
+    "BAND",
+    "N_WAVES",
+    "STEPS",
+    "Waves",
+    "Spread",
+    "waves_of",
+    "spread_of",
+    "integrals",
+    "solid_integrals",
+    "projections",
+    "mark",
+]
 
 BAND = (0.3, 4.5)  # cycles per RMS radius of the solid
 N_WAVES = 768
@@ -100,9 +112,15 @@ def integrals(Y: np.ndarray, faces: np.ndarray, waves: Waves, block: int = 4096)
     return y / (2 * np.pi * waves.f) / 6
 
 
+def solid_integrals(vertices: np.ndarray, faces: np.ndarray, waves: Waves, frame: Frame) -> np.ndarray:
+    """y (P,): the waves' integrals over the solid in ``frame``, whichever way its faces turn
+    (``Frame.orientation``)."""
+    return frame.orientation * integrals(frame.local(vertices), faces, waves)
+
+
 def projections(vertices: np.ndarray, faces: np.ndarray, waves: Waves, spread: Spread, frame: Frame) -> np.ndarray:
     """z (K,): the word's projections of the surface in ``frame``."""
-    return spread.vectors @ integrals(frame.local(vertices), faces, waves)
+    return spread.vectors @ solid_integrals(vertices, faces, waves, frame)
 
 
 def vertex_normals_areas(Y: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -144,7 +162,7 @@ def mark(vertices, faces, waves: Waves, spread: Spread, bits: np.ndarray, step: 
     for _ in range(rounds):
         frame = solid_frame(V, F)
         Y = frame.local(V)
-        e = spread.vectors @ integrals(Y, F, waves) / step - spread.dither - bits / 2
-        move, N = field(Y, F, waves, spread, -(e - np.round(e)) * step)
+        e = frame.orientation * (spread.vectors @ integrals(Y, F, waves)) / step - spread.dither - bits / 2
+        move, N = field(Y, F, waves, spread, -frame.orientation * (e - np.round(e)) * step)
         V = V + frame.world(move[:, None] * N)
     return V
