@@ -281,7 +281,8 @@ class WatermarkTask(_Task):
                 raise _Failed("the Blind scheme needs a Pass Phrase: type it in the Mark panel")
             self._remember_mesh(ob)
             self.key_path = ""
-            margin = round(float(blind_margin), 6) or None  # 0: chosen per mesh
+            # the Margin is the histogram carrier's strength (0: chosen per mesh); keyed waves choose their own
+            margin = (round(float(blind_margin), 6) or None) if scheme == "blind-histogram" else None
             self.opts = pmwm.EmbedOptions(
                 payload=payload or None,
                 strength=margin,
@@ -345,6 +346,8 @@ class WatermarkTask(_Task):
         where = "no key file (the pass phrase reads it)" if self.blind else f"key written to {self.key_path}"
         carriers = f"{len(res.carriers)} carriers, " if len(res.carriers) else ""
         report({"INFO"}, f"Watermarked '{ob.name}': {len(res.bits)} bits, {carriers}VSNR {res.vsnr_db:.1f} dB; {where}")
+        for note in res.notes:  # (e.g. the Blind scheme marked it with its baseline carrier, and why)
+            report({"WARNING"}, note)
 
 
 class VerifyTask(_Task):
@@ -643,7 +646,7 @@ class WatermarkOptions:
     overwrite_key: BoolProperty(name="Overwrite Key", default=False, options={"SKIP_SAVE"})
     blind_margin: FloatProperty(
         name="Margin",
-        description="The Blind scheme's strength (Cho's alpha); "
+        description="The Blind (histogram) scheme's strength (Cho's alpha); "
         "0: chosen per mesh for a distortion of 0.019 % of the size",
         default=0.0,
         min=0.0,

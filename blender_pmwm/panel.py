@@ -189,8 +189,9 @@ class VIEW3D_PT_pmwm_advanced(_Sidebar, Panel):
         s = context.scene.pmwm
         col = layout.column()
         blind = _reads_with_passphrase(context)
-        field(col, room, s, "blind_margin" if blind else "strength")
-        label(col, room, "Higher: more robust, more visible")
+        if s.scheme != "blind":  # (keyed waves spend a fixed distortion budget: no strength to choose)
+            field(col, room, s, "blind_margin" if blind else "strength")
+            label(col, room, "Higher: more robust, more visible")
         field(col, room, s, "base_ratio")
         label(col, room, "Size of the first streamed level")
         field(col, room, s, "seed")

@@ -24,7 +24,13 @@ SCHEME_ITEMS = [
         "blind",
         "Blind",
         "Read with the Pass Phrase alone: no key file, the payload is read, not known "
-        "(the distribution of vertex norms)",
+        "(keyed waves in the solid's shape)",
+    ),
+    (
+        "blind-histogram",
+        "Blind (histogram)",
+        "The Blind scheme's baseline carrier, read with the Pass Phrase alone (the distribution of vertex norms): "
+        "longer payloads, less robust",
     ),
 ]
 
@@ -123,7 +129,7 @@ class PMWM_SceneSettings(PropertyGroup):
     )
     blind_margin: FloatProperty(
         name="Margin",
-        description="The Blind scheme's strength: how far each bin of vertex distances is pushed from its "
+        description="The Blind (histogram) scheme's strength: how far each bin of vertex distances is pushed from its "
         "middle (Cho's alpha, a fraction of the bin). Higher survives more damage and shows "
         "more; 0 (the default): chosen per mesh to spend a distortion of 0.019 % of the size",
         default=0.0,

@@ -99,6 +99,9 @@ class WatermarkSelectedTask(_Selection, WatermarkTask):
             f"Watermarked {len(obs)} objects as one asset: {len(marking.results[0].bits)} bits in "
             f"each (VSNR {vsnr}); {where}",
         )
+        for ob, res in zip(obs, marking.results):
+            for note in res.notes:
+                report({"WARNING"}, f"'{ob.name}': {note}")
 
 
 class VerifySelectedTask(_Selection, VerifyTask):

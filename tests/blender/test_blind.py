@@ -56,11 +56,11 @@ def test_a_blind_mark_that_does_not_read_back_is_refused_and_changes_nothing(sce
     """The library checks that the mark reads back before anything is written; its one-line refusal
     reaches the user as the operator's error, and the mesh is left as it was."""
     bl.bunny()
-    scene.pmwm.scheme = "blind"
+    scene.pmwm.scheme = "blind-histogram"
     _secrets().passphrase = PHRASE
     before = bl.snapshot()
     with pytest.raises(RuntimeError, match="does not read back"):
-        bpy.ops.pmwm.watermark(payload="Acme", scheme="blind", seed=3, blind_margin=0.002)
+        bpy.ops.pmwm.watermark(payload="Acme", scheme="blind-histogram", seed=3, blind_margin=0.002)
     assert bl.snapshot() == before
 
 
@@ -78,19 +78,21 @@ def test_the_pass_phrase_is_never_saved_in_the_blend(scene, addon, bl, tmp_path)
 
 @pytest.mark.slow
 def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
-    """Margin is the Blind scheme's own strength: 0 (the default) leaves it to the library, which chooses
+    """Margin is the Blind (histogram) scheme's own strength: 0 (the default) leaves it to the library, which chooses
     it per mesh (the same marked mesh as ``pmwm.embed`` without a strength); a larger margin moves the
     surface further, and every mark reads back."""
     import pmwm
 
     assert scene.pmwm.blind_margin == 0.0
-    scene.pmwm.scheme = "blind"
+    scene.pmwm.scheme = "blind-histogram"
     _secrets().passphrase = PHRASE
     moved = []
     for margin in (0.0, 0.04, 0.2):
         ob = bl.bunny()
         before = bl.positions(ob)
-        assert bpy.ops.pmwm.watermark(payload="Acme", scheme="blind", seed=3, blind_margin=margin) == {"FINISHED"}
+        assert bpy.ops.pmwm.watermark(payload="Acme", scheme="blind-histogram", seed=3, blind_margin=margin) == {
+            "FINISHED"
+        }
         after = bl.positions(bpy.context.active_object)
         moved.append(float(np.sqrt(np.mean(np.sum((after - before) ** 2, axis=1)))))
         assert bpy.ops.pmwm.verify() == {"FINISHED"}
@@ -99,7 +101,7 @@ def test_the_margin_sets_the_blind_marks_strength(scene, addon, bl):
             lib = pmwm.embed(
                 before.astype(np.float64),
                 bl.polygons(bpy.context.active_object)[0].reshape(-1, 3),
-                pmwm.EmbedOptions(payload="Acme", scheme="blind", seed=3, passphrase=PHRASE),
+                pmwm.EmbedOptions(payload="Acme", scheme="blind-histogram", seed=3, passphrase=PHRASE),
             )
             np.testing.assert_array_equal(after, lib.vertices.astype(np.float32))
     assert moved[2] > 2 * moved[1] > 0
@@ -109,7 +111,7 @@ _SMALL: dict = {}
 
 
 def _small_marked():
-    """The bundled bunny coarsened to 14,000 vertices, marked (Blind, "Acme"): a mesh small enough that one
+    """The bundled bunny coarsened to 14,000 vertices, marked (Blind (histogram), "Acme"): a mesh small enough that one
     step of subdivision smooths the mark out of its own reading."""
     import pmwm
     from pmwm.progressive import build_progressive_mesh
@@ -119,7 +121,7 @@ def _small_marked():
         pm, _ = build_progressive_mesh(src.vertices, src.faces, base_vertices=3000)
         _SMALL["res"] = pmwm.embed(
             *pm.decode(vertices=14000),
-            pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False),
+            pmwm.EmbedOptions(scheme="blind-histogram", payload="Acme", passphrase=PHRASE, seed=3, progressive=False),
         )
     return _SMALL["res"]
 
@@ -161,7 +163,7 @@ def test_verify_reads_a_copy_given_blenders_subdivision_surface(scene, addon, bl
     res = pmwm.embed(
         src.vertices,
         src.faces,
-        pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False),
+        pmwm.EmbedOptions(scheme="blind-histogram", payload="Acme", passphrase=PHRASE, seed=3, progressive=False),
     )
     ob = bl.new_object("copy", res.vertices, res.faces)
     mod = ob.modifiers.new("Subdivision", "SUBSURF")
@@ -244,3 +246,41 @@ def test_the_catmull_clark_attack_is_blenders_subdivision_surface(scene, bl):
         return set(map(tuple, np.take_along_axis(T, (k + np.arange(3)) % 3, axis=1).tolist()))
 
     assert oriented(got_f) == oriented(want_f)
+
+
+def test_blind_reads_a_copy_smoothed_and_the_report_says_so(scene, addon, bl):
+    """Keyed waves (the Blind scheme's default): a copy smoothed by 5 uniform Laplacian steps reads, and
+    Verify's report says the smoothing was undone."""
+    import pmwm
+    from pmwm import attacks
+
+    src = pmwm.read_mesh(str(Path(pmwm.__file__).parent / "data" / "bunny.off"))
+    res = pmwm.embed(
+        src.vertices,
+        src.faces,
+        pmwm.EmbedOptions(scheme="blind", payload="Acme", passphrase=PHRASE, seed=3, progressive=False),
+    )
+    bl.new_object("copy", *attacks.smooth_laplacian(res.vertices, res.faces, lam=0.5, iterations=5))
+    text = _verify_report(addon, scene)
+    assert _verdict() == (True, "Acme")
+    assert "uniform Laplacian smoothing" in text and "undone" in text
+
+
+def test_a_mesh_keyed_waves_cannot_mark_is_marked_by_the_baseline_with_a_warning(scene, addon, bl):
+    """A flat sheet bounds no solid: the Blind scheme marks it with its baseline carrier and says so."""
+    from .test_modal import Reports
+
+    n = 60
+    x, y = np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n))
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+    bl.new_object("sheet", np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], 1), faces)
+    scene.pmwm.scheme = "blind"
+    _secrets().passphrase = PHRASE
+    task = addon.operators.WatermarkTask(bpy.context, payload="CAP", scheme="blind", seed=3)
+    reports = Reports()
+    task.finish(bpy.context, task.compute(lambda fraction, message: None), reports)
+    assert "baseline histogram carrier" in reports.text() and "bounds no volume" in reports.text()
+    assert bpy.ops.pmwm.verify() == {"FINISHED"}
+    assert _verdict() == (True, "CAP")
