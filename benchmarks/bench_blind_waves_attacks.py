@@ -172,8 +172,8 @@ def markdown(path: str) -> str:
         "and the marked copy. Cost: the attack's MRMS (from the marked copy) over the marking's, median (range). "
         "Read: the owner's verify says marked with the owner's payload.",
         "",
-        f"Copies: {len(recs)} ({', '.join(r['mesh'].split(':')[0] for r in recs)}); refused or marked by the baseline "
-        "carrier are left out.",
+        f"Copies: {len(recs)} ({', '.join(r['mesh'].split(':')[0] for r in recs)}): those the runs finished; refused "
+        "or marked by the baseline carrier are left out.",
         "",
         "| attack | cost | owner reads |",
         "|---|---|---|",

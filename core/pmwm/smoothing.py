@@ -71,11 +71,10 @@ def mean_operator(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndar
 
 
 def cotangent_operator(vertices: np.ndarray, faces: np.ndarray):
-    """The cotangent-weighted neighbour mean (n, n), scipy CSR: row i averages vertex i's neighbours with
-    weights cot(alpha) + cot(beta) of the angles facing each edge (negative cotangents taken as 0), the
-    smoothing of MeshLab's Laplacian with cotangent weights; a vertex with no weight keeps itself."""
-    from scipy.sparse import coo_matrix, diags
-
+    """The cotangent-weighted neighbour mean (n, n) for products ``M @ X``: row i averages vertex i's
+    neighbours with weights cot(alpha) + cot(beta) of the angles facing each edge (negative cotangents taken
+    as 0), the smoothing of MeshLab's Laplacian with cotangent weights; a vertex with no weight keeps itself.
+    A scipy.sparse CSR matrix, or for a small mesh (``adjacency.numpy_sparse``) a ``NeighbourMean``."""
     V = np.asarray(vertices, np.float64)
     F = np.asarray(faces, np.int64)
     n = len(V)
@@ -88,11 +87,23 @@ def cotangent_operator(vertices: np.ndarray, faces: np.ndarray):
         rows += [b, c]
         cols += [c, b]
         weights += [cot, cot]
-    W = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
-    total = np.asarray(W.sum(axis=1)).ravel()
-    alone = total == 0
-    total[alone] = 1.0
-    return (diags(1.0 / total) @ W + diags(alone.astype(np.float64))).tocsr()
+    r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
+    key = r * n + c
+    order, starts = np.argsort(key, kind="stable"), None
+    key, w = key[order], w[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    w = np.add.reduceat(w, starts) if len(w) else w  # (an edge's two faces summed)
+    r, c = key[starts] // n, key[starts] % n
+    total = np.bincount(r, weights=w, minlength=n)
+    alone = np.flatnonzero(total == 0)
+    w = w / np.where(total == 0, 1.0, total)[r]
+    r, c, w = np.r_[r, alone], np.r_[c, alone], np.r_[w, np.ones(len(alone))]
+    if numpy_sparse(n):
+        order = stable_order(r * n + c)[0]
+        return NeighbourMean(r[order], c[order], w[order], n)
+    from scipy.sparse import coo_matrix
+
+    return coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
 
 
 @dataclass(frozen=True)

@@ -173,8 +173,8 @@ def _marked_waves(V, F, secret: str, payload: np.ndarray, kind: str, budget: flo
     mrms: dict[float, float] = {}
 
     def at(step: float) -> float:
-        if step not in marked:
-            marked[step] = waves.mark(V, F, keyed, spread, bits, step)
+        if step not in marked:  # (float32-exact: what a file holds, what the self-check reads)
+            marked[step] = waves.mark(V, F, keyed, spread, bits, step).astype(np.float32).astype(np.float64)
             mrms[step] = float(metrics.displaced_surface_distance(V, marked[step], F, MRMS_SAMPLES, seed=0)[0])
         return mrms[step]
 
@@ -195,7 +195,7 @@ def _marked_waves(V, F, secret: str, payload: np.ndarray, kind: str, budget: flo
     for step in order:
         if at(step) > budget:
             continue
-        failed = selfcheck.failed_copy(check, marked[step].astype(np.float32).astype(np.float64))
+        failed = selfcheck.failed_copy(check, marked[step])
         if failed is None:
             return marked[step], mrms[step]
     raise _Refused(f"keyed waves do not read back from {failed} within {budget:g} % MRMS")
@@ -493,8 +493,8 @@ def verify(
 ) -> Verdict:
     """The verdict of a suspect with the pass phrase: the keyed-waves reading (``waveread.read``) first, and
     when it finds no mark the histogram's (``read``, the baseline carrier's marks), each paying its share of
-    the budget (``plan.waves_p_value``, ``plan.histogram_p_value``); the verdict with the smaller p-value
-    when neither reads. ``progress(fraction, message)`` at the stages read, ending at 1.0."""
+    the budget (``plan.waves_p_value``, ``plan.histogram_p_value``); the histogram's verdict when neither
+    reads (no payload either way). ``progress(fraction, message)`` at the stages read, ending at 1.0."""
     report = progress or no_progress
     word.check_passphrase(passphrase)
     secret = word.derive_secret(passphrase)
@@ -508,7 +508,7 @@ def verify(
     verdict = decide(stats, secret, p_threshold * (1.0 - plan.WAVES_SHARE), config)
     verdict = replace(verdict, p_value=plan.histogram_p_value(verdict.p_value), p_threshold=p_threshold)
     report(1.0, "read")
-    return verdict if verdict.marked or verdict.p_value <= waved.p_value else waved
+    return verdict
 
 
 def load_key_data(key: WatermarkKey) -> None:
