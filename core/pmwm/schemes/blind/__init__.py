@@ -96,27 +96,7 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     cannot (a longer payload, an open sheet, no step that reads back), the mesh is marked with the baseline
     carrier (``embed_histogram``, its own read-back check) and ``EmbedResult.notes`` says so."""
     opts = options or EmbedOptions(scheme=NAME)
-    passphrase = getattr(opts, "passphrase", None)
-    if passphrase is None:
-        raise PayloadError(
-            "the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file or PMWM_PASSPHRASE)"
-        )
-    word.check_passphrase(passphrase)
-    job = start_embed(
-        vertices,
-        faces,
-        EmbedOptions(
-            bits="0",
-            strength=opts.strength,
-            base_ratio=opts.base_ratio,
-            seed=opts.seed,
-            scheme=NAME,
-            progressive=opts.progressive,
-        ),
-        progress,
-        NAME,
-        WAVES_BUDGET,
-    )
+    passphrase, job = _start(vertices, faces, opts, progress, NAME, WAVES_BUDGET)
     payload, kind = word.payload_of(
         opts.payload, opts.bits, opts.n_bits, lambda n: keyed_bits(job.secret, "blind-random-payload", n)
     )
@@ -146,6 +126,26 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
 
         job.bits = payload
         return finish_embed(job, marked, marked_pm if build else None, np.zeros(0, np.int64), None)
+
+
+def _start(vertices, faces, opts: EmbedOptions, progress: Progress, name: str, default_strength: float):
+    """(pass phrase, EmbedJob): the options' pass phrase checked, then the generic first steps
+    (``start_embed``) with an explicit-bits stand-in (a blind payload has its own lengths)."""
+    passphrase = getattr(opts, "passphrase", None)
+    if passphrase is None:
+        raise PayloadError(
+            "the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file or PMWM_PASSPHRASE)"
+        )
+    word.check_passphrase(passphrase)
+    stand_in = EmbedOptions(
+        bits="0",
+        strength=opts.strength,
+        base_ratio=opts.base_ratio,
+        seed=opts.seed,
+        scheme=name,
+        progressive=opts.progressive,
+    )
+    return passphrase, start_embed(vertices, faces, stand_in, progress, name, default_strength)
 
 
 class _Refused(PayloadError):
@@ -207,28 +207,8 @@ def embed_histogram(vertices, faces, options: Optional[EmbedOptions] = None, pro
     payload is ``options.payload`` (text), ``options.bits`` or ``options.n_bits`` random bits (from
     ``options.seed``)."""
     opts = options or EmbedOptions(scheme=HISTOGRAM_NAME)
-    passphrase = getattr(opts, "passphrase", None)
-    if passphrase is None:
-        raise PayloadError(
-            "the blind scheme needs a pass phrase (EmbedOptions.passphrase, --passphrase-file or PMWM_PASSPHRASE)"
-        )
-    word.check_passphrase(passphrase)  # (its secret is derived once the build has started: scrypt takes a while)
-    # the generic first steps with an explicit-bits stand-in (the blind payload has its own lengths)
-    job = start_embed(
-        vertices,
-        faces,
-        EmbedOptions(
-            bits="0",
-            strength=opts.strength,
-            base_ratio=opts.base_ratio,
-            seed=opts.seed,
-            scheme=HISTOGRAM_NAME,
-            progressive=opts.progressive,
-        ),
-        progress,
-        HISTOGRAM_NAME,
-        DEFAULT_ALPHA,
-    )
+    # (its secret is derived once the build has started: scrypt takes a while)
+    passphrase, job = _start(vertices, faces, opts, progress, HISTOGRAM_NAME, DEFAULT_ALPHA)
     if not job.strength < 0.5:
         raise PayloadError(f"the blind scheme's strength (the bin-mean margin) must be below 0.5, got {job.strength}")
     payload_seed = job.secret  # fresh randomness, or from the seed: one payload per mesh

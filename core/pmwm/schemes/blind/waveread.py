@@ -131,14 +131,20 @@ class _Reading:
     step: float
 
 
-def _undone(
-    V: np.ndarray, F: np.ndarray, w: waves.Waves, frame: Frame, y0: np.ndarray
-) -> Iterator[tuple[str, np.ndarray]]:
-    """(mesh, y (P,)) of the suspect with smoothing undone, to second order in the steps."""
+def _smoothed(V: np.ndarray, F: np.ndarray) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(kind, the suspect after one step, after two steps) of each kind of smoothing the reader undoes."""
+    out = []
     for kind in UNDO_KINDS:
         op = mean_operator(F, len(V)) if kind == "uniform" else cotangent_operator(V, F)
         V1 = V + UNDO_LAM * (op @ V - V)
-        V2 = V1 + UNDO_LAM * (op @ V1 - V1)
+        out.append((kind, V1, V1 + UNDO_LAM * (op @ V1 - V1)))
+    return out
+
+
+def _undone(smoothed, F: np.ndarray, w: waves.Waves, frame: Frame, y0: np.ndarray) -> Iterator[tuple[str, np.ndarray]]:
+    """(mesh, y (P,)) of the suspect with smoothing undone, to second order in the steps, in ``frame``, from
+    the suspect's own smoothed copies ``smoothed`` (``_smoothed``)."""
+    for kind, V1, V2 in smoothed:
         y1 = waves.solid_integrals(V1, F, w, solid_frame(V1, F).aligned(frame))
         y2 = waves.solid_integrals(V2, F, w, solid_frame(V2, F).aligned(frame))
         d1, d2 = y1 - y0, y2 - 2 * y1 + y0
@@ -194,10 +200,17 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6, signs: Optiona
     choices = sign_choices(base)
     n_hyp = hypotheses(len(choices))
     best = None
+    smoothed: list = []  # (the suspect's smoothed copies: made once, when a sign choice first needs them)
     for si, signs_k in enumerate(choices[:signs] if signs else choices):
         frame = base.flipped(signs_k)
         y0 = waves.solid_integrals(V, F, w, frame)
-        for meshes in (lambda: [("suspect", y0)], lambda: _undone(V, F, w, frame, y0)):
+
+        def undone():
+            if not smoothed:
+                smoothed.extend(_smoothed(V, F))
+            return _undone(smoothed, F, w, frame, y0)
+
+        for meshes in (lambda: [("suspect", y0)], undone):
             r = _decode(meshes(), spreads, secret, si)
             if r is not None and (best is None or r.p_one < best.p_one):
                 best = r
