@@ -1,11 +1,10 @@
-"""Binary BCH codes: construction, systematic encoding and hard-decision decoding.
+"""Binary BCH codes: construction and systematic encoding.
 
 A shortened binary BCH code over GF(2^m): the coded word is the payload's k bits followed by the remainder
 of payload(x) x^(n-k) divided by the generator g(x), the least common multiple of the minimal polynomials of
 alpha, alpha^3, ..., alpha^(2t-1); its minimum distance is at least d = 2t + 1. A word's first bit is the
-coefficient of the highest power. ``decode`` corrects up to t wrong bits (syndromes, Berlekamp-Massey,
-Chien search) and says when it cannot. The robust scheme confirms its code against the key
-(``schemes.robust.code``); the blind scheme decodes it (``schemes.blind.waveread``).
+coefficient of the highest power. The robust scheme confirms its code against the key
+(``schemes.robust.code``).
 """
 
 from __future__ import annotations
@@ -16,7 +15,7 @@ from typing import Optional
 
 import numpy as np
 
-__all__ = ["PRIMITIVE", "CORRECTS", "BCHCode", "bch", "payload_code", "decode"]
+__all__ = ["PRIMITIVE", "CORRECTS", "BCHCode", "bch", "payload_code"]
 
 # primitive polynomials of GF(2^m), bit i = coefficient of x^i
 PRIMITIVE = {
@@ -138,77 +137,3 @@ def _mul(a: int, b: int, exp: np.ndarray, size: int) -> int:
 def _poly_mul_gf2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The product of two polynomials over GF(2) (coefficients lowest first)."""
     return (np.convolve(a.astype(np.int64), b.astype(np.int64)) % 2).astype(np.uint8)
-
-
-@lru_cache(maxsize=8)
-def _field(m: int) -> tuple[np.ndarray, np.ndarray]:
-    """(exp (2 (2^m - 1),) alpha^i as bit vectors, log (2^m,) int64 (log[0] unused)) of GF(2^m)."""
-    size = (1 << m) - 1
-    exp = np.zeros(2 * size, np.int64)
-    x = 1
-    for i in range(size):
-        exp[i] = exp[i + size] = x
-        x <<= 1
-        if x >> m:
-            x ^= PRIMITIVE[m]
-    log = np.zeros(size + 1, np.int64)
-    log[exp[:size]] = np.arange(size)
-    return exp, log
-
-
-def decode(code: BCHCode, received: np.ndarray) -> Optional[np.ndarray]:
-    """The codeword (n,) uint8 nearest to ``received`` (n,) uint8 when at most ``code.t`` bits are wrong,
-    else None when the decoder sees that it cannot (more errors may also decode to another codeword)."""
-    r = np.asarray(received, np.uint8)
-    n, t, m = code.n, code.t, code.m
-    exp, log = _field(m)
-    size = (1 << m) - 1
-    powers = (n - 1 - np.flatnonzero(r)).astype(np.int64)  # the set bits' powers of x
-    j = np.arange(1, 2 * t + 1)
-    S = (
-        np.bitwise_xor.reduce(exp[(powers[None, :] * j[:, None]) % size], axis=1)
-        if len(powers)
-        else np.zeros(2 * t, np.int64)
-    )
-    if not S.any():
-        return r.copy()
-
-    def mul(a: int, b: int) -> int:
-        return 0 if a == 0 or b == 0 else int(exp[log[a] + log[b]])
-
-    # Berlekamp-Massey over GF(2^m): the error locator Lambda(x), lowest coefficient first
-    lam, prev = [1], [1]
-    L, shift, b = 0, 1, 1
-    for k in range(2 * t):
-        d = int(S[k])
-        for i in range(1, L + 1):
-            if i < len(lam):
-                d ^= mul(lam[i], int(S[k - i]))
-        if d == 0:
-            shift += 1
-            continue
-        coef = mul(d, int(exp[(size - log[b]) % size]))
-        nxt = lam + [0] * max(0, len(prev) + shift - len(lam))
-        for i, c in enumerate(prev):
-            nxt[i + shift] ^= mul(coef, c)
-        if 2 * L <= k:
-            prev, L, b, shift = lam, k + 1 - L, d, 1
-        else:
-            shift += 1
-        lam = nxt
-    while len(lam) > 1 and lam[-1] == 0:
-        lam.pop()
-    if L > t or len(lam) - 1 != L:
-        return None
-    # Chien search: an error at power p when Lambda(alpha^-p) = 0
-    p = np.arange(n)
-    val = np.zeros(n, np.int64)
-    for i, c in enumerate(lam):
-        if c:
-            val ^= exp[(log[c] - p * i) % size]
-    roots = np.flatnonzero(val == 0)
-    if len(roots) != L:
-        return None
-    out = r.copy()
-    out[n - 1 - roots] ^= 1
-    return out

@@ -90,7 +90,7 @@ def _n_bins(n_word: int) -> int:
 def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Progress = None) -> EmbedResult:
     """Mark a mesh, vertices (n, 3) float64, faces (m, 3) int64 (kept), with the pass phrase of
     ``options`` in keyed waves (``waves``); the payload is ``options.payload`` (text of at most 12 bytes),
-    ``options.bits`` or ``options.n_bits`` random bits (32, 64 or 96, from ``options.seed``); the strength
+    ``options.bits`` or ``options.n_bits`` random bits (a multiple of 8 up to 96, from ``options.seed``); the strength
     is the most MRMS the marking may cost (% of the bounding-box diagonal, default ``WAVES_BUDGET``): the
     largest public step within it whose marked mesh reads back from its light copies. Where keyed waves
     cannot (a longer payload, an open sheet, no step that reads back), the mesh is marked with the baseline
@@ -98,7 +98,11 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     opts = options or EmbedOptions(scheme=NAME)
     passphrase, job = _start(vertices, faces, opts, progress, NAME, WAVES_BUDGET)
     payload, kind = word.payload_of(
-        opts.payload, opts.bits, opts.n_bits, lambda n: keyed_bits(job.secret, "blind-random-payload", n)
+        opts.payload,
+        opts.bits,
+        opts.n_bits,
+        lambda n: keyed_bits(job.secret, "blind-random-payload", n),
+        waveread.LENGTHS + tuple(L for L in word.PAYLOAD_BITS if L > waveread.LENGTHS[-1]),
     )
     V, F = job.vertices, job.faces
     secret = word.derive_secret(passphrase)
@@ -158,8 +162,8 @@ def _marked_waves(V, F, secret: str, payload: np.ndarray, kind: str, budget: flo
     steps within the budget when one does not read. Raises PayloadError (one line) when none does."""
     if len(payload) not in waveread.LENGTHS:
         raise _Refused(
-            f"keyed waves carry {', '.join(map(str, waveread.LENGTHS))} payload bits (text of at most "
-            f"{waveread.LENGTHS[-1] // 8} bytes), not {len(payload)}"
+            f"keyed waves carry {waveread.LENGTHS[0]} to {waveread.LENGTHS[-1]} payload bits in whole bytes (text "
+            f"of at most {waveread.LENGTHS[-1] // 8} bytes), not {len(payload)}"
         )
     w = waveread.word_of(secret, kind, payload)
     spread = waves.spread_of(secret, len(w))

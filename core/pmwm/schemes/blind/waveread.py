@@ -3,17 +3,19 @@
 A hypothesis is a sign choice of the solid's frame (``solid.sign_choices``, chosen without the pass
 phrase), a mesh (the suspect, or the suspect with ``tau`` steps of uniform or cotangent Laplacian smoothing
 (lambda 0.5) undone: z extrapolated to second order from one and two steps of the suspect's own smoothing,
-``UNDO_STEPS``), a public step (``waves.STEPS``) and a payload length (``LENGTHS``). The lattice fit,
-mean cos(4 pi (z / Delta - d)) over the word's projections, is near 1 where the hypothesis is the
-embedder's and near 0 elsewhere; it ranks them, and the best ``DECODED`` are decoded: the hard decisions,
-then the 2^``CHASE_BITS`` most likely sets of flipped bits (``word.likely_flips``), each corrected by the
-word's BCH code (``CORRECTS`` wrong bits, ``pmwm.bch``) and checked by its ``CHECK_BITS`` keyed check bits,
-both payload kinds. The fit uses the key, so the p-value pays for
-every hypothesis there was, decoded or not (``plan.waves_p_value``): their count times 2 kinds times
-2^CHASE_BITS, times P(Binomial(CHECK_BITS, 1/2) >= check bits matched).
+``UNDO_STEPS``), a public step (``waves.STEPS``) and a payload length (``LENGTHS``, whole bytes). The lattice
+fit, mean cos(4 pi (z / Delta - d)) over the word's projections, is near 1 where the hypothesis is the
+embedder's and near 0 elsewhere; it ranks them, and the best ``DECODED`` are decoded: the word is the
+payload and its ``CHECK_BITS`` keyed check bits under a convolutional code (``pmwm.convcode``, rate
+``RATE``), read with soft decisions (1 - 4 |z / Delta - d - nearest integer|, the log-likelihood ratio of
+the bit up to a scale) by the Viterbi decoder, and the check bits are compared for both payload kinds. The
+fit uses the key, so the p-value pays for every hypothesis there was, decoded or not
+(``plan.waves_p_value``): their count times 2 kinds, times P(Binomial(CHECK_BITS, 1/2) >= check bits
+matched).
 
 The suspect as it is comes first, then its smoothing undone; a sign choice's readings end at the first
-marked one. The algorithm: docs/schemes/blind.md; measurements: docs/decisions/141-keyed-waves-prototype.md.
+marked one. The algorithm: docs/schemes/blind.md; measurements: docs/decisions/141-keyed-waves-carrier.md
+and docs/decisions/142-soft-decoded-word.md.
 """
 
 from __future__ import annotations
@@ -25,41 +27,40 @@ import numpy as np
 
 from ... import metrics
 from ...base import Verdict, VerdictDetail
-from ...bch import BCHCode, bch, decode
+from ...convcode import coded_length, decode, encode
 from ...errors import MeshError
 from ...smoothing import cotangent_operator, mean_operator
 from ...validate import check_mesh
 from . import plan, waves, word
 from .solid import Frame, sign_choices, solid_frame
 
-__all__ = ["CHECK_BITS", "LENGTHS", "UNDO_STEPS", "WavesDetail", "hypotheses", "read", "word_of"]
+__all__ = ["CHECK_BITS", "LENGTHS", "RATE", "UNDO_STEPS", "WavesDetail", "coded_bits", "hypotheses", "read", "word_of"]
 
 CHECK_BITS = 64
 CHECK_LABEL = "blind-waves-check"
-LENGTHS = (32, 64, 96)  # payload bits the carrier holds (text of up to 4, 8 or 12 bytes)
+LENGTHS = tuple(range(8, 97, 8))  # payload bits the carrier holds (text of 1 to 12 bytes)
 UNDO_STEPS = tuple(0.5 * k for k in range(1, 25))  # smoothing steps (lambda 0.5) the reader may undo
 UNDO_LAM = 0.5
 UNDO_KINDS = ("uniform", "cotangent")
-CHASE_BITS = 6
-DECODED = 4  # hypotheses decoded per set of meshes read (the best lattice fits)
-CORRECTS = 8  # the BCH code over payload + check corrects this many wrong bits
+RATE = "2/3"  # the convolutional code's rate (``pmwm.convcode.PUNCTURE``)
+DECODED = 16  # hypotheses decoded per set of meshes read (the best lattice fits)
 
 
-def code_of(length: int) -> BCHCode:
-    """The BCH code of a word of ``length`` payload bits and the CHECK_BITS check bits."""
-    return bch(8, CORRECTS, length + CHECK_BITS)
+def coded_bits(length: int) -> int:
+    """The bits written for a payload of ``length`` bits: its coded word with the CHECK_BITS check bits."""
+    return coded_length(length + CHECK_BITS, RATE)
 
 
 def word_of(secret: str, kind: str, payload: np.ndarray) -> np.ndarray:
-    """The word written, (n,) uint8: the BCH codeword (``code_of``) of the payload and its keyed check bits."""
+    """The word written, (``coded_bits(L)``,) uint8: the payload (L,) and its keyed check bits, coded."""
     check = word.check_bits(secret, kind, payload, CHECK_BITS, CHECK_LABEL)
-    return code_of(len(payload)).encode(np.concatenate([payload, check]).astype(np.uint8))
+    return encode(np.concatenate([payload, check]).astype(np.uint8), RATE)
 
 
 def hypotheses(n_signs: int) -> int:
     """Every candidate word a reading weighs with ``n_signs`` sign choices (the union bound's count)."""
     meshes = 1 + len(UNDO_KINDS) * len(UNDO_STEPS)
-    return n_signs * meshes * len(waves.STEPS) * len(LENGTHS) * len(word.KINDS) * 2**CHASE_BITS
+    return n_signs * meshes * len(waves.STEPS) * len(LENGTHS) * len(word.KINDS)
 
 
 @dataclass(frozen=True)
@@ -109,7 +110,7 @@ class WavesDetail(VerdictDetail):
         return [
             ("carrier", "keyed waves"),
             ("word", f"{self.payload_bits} payload + {self.check_bits} check bits"),
-            ("code", code_of(self.payload_bits).name if self.payload_bits else "-"),
+            ("code", f"convolutional, rate {RATE}, constraint length 7, soft Viterbi decoding"),
             ("payload kind", self.payload_kind or "-"),
             ("mesh read", self.mesh),
             ("frame signs", f"{self.sign} of {self.signs}"),
@@ -124,8 +125,8 @@ class _Reading:
     matches: int
     length: int
     kind: str
-    candidate: np.ndarray  # (L + CHECK_BITS,) the word after the search
-    score: np.ndarray  # (L + CHECK_BITS,) sign = the scrambled bit read
+    candidate: np.ndarray  # (L + CHECK_BITS,) the payload and check bits decoded
+    score: np.ndarray  # (coded_bits(L),) the soft decisions, > 0 where the scrambled bit read is 1
     sign: int
     mesh: str
     step: float
@@ -160,25 +161,22 @@ def _decode(meshes, spreads, secret: str, sign: int) -> Optional[_Reading]:
             z = spread.vectors @ y
             for step in waves.STEPS:
                 e = z / step - spread.dither
-                fits.append((float(np.mean(np.cos(4 * np.pi * e))), mesh, L, step, np.cos(2 * np.pi * e)))
+                fits.append((float(np.mean(np.cos(4 * np.pi * e))), mesh, L, step, e))
     fits.sort(key=lambda h: -h[0])
     best = None
-    for _, mesh, L, step, score in fits[:DECODED]:
-        spread, code = spreads[L], code_of(L)
-        got = (score < 0).astype(np.uint8)
-        for flips in (np.zeros((1, len(got)), np.uint8), word.likely_flips(np.abs(score), 2**CHASE_BITS)[1:]):
-            for cand in (got[None] ^ flips) ^ spread.scramble:
-                fixed = decode(code, cand)
-                if fixed is None:
-                    continue
-                for kind in word.KINDS:
-                    check = word.check_bits(secret, kind, fixed[:L], CHECK_BITS, CHECK_LABEL)
-                    m = int(np.sum(fixed[L : L + CHECK_BITS] == check))
-                    p = metrics.binomial_tail(m, CHECK_BITS)
-                    if best is None or p < best.p_one:
-                        best = _Reading(p, m, L, kind, fixed, -score, sign, mesh, step)
-                    if m == CHECK_BITS:
-                        return best
+    for L in LENGTHS:  # (the Viterbi decoder reads the fits of one length together)
+        chosen = [f for f in fits[:DECODED] if f[2] == L]
+        if not chosen:
+            continue
+        unscramble = 1.0 - 2.0 * spreads[L].scramble
+        soft = np.array([1 - 4 * np.abs(f[4] - np.round(f[4])) for f in chosen])  # > 0: the scrambled bit is 0
+        for (_, mesh, _, step, _), info, score in zip(chosen, decode(soft * unscramble, L + CHECK_BITS, RATE), soft):
+            for kind in word.KINDS:
+                check = word.check_bits(secret, kind, info[:L], CHECK_BITS, CHECK_LABEL)
+                m = int(np.sum(info[L:] == check))
+                p = metrics.binomial_tail(m, CHECK_BITS)
+                if best is None or p < best.p_one:
+                    best = _Reading(p, m, L, kind, info, -score, sign, mesh, step)
     return best
 
 
@@ -192,7 +190,7 @@ def read(vertices, faces, secret: str, p_threshold: float = 1e-6, signs: Optiona
     if len(F) == 0:
         raise MeshError("the suspect has no faces; the blind scheme reads a surface")
     w = waves.waves_of(secret)
-    spreads = {L: waves.spread_of(secret, code_of(L).n) for L in LENGTHS}
+    spreads = {L: waves.spread_of(secret, coded_bits(L)) for L in LENGTHS}
     try:
         base = solid_frame(V, F)
     except ValueError:

@@ -85,31 +85,34 @@ def check_passphrase(passphrase: str) -> None:
         raise PayloadError("the blind scheme needs a non-empty pass phrase")
 
 
-def payload_of(payload: Optional[str], bits, n_bits: int, random_bits) -> tuple[np.ndarray, str]:
-    """The payload (L,) uint8 with L in PAYLOAD_BITS and its kind ("text" or "bits").
+def payload_of(
+    payload: Optional[str], bits, n_bits: int, random_bits, lengths: tuple[int, ...] = PAYLOAD_BITS
+) -> tuple[np.ndarray, str]:
+    """The payload (L,) uint8 with L in ``lengths`` (the carrier's, ascending multiples of 8) and its kind
+    ("text" or "bits").
 
     Text is UTF-8 padded with NUL bytes to the shortest length that holds it; explicit bits must
     have one of the lengths; a random payload has ``n_bits`` bits, drawn by ``random_bits(n)``."""
     if payload is not None and bits is not None:
         raise PayloadError("give a text payload or explicit bits, not both")
-    sizes = ", ".join(map(str, PAYLOAD_BITS))
+    sizes = ", ".join(map(str, lengths))
     if payload is not None:
         data = payload.encode("utf-8")
         if not data:
             raise PayloadError("the payload text is empty; give some text or use --bits")
-        n = next((L for L in PAYLOAD_BITS if L >= 8 * len(data)), None)
+        n = next((L for L in lengths if L >= 8 * len(data)), None)
         if n is None:
             raise PayloadError(
-                f"the blind scheme holds at most {PAYLOAD_BITS[-1] // 8} bytes of text; this payload has {len(data)}"
+                f"the blind scheme holds at most {lengths[-1] // 8} bytes of text; this payload has {len(data)}"
             )
         data = data + b"\0" * (n // 8 - len(data))
         return np.unpackbits(np.frombuffer(data, np.uint8)), "text"
     if bits is not None:
         b = parse_bits(bits)
-        if len(b) not in PAYLOAD_BITS:
+        if len(b) not in lengths:
             raise PayloadError(f"the blind scheme carries {sizes} payload bits; got {len(b)}")
         return b, "bits"
-    if n_bits not in PAYLOAD_BITS:
+    if n_bits not in lengths:
         raise PayloadError(f"the blind scheme carries {sizes} payload bits; asked for {n_bits}")
     return np.asarray(random_bits(n_bits), np.uint8), "bits"
 
