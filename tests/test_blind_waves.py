@@ -11,6 +11,7 @@ import meshes
 import pmwm
 from pmwm import attacks
 from pmwm import convcode
+from pmwm.smoothing import cotangent_step
 from pmwm.schemes.blind import plan, solid, waveread, waves, word
 from pmwm.schemes.blind.detail import BlindDetail
 from pmwm.schemes.blind.waveread import WavesDetail
@@ -83,6 +84,30 @@ def test_smoothing_is_undone_by_the_reader_and_said(marked, shape):
     ok, v = _reads(*attacks.smooth_laplacian(marked.vertices, shape[1], lam=0.5, iterations=5))
     assert ok, v
     assert v.detail.mesh.startswith("uniform:") and "undone" in v.detail.notes()[0]
+
+
+def pymeshlab_cotangent(V, F, steps: int) -> np.ndarray:
+    """pymeshlab's default smoothing (Laplacian, cotangent weights), ``steps`` times."""
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(np.asarray(V, np.float64), np.asarray(F, np.int32)))
+    ms.apply_coord_laplacian_smoothing(stepsmoothnum=steps)
+    return ms.current_mesh().vertex_matrix()
+
+
+def test_the_readers_cotangent_step_is_meshlabs():
+    V, F = corpus.generate("cad", 5, 4000)
+    W = V
+    for _ in range(3):
+        W = cotangent_step(W, F)
+    assert np.abs(W - pymeshlab_cotangent(V, F, 3)).max() < 1e-7 * np.ptp(V, axis=0).max()
+
+
+def test_pymeshlabs_cotangent_smoothing_is_undone_by_the_reader(marked, shape):
+    ok, v = _reads(pymeshlab_cotangent(marked.vertices, shape[1], 5), shape[1])
+    assert ok, v
+    assert v.detail.mesh.startswith("cotangent:")
 
 
 def test_a_wrong_phrase_or_an_unmarked_mesh_reads_nothing_and_shows_no_payload(marked, shape):

@@ -29,7 +29,7 @@ import numpy as np
 
 from .adjacency import edge_face_counts, numpy_sparse, stable_order
 
-__all__ = ["neighbour_pairs", "mean_operator", "cotangent_operator", "NeighbourMean", "unsmoothing_steps", "smoothed"]
+__all__ = ["neighbour_pairs", "mean_operator", "cotangent_step", "NeighbourMean", "unsmoothing_steps", "smoothed"]
 
 
 def neighbour_pairs(
@@ -70,40 +70,30 @@ def mean_operator(faces: np.ndarray, n: int, edge_counts: Optional[tuple[np.ndar
     return coo_matrix((weight, (rows, cols)), shape=(n, n)).tocsr()
 
 
-def cotangent_operator(vertices: np.ndarray, faces: np.ndarray):
-    """The cotangent-weighted neighbour mean (n, n) for products ``M @ X``: row i averages vertex i's
-    neighbours with weights cot(alpha) + cot(beta) of the angles facing each edge (negative cotangents taken
-    as 0), the smoothing of MeshLab's Laplacian with cotangent weights; a vertex with no weight keeps itself.
-    A scipy.sparse CSR matrix, or for a small mesh (``adjacency.numpy_sparse``) a ``NeighbourMean``."""
+def cotangent_step(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The vertices (n, 3) float64 after one step of MeshLab's Laplacian smoothing with cotangent weights
+    (pymeshlab's ``apply_coord_laplacian_smoothing``, its default): V_i <- (V_i + sum_j w_ij V_j) /
+    (1 + sum_j w_ij), w_ij = cot(alpha_ij) + cot(beta_ij) of the angles facing edge ij, unnormalised and
+    unclipped, computed on V itself (equal to MeshLab's to 1e-9 of the diagonal on closed surfaces; MeshLab
+    smooths border vertices along the border instead). A vertex whose weights sum to -1/2 or less (a fan of
+    obtuse angles) keeps its place."""
     V = np.asarray(vertices, np.float64)
     F = np.asarray(faces, np.int64)
     n = len(V)
     rows, cols, weights = [], [], []
-    for i in range(3):
+    for i in range(3):  # (the three corners of every face: the angle at a faces edge bc)
         a, b, c = F[:, i], F[:, (i + 1) % 3], F[:, (i + 2) % 3]
         e1, e2 = V[b] - V[a], V[c] - V[a]
         cross = np.linalg.norm(np.cross(e1, e2), axis=1)
-        cot = np.clip(np.einsum("ij,ij->i", e1, e2) / np.maximum(cross, 1e-300), 0.0, 1e3)  # the angle at a
+        cot = np.clip(np.einsum("ij,ij->i", e1, e2) / np.maximum(cross, 1e-300), -1e3, 1e3)
         rows += [b, c]
         cols += [c, b]
         weights += [cot, cot]
     r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
-    key = r * n + c
-    order, starts = np.argsort(key, kind="stable"), None
-    key, w = key[order], w[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    w = np.add.reduceat(w, starts) if len(w) else w  # (an edge's two faces summed)
-    r, c = key[starts] // n, key[starts] % n
-    total = np.bincount(r, weights=w, minlength=n)
-    alone = np.flatnonzero(total == 0)
-    w = w / np.where(total == 0, 1.0, total)[r]
-    r, c, w = np.r_[r, alone], np.r_[c, alone], np.r_[w, np.ones(len(alone))]
-    if numpy_sparse(n):
-        order = stable_order(r * n + c)[0]
-        return NeighbourMean(r[order], c[order], w[order], n)
-    from scipy.sparse import coo_matrix
-
-    return coo_matrix((w, (r, c)), shape=(n, n)).tocsr()
+    total = 1.0 + np.bincount(r, weights=w, minlength=n)
+    summed = np.stack([np.bincount(r, weights=w * V[c, k], minlength=n) for k in range(3)], axis=1)
+    keep = total <= 0.5
+    return np.where(keep[:, None], V, (V + summed) / np.where(keep, 1.0, total)[:, None])
 
 
 @dataclass(frozen=True)

@@ -1,17 +1,16 @@
 """The reading of the keyed-waves carrier (``waves``): hypotheses, the lattice fit, decoding, the p-value.
 
-A hypothesis is a sign choice of the solid's frame (``solid.sign_choices``, chosen without the pass
-phrase), a mesh (the suspect, or the suspect with ``tau`` steps of uniform or cotangent Laplacian smoothing
-(lambda 0.5) undone: z extrapolated to second order from one and two steps of the suspect's own smoothing,
-``UNDO_STEPS``), a public step (``waves.STEPS``) and a payload length (``LENGTHS``, whole bytes). The lattice
-fit, mean cos(4 pi (z / Delta - d)) over the word's projections, is near 1 where the hypothesis is the
-embedder's and near 0 elsewhere; it ranks them, and the best ``DECODED`` are decoded: the word is the
-payload and its ``CHECK_BITS`` keyed check bits under a convolutional code (``pmwm.convcode``, rate
-``RATE``), read with soft decisions (1 - 4 |z / Delta - d - nearest integer|, the log-likelihood ratio of
-the bit up to a scale) by the Viterbi decoder, and the check bits are compared for both payload kinds. The
-fit uses the key, so the p-value pays for every hypothesis there was, decoded or not
-(``plan.waves_p_value``): their count times 2 kinds, times P(Binomial(CHECK_BITS, 1/2) >= check bits
-matched).
+A hypothesis is a sign choice of the solid's frame (``solid.sign_choices``, chosen without the pass phrase), a
+mesh (the suspect, or the suspect with ``tau`` steps of smoothing undone, uniform Laplacian at lambda 0.5 or
+MeshLab's cotangent Laplacian: z extrapolated to second order from one and two steps of the suspect's own
+smoothing, ``UNDO_STEPS``), a public step (``waves.STEPS``) and a payload length (``LENGTHS``, whole bytes). The
+lattice fit, mean cos(4 pi (z / Delta - d)) over the word's projections, is near 1 where the hypothesis is the
+embedder's and near 0 elsewhere; it ranks them, and the best ``DECODED`` are decoded: the word is the payload
+and its ``CHECK_BITS`` keyed check bits under a convolutional code (``pmwm.convcode``, rate ``RATE``), read with
+soft decisions (1 - 4 |z / Delta - d - nearest integer|, the log-likelihood ratio of the bit up to a scale) by
+the Viterbi decoder, and the check bits are compared for both payload kinds. The fit uses the key, so the
+p-value pays for every hypothesis there was, decoded or not (``plan.waves_p_value``): their count times 2 kinds,
+times P(Binomial(CHECK_BITS, 1/2) >= check bits matched).
 
 The suspect as it is comes first, then its smoothing undone; a sign choice's readings end at the first
 marked one. The algorithm: docs/schemes/blind.md; measurements: docs/decisions/141-keyed-waves-carrier.md
@@ -29,7 +28,7 @@ from ... import metrics
 from ...base import Verdict, VerdictDetail
 from ...convcode import coded_length, decode, encode
 from ...errors import MeshError
-from ...smoothing import cotangent_operator, mean_operator
+from ...smoothing import cotangent_step, mean_operator
 from ...validate import check_mesh
 from . import plan, waves, word
 from .solid import Frame, sign_choices, solid_frame
@@ -90,7 +89,9 @@ class WavesDetail(VerdictDetail):
         if self.mesh == "suspect":
             return ""
         kind, steps = self.mesh.split(":")
-        return f"read with {steps} steps of {kind} Laplacian smoothing ({UNDO_LAM:g} each) undone"
+        if kind == "uniform":
+            return f"read with {steps} steps of uniform Laplacian smoothing ({UNDO_LAM:g} each) undone"
+        return f"read with {steps} steps of cotangent Laplacian smoothing (MeshLab's) undone"
 
     def notes(self) -> list[str]:
         return [self._undone()] if self._undone() else []
@@ -133,13 +134,12 @@ class _Reading:
 
 
 def _smoothed(V: np.ndarray, F: np.ndarray) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """(kind, the suspect after one step, after two steps) of each kind of smoothing the reader undoes."""
-    out = []
-    for kind in UNDO_KINDS:
-        op = mean_operator(F, len(V)) if kind == "uniform" else cotangent_operator(V, F)
-        V1 = V + UNDO_LAM * (op @ V - V)
-        out.append((kind, V1, V1 + UNDO_LAM * (op @ V1 - V1)))
-    return out
+    """(kind, the suspect after one step, after two steps) of each kind of smoothing the reader undoes: the
+    uniform neighbour mean at ``UNDO_LAM``, and MeshLab's cotangent step (``smoothing.cotangent_step``)."""
+    op = mean_operator(F, len(V))
+    U1 = V + UNDO_LAM * (op @ V - V)
+    C1 = cotangent_step(V, F)
+    return [("uniform", U1, U1 + UNDO_LAM * (op @ U1 - U1)), ("cotangent", C1, cotangent_step(C1, F))]
 
 
 def _undone(smoothed, F: np.ndarray, w: waves.Waves, frame: Frame, y0: np.ndarray) -> Iterator[tuple[str, np.ndarray]]:
