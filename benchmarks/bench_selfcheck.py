@@ -62,7 +62,9 @@ def one(path: str, payload: str, phrase: str) -> dict:
         "p_value": v.p_value,
         "marked": bool(v.marked),
         "payload_read": v.payload,
-        "strength": float(res.key.strength),
+        "strength": float(res.strength),
+        "notes": list(res.notes),
+        "reader": type(v.detail).__name__,
     }
 
 

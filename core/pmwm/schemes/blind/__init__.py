@@ -97,17 +97,21 @@ def embed(vertices, faces, options: Optional[EmbedOptions] = None, progress: Pro
     carrier (``embed_histogram``, its own read-back check) and ``EmbedResult.notes`` says so."""
     opts = options or EmbedOptions(scheme=NAME)
     passphrase, job = _start(vertices, faces, opts, progress, NAME, WAVES_BUDGET)
-    payload, kind = word.payload_of(
-        opts.payload,
-        opts.bits,
-        opts.n_bits,
-        lambda n: keyed_bits(job.secret, "blind-random-payload", n),
-        waveread.LENGTHS + tuple(L for L in word.PAYLOAD_BITS if L > waveread.LENGTHS[-1]),
-    )
     V, F = job.vertices, job.faces
     secret = word.derive_secret(passphrase)
     job.report(0.0, "marking keyed waves")
     try:
+        try:
+            payload, kind = word.payload_of(
+                opts.payload,
+                opts.bits,
+                opts.n_bits,
+                lambda n: keyed_bits(job.secret, "blind-random-payload", n),
+                waveread.LENGTHS,
+                "keyed waves",
+            )
+        except PayloadError as exc:
+            raise _Refused(str(exc)) from None
         marked, job.strength = _marked_waves(V, F, secret, payload, kind, job.strength)
     except _Refused as exc:
         # the baseline carrier marks what the keyed waves cannot (with its own read-back check), and says so
@@ -160,11 +164,6 @@ def _marked_waves(V, F, secret: str, payload: np.ndarray, kind: str, budget: flo
     """(marked vertices (n, 3), their MRMS %): the largest public step (``waves.STEPS``) whose marking costs at
     most ``budget`` % MRMS and reads back from every light copy (``selfcheck.failed_copy``), trying larger
     steps within the budget when one does not read. Raises PayloadError (one line) when none does."""
-    if len(payload) not in waveread.LENGTHS:
-        raise _Refused(
-            f"keyed waves carry {waveread.LENGTHS[0]} to {waveread.LENGTHS[-1]} payload bits in whole bytes (text "
-            f"of at most {waveread.LENGTHS[-1] // 8} bytes), not {len(payload)}"
-        )
     w = waveread.word_of(secret, kind, payload)
     spread = waves.spread_of(secret, len(w))
     bits = w ^ spread.scramble

@@ -86,10 +86,15 @@ def check_passphrase(passphrase: str) -> None:
 
 
 def payload_of(
-    payload: Optional[str], bits, n_bits: int, random_bits, lengths: tuple[int, ...] = PAYLOAD_BITS
+    payload: Optional[str],
+    bits,
+    n_bits: int,
+    random_bits,
+    lengths: tuple[int, ...] = PAYLOAD_BITS,
+    who: str = "the blind scheme",
 ) -> tuple[np.ndarray, str]:
     """The payload (L,) uint8 with L in ``lengths`` (the carrier's, ascending multiples of 8) and its kind
-    ("text" or "bits").
+    ("text" or "bits"); ``who`` names the carrier in the errors.
 
     Text is UTF-8 padded with NUL bytes to the shortest length that holds it; explicit bits must
     have one of the lengths; a random payload has ``n_bits`` bits, drawn by ``random_bits(n)``."""
@@ -102,18 +107,16 @@ def payload_of(
             raise PayloadError("the payload text is empty; give some text or use --bits")
         n = next((L for L in lengths if L >= 8 * len(data)), None)
         if n is None:
-            raise PayloadError(
-                f"the blind scheme holds at most {lengths[-1] // 8} bytes of text; this payload has {len(data)}"
-            )
+            raise PayloadError(f"{who} can hold at most {lengths[-1] // 8} bytes of text; this payload has {len(data)}")
         data = data + b"\0" * (n // 8 - len(data))
         return np.unpackbits(np.frombuffer(data, np.uint8)), "text"
     if bits is not None:
         b = parse_bits(bits)
         if len(b) not in lengths:
-            raise PayloadError(f"the blind scheme carries {sizes} payload bits; got {len(b)}")
+            raise PayloadError(f"{who} can carry {sizes} payload bits; got {len(b)}")
         return b, "bits"
     if n_bits not in lengths:
-        raise PayloadError(f"the blind scheme carries {sizes} payload bits; asked for {n_bits}")
+        raise PayloadError(f"{who} can carry {sizes} payload bits; asked for {n_bits}")
     return np.asarray(random_bits(n_bits), np.uint8), "bits"
 
 
