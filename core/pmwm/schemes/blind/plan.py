@@ -149,7 +149,7 @@ def p_value(p_one: float, frame_stages: Sequence[str]) -> float:
 
 def waves_p_value(p_one: float, hypotheses: int) -> float:
     """The p-value of a keyed-waves reading (``waveread``): its union bound, ``hypotheses`` (every sign
-    choice, mesh, step, length, kind and Chase candidate it weighed) times the best candidate's own tail
+    choice, mesh, step, length and kind it weighed, ``waveread.hypotheses``) times the best candidate's own tail
     probability ``p_one``, over its share ``WAVES_SHARE`` of the budget; at most 1."""
     return float(min(1.0, hypotheses * p_one / WAVES_SHARE))
 
