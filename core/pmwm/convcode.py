@@ -3,7 +3,9 @@
 The code is the standard rate-1/2 code of constraint length 7 (generators 171 and 133 in octal, free
 distance 10): each input bit shifts into a 6-bit state and emits two coded bits, the parities of the
 state and the bit under each generator. The word is terminated with ``MEMORY`` zero bits, so the coded
-word of k bits has 2 (k + MEMORY) bits and the decoder knows the path starts and ends in state 0.
+word of k bits has 2 (k + MEMORY) bits and the decoder knows the path starts and ends in state 0. A rate
+above 1/2 sends only some of them (``PUNCTURE``: the standard patterns of this code for 2/3 and 3/4); the
+decoder scores the bits not sent as 0, no evidence either way (``coded_length``: the bits sent).
 
 ``decode`` takes soft decisions: a score per coded bit, positive for 0 and negative for 1, in proportion
 to the log-likelihood ratio (for a quantisation-index channel, 1 - 4 |distance to the bit-0 lattice| in
@@ -45,6 +47,7 @@ def coded_length(k: int, rate: str = "1/2") -> int:
 
 
 def _parity(x: np.ndarray) -> np.ndarray:
+    """The parity (0 or 1) of each integer's bits, x (...) int."""
     x = x.copy()
     out = np.zeros_like(x)
     while x.any():
@@ -65,7 +68,7 @@ def _trellis() -> tuple[np.ndarray, np.ndarray]:
 
 
 def encode(bits: np.ndarray, rate: str = "1/2") -> np.ndarray:
-    """The coded word (2 (k + MEMORY),) uint8 of input bits (k,) uint8, ended by MEMORY zero bits."""
+    """The coded word (``coded_length(k, rate)``,) uint8 of input bits (k,) uint8, ended by MEMORY zero bits."""
     out, nxt = _trellis()
     state = 0
     coded = []
@@ -76,8 +79,9 @@ def encode(bits: np.ndarray, rate: str = "1/2") -> np.ndarray:
 
 
 def decode(scores: np.ndarray, k: int, rate: str = "1/2") -> np.ndarray:
-    """The most likely input bits (h, k) uint8 of soft scores (h, 2 (k + MEMORY)) (or (n,), giving (k,)):
-    score > 0 says 0, < 0 says 1, magnitudes in proportion to the log-likelihood ratio."""
+    """The most likely input bits (h, k) uint8 of the soft scores (h, ``coded_length(k, rate)``) of h words (or
+    of one, (n,), giving (k,)): score > 0 says 0, < 0 says 1, magnitudes in proportion to the log-likelihood
+    ratio. Raises ValueError when the scores are not as many as a word of k bits at ``rate`` sends."""
     sent = np.atleast_2d(np.asarray(scores, np.float64))
     kept = _kept(k, rate)
     if sent.shape[1] != kept.sum():
