@@ -173,6 +173,7 @@ def test_the_cli_prints_the_note_of_a_baseline_marking(tmp_path):
     )
     assert p.returncode == 0, p.stderr
     assert "note: keyed waves mark a solid" in p.stderr and "blind-histogram" in p.stderr
+    assert f"marked 32 bits in {src} " in p.stdout  # (the baseline pads "CAP" to 32 bits; no carriers to count)
 
 
 def test_marking_leaves_the_solids_frame_where_it_was(shape, marked):

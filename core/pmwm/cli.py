@@ -207,10 +207,8 @@ def cmd_embed(a) -> int:
                 + f") -> {a.output}"
             )
         else:
-            print(
-                f"marked {len(res.bits)} bits on {len(res.carriers)} carriers of {a.input} "
-                f"(VSNR {res.vsnr_db:.1f} dB) -> {a.output}"
-            )
+            where = f"on {len(res.carriers)} carriers of" if len(res.carriers) else "in"  # (blind: no carriers)
+            print(f"marked {len(res.bits)} bits {where} {a.input} (VSNR {res.vsnr_db:.1f} dB) -> {a.output}")
         if res.key is None:
             print(f"payload bits: {''.join(map(str, res.bits.tolist()))} (no key file: the pass phrase reads it)")
         else:
