@@ -91,7 +91,7 @@ def decode(scores: np.ndarray, k: int, rate: str = "1/2") -> np.ndarray:
     S[:, kept] = sent  # (a bit not sent scores 0: no evidence either way)
     r = len(GENERATORS)
     steps = k + MEMORY
-    out, nxt = _trellis()
+    out, _ = _trellis()
     n_states = 2**MEMORY
     sign = 1.0 - 2.0 * out  # (states, 2, r): +1 where the coded bit is 0
     # predecessors of each state: state t = (b << (MEMORY-1)) | (p >> 1); p = ((t << 1) & mask) | low bit
